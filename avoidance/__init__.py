@@ -1,0 +1,1 @@
+"""Planners: the common planner interface, reach-set avoidance grid, geometric avoider."""

@@ -1,0 +1,1 @@
+"""Guidance: missions and waypoints, path following, turning-flight geometry, MPTP."""

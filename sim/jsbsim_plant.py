@@ -1,0 +1,185 @@
+"""One JSBSim FGFDMExec per vehicle: loading, initial conditions, trim, stepping, properties.
+
+Truth state comes out as a :class:`sim.state.VehicleState` in the scenario's NED frame [m, m/s,
+rad]. JSBSim's own units (ft, kt, slug) stay inside this module and ``sim.frames``.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+
+import jsbsim
+import numpy as np
+
+from sim.frames import FT, KT, GeoPoint, geodetic_to_ned
+from sim.state import VehicleState
+
+
+class PlantError(RuntimeError):
+    """A JSBSim model could not be loaded, initialised, trimmed or stepped."""
+
+
+class _QuietLogger(jsbsim.FGLogger):
+    """Keeps JSBSim's console quiet; remembers recent warnings and errors for our messages."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.recent: deque[str] = deque(maxlen=20)
+        self._level = jsbsim.LogLevel.BULK
+        self._parts: list[str] = []
+
+    def set_level(self, level) -> None:
+        self._level = level
+        self._parts = []
+
+    def file_location(self, filename: str, line: int) -> None:
+        self._parts.append(f"{filename}:{line}: ")
+
+    def message(self, message: str) -> None:
+        self._parts.append(message)
+
+    def format(self, format) -> None:  # noqa: A002 - JSBSim's name
+        pass
+
+    def flush(self) -> None:
+        if self._level >= jsbsim.LogLevel.WARN and self._parts:
+            self.recent.append("".join(self._parts).strip())
+        self._parts = []
+
+
+_local = threading.local()
+
+
+def _quiet_logger() -> _QuietLogger:
+    """The thread's quiet logger (JSBSim loggers are per thread)."""
+    logger = getattr(_local, "logger", None)
+    if logger is None:
+        logger = _local.logger = _QuietLogger()
+        jsbsim.set_logger(logger)
+    return logger
+
+
+@dataclass(frozen=True, slots=True)
+class InitialConditions:
+    """Initial state: position (WGS84), true airspeed [m/s], heading [rad], attitude [rad]."""
+
+    position: GeoPoint
+    tas_mps: float = 0.0
+    heading_rad: float = 0.0
+    roll_rad: float = 0.0
+    pitch_rad: float = 0.0
+    on_ground: bool = False
+
+
+_TRUTH_PROPS = (
+    "position/lat-geod-deg", "position/long-gc-deg", "position/h-sl-ft",
+    "velocities/v-north-fps", "velocities/v-east-fps", "velocities/v-down-fps",
+    "attitude/phi-rad", "attitude/theta-rad", "attitude/psi-rad",
+    "velocities/p-rad_sec", "velocities/q-rad_sec", "velocities/r-rad_sec",
+    "velocities/vtrue-fps", "velocities/ve-fps", "aero/alpha-rad", "aero/beta-rad",
+)
+
+
+class JSBSimPlant:
+    """A JSBSim model stepped at a fixed ``dt`` [s].
+
+    ``airframe_dir`` is one of this project's airframe folders (``aircraft/<name>/`` holding
+    ``<name>.xml`` and its ``engine/`` and ``systems/``); ``None`` loads a model shipped with
+    JSBSim (e.g. ``c172p``).
+    """
+
+    def __init__(self, model: str, dt: float, origin: GeoPoint, airframe_dir: Path | None = None):
+        self.model = model
+        self.dt = float(dt)
+        self.origin = origin
+        self._log = _quiet_logger()
+        self.fdm = jsbsim.FGFDMExec(jsbsim.get_default_root_dir())
+        self.fdm.set_debug_level(0)
+        if airframe_dir is None:
+            ok = self._guard(lambda: self.fdm.load_model(model), f"load shipped model {model!r}")
+        else:
+            d = Path(airframe_dir)
+            ok = self._guard(
+                lambda: self.fdm.load_model_with_paths(
+                    model, str(d.parent), str(d / "engine"), str(d / "systems")),
+                f"load model {model!r} from {d}")
+        if not ok:
+            raise PlantError(self._with_log(f"JSBSim could not load model {model!r}"))
+        self.fdm.set_dt(self.dt)
+        pm = self.fdm.get_property_manager()
+        self._truth_nodes = [pm.get_node(p, False) for p in _TRUTH_PROPS]
+
+    def _with_log(self, msg: str) -> str:
+        tail = "; ".join(list(self._log.recent)[-3:])
+        return f"{msg}: {tail}" if tail else msg
+
+    def _guard(self, fn, what: str):
+        try:
+            return fn()
+        except (RuntimeError, jsbsim.BaseError) as exc:  # JSBSim raises on XML errors
+            raise PlantError(self._with_log(f"JSBSim failed to {what}: {exc}")) from exc
+
+    # -- properties ------------------------------------------------------------------------
+    def __getitem__(self, name: str) -> float:
+        return self.fdm.get_property_value(name)
+
+    def __setitem__(self, name: str, value: float) -> None:
+        self.fdm.set_property_value(name, float(value))
+
+    def set_many(self, values: dict[str, float]) -> None:
+        for k, v in values.items():
+            self.fdm.set_property_value(k, float(v))
+
+    # -- life cycle ------------------------------------------------------------------------
+    def initialise(self, ic: InitialConditions) -> None:
+        """Apply initial conditions, start the engines and run the IC."""
+        f = self.fdm
+        f["ic/lat-geod-deg"] = ic.position.lat_deg
+        f["ic/long-gc-deg"] = ic.position.lon_deg
+        if ic.on_ground:
+            f["ic/h-agl-ft"] = max(ic.position.alt_m / FT, 0.5)
+        else:
+            f["ic/h-sl-ft"] = ic.position.alt_m / FT
+        f["ic/vt-kts"] = ic.tas_mps / KT
+        f["ic/psi-true-rad"] = ic.heading_rad
+        f["ic/phi-rad"] = ic.roll_rad
+        f["ic/theta-rad"] = ic.pitch_rad
+        if not self._guard(f.run_ic, "run the initial conditions"):
+            raise PlantError(self._with_log(f"{self.model}: run_ic failed"))
+        f.get_propulsion().init_running(-1)
+
+    def trim(self, mode: int = 1) -> None:
+        """JSBSim trim (1 = full longitudinal + lateral); raises PlantError with the reason."""
+        try:
+            self.fdm["simulation/do_simple_trim"] = mode
+        except jsbsim.TrimFailureError as exc:
+            raise PlantError(self._with_log(f"{self.model}: trim failed ({exc})")) from exc
+
+    def step(self, n: int = 1) -> None:
+        """Advance ``n`` steps of ``dt``."""
+        run = self.fdm.run
+        for _ in range(n):
+            if not run():
+                raise PlantError(self._with_log(f"{self.model}: JSBSim stopped at t={self.time:.3f} s"))
+
+    @property
+    def time(self) -> float:
+        return self.fdm.get_sim_time()
+
+    def truth(self) -> VehicleState:
+        """True state in the scenario frame (SI)."""
+        (lat, lon, h_ft, vn, ve, vd, phi, theta, psi, p, q, r, vt, veas, alpha, beta) = (
+            n.get_double_value() for n in self._truth_nodes)
+        alt = h_ft * FT
+        return VehicleState(
+            t=self.time,
+            pos_ned=geodetic_to_ned(lat, lon, alt, self.origin),
+            vel_ned=np.array([vn * FT, ve * FT, vd * FT]),
+            euler=np.array([phi, theta, psi]),
+            rates_body=np.array([p, q, r]),
+            alt_msl_m=alt, lat_deg=lat, lon_deg=lon,
+            tas_mps=vt * FT, eas_mps=veas * FT, alpha_rad=alpha, beta_rad=beta,
+        )
