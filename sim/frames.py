@@ -1,7 +1,9 @@
 """Frame conversions, in one place.
 
-- WGS84 geodetic (lat, lon [deg], h [m] above the ellipsoid) <-> local NED [m] around an origin,
-  through ECEF (pymap3d), exact at any distance from the origin.
+- WGS84 geodetic (lat, lon [deg], h [m] above the ellipsoid, which JSBSim calls sea level) <->
+  the scenario's *local-level NED* frame [m]: north and east are the tangent-plane projection at
+  the origin (through ECEF, pymap3d), down is ``origin.alt - h``. A level flight thus has constant
+  D at any range (a pure tangent plane would put it 31 m "higher" after 20 km).
 - JSBSim speaks feet and knots; SI conversions live here too.
 - The seed algorithms are z-up (ENU); ``ned_to_enu`` / ``enu_to_ned`` are the one boundary.
 """
@@ -27,18 +29,25 @@ class GeoPoint:
     alt_m: float = 0.0
 
 
+_R_MEAN = 6_371_008.8  # mean earth radius [m], only for the curvature drop of the inverse
+
+
 def geodetic_to_ned(lat_deg, lon_deg, alt_m, origin: GeoPoint) -> np.ndarray:
-    """Local NED [m] of geodetic point(s) relative to ``origin``; arrays broadcast, last axis NED."""
-    n, e, d = pymap3d.geodetic2ned(lat_deg, lon_deg, alt_m, origin.lat_deg, origin.lon_deg, origin.alt_m)
-    return np.stack([np.asarray(n, float), np.asarray(e, float), np.asarray(d, float)], axis=-1)
+    """Local-level NED [m] of geodetic point(s) relative to ``origin``; last axis N, E, D."""
+    n, e, _ = pymap3d.geodetic2ned(lat_deg, lon_deg, alt_m, origin.lat_deg, origin.lon_deg, origin.alt_m)
+    d = origin.alt_m - np.asarray(alt_m, float)
+    return np.stack(np.broadcast_arrays(np.asarray(n, float), np.asarray(e, float), d), axis=-1)
 
 
 def ned_to_geodetic(ned, origin: GeoPoint) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Geodetic (lat [deg], lon [deg], alt [m]) of local NED point(s) relative to ``origin``."""
+    """Geodetic (lat [deg], lon [deg], alt [m]) of local-level NED point(s) (inverse of
+    :func:`geodetic_to_ned`; the tangent-plane D is corrected by the curvature drop, exact to
+    millimetres within 100 km)."""
     ned = np.asarray(ned, float)
-    lat, lon, alt = pymap3d.ned2geodetic(ned[..., 0], ned[..., 1], ned[..., 2],
-                                         origin.lat_deg, origin.lon_deg, origin.alt_m)
-    return np.asarray(lat, float), np.asarray(lon, float), np.asarray(alt, float)
+    n, e, d = ned[..., 0], ned[..., 1], ned[..., 2]
+    d_tangent = d + (n * n + e * e) / (2.0 * _R_MEAN)
+    lat, lon, _ = pymap3d.ned2geodetic(n, e, d_tangent, origin.lat_deg, origin.lon_deg, origin.alt_m)
+    return np.asarray(lat, float), np.asarray(lon, float), origin.alt_m - d
 
 
 def ned_to_enu(v) -> np.ndarray:

@@ -1,0 +1,78 @@
+"""The airframes a scenario can name, with their JSBSim model, rates and flight controller.
+
+A flight controller turns a guidance setpoint and the vehicle's estimate into JSBSim property
+commands (see :class:`FlightController`); its gains live in the airframe folder's gains file.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal, Protocol
+
+from aircraft import airframe_dir
+from sim.state import VehicleState
+
+
+class FlightController(Protocol):
+    """Setpoint + estimate -> JSBSim property commands, called at the airframe's control rate."""
+
+    debug: dict[str, float]
+
+    def reset(self, state: VehicleState) -> None: ...
+
+    def update(self, state: VehicleState, setpoint, dt: float) -> dict[str, float]: ...
+
+
+@dataclass(frozen=True, slots=True)
+class Airframe:
+    """One flyable airframe: JSBSim model, its integration rate, the controller and its rate."""
+
+    name: str
+    kind: Literal["fixed_wing", "multirotor"]
+    jsbsim_model: str
+    folder: Path | None  # None: a model shipped with JSBSim
+    plant_hz: int
+    control_hz: int
+    controller: str  # "module:Class" with a classmethod-free ctor taking the gains object
+    gains: str  # "module:Class" with ``load(path=None)``
+    description: str
+
+    def make_controller(self, gains_path: Path | None = None) -> FlightController:
+        gains = _resolve(self.gains).load(gains_path)
+        return _resolve(self.controller)(gains)
+
+
+def _resolve(ref: str):
+    module, _, attr = ref.partition(":")
+    return getattr(importlib.import_module(module), attr)
+
+
+AIRFRAMES: dict[str, Airframe] = {
+    a.name: a
+    for a in (
+        Airframe(
+            name="haps", kind="fixed_wing", jsbsim_model="haps", folder=airframe_dir("haps"),
+            plant_hz=120, control_hz=10,
+            controller="aircraft.haps.autopilot:HapsAutopilot",
+            gains="aircraft.haps.autopilot:HapsGains",
+            description="Zephyr-class solar-electric HAPS, 25 m span, 75 kg (aircraft/haps/README.md)",
+        ),
+        Airframe(
+            name="quadrotor", kind="multirotor", jsbsim_model="quadrotor",
+            folder=airframe_dir("quadrotor"), plant_hz=240, control_hz=50,
+            controller="aircraft.quadrotor.controller:MultirotorController",
+            gains="aircraft.quadrotor.controller:MultirotorGains",
+            description="F450-derived 1.4 kg quadrotor (aircraft/quadrotor/README.md)",
+        ),
+    )
+}
+
+
+def get_airframe(name: str) -> Airframe:
+    """The airframe called ``name``; KeyError naming the known ones otherwise."""
+    try:
+        return AIRFRAMES[name]
+    except KeyError:
+        raise KeyError(f"unknown aircraft {name!r} (known: {', '.join(sorted(AIRFRAMES))})") from None

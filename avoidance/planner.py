@@ -1,0 +1,59 @@
+"""The planner interface shared by the follow-mission planner, the avoiders and the MPTP.
+
+A planner is called at its own rate with the vehicle's *estimate* (never truth) and the threats
+as sensed, and returns a :class:`Plan`: a time-stamped reference trajectory in the scenario's
+local-level NED frame [m], times in sim seconds, plus a status and diagnostics. Planners may keep
+state between calls. Guidance follows the newest plan; the runner logs every plan.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import Protocol
+
+import numpy as np
+
+from sim.state import VehicleState
+
+
+class PlanStatus(str, Enum):
+    OK = "ok"
+    DEGRADED = "degraded"
+    NO_SOLUTION = "no_solution"
+
+
+@dataclass(slots=True)
+class Plan:
+    """Reference trajectory: ``positions`` (N, 3) NED [m], ``times`` (N,) sim time [s] at which
+    each vertex is due, optional ``velocities`` (N, 3) NED [m/s], and per-vertex ``labels``
+    (mission waypoint index, or -1 for a vertex the planner added)."""
+
+    t: float
+    positions: np.ndarray
+    times: np.ndarray
+    labels: np.ndarray
+    status: PlanStatus = PlanStatus.OK
+    velocities: np.ndarray | None = None
+    planner: str = ""
+    diagnostics: dict[str, float | int | str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        n = len(self.positions)
+        if self.positions.shape != (n, 3) or self.times.shape != (n,) or self.labels.shape != (n,):
+            raise ValueError("plan arrays must be positions (N,3), times (N,), labels (N,)")
+
+
+@dataclass(slots=True)
+class Threats:
+    """What the vehicle knows of the world around it (filled by the sensors issue on)."""
+
+    intruders: list = field(default_factory=list)
+    obstacles: list = field(default_factory=list)
+    storms: list = field(default_factory=list)
+
+
+class Planner(Protocol):
+    name: str
+
+    def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan: ...

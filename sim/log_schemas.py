@@ -1,0 +1,81 @@
+"""JSON Schemas of this project's own MCAP messages (Foxglove shows their fields by name).
+
+Foxglove's well-known types (LocationFix, PoseInFrame, FrameTransforms, Log...) come from the
+``foxglove-schemas-protobuf`` package instead. Units and frames are in each field's description.
+"""
+
+from __future__ import annotations
+
+import json
+
+_NUM = {"type": "number"}
+_VEC3 = {"type": "array", "items": _NUM, "minItems": 3, "maxItems": 3}
+
+
+def _obj(title: str, fields: dict[str, tuple[dict, str]], extra: bool = False) -> dict:
+    return {
+        "title": title,
+        "type": "object",
+        "properties": {k: {**t, "description": d} for k, (t, d) in fields.items()},
+        "additionalProperties": extra,
+    }
+
+
+VEHICLE_STATE = _obj("cosim.VehicleState", {
+    "t": (_NUM, "sim time [s]"),
+    "pos_ned": (_VEC3, "local-level NED position from the scenario origin [m]"),
+    "vel_ned": (_VEC3, "NED ground velocity [m/s]"),
+    "euler": (_VEC3, "roll, pitch, yaw (3-2-1, body FRD to NED) [rad]"),
+    "rates_body": (_VEC3, "body rates p, q, r (FRD) [rad/s]"),
+    "alt_msl_m": (_NUM, "altitude above mean sea level (WGS84 ellipsoid) [m]"),
+    "lat_deg": (_NUM, "geodetic latitude [deg]"),
+    "lon_deg": (_NUM, "longitude [deg]"),
+    "tas_mps": (_NUM, "true airspeed [m/s]"),
+    "eas_mps": (_NUM, "equivalent airspeed [m/s]"),
+    "alpha_rad": (_NUM, "angle of attack [rad]"),
+    "beta_rad": (_NUM, "sideslip angle [rad]"),
+})
+
+FIXED_WING_SETPOINT = _obj("cosim.FixedWingSetpoint", {
+    "t": (_NUM, "sim time [s]"),
+    "roll_rad": (_NUM, "bank angle demand [rad]"),
+    "altitude_m": (_NUM, "altitude demand, MSL [m]"),
+    "tas_mps": (_NUM, "true airspeed demand [m/s]"),
+    "leg": ({"type": "integer"}, "index of the plan leg being followed"),
+    "cross_track_m": (_NUM, "signed cross-track error to the leg, right positive [m]"),
+    "turning": ({"type": "boolean"}, "true while capturing a new leg (not straight flight)"),
+})
+
+COMMANDS = _obj("cosim.Commands", {
+    "t": (_NUM, "sim time [s]"),
+    "properties": ({"type": "object", "additionalProperties": _NUM},
+                   "JSBSim property commands written this tick (JSBSim units)"),
+    "debug": ({"type": "object", "additionalProperties": _NUM},
+              "controller internals (energy errors, integrators...)"),
+})
+
+PLAN = _obj("cosim.Plan", {
+    "t": (_NUM, "sim time the plan was made [s]"),
+    "planner": ({"type": "string"}, "planner name"),
+    "status": ({"type": "string", "enum": ["ok", "degraded", "no_solution"]}, "plan status"),
+    "positions": ({"type": "array", "items": _VEC3}, "vertices, local-level NED [m]"),
+    "times": ({"type": "array", "items": _NUM}, "sim time each vertex is due [s]"),
+    "labels": ({"type": "array", "items": {"type": "integer"}}, "mission waypoint index or -1"),
+    "diagnostics": ({"type": "object"}, "planner-specific values"),
+})
+
+WALL_TIMING = _obj("cosim.WallTiming", {
+    "t": (_NUM, "sim time [s]"),
+    "seconds": (_NUM, "wall-clock time the call took [s]; differs run to run by nature"),
+})
+
+MISSION_STATUS = _obj("cosim.MissionStatus", {
+    "t": (_NUM, "sim time [s]"),
+    "next_waypoint": ({"type": "integer"}, "index of the waypoint being flown to"),
+    "waypoints": ({"type": "integer"}, "number of waypoints"),
+    "complete": ({"type": "boolean"}, "all waypoints reached"),
+})
+
+
+def encoded(schema: dict) -> bytes:
+    return json.dumps(schema, sort_keys=True).encode()

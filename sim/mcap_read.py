@@ -1,0 +1,116 @@
+"""Reading run logs back: decoded messages per topic, the run's metadata, a summary for ``info``.
+
+Sim time of a message = log time - the run's epoch (metadata ``run.epoch_ns``).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
+from mcap_protobuf.decoder import DecoderFactory
+
+
+class LogReadError(ValueError):
+    """The file is missing, not an MCAP, or damaged beyond reading."""
+
+
+@dataclass(frozen=True, slots=True)
+class TopicInfo:
+    topic: str
+    schema: str
+    encoding: str
+    count: int
+    metadata: dict[str, str]
+
+
+@dataclass(frozen=True, slots=True)
+class LogInfo:
+    path: Path
+    profile: str
+    library: str
+    start_s: float
+    end_s: float
+    messages: int
+    topics: list[TopicInfo]
+    metadata: dict[str, dict[str, str]]
+    attachments: list[str]
+
+
+def _open(path: str | Path):
+    path = Path(path)
+    if not path.is_file():
+        raise LogReadError(f"{path}: no such file")
+    return path, open(path, "rb")
+
+
+def read_info(path: str | Path) -> LogInfo:
+    """Summary of a finished log (topics, counts, time span, metadata)."""
+    path, f = _open(path)
+    with f:
+        try:
+            reader = make_reader(f)
+            header = reader.get_header()
+            summary = reader.get_summary()
+            if summary is None:
+                raise LogReadError(f"{path}: the MCAP has no summary (the run was killed before it "
+                                   "could finish the file)")
+            meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+            attachments = [a.name for a in reader.iter_attachments()]
+        except McapError as exc:
+            raise LogReadError(f"{path}: not a readable MCAP file ({exc})") from None
+    epoch = int(meta.get("run", {}).get("epoch_ns", 0))
+    stats = summary.statistics
+    counts = stats.channel_message_counts if stats else {}
+    topics = sorted(
+        (TopicInfo(ch.topic, summary.schemas[ch.schema_id].name if ch.schema_id else "",
+                   ch.message_encoding, counts.get(cid, 0), dict(ch.metadata))
+         for cid, ch in summary.channels.items()),
+        key=lambda ti: ti.topic)
+    return LogInfo(
+        path=path, profile=header.profile, library=header.library,
+        start_s=((stats.message_start_time - epoch) / 1e9) if stats and stats.message_count else 0.0,
+        end_s=((stats.message_end_time - epoch) / 1e9) if stats and stats.message_count else 0.0,
+        messages=stats.message_count if stats else 0, topics=topics, metadata=meta,
+        attachments=attachments)
+
+
+def iter_messages(path: str | Path, topics: list[str] | None = None) -> Iterator[tuple[str, float, Any]]:
+    """(topic, sim time [s], decoded message) in log-time order; JSON decodes to dicts,
+    protobuf to message objects."""
+    path, f = _open(path)
+    with f:
+        try:
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+            epoch = int(meta.get("run", {}).get("epoch_ns", 0))
+            for schema, channel, message in reader.iter_messages(topics=topics, log_time_order=True):
+                if channel.message_encoding == "json":
+                    decoded = json.loads(message.data)
+                else:
+                    decoded = _decode_proto(schema, channel, message)
+                yield channel.topic, (message.log_time - epoch) / 1e9, decoded
+        except McapError as exc:
+            raise LogReadError(f"{path}: damaged MCAP ({exc})") from None
+
+
+_proto_decoders: dict[tuple[str, bytes], Any] = {}
+_factory = DecoderFactory()
+
+
+def _decode_proto(schema, channel, message):
+    key = (schema.name, schema.data)
+    dec = _proto_decoders.get(key)
+    if dec is None:
+        dec = _proto_decoders[key] = _factory.decoder_for(channel.message_encoding, schema)
+    return dec(message.data)
+
+
+def read_topic(path: str | Path, topic: str) -> list[tuple[float, Any]]:
+    """All messages of one topic as (sim time [s], decoded)."""
+    return [(t, m) for _, t, m in iter_messages(path, [topic])]
