@@ -1,0 +1,68 @@
+"""Fixed-wing plan following: leg sequencing, L1 bank command, altitude profile, airspeed.
+
+Legs are the plan's consecutive vertices (local-level NED [m]). A leg is done when the aircraft
+is within the acceptance radius of its end or has passed the line through its end perpendicular
+to it. Altitude demand follows the straight line between the leg's end altitudes (MSL [m]);
+airspeed demand is the cruise true airspeed [m/s]. After the last vertex the aircraft holds the
+last leg's track.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from avoidance.planner import Plan
+from guidance.l1 import L1Guidance
+from guidance.path import leg_progress
+from guidance.setpoints import FixedWingSetpoint
+from sim.state import VehicleState
+
+_STRAIGHT_HEADING_ERR = math.radians(10.0)
+_STRAIGHT_CROSS_M = 30.0
+
+
+class FixedWingPlanFollower:
+    def __init__(self, l1: L1Guidance, cruise_tas: float, acceptance_radius: float, origin_alt_m: float):
+        self.l1 = l1
+        self.cruise_tas = cruise_tas
+        self.acceptance_radius = acceptance_radius
+        self.origin_alt_m = origin_alt_m
+        self.plan: Plan | None = None
+        self.leg = 0
+        self.cross_track_m = 0.0
+        self.turning = True
+
+    def set_plan(self, plan: Plan) -> None:
+        """Follow ``plan`` from its first leg (vertex 0 is where the plan's first leg starts)."""
+        self.plan = plan
+        self.leg = 0
+
+    def update(self, est: VehicleState) -> tuple[FixedWingSetpoint, list[int]]:
+        """Setpoint for now and the labels of the vertices passed since the last call."""
+        plan = self.plan
+        if plan is None:
+            raise RuntimeError("FixedWingPlanFollower.update before any plan")
+        P = plan.positions
+        passed: list[int] = []
+        while self.leg < len(P) - 1:
+            prog = leg_progress(est.pos_ned, P[self.leg], P[self.leg + 1])
+            if prog.to_end_m <= self.acceptance_radius or prog.along_m >= prog.length_m:
+                self.leg += 1
+                passed.append(int(plan.labels[self.leg]))
+            else:
+                break
+        if self.leg < len(P) - 1:
+            a, b = P[self.leg], P[self.leg + 1]
+        elif len(P) >= 2:  # past the end: hold the last leg's track
+            a, b = P[-1], 2.0 * P[-1] - P[-2]
+        else:
+            a, b = est.pos_ned, P[-1]
+        prog = leg_progress(est.pos_ned, a, b)
+        roll, self.cross_track_m = self.l1.update(est, a, b)
+        d = a[2] + prog.fraction * (b[2] - a[2])
+        heading_err = abs(math.remainder(est.course_rad - prog.bearing_rad, math.tau))
+        self.turning = heading_err > _STRAIGHT_HEADING_ERR or abs(self.cross_track_m) > _STRAIGHT_CROSS_M
+        sp = FixedWingSetpoint(roll_rad=roll, altitude_m=self.origin_alt_m - float(d), tas_mps=self.cruise_tas)
+        return sp, passed

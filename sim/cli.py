@@ -1,0 +1,152 @@
+"""``cosim``: run scenarios, inspect logs.
+
+Exit codes: 0 success, 1 the run failed (its log is still written), 2 bad input (scenario or
+log file), 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+from pathlib import Path
+
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from sim import __version__
+
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+err = Console(stderr=True)
+out = Console()
+
+
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def _fmt_duration(s: float) -> str:
+    h, rem = divmod(s, 3600)
+    m, sec = divmod(rem, 60)
+    return f"{int(h)}:{int(m):02d}:{sec:05.2f}"
+
+
+def cmd_run(args) -> int:
+    from sim.runner import RunFailed, run_scenario
+    from sim.scenario import ScenarioError, load_scenario
+
+    try:
+        scenario, text = load_scenario(args.scenario)
+    except ScenarioError as exc:
+        err.print(f"[red]error:[/] {exc}", highlight=False, markup=True)
+        return EXIT_BAD_INPUT
+    path = Path(args.output) if args.output else Path("logs") / f"{scenario.name}.mcap"
+    duration = args.duration if args.duration is not None else scenario.duration
+    signal.signal(signal.SIGTERM, _raise_interrupt)
+    progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(),
+                        TextColumn("{task.fields[sim]} / {task.fields[end]} sim"), TimeElapsedColumn(),
+                        console=err, disable=args.quiet, transient=True)
+    with progress:
+        task = progress.add_task(scenario.name, total=duration, sim=_fmt_duration(0), end=_fmt_duration(duration))
+
+        def on_progress(t: float, end: float) -> None:
+            progress.update(task, completed=t, sim=_fmt_duration(t))
+
+        try:
+            result = run_scenario(scenario, path, scenario_text=text, duration=duration, progress=on_progress)
+        except RunFailed as exc:
+            result = exc.result
+            if args.debug:
+                err.print_exception()
+    _print_summary(result)
+    return {"completed": EXIT_OK, "duration_elapsed": EXIT_OK, "interrupted": EXIT_INTERRUPTED}.get(
+        result.status, EXIT_FAILED)
+
+
+def _print_summary(r) -> None:
+    colour = {"completed": "green", "duration_elapsed": "yellow"}.get(r.status, "red")
+    t = Table(title=f"cosim run: {r.scenario}", show_header=False, title_justify="left")
+    t.add_row("status", f"[{colour}]{r.status}[/]")
+    if r.error:
+        t.add_row("error", r.error)
+    t.add_row("sim time", _fmt_duration(r.sim_time_s))
+    t.add_row("wall time", f"{r.wall_time_s:.1f} s")
+    t.add_row("real-time factor", f"{r.real_time_factor:.0f}x")
+    for name, m in r.missions.items():
+        when = f" at {_fmt_duration(m.complete_time_s)}" if m.complete_time_s is not None else ""
+        state = "[green]complete[/]" if m.complete else "[yellow]incomplete[/]"
+        t.add_row(f"mission {name}", f"{state}: {m.reached}/{m.waypoints} waypoints{when}")
+    t.add_row("log", str(r.log_path))
+    out.print(t)
+
+
+def cmd_info(args) -> int:
+    from sim.mcap_read import LogReadError, read_info
+
+    try:
+        info = read_info(args.log)
+    except LogReadError as exc:
+        err.print(f"[red]error:[/] {exc}", highlight=False)
+        return EXIT_BAD_INPUT
+    run = info.metadata.get("run", {})
+    res = info.metadata.get("result", {})
+    head = Table(title=f"{info.path}", show_header=False, title_justify="left")
+    head.add_row("scenario", run.get("scenario", "?"))
+    head.add_row("seed", run.get("seed", "?"))
+    head.add_row("result", res.get("status", "? (no result metadata)"))
+    head.add_row("sim time", f"{info.start_s:.2f} .. {info.end_s:.2f} s")
+    head.add_row("messages", str(info.messages))
+    head.add_row("versions", f"cosim {run.get('cosim_version', '?')}, jsbsim {run.get('jsbsim_version', '?')}")
+    head.add_row("attachments", ", ".join(info.attachments) or "-")
+    out.print(head)
+    topics = Table("topic", "schema", "encoding", "messages")
+    for ti in info.topics:
+        topics.add_row(ti.topic, ti.schema, ti.encoding, str(ti.count))
+    out.print(topics)
+    return EXIT_OK
+
+
+def cmd_validate(args) -> int:
+    from sim.scenario import ScenarioError, load_scenario
+
+    try:
+        scenario, _ = load_scenario(args.scenario)
+    except ScenarioError as exc:
+        err.print(f"[red]error:[/] {exc}", highlight=False)
+        return EXIT_BAD_INPUT
+    out.print(f"{args.scenario}: ok ({scenario.name}, {len(scenario.vehicle)} vehicle(s))")
+    return EXIT_OK
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="cosim", description="Closed-loop JSBSim co-simulation harness")
+    p.add_argument("--version", action="version", version=f"cosim {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("run", help="fly a scenario and log it to MCAP")
+    r.add_argument("scenario", help="scenario TOML file")
+    r.add_argument("-o", "--output", help="MCAP log path (default logs/<scenario name>.mcap)")
+    r.add_argument("--duration", type=float, help="sim time to fly [s] (default: the scenario's)")
+    r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--debug", action="store_true", help="print the traceback of a failed run")
+    r.set_defaults(fn=cmd_run)
+    i = sub.add_parser("info", help="summarise an MCAP log")
+    i.add_argument("log")
+    i.set_defaults(fn=cmd_info)
+    v = sub.add_parser("validate", help="check a scenario file without flying it")
+    v.add_argument("scenario")
+    v.set_defaults(fn=cmd_validate)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.fn(args)
+    except KeyboardInterrupt:
+        err.print("interrupted")
+        return EXIT_INTERRUPTED
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,138 @@
+"""Run one scenario to one MCAP log.
+
+The log is finished in a ``finally``: a run that raises, is interrupted (Ctrl-C, SIGTERM) or
+diverges leaves a readable file with every message up to its last tick, and metadata ``result``
+saying how it ended. Nothing wall-clock goes into the messages except channels marked
+``wallclock=true``, so the same scenario and seed give the same message payloads.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import jsbsim
+
+from sim import __version__
+from sim.frames import GeoPoint
+from sim.mcap_log import McapLog
+from sim.scenario import Scenario
+from sim.scheduler import LockstepScheduler, Stage
+from sim.vehicle import Vehicle
+from sim.vehicle_log import write_static_frames
+
+
+@dataclass
+class MissionResult:
+    reached: int
+    waypoints: int
+    complete: bool
+    complete_time_s: float | None
+
+
+@dataclass
+class RunResult:
+    scenario: str
+    log_path: Path
+    status: str  # "completed" | "duration_elapsed" | "interrupted" | "failed"
+    sim_time_s: float
+    wall_time_s: float
+    missions: dict[str, MissionResult] = field(default_factory=dict)
+    error: str | None = None
+
+    @property
+    def real_time_factor(self) -> float:
+        return self.sim_time_s / self.wall_time_s if self.wall_time_s > 0 else math.inf
+
+
+class RunFailed(RuntimeError):
+    """The run raised; ``result`` says how far it got and where its log is."""
+
+    def __init__(self, result: RunResult):
+        super().__init__(f"{result.scenario}: run failed at t={result.sim_time_s:.2f} s: {result.error} "
+                         f"(log: {result.log_path})")
+        self.result = result
+
+
+ProgressFn = Callable[[float, float], None]  # (sim time, end time) [s]
+
+
+def _lcm_rates(rates: list[int]) -> int:
+    return math.lcm(*rates)
+
+
+def run_scenario(
+    scenario: Scenario,
+    out: str | Path,
+    *,
+    scenario_text: str = "",
+    duration: float | None = None,
+    progress: ProgressFn | None = None,
+    progress_hz: float = 1.0,
+    tick_hook: Callable[[float], None] | None = None,
+) -> RunResult:
+    """Fly ``scenario`` for ``duration`` [s] (default: the scenario's) and log it to ``out``.
+
+    ``tick_hook(t)`` runs after each log tick (tests use it to inject failures).
+    Returns a RunResult; raises RunFailed (log already closed) if the simulation raised.
+    """
+    end = float(duration if duration is not None else scenario.duration)
+    origin = GeoPoint(math.degrees(scenario.origin.lat), math.degrees(scenario.origin.lon),
+                      scenario.origin.altitude)
+    log = McapLog(out, scenario.epoch_ns)
+    result = RunResult(scenario.name, Path(out), "failed", 0.0, 0.0)
+    wall0 = time.perf_counter()
+    sched: LockstepScheduler | None = None
+    vehicles: list[Vehicle] = []
+    failure: Exception | None = None
+    try:
+        log.metadata("run", {
+            "scenario": scenario.name, "seed": scenario.seed, "epoch_ns": scenario.epoch_ns,
+            "cosim_version": __version__, "jsbsim_version": jsbsim.__version__, "duration_s": end})
+        if scenario_text:
+            log.attach("scenario.toml", scenario_text.encode(), "application/toml")
+        write_static_frames(log)
+        vehicles = [Vehicle(v, origin, log) for v in scenario.vehicle]
+        base = _lcm_rates([v.airframe.plant_hz for v in vehicles])
+        sched = LockstepScheduler(base)
+        for v in vehicles:
+            v.schedule(sched, scenario.logging.rate_hz)
+        if progress is not None:
+            sched.add_task("progress", progress_hz, Stage.LOG, lambda t: progress(t, end))
+        if tick_hook is not None:
+            sched.add_task("tick_hook", scenario.logging.rate_hz, Stage.LOG, tick_hook)
+        log.event(0.0, f"run start: {scenario.name} (seed {scenario.seed})")
+        done = (lambda: all(v.mission.complete for v in vehicles)) if scenario.stop_when_complete else (lambda: False)
+        sched.run(round(end * base), stop=done)
+        result.status = "completed" if done() or all(v.mission.complete for v in vehicles) else "duration_elapsed"
+    except KeyboardInterrupt:
+        result.status = "interrupted"
+        result.error = "interrupted by the user"
+    except Exception as exc:  # recorded in the log, then re-raised as RunFailed
+        result.status = "failed"
+        result.error = f"{type(exc).__name__}: {exc}"
+        failure = exc
+    finally:
+        result.sim_time_s = sched.time if sched is not None else 0.0
+        result.wall_time_s = time.perf_counter() - wall0
+        for v in vehicles:
+            m = v.mission
+            result.missions[v.name] = MissionResult(
+                len(m.reached), len(m.waypoints), m.complete, m.reached[-1][1] if m.complete else None)
+        try:
+            if result.status != "completed":
+                log.event(result.sim_time_s, f"run ended: {result.status}"
+                          + (f" ({result.error})" if result.error else ""),
+                          level="error" if result.status == "failed" else "warning")
+            log.metadata("result", {
+                "status": result.status, "sim_time_s": repr(result.sim_time_s),
+                **{f"{n}.mission_complete": str(r.complete) for n, r in result.missions.items()},
+                **({"error": result.error} if result.error else {})})
+        finally:
+            log.close()
+    if failure is not None:
+        raise RunFailed(result) from failure
+    return result

@@ -1,0 +1,103 @@
+"""What one vehicle writes to the run log each log tick.
+
+Topics (``<v>`` = vehicle name): ``/<v>/truth/state`` (cosim.VehicleState), ``/<v>/truth/location``
+(foxglove.LocationFix, Map panel), ``/<v>/truth/pose`` (foxglove.PoseInFrame in frame ``ned``),
+``/<v>/ctrl/setpoint``, ``/<v>/ctrl/commands``, ``/<v>/mission/status``, ``/<v>/plan``; and the
+vehicle's transform ``ned`` -> ``<v>`` in ``/tf`` (foxglove.FrameTransforms). The static
+``world`` (ENU, Foxglove's z-up convention) -> ``ned`` transform is written once at t = 0.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict
+
+from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.LocationFix_pb2 import LocationFix
+from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
+
+from avoidance.planner import Plan
+from sim import log_schemas as S
+from sim.frames import euler_to_quaternion
+from sim.mcap_log import McapLog
+from sim.state import VehicleState
+
+NED_FRAME = "ned"
+WORLD_FRAME = "world"
+_HALF_SQRT2 = math.sqrt(0.5)
+
+
+def state_dict(s: VehicleState) -> dict:
+    return {
+        "t": s.t, "pos_ned": s.pos_ned.tolist(), "vel_ned": s.vel_ned.tolist(),
+        "euler": s.euler.tolist(), "rates_body": s.rates_body.tolist(),
+        "alt_msl_m": s.alt_msl_m, "lat_deg": s.lat_deg, "lon_deg": s.lon_deg,
+        "tas_mps": s.tas_mps, "eas_mps": s.eas_mps, "alpha_rad": s.alpha_rad, "beta_rad": s.beta_rad,
+    }
+
+
+def write_static_frames(log: McapLog) -> None:
+    """``world`` (ENU) -> ``ned``: NED axes expressed in ENU, a 180 deg turn about (1, 1, 0)."""
+    tf = FrameTransform(parent_frame_id=WORLD_FRAME, child_frame_id=NED_FRAME)
+    tf.timestamp.FromNanoseconds(log.epoch_ns)
+    tf.rotation.x, tf.rotation.y, tf.rotation.z, tf.rotation.w = _HALF_SQRT2, _HALF_SQRT2, 0.0, 0.0
+    log.write_proto("/tf_static", 0.0, FrameTransforms(transforms=[tf]))
+
+
+class VehicleLogWriter:
+    """Formats and writes one vehicle's messages; topic names are built once."""
+
+    def __init__(self, log: McapLog, name: str):
+        self.log = log
+        self.name = name
+        p = f"/{name}"
+        self.t_state, self.t_loc, self.t_pose = f"{p}/truth/state", f"{p}/truth/location", f"{p}/truth/pose"
+        self.t_sp, self.t_cmd, self.t_mission = f"{p}/ctrl/setpoint", f"{p}/ctrl/commands", f"{p}/mission/status"
+        self.t_plan, self.t_latency = f"{p}/plan", f"{p}/plan/latency"
+
+    def truth(self, s: VehicleState) -> None:
+        log, t = self.log, s.t
+        ns = log.epoch_ns + round(t * 1e9)
+        log.write_json(self.t_state, t, state_dict(s), S.VEHICLE_STATE,
+                       {"frame": "local-level NED from the scenario origin", "units": "SI, rad"})
+        fix = LocationFix(frame_id=self.name, latitude=s.lat_deg, longitude=s.lon_deg, altitude=s.alt_msl_m)
+        fix.timestamp.FromNanoseconds(ns)
+        log.write_proto(self.t_loc, t, fix)
+        qx, qy, qz, qw = euler_to_quaternion(*s.euler)
+        n, e, d = s.pos_ned.tolist()
+        pose = PoseInFrame(frame_id=NED_FRAME)
+        pose.timestamp.FromNanoseconds(ns)
+        pose.pose.position.x, pose.pose.position.y, pose.pose.position.z = n, e, d
+        o = pose.pose.orientation
+        o.x, o.y, o.z, o.w = qx, qy, qz, qw
+        log.write_proto(self.t_pose, t, pose)
+        tf = FrameTransform(parent_frame_id=NED_FRAME, child_frame_id=self.name)
+        tf.timestamp.FromNanoseconds(ns)
+        tf.translation.x, tf.translation.y, tf.translation.z = n, e, d
+        r = tf.rotation
+        r.x, r.y, r.z, r.w = qx, qy, qz, qw
+        log.write_proto("/tf", t, FrameTransforms(transforms=[tf]))
+
+    def control(self, t: float, setpoint: dict, commands: dict[str, float], debug: dict[str, float]) -> None:
+        self.log.write_json(self.t_sp, t, {"t": t, **setpoint}, S.FIXED_WING_SETPOINT)
+        self.log.write_json(self.t_cmd, t, {"t": t, "properties": commands, "debug": debug}, S.COMMANDS)
+
+    def mission(self, t: float, next_waypoint: int, waypoints: int, complete: bool) -> None:
+        self.log.write_json(self.t_mission, t, {"t": t, "next_waypoint": next_waypoint,
+                                                "waypoints": waypoints, "complete": complete},
+                            S.MISSION_STATUS)
+
+    def plan(self, plan: Plan, latency_s: float) -> None:
+        t = plan.t
+        self.log.write_json(self.t_plan, t, {
+            "t": t, "planner": plan.planner, "status": plan.status.value,
+            "positions": plan.positions.tolist(), "times": plan.times.tolist(),
+            "labels": plan.labels.tolist(), "diagnostics": plan.diagnostics}, S.PLAN,
+            {"frame": "local-level NED from the scenario origin"})
+        self.log.write_json(self.t_latency, t, {"t": t, "seconds": latency_s}, S.WALL_TIMING,
+                            {"wallclock": "true"})
+
+
+def setpoint_dict(sp, **extra) -> dict:
+    return {**asdict(sp), **extra}
