@@ -12,14 +12,19 @@ import sys
 from pathlib import Path
 
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from sim import __version__
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
-err = Console(stderr=True)
+err = Console(stderr=True, soft_wrap=True)
 out = Console()
+
+
+def _error(exc: Exception) -> None:
+    err.print(f"[red]error:[/] {escape(str(exc))}", highlight=False)
 
 
 def _raise_interrupt(signum, frame):
@@ -33,14 +38,14 @@ def _fmt_duration(s: float) -> str:
 
 
 def cmd_run(args) -> int:
-    from sim.runner import RunFailed, run_scenario
     from sim.scenario import ScenarioError, load_scenario
 
     try:
         scenario, text = load_scenario(args.scenario)
     except ScenarioError as exc:
-        err.print(f"[red]error:[/] {exc}", highlight=False, markup=True)
+        _error(exc)
         return EXIT_BAD_INPUT
+    from sim.runner import RunFailed, run_scenario
     path = Path(args.output) if args.output else Path("logs") / f"{scenario.name}.mcap"
     duration = args.duration if args.duration is not None else scenario.duration
     signal.signal(signal.SIGTERM, _raise_interrupt)
@@ -69,7 +74,7 @@ def _print_summary(r) -> None:
     t = Table(title=f"cosim run: {r.scenario}", show_header=False, title_justify="left")
     t.add_row("status", f"[{colour}]{r.status}[/]")
     if r.error:
-        t.add_row("error", r.error)
+        t.add_row("error", escape(r.error))
     t.add_row("sim time", _fmt_duration(r.sim_time_s))
     t.add_row("wall time", f"{r.wall_time_s:.1f} s")
     t.add_row("real-time factor", f"{r.real_time_factor:.0f}x")
@@ -87,7 +92,7 @@ def cmd_info(args) -> int:
     try:
         info = read_info(args.log)
     except LogReadError as exc:
-        err.print(f"[red]error:[/] {exc}", highlight=False)
+        _error(exc)
         return EXIT_BAD_INPUT
     run = info.metadata.get("run", {})
     res = info.metadata.get("result", {})
@@ -113,7 +118,7 @@ def cmd_validate(args) -> int:
     try:
         scenario, _ = load_scenario(args.scenario)
     except ScenarioError as exc:
-        err.print(f"[red]error:[/] {exc}", highlight=False)
+        _error(exc)
         return EXIT_BAD_INPUT
     out.print(f"{args.scenario}: ok ({scenario.name}, {len(scenario.vehicle)} vehicle(s))")
     return EXIT_OK

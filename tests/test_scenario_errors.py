@@ -1,0 +1,78 @@
+"""Bad scenario files: one line naming the file and the field, exit code 2, no traceback."""
+
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+import tomli_w
+
+ROOT = Path(__file__).resolve().parents[1]
+GOOD = tomllib.loads((ROOT / "scenarios" / "haps_box_mission.toml").read_text())
+
+
+def _mutate(path: list, value):
+    data = tomllib.loads((ROOT / "scenarios" / "haps_box_mission.toml").read_text())
+    node = data
+    for key in path[:-1]:
+        node = node[key]
+    if value is _DELETE:
+        del node[path[-1]]
+    else:
+        node[path[-1]] = value
+    return data
+
+
+_DELETE = object()
+
+CASES = [
+    ("unknown_key", _mutate(["vehicle", 0, "initial", "altitude_ft"], 59000), None,
+     "vehicle[0].initial.altitude_ft: unknown key"),
+    ("wrong_unit", _mutate(["vehicle", 0, "mission", "cruise_speed"], "26 km"), None,
+     "vehicle[0].mission.cruise_speed: wrong unit: 'km' is a length, this field is a speed"),
+    ("unknown_unit", _mutate(["vehicle", 0, "initial", "altitude"], "18 furlong"), None,
+     "vehicle[0].initial.altitude: unknown unit 'furlong'"),
+    ("unknown_aircraft", _mutate(["vehicle", 0, "aircraft"], "hapz"), None,
+     "vehicle[0].aircraft: unknown aircraft 'hapz' (known: haps"),
+    ("missing_field", _mutate(["vehicle", 0, "mission", "waypoints"], _DELETE), None,
+     "vehicle[0].mission.waypoints: missing required field"),
+    ("out_of_range", _mutate(["vehicle", 0, "mission", "waypoints", 2, "altitude"], "45 km"), None,
+     "vehicle[0].mission.waypoints[2].altitude: out of range: 45000 m not in [-500, 30000] m"),
+    ("latitude_range", _mutate(["origin", "lat"], 95.0), None,
+     "origin.lat: out of range: 95 deg not in [-90, 90] deg"),
+    ("wrong_type", _mutate(["seed"], "one"), None, "seed: "),
+    ("duplicate_names", {**GOOD, "vehicle": GOOD["vehicle"] * 2}, None,
+     "vehicle names must be unique, repeated: haps"),
+    ("naive_time", None, 'name="x"\nseed=1\nduration=10\nstart_time=2026-06-21T06:00:00\n'
+     '[origin]\nlat=0\nlon=0\n', "start_time: start_time needs a time zone"),
+    ("bad_toml", None, 'name = "x\nseed = 1\n', "not valid TOML"),
+]
+
+
+@pytest.mark.parametrize("kind,data,text,expected", CASES, ids=[c[0] for c in CASES])
+def test_bad_scenario_is_one_line_error_exit_2(tmp_path, kind, data, text, expected):
+    f = tmp_path / f"{kind}.toml"
+    f.write_text(text if text is not None else tomli_w.dumps(data))
+    proc = subprocess.run([sys.executable, "-m", "sim.cli", "run", str(f), "-q"],
+                          capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert lines[0].startswith(f"error: {f}: ")
+    assert expected in lines[0]
+    assert not (tmp_path / "logs").exists()
+
+
+def test_missing_file_is_exit_2(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "sim.cli", "run", str(tmp_path / "nope.toml")],
+                          capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert proc.returncode == 2
+    assert "cannot read scenario file" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_good_scenario_validates():
+    proc = subprocess.run([sys.executable, "-m", "sim.cli", "validate", "scenarios/haps_box_mission.toml"],
+                          capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert proc.returncode == 0, proc.stderr
