@@ -11,6 +11,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import struct
+
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
@@ -18,6 +20,10 @@ from mcap_protobuf.decoder import DecoderFactory
 
 class LogReadError(ValueError):
     """The file is missing, not an MCAP, or damaged beyond reading."""
+
+
+# what the mcap reader raises on damaged input (truncation surfaces as struct/OS errors)
+_READ_ERRORS = (McapError, struct.error, OSError, EOFError)
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,8 +68,8 @@ def read_info(path: str | Path) -> LogInfo:
                                    "could finish the file)")
             meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
             attachments = [a.name for a in reader.iter_attachments()]
-        except McapError as exc:
-            raise LogReadError(f"{path}: not a readable MCAP file ({exc})") from None
+        except _READ_ERRORS as exc:
+            raise LogReadError(f"{path}: not a readable MCAP file ({exc or type(exc).__name__})") from None
     epoch = int(meta.get("run", {}).get("epoch_ns", 0))
     stats = summary.statistics
     counts = stats.channel_message_counts if stats else {}
@@ -95,8 +101,8 @@ def iter_messages(path: str | Path, topics: list[str] | None = None) -> Iterator
                 else:
                     decoded = _decode_proto(schema, channel, message)
                 yield channel.topic, (message.log_time - epoch) / 1e9, decoded
-        except McapError as exc:
-            raise LogReadError(f"{path}: damaged MCAP ({exc})") from None
+        except _READ_ERRORS as exc:
+            raise LogReadError(f"{path}: damaged MCAP ({exc or type(exc).__name__})") from None
 
 
 _proto_decoders: dict[tuple[str, bytes], Any] = {}

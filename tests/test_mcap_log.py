@@ -1,0 +1,79 @@
+"""MCAP writer/reader round trip, crash safety and clear errors on bad files."""
+
+import pytest
+from foxglove_schemas_protobuf.LocationFix_pb2 import LocationFix
+
+from sim.log_schemas import MISSION_STATUS
+from sim.mcap_log import McapLog
+from sim.mcap_read import LogReadError, iter_messages, read_info, read_topic
+
+EPOCH = 1_782_021_600_000_000_000
+
+
+def _write(path, n=50, fail_at=None):
+    with McapLog(path, EPOCH) as log:
+        log.metadata("run", {"epoch_ns": EPOCH, "scenario": "unit"})
+        log.attach("scenario.toml", b"name='unit'", "application/toml")
+        for k in range(n):
+            t = k * 0.1
+            if fail_at is not None and k == fail_at:
+                raise RuntimeError("injected")
+            log.write_json("/v/mission/status", t, {"t": t, "next_waypoint": k, "waypoints": n,
+                                                     "complete": False}, MISSION_STATUS)
+            fix = LocationFix(latitude=47.0 + k * 1e-5, longitude=8.0, altitude=18000.0)
+            log.write_proto("/v/truth/location", t, fix)
+        log.event(n * 0.1, "done")
+
+
+def test_round_trip_json_proto_events_metadata(tmp_path):
+    p = tmp_path / "a.mcap"
+    _write(p)
+    info = read_info(p)
+    assert info.metadata["run"]["scenario"] == "unit"
+    assert info.attachments == ["scenario.toml"]
+    counts = {t.topic: t.count for t in info.topics}
+    assert counts == {"/v/mission/status": 50, "/v/truth/location": 50, "/log": 1}
+    assert info.start_s == 0.0 and info.end_s == pytest.approx(5.0)
+    status = read_topic(p, "/v/mission/status")
+    assert [m["next_waypoint"] for _, m in status] == list(range(50))
+    assert status[7][0] == pytest.approx(0.7)
+    fixes = read_topic(p, "/v/truth/location")
+    assert fixes[3][1].latitude == pytest.approx(47.00003)
+    (_, t, log), = [m for m in iter_messages(p, ["/log"])]
+    assert log.message == "done" and t == pytest.approx(5.0)
+
+
+def test_exception_mid_write_leaves_readable_file(tmp_path):
+    p = tmp_path / "crash.mcap"
+    with pytest.raises(RuntimeError, match="injected"):
+        _write(p, fail_at=30)
+    status = read_topic(p, "/v/mission/status")
+    assert len(status) == 30 and status[-1][1]["next_waypoint"] == 29
+
+
+def test_same_content_same_bytes(tmp_path):
+    _write(tmp_path / "1.mcap")
+    _write(tmp_path / "2.mcap")
+    assert (tmp_path / "1.mcap").read_bytes() == (tmp_path / "2.mcap").read_bytes()
+
+
+def test_not_an_mcap_is_a_clear_error(tmp_path):
+    p = tmp_path / "junk.mcap"
+    p.write_bytes(b"this is not an mcap file at all" * 10)
+    with pytest.raises(LogReadError, match="not a readable MCAP"):
+        read_info(p)
+    with pytest.raises(LogReadError, match="no such file"):
+        read_info(tmp_path / "missing.mcap")
+
+
+@pytest.mark.parametrize("keep", [0.5, 0.999, 20, 5])
+def test_truncated_file_is_a_clear_error(tmp_path, keep):
+    p = tmp_path / "full.mcap"
+    _write(p, n=3000)
+    data = p.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: int(len(data) * keep) if keep < 1 else keep])
+    with pytest.raises(LogReadError):
+        read_info(cut)
+    with pytest.raises(LogReadError):
+        read_topic(cut, "/v/mission/status")
