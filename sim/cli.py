@@ -82,8 +82,8 @@ def _print_summary(r) -> None:
         when = f" at {_fmt_duration(m.complete_time_s)}" if m.complete_time_s is not None else ""
         state = "[green]complete[/]" if m.complete else "[yellow]incomplete[/]"
         t.add_row(f"mission {name}", f"{state}: {m.reached}/{m.waypoints} waypoints{when}")
-    t.add_row("log", str(r.log_path))
     out.print(t)
+    out.print(f"log: {r.log_path}", soft_wrap=True, highlight=False)
 
 
 def cmd_info(args) -> int:
@@ -96,7 +96,8 @@ def cmd_info(args) -> int:
         return EXIT_BAD_INPUT
     run = info.metadata.get("run", {})
     res = info.metadata.get("result", {})
-    head = Table(title=f"{info.path}", show_header=False, title_justify="left")
+    out.print(f"{info.path}", soft_wrap=True, highlight=False)
+    head = Table(show_header=False)
     head.add_row("scenario", run.get("scenario", "?"))
     head.add_row("seed", run.get("seed", "?"))
     head.add_row("result", res.get("status", "? (no result metadata)"))
