@@ -14,6 +14,7 @@ from typing import Protocol
 
 import numpy as np
 
+from avoidance.threats import Geofence, IntruderTrack, LidarScan, PrismObstacle, SphereThreat, StormSnapshot
 from sim.state import VehicleState
 
 
@@ -46,11 +47,16 @@ class Plan:
 
 @dataclass(slots=True)
 class Threats:
-    """What the vehicle knows of the world around it (filled by the sensors issue on)."""
+    """What the vehicle knows of the world around it at one instant (types: avoidance.threats):
+    tracked intruders, spherical threats, map obstacles, geofences, the storm nowcast (snapshots
+    in time order) and the latest LiDAR scan."""
 
-    intruders: list = field(default_factory=list)
-    obstacles: list = field(default_factory=list)
-    storms: list = field(default_factory=list)
+    intruders: list[IntruderTrack] = field(default_factory=list)
+    spheres: list[SphereThreat] = field(default_factory=list)
+    obstacles: list[PrismObstacle] = field(default_factory=list)
+    geofences: list[Geofence] = field(default_factory=list)
+    storms: list[StormSnapshot] = field(default_factory=list)
+    lidar: LidarScan | None = None
 
 
 class Planner(Protocol):

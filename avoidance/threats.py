@@ -1,0 +1,89 @@
+"""Threats as a vehicle senses them, handed to planners (never the world's truth).
+
+Frames and units: local-level NED from the scenario origin [m, m/s], times in sim seconds [s].
+Vertical extents are heights above the origin's altitude, ``up = -D`` [m]. Horizontal shapes are
+shapely geometries in (north, east) [m].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from shapely.geometry import Polygon
+from shapely.geometry.base import BaseGeometry
+
+
+@dataclass(frozen=True, slots=True)
+class IntruderTrack:
+    """Another aircraft as tracked (ADS-B / cooperative report / LiDAR track filter).
+
+    ``pos_cov`` and ``vel_cov`` are 3x3 NED covariances [m^2], [m^2/s^2]; ``radius_m`` is the
+    body radius; ``cooperative`` is true for UAS that exchange position notifications."""
+
+    id: str
+    t: float
+    pos_ned: np.ndarray
+    vel_ned: np.ndarray
+    radius_m: float = 1.0
+    pos_cov: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    vel_cov: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    cooperative: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class SphereThreat:
+    """A spherical threat (seed 001): centre NED [m] at time ``t``, constant velocity [m/s]."""
+
+    id: str
+    t: float
+    center_ned: np.ndarray
+    radius_m: float
+    vel_ned: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    center_cov: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+
+
+@dataclass(frozen=True, slots=True)
+class PrismObstacle:
+    """A static obstacle known from the map: a footprint extruded between two heights
+    (buildings, no-fly volumes). ``up_min_m``/``up_max_m``: heights above the origin [m]."""
+
+    id: str
+    footprint: BaseGeometry
+    up_min_m: float
+    up_max_m: float
+    hard: bool = True
+
+
+@dataclass(frozen=True, slots=True)
+class Geofence:
+    """Where the vehicle must stay (``keep_in``) or must not go, with an altitude band."""
+
+    id: str
+    area: Polygon
+    up_min_m: float
+    up_max_m: float
+    keep_in: bool = True
+
+
+@dataclass(frozen=True, slots=True)
+class StormSnapshot:
+    """Storm cells valid at time ``t``: polygons in (north, east) [m], optional velocity of
+    each cell [m/s] (N, E) for extrapolation."""
+
+    t: float
+    cells: tuple[Polygon, ...]
+    velocities_ne: np.ndarray | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class LidarScan:
+    """One LiDAR sweep: sensor position NED [m], unit ray directions (N, 3) NED, measured ranges
+    (N,) [m] with ``hit`` (N,) false where nothing returned within ``max_range_m``."""
+
+    t: float
+    origin_ned: np.ndarray
+    directions_ned: np.ndarray
+    ranges_m: np.ndarray
+    hit: np.ndarray
+    max_range_m: float
