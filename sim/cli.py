@@ -113,6 +113,49 @@ def cmd_info(args) -> int:
     return EXIT_OK
 
 
+def cmd_replay(args) -> int:
+    from sim.mcap_read import LogReadError
+    from sim.replay.report import write_report
+
+    log = Path(args.log)
+    out_dir = Path(args.output) if args.output else log.with_name(f"{log.stem}_report")
+    try:
+        report, metrics = write_report(log, out_dir)
+    except (LogReadError, KeyError) as exc:
+        _error(exc)
+        return EXIT_BAD_INPUT
+    if args.json:
+        import json
+
+        out.print_json(json.dumps(metrics))
+    else:
+        out.print(f"report: {report}", soft_wrap=True, highlight=False)
+        out.print(f"metrics: {out_dir / 'metrics.json'}", soft_wrap=True, highlight=False)
+    return EXIT_OK
+
+
+def cmd_compare(args) -> int:
+    from sim.mcap_read import LogReadError
+    from sim.replay.compare import compare_logs
+
+    try:
+        rows = compare_logs(args.a, args.b)
+    except (LogReadError, KeyError) as exc:
+        _error(exc)
+        return EXIT_BAD_INPUT
+    t = Table("metric", "A", "B", "B - A", title=f"A = {args.a}   B = {args.b}", title_justify="left")
+    for k, x, y, d in rows:
+        if args.changed and x == y:
+            continue
+        t.add_row(k, _cell(x), _cell(y), "" if d is None else f"{d:+.4g}")
+    out.print(t)
+    return EXIT_OK
+
+
+def _cell(v) -> str:
+    return f"{v:.4g}" if isinstance(v, float) else ("–" if v is None else str(v))
+
+
 def cmd_validate(args) -> int:
     from sim.scenario import ScenarioError, load_scenario
 
@@ -139,6 +182,16 @@ def build_parser() -> argparse.ArgumentParser:
     i = sub.add_parser("info", help="summarise an MCAP log")
     i.add_argument("log")
     i.set_defaults(fn=cmd_info)
+    rp = sub.add_parser("replay", help="metrics, plots and a Markdown report from a run log")
+    rp.add_argument("log")
+    rp.add_argument("-o", "--output", help="report folder (default: <log>_report next to the log)")
+    rp.add_argument("--json", action="store_true", help="also print the metrics as JSON")
+    rp.set_defaults(fn=cmd_replay)
+    cp = sub.add_parser("compare", help="A/B: metrics of two run logs side by side")
+    cp.add_argument("a")
+    cp.add_argument("b")
+    cp.add_argument("--changed", action="store_true", help="only the metrics that differ")
+    cp.set_defaults(fn=cmd_compare)
     v = sub.add_parser("validate", help="check a scenario file without flying it")
     v.add_argument("scenario")
     v.set_defaults(fn=cmd_validate)

@@ -8,6 +8,7 @@ saying how it ended. Nothing wall-clock goes into the messages except channels m
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from collections.abc import Callable
@@ -19,6 +20,7 @@ import jsbsim
 from sim import __version__
 from sim.frames import GeoPoint
 from sim.mcap_log import McapLog
+from sim.replay.metrics import run_metrics
 from sim.scenario import Scenario
 from sim.scheduler import LockstepScheduler, Stage
 from sim.vehicle import Vehicle
@@ -41,6 +43,7 @@ class RunResult:
     sim_time_s: float
     wall_time_s: float
     missions: dict[str, MissionResult] = field(default_factory=dict)
+    metrics: dict = field(default_factory=dict)
     error: str | None = None
 
     @property
@@ -105,9 +108,11 @@ def run_scenario(
         if tick_hook is not None:
             sched.add_task("tick_hook", scenario.logging.rate_hz, Stage.LOG, tick_hook)
         log.event(0.0, f"run start: {scenario.name} (seed {scenario.seed})")
-        done = (lambda: all(v.mission.complete for v in vehicles)) if scenario.stop_when_complete else (lambda: False)
-        sched.run(round(end * base), stop=done)
-        result.status = "completed" if done() or all(v.mission.complete for v in vehicles) else "duration_elapsed"
+        def all_complete() -> bool:
+            return all(v.mission.complete for v in vehicles)
+
+        sched.run(round(end * base), stop=all_complete if scenario.stop_when_complete else (lambda: False))
+        result.status = "completed" if all_complete() else "duration_elapsed"
     except KeyboardInterrupt:
         result.status = "interrupted"
         result.error = "interrupted by the user"
@@ -123,6 +128,8 @@ def run_scenario(
             result.missions[v.name] = MissionResult(
                 len(m.reached), len(m.waypoints), m.complete, m.reached[-1][1] if m.complete else None)
         try:
+            result.metrics = run_metrics([v.recorder.trace() for v in vehicles])
+            log.metadata("metrics", {"json": json.dumps(result.metrics, sort_keys=True)})
             if result.status != "completed":
                 log.event(result.sim_time_s, f"run ended: {result.status}"
                           + (f" ({result.error})" if result.error else ""),

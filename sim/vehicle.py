@@ -24,6 +24,7 @@ from sim.estimator import PerfectEstimator
 from sim.frames import GeoPoint, ned_to_geodetic
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
 from sim.mcap_log import McapLog
+from sim.replay.trace import TraceRecorder
 from sim.scheduler import LockstepScheduler, Stage
 from sim.vehicle_log import VehicleLogWriter, setpoint_dict
 
@@ -64,6 +65,7 @@ class Vehicle:
         self.controller = af.make_controller(cfg.gains)
         self.follower = FixedWingPlanFollower(L1Guidance.for_airframe(self.controller), m.cruise_speed,
                                               m.acceptance_radius, origin.alt_m)
+        self.recorder = TraceRecorder(cfg.name, len(self.mission.waypoints))
         self.threats = Threats()
         self.estimate = self.estimator.update(0.0)
         self.controller.reset(self.estimate)
@@ -89,6 +91,7 @@ class Vehicle:
         latency = time.perf_counter() - t0
         self.follower.set_plan(plan)
         self.logw.plan(plan, latency)
+        self.recorder.latency(latency)
 
     def _control(self, t: float) -> None:
         sp, passed = self.follower.update(self.estimate)
@@ -96,6 +99,7 @@ class Vehicle:
             if label >= 0 and self.mission.mark_reached(label, t):
                 total = len(self.mission.waypoints)
                 self.log.event(t, f"{self.name}: waypoint {label + 1}/{total} reached", name=self.name)
+                self.recorder.reached(t)
                 if self.mission.complete:
                     self.log.event(t, f"{self.name}: mission complete", name=self.name)
         cmds = self.controller.update(self.estimate, sp, self._control_dt)
@@ -109,7 +113,7 @@ class Vehicle:
         if not all(math.isfinite(x) for x in (*truth.pos_ned, *truth.vel_ned, *truth.euler)):
             self.log.event(t, f"{self.name}: state is not finite", level="error", name=self.name)
             raise SimulationDiverged(f"{self.name}: state went non-finite at t={t:.2f} s")
-        self.logw.truth(truth)
+        self.recorder.state(self.logw.truth(truth), self._setpoint)
         self.logw.control(t, self._setpoint, self._commands, dict(self.controller.debug))
         m = self.mission
         self.logw.mission(t, m.next_index, len(m.waypoints), m.complete)

@@ -56,10 +56,12 @@ class VehicleLogWriter:
         self.t_sp, self.t_cmd, self.t_mission = f"{p}/ctrl/setpoint", f"{p}/ctrl/commands", f"{p}/mission/status"
         self.t_plan, self.t_latency = f"{p}/plan", f"{p}/plan/latency"
 
-    def truth(self, s: VehicleState) -> None:
+    def truth(self, s: VehicleState) -> dict:
+        """Log the true state; returns the state as logged (a plain dict)."""
         log, t = self.log, s.t
         ns = log.epoch_ns + round(t * 1e9)
-        log.write_json(self.t_state, t, state_dict(s), S.VEHICLE_STATE,
+        sd = state_dict(s)
+        log.write_json(self.t_state, t, sd, S.VEHICLE_STATE,
                        {"frame": "local-level NED from the scenario origin", "units": "SI, rad"})
         fix = LocationFix(frame_id=self.name, latitude=s.lat_deg, longitude=s.lon_deg, altitude=s.alt_msl_m)
         fix.timestamp.FromNanoseconds(ns)
@@ -78,6 +80,7 @@ class VehicleLogWriter:
         r = tf.rotation
         r.x, r.y, r.z, r.w = qx, qy, qz, qw
         log.write_proto("/tf", t, FrameTransforms(transforms=[tf]))
+        return sd
 
     def control(self, t: float, setpoint: dict, commands: dict[str, float], debug: dict[str, float]) -> None:
         self.log.write_json(self.t_sp, t, {"t": t, **setpoint}, S.FIXED_WING_SETPOINT)

@@ -1,0 +1,21 @@
+"""A/B comparison of two runs: every metric side by side with its difference."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from sim.replay.metrics import flatten, run_metrics
+from sim.replay.report import load_traces
+from sim.replay.runlog import RunLog
+
+
+def compare_logs(a: str | Path, b: str | Path) -> list[tuple[str, object, object, float | None]]:
+    """Rows (metric, value in A, value in B, B - A where both are numbers)."""
+    fa = flatten(run_metrics(load_traces(RunLog(a))))
+    fb = flatten(run_metrics(load_traces(RunLog(b))))
+    rows = []
+    for k in sorted(set(fa) | set(fb)):
+        x, y = fa.get(k), fb.get(k)
+        numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (x, y))
+        rows.append((k, x, y, (y - x) if numeric else None))
+    return rows

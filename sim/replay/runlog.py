@@ -1,0 +1,93 @@
+"""A run's MCAP log as arrays per topic.
+
+``RunLog(path).topic("/haps/truth/state")`` gives a :class:`Series`: sim times ``t`` (N,) [s] and
+one numpy array per numeric field (vectors as (N, k) arrays), built once and cached. Protobuf
+messages (Foxglove types) are kept as objects in ``Series.messages``.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sim.mcap_read import LogInfo, iter_messages, read_info
+
+
+@dataclass
+class Series:
+    """Messages of one topic: times [s], numeric fields as arrays, the decoded messages."""
+
+    topic: str
+    t: np.ndarray
+    messages: list[Any]
+    _fields: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """A field of JSON messages as an array ((N,) or (N, k)); nested keys with dots."""
+        arr = self._fields.get(name)
+        if arr is None:
+            values = [_get(m, name) for m in self.messages]
+            try:
+                arr = np.asarray(values, dtype=float)
+            except (TypeError, ValueError):
+                arr = np.asarray(values, dtype=object)
+            self._fields[name] = arr
+        return arr
+
+
+def _get(message: Any, dotted: str):
+    node = message
+    for key in dotted.split("."):
+        node = node[key] if isinstance(node, dict) else getattr(node, key)
+    return node
+
+
+class RunLog:
+    """A whole run read into memory (one pass over the file)."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self.info: LogInfo = read_info(self.path)
+        by_topic: dict[str, tuple[list[float], list[Any]]] = defaultdict(lambda: ([], []))
+        for topic, t, msg in iter_messages(self.path):
+            ts, ms = by_topic[topic]
+            ts.append(t)
+            ms.append(msg)
+        self._series = {k: Series(k, np.asarray(ts), ms) for k, (ts, ms) in by_topic.items()}
+
+    @property
+    def topics(self) -> list[str]:
+        return sorted(self._series)
+
+    def has(self, topic: str) -> bool:
+        return topic in self._series
+
+    def topic(self, name: str) -> Series:
+        try:
+            return self._series[name]
+        except KeyError:
+            raise KeyError(f"{self.path}: no topic {name!r} (has: {', '.join(self.topics)})") from None
+
+    @cached_property
+    def vehicles(self) -> list[str]:
+        """Names of the vehicles that logged a truth state."""
+        return sorted(t.split("/")[1] for t in self._series if t.endswith("/truth/state"))
+
+    @property
+    def metadata(self) -> dict[str, dict[str, str]]:
+        return self.info.metadata
+
+    def events(self) -> list[tuple[float, str]]:
+        """(sim time, text) of every ``/log`` event."""
+        if not self.has("/log"):
+            return []
+        s = self.topic("/log")
+        return [(float(t), m.message) for t, m in zip(s.t, s.messages)]

@@ -1,0 +1,80 @@
+"""A vehicle's time series as metrics need them, built live during a run or from its log.
+
+The same :class:`VehicleTrace` comes out of both paths, so metrics computed live and recomputed
+from the MCAP are the same numbers (JSON floats round-trip exactly).
+Units: NED [m], altitude MSL [m], speeds [m/s], angles [rad], times sim [s].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sim.replay.runlog import RunLog
+
+# truth-state and setpoint fields kept per log tick
+_STATE = ("t", "pos_ned", "alt_msl_m", "tas_mps", "euler")
+_SETPOINT = ("altitude_m", "tas_mps", "cross_track_m", "turning")
+
+
+@dataclass
+class VehicleTrace:
+    name: str
+    t: np.ndarray
+    pos_ned: np.ndarray  # (N, 3)
+    alt_msl_m: np.ndarray
+    tas_mps: np.ndarray
+    euler: np.ndarray  # (N, 3)
+    setpoint: dict[str, np.ndarray]  # altitude_m, tas_mps, cross_track_m, turning (N,)
+    plan_latency_s: np.ndarray
+    waypoints_total: int
+    waypoint_times: list[float]  # sim time each waypoint was reached
+
+    @property
+    def mission_complete(self) -> bool:
+        return self.waypoints_total > 0 and len(self.waypoint_times) == self.waypoints_total
+
+    @classmethod
+    def from_log(cls, log: RunLog, name: str) -> "VehicleTrace":
+        st = log.topic(f"/{name}/truth/state")
+        sp = log.topic(f"/{name}/ctrl/setpoint")
+        lat_topic = f"/{name}/plan/latency"
+        latency = log.topic(lat_topic)["seconds"] if log.has(lat_topic) else np.zeros(0)
+        status = log.topic(f"/{name}/mission/status")
+        total = int(status["waypoints"][-1]) if len(status) else 0
+        prefix = f"{name}: waypoint "
+        reached = [t for t, text in log.events() if text.startswith(prefix) and text.endswith(" reached")]
+        return cls(name, st["t"], st["pos_ned"], st["alt_msl_m"], st["tas_mps"], st["euler"],
+                   {k: sp[k] for k in _SETPOINT}, latency, total, reached)
+
+
+@dataclass
+class TraceRecorder:
+    """Collects the values a vehicle logs, as they are logged (the live side)."""
+
+    name: str
+    waypoints_total: int
+    _state: dict[str, list] = field(default_factory=lambda: {k: [] for k in _STATE})
+    _setpoint: dict[str, list] = field(default_factory=lambda: {k: [] for k in _SETPOINT})
+    _latency: list[float] = field(default_factory=list)
+    _reached: list[float] = field(default_factory=list)
+
+    def state(self, state: dict, setpoint: dict) -> None:
+        for k in _STATE:
+            self._state[k].append(state[k])
+        for k in _SETPOINT:
+            self._setpoint[k].append(setpoint[k])
+
+    def latency(self, seconds: float) -> None:
+        self._latency.append(seconds)
+
+    def reached(self, t: float) -> None:
+        self._reached.append(t)
+
+    def trace(self) -> VehicleTrace:
+        s = {k: np.asarray(v, dtype=float) for k, v in self._state.items()}
+        return VehicleTrace(self.name, s["t"], s["pos_ned"], s["alt_msl_m"], s["tas_mps"], s["euler"],
+                            {k: np.asarray(v, dtype=float) for k, v in self._setpoint.items()},
+                            np.asarray(self._latency, dtype=float), self.waypoints_total,
+                            list(self._reached))
