@@ -7,6 +7,7 @@ log file), 130 interrupted.
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 from pathlib import Path
@@ -156,6 +157,46 @@ def _cell(v) -> str:
     return f"{v:.4g}" if isinstance(v, float) else ("–" if v is None else str(v))
 
 
+def cmd_batch(args) -> int:
+    from sim.batch import BatchError, load_batch, run_batch
+
+    try:
+        name, runs = load_batch(args.batch, args.output)
+    except BatchError as exc:
+        _error(exc)
+        return EXIT_BAD_INPUT
+    out_dir = Path(args.output) if args.output else Path("logs") / "batch" / name
+    executor = None
+    client = None
+    if args.dask:
+        from distributed import Client
+
+        client = Client(args.dask)
+        executor = client.get_executor()
+    failures = 0
+    progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} runs"),
+                        TextColumn("{task.fields[failed]} failed"), TimeElapsedColumn(), console=err,
+                        disable=args.quiet, transient=True)
+    try:
+        with progress:
+            task = progress.add_task(name, total=len(runs), failed=0)
+
+            def on_run(k: int, total: int, row: dict) -> None:
+                nonlocal failures
+                failures += row.get("status") == "failed"
+                progress.update(task, total=total, completed=k, failed=failures)
+
+            rows = run_batch(runs, out_dir, executor=executor, workers=args.workers, progress=on_run,
+                             resume=not args.no_resume)
+    finally:
+        if client is not None:
+            client.close()
+    failed = sum(r.get("status") == "failed" for r in rows)
+    out.print(f"{len(rows)} runs, {failed} failed; results: {out_dir / 'results.csv'}", soft_wrap=True,
+              highlight=False)
+    return EXIT_OK if failed == 0 else EXIT_FAILED
+
+
 def cmd_validate(args) -> int:
     from sim.scenario import ScenarioError, load_scenario
 
@@ -192,6 +233,14 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("b")
     cp.add_argument("--changed", action="store_true", help="only the metrics that differ")
     cp.set_defaults(fn=cmd_compare)
+    b = sub.add_parser("batch", help="sweep / Monte-Carlo runs from a batch file")
+    b.add_argument("batch", help="batch TOML file")
+    b.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="local worker processes")
+    b.add_argument("--dask", metavar="ADDRESS", help="run on a Dask distributed scheduler instead")
+    b.add_argument("-o", "--output", help="output folder (default logs/batch/<name>)")
+    b.add_argument("--no-resume", action="store_true", help="re-run runs that already finished")
+    b.add_argument("-q", "--quiet", action="store_true")
+    b.set_defaults(fn=cmd_batch)
     v = sub.add_parser("validate", help="check a scenario file without flying it")
     v.add_argument("scenario")
     v.set_defaults(fn=cmd_validate)
