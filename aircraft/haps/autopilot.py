@@ -1,0 +1,154 @@
+"""HAPS outer loops: TECS (altitude and airspeed) and the bank command, run at 10 Hz.
+
+Inputs: the vehicle estimate (:class:`sim.state.VehicleState`: MSL altitude [m], NED velocity
+[m/s], Euler angles [rad], true and equivalent airspeed [m/s]) and a
+:class:`guidance.setpoints.FixedWingSetpoint` (bank [rad], MSL altitude [m], true airspeed [m/s]).
+Output: JSBSim property commands for the inner loops of ``systems/attitude_hold.xml``
+(``ap/roll-cmd-rad``, ``ap/pitch-cmd-rad`` [rad]) and both throttles (``fcs/throttle-cmd-norm[i]``,
+0..1). The first call after :meth:`HapsAutopilot.reset` also carries the inner-loop gains and
+limits (``ap/*``) and ``ap/engage`` = 1.
+
+TECS (total energy control, after ArduPilot ``AP_TECS``), per unit mass [J/kg]:
+- total energy  STE = g h + V^2/2   -> throttle: feed-forward (level-flight power of the drag
+  polar in a turn, plus the demanded energy rate) + P on the energy-rate error + I on the energy
+  error;
+- energy balance SEB = (2-w) g h - w V^2/2 -> pitch: demanded balance rate / (g V) + P on the
+  balance-rate error + I on the balance error (the I term holds the trim angle of attack).
+Demands are shaped first: the altitude and airspeed references move toward the setpoint no
+faster than the climb/sink and acceleration limits and stay within the linear range of the
+P loops, so integrators do not wind up on large steps. Integrators are clamped and frozen while
+their output saturates in the direction of the error (anti-windup). Below ``eas_underspeed``
+the pitch loop controls airspeed only (underspeed protection).
+
+Plain float math only: ``update`` runs 10 times per simulated second.
+"""
+
+from __future__ import annotations
+
+import math
+
+from aircraft.haps.gains import RHO0, HapsGains
+from guidance.setpoints import FixedWingSetpoint
+from sim.state import VehicleState
+
+__all__ = ["HapsAutopilot", "HapsGains"]
+
+G = 9.80665  # [m/s^2]
+_THROTTLES = ("fcs/throttle-cmd-norm[0]", "fcs/throttle-cmd-norm[1]")
+
+
+def _clamp(x: float, lo: float, hi: float) -> float:
+    return lo if x < lo else hi if x > hi else x
+
+
+class HapsAutopilot:
+    """TECS + bank-command outer loop of the HAPS (see the module docstring)."""
+
+    def __init__(self, gains: HapsGains):
+        self.gains = gains
+        self.debug: dict[str, float] = {}
+        # throttle per unit of specific power [1 / (W/kg)]
+        self._thr_per_power = gains.mass_kg / (gains.prop_efficiency * gains.power_max_w)
+        self._fcs = {**gains.fcs_properties(), "ap/engage": 1.0}
+        self._send_fcs = True
+        self._h_ref = self._v_ref = self._v_prev = 0.0
+        self._vdot = self._roll_cmd = self._i_thr = self._i_pitch = 0.0
+
+    def reset(self, state: VehicleState, throttle: float | None = None) -> None:
+        """Start from ``state`` without a bump: references at the current altitude and airspeed,
+        pitch integrator at the current pitch minus flight-path angle (the trim alpha), throttle
+        integrator so that the first throttle equals ``throttle`` if given (e.g. after a trim)."""
+        g = self.gains
+        v = max(state.tas_mps, 1.0)
+        self._h_ref = state.alt_msl_m
+        self._v_ref = self._v_prev = v
+        self._vdot = 0.0
+        self._roll_cmd = state.roll
+        gamma = math.asin(_clamp(-float(state.vel_ned[2]) / v, -1.0, 1.0))
+        self._i_pitch = _clamp(state.pitch - gamma, g.pitch_min_rad, g.pitch_max_rad)
+        self._i_thr = 0.0
+        if throttle is not None:
+            ff = self._level_throttle(v, state.eas_mps, state.roll)
+            self._i_thr = _clamp(throttle - ff, -g.thr_integ_limit, g.thr_integ_limit)
+        self._send_fcs = True
+
+    def _level_throttle(self, tas: float, eas: float, roll: float) -> float:
+        """Throttle for level flight at ``tas``/``eas`` [m/s] and bank ``roll`` [rad]: drag polar
+        power D V / eta over the maximum power (load factor 1/cos(roll) in the induced drag)."""
+        g = self.gains
+        q_s = 0.5 * RHO0 * max(eas, 1.0) ** 2 * g.wing_area_m2  # dynamic pressure x area [N]
+        cl = g.mass_kg * G / (max(math.cos(roll), 0.5) * q_s)
+        power = q_s * (g.cd0 + g.k_induced * cl * cl) * tas / g.prop_efficiency
+        return power / g.power_max_w
+
+    def update(self, state: VehicleState, sp: FixedWingSetpoint, dt: float) -> dict[str, float]:
+        """One outer-loop step of ``dt`` [s]: property commands for JSBSim (see module docstring)."""
+        g = self.gains
+        h = state.alt_msl_m
+        hdot = -float(state.vel_ned[2])
+        v = max(state.tas_mps, 1.0)
+        eas = max(state.eas_mps, 1.0)
+        tas_per_eas = v / eas
+
+        # airspeed rate, low-passed finite difference [m/s^2]
+        self._vdot += ((v - self._v_prev) / dt - self._vdot) * dt / (g.vdot_filter_s + dt)
+        self._v_prev = v
+        vdot = self._vdot
+
+        # demand shaping: rate-limited references, kept within the P loops' linear range
+        v_dem = _clamp(sp.tas_mps, g.eas_min * tas_per_eas, g.eas_max * tas_per_eas)
+        v_lead = g.accel_max * g.spd_time_const_s
+        v_ref = _clamp(self._v_ref + _clamp(v_dem - self._v_ref, -g.accel_max * dt, g.accel_max * dt),
+                       v - v_lead, v + v_lead)
+        v_ref_rate = (v_ref - self._v_ref) / dt
+        h_ref = _clamp(self._h_ref + _clamp(sp.altitude_m - self._h_ref, -g.sink_rate_max * dt,
+                                            g.climb_rate_max * dt),
+                       h - g.sink_rate_max * g.alt_time_const_s, h + g.climb_rate_max * g.alt_time_const_s)
+        h_ref_rate = (h_ref - self._h_ref) / dt
+        self._v_ref, self._h_ref = v_ref, h_ref
+        hdot_dem = _clamp(h_ref_rate + (h_ref - h) / g.alt_time_const_s, -g.sink_rate_max, g.climb_rate_max)
+        vdot_dem = _clamp(v_ref_rate + (v_ref - v) / g.spd_time_const_s, -g.accel_max, g.accel_max)
+
+        # total energy -> throttle
+        ste_rate_dem = G * hdot_dem + v * vdot_dem
+        ste_rate_err = ste_rate_dem - (G * hdot + v * vdot)
+        ste_err = G * (h_ref - h) + 0.5 * (v_ref * v_ref - v * v)
+        k = self._thr_per_power
+        thr_ff = self._level_throttle(v, eas, state.roll) + k * ste_rate_dem
+        i_thr = _clamp(self._i_thr + k * g.thr_integ * ste_err * dt, -g.thr_integ_limit, g.thr_integ_limit)
+        thr_raw = thr_ff + k * g.thr_damp * ste_rate_err + i_thr
+        thr = _clamp(thr_raw, g.throttle_min, g.throttle_max)
+        if thr == thr_raw or (thr_raw > thr) == (i_thr < self._i_thr):
+            self._i_thr = i_thr
+
+        # energy balance -> pitch (speed only when underspeed)
+        underspeed = eas < g.eas_underspeed
+        w = 2.0 if underspeed else g.spd_weight
+        seb_rate_dem = (2.0 - w) * G * hdot_dem - w * v * vdot_dem
+        seb_rate_err = seb_rate_dem - ((2.0 - w) * G * hdot - w * v * vdot)
+        seb_err = (2.0 - w) * G * (h_ref - h) - w * 0.5 * (v_ref * v_ref - v * v)
+        per_seb_rate = 1.0 / (G * v)  # pitch [rad] per unit energy-balance rate [W/kg]
+        i_pitch = _clamp(self._i_pitch + g.pitch_integ * seb_err * per_seb_rate * dt,
+                         g.pitch_min_rad, g.pitch_max_rad)
+        pitch_raw = i_pitch + (seb_rate_dem + g.pitch_damp * seb_rate_err) * per_seb_rate
+        pitch = _clamp(pitch_raw, g.pitch_min_rad, g.pitch_max_rad)
+        if pitch == pitch_raw or (pitch_raw > pitch) == (i_pitch < self._i_pitch):
+            self._i_pitch = i_pitch
+
+        # bank: limited and slew-rate limited
+        roll_dem = _clamp(sp.roll_rad, -g.roll_limit_rad, g.roll_limit_rad)
+        step = g.roll_rate_limit_rad_s * dt
+        self._roll_cmd = _clamp(roll_dem, self._roll_cmd - step, self._roll_cmd + step)
+
+        self.debug = {
+            "h_ref_m": h_ref, "v_ref_mps": v_ref, "hdot_dem_mps": hdot_dem, "vdot_dem_mps2": vdot_dem,
+            "vdot_mps2": vdot, "ste_err_jkg": ste_err, "ste_rate_err_wkg": ste_rate_err,
+            "seb_err_jkg": seb_err, "seb_rate_err_wkg": seb_rate_err, "thr_ff": thr_ff,
+            "i_thr": self._i_thr, "i_pitch_rad": self._i_pitch, "underspeed": float(underspeed),
+        }
+        cmds = {"ap/roll-cmd-rad": self._roll_cmd, "ap/pitch-cmd-rad": pitch,
+                _THROTTLES[0]: thr, _THROTTLES[1]: thr}
+        if self._send_fcs:
+            cmds.update(self._fcs)
+            self._send_fcs = False
+        return cmds
