@@ -11,7 +11,8 @@ The JSBSim FCS (``systems/flight-control.xml``) closes attitude -> body rate -> 
 fraction of the static sea-level maximum collective thrust.
 
 Setpoints (:class:`guidance.setpoints.MultirotorSetpoint`): a NaN position component leaves that
-axis to the velocity feed-forward alone (velocity control); a NaN yaw holds the yaw setpoint.
+axis to the velocity feed-forward alone (velocity control); a NaN velocity component means no
+feed-forward; a NaN yaw holds the yaw setpoint.
 
 Take-off and landing: a landed vehicle keeps its motors at idle (stopped after
 ``land.disarm_delay_s``) until the setpoint is more than ``takeoff.climb_margin`` above it (or,
@@ -115,7 +116,7 @@ class MultirotorController:
         pn, pe, pd = state.pos_ned.tolist()
         vn, ve, vd = state.vel_ned.tolist()
         spn, spe, spd = sp.pos_ned.tolist()
-        ffn, ffe, ffd = sp.vel_ned.tolist()
+        ffn, ffe, ffd = (v if v == v else 0.0 for v in sp.vel_ned.tolist())  # NaN: no feed-forward
 
         # -- yaw setpoint: slew the shortest way to the demanded yaw --------------------------
         yaw_target = sp.yaw_rad if sp.yaw_rad == sp.yaw_rad else self._yaw_sp
