@@ -40,7 +40,8 @@ def fly(plant: JSBSimPlant, ctrl: MultirotorController, setpoint, duration_s: fl
     Returns arrays sampled at the outer-loop rate: t, pos, vel, euler, motors, landed, armed.
     """
     t0 = plant.time
-    rows: dict[str, list] = {k: [] for k in ("t", "pos", "vel", "euler", "motors", "landed", "armed")}
+    keys = ("t", "pos", "vel", "euler", "motors", "landed", "armed")
+    rows: dict[str, list] = {k: [] for k in keys}
     for _ in range(int(round(duration_s / (DIV * DT)))):
         s = plant.truth()
         plant.set_many(ctrl.update(s, setpoint(s.t - t0), DIV * DT))
@@ -74,7 +75,8 @@ def test_gains_reject_unknown_and_missing_keys(tmp_path):
     text = (airframe_dir("quadrotor") / "gains.toml").read_text()
     bad = tmp_path / "typo.toml"
     bad.write_text(text.replace("kp_xy = 0.95", "kp_xyz = 0.95"))
-    with pytest.raises(GainsError, match=r"\[position\]: unknown key\(s\) kp_xyz; allowed here: kp_xy, kp_z"):
+    with pytest.raises(GainsError,
+                       match=r"\[position\]: unknown key\(s\) kp_xyz; allowed here: kp_xy, kp_z"):
         MultirotorGains.load(bad)
     nested = tmp_path / "nested.toml"
     nested.write_text(text.replace("int_lim = ", "int_limit = ", 1))  # first one: [rate.roll]
@@ -164,8 +166,9 @@ def test_position_step_with_yaw_change():
 def test_yaw_turns_the_short_way():
     plant, ctrl = make()
     s0 = plant.truth()
-    fly(plant, ctrl, hold(MultirotorSetpoint(pos_ned=s0.pos_ned.copy(), yaw_rad=math.radians(170))), 4.0)
-    r = fly(plant, ctrl, hold(MultirotorSetpoint(pos_ned=s0.pos_ned.copy(), yaw_rad=math.radians(-170))), 3.0)
+    here = s0.pos_ned.copy()
+    fly(plant, ctrl, hold(MultirotorSetpoint(pos_ned=here, yaw_rad=math.radians(170))), 4.0)
+    r = fly(plant, ctrl, hold(MultirotorSetpoint(pos_ned=here, yaw_rad=math.radians(-170))), 3.0)
     yaw = r["euler"][:, 2]
     assert np.cos(yaw).max() < -0.9  # through south (+-180 deg), never near north
     assert abs(math.remainder(yaw[-1] - math.radians(-170), 2 * math.pi)) < math.radians(1.0)
@@ -178,7 +181,8 @@ def test_takeoff_hover_and_landing():
     up = MultirotorSetpoint(pos_ned=p0 + np.array([0.0, 0.0, -10.0]))
     down = MultirotorSetpoint(pos_ned=np.array([p0[0], p0[1], np.nan]),
                               vel_ned=np.array([0.0, 0.0, 0.7]))
-    r = fly(plant, ctrl, lambda t: MultirotorSetpoint(pos_ned=p0.copy()) if t < 1.0 else (up if t < 13.0 else down), 32.0)
+    stay = MultirotorSetpoint(pos_ned=p0.copy())
+    r = fly(plant, ctrl, lambda t: stay if t < 1.0 else (up if t < 13.0 else down), 32.0)
 
     # on the ground, disarmed, until the take-off setpoint arrives
     pre = r["t"] < 1.0
