@@ -38,7 +38,7 @@ _THROTTLES = ("fcs/throttle-cmd-norm[0]", "fcs/throttle-cmd-norm[1]")
 
 
 def _clamp(x: float, lo: float, hi: float) -> float:
-    return lo if x < lo else hi if x > hi else x
+    return lo if x < lo else min(x, hi)
 
 
 class HapsAutopilot:
