@@ -1,0 +1,64 @@
+"""Main-threat finder: constant-velocity closest point of approach (CPA) of each threat to the
+UAV flying its straight reference (spec §9.5, G28).
+
+Frame: local ENU z-up [m, m/s]; τ [s] from the evading instant, when the UAV is at ``start`` on
+the reference and flies ``ref_vel`` along it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from avoidance.geometric.threats import ThreatArrays
+
+
+@dataclass(frozen=True, slots=True)
+class MainThreat:
+    """The threat the candidates are built around.
+
+    ``index`` into the threat list; ``t_cpa`` [s]; ``p_c`` (3,) the UAV's reference position at
+    t_cpa (the collision point); ``miss`` [m] the threat centre's distance from p_c then;
+    ``radius`` [m] of the sphere centred on the reference at p_c that encloses the threat there,
+    R(t_cpa) + miss (G28)."""
+
+    index: int
+    t_cpa: float
+    p_c: np.ndarray
+    miss: float
+    radius: float
+
+
+def cpa(start: np.ndarray, ref_vel: np.ndarray, threats: ThreatArrays, horizon: float) -> tuple[np.ndarray, np.ndarray]:
+    """(t_cpa (J,), miss distance (J,)) with t_cpa clipped to [0, horizon] [s]."""
+    r0 = threats.p - start
+    w = threats.v - ref_vel
+    ww = np.einsum("ji,ji->j", w, w)
+    t = np.clip(-np.einsum("ji,ji->j", r0, w) / np.where(ww > 0, ww, 1.0), 0.0, horizon)
+    return t, np.linalg.norm(r0 + w * t[:, None], axis=1)
+
+
+def main_threat(index: int, start: np.ndarray, ref_vel: np.ndarray, threats: ThreatArrays,
+                horizon: float) -> MainThreat:
+    """The designated threat ``index`` as main threat (its CPA with the reference)."""
+    if not 0 <= index < len(threats):
+        raise IndexError(f"main threat index {index} out of range for {len(threats)} threats")
+    t, miss = cpa(start, ref_vel, threats, horizon)
+    tc, m = float(t[index]), float(miss[index])
+    r = threats.radius[index] + threats.growth[index] * tc + m
+    return MainThreat(index, tc, start + ref_vel * tc, m, float(r))
+
+
+def find_main_threat(start: np.ndarray, ref_vel: np.ndarray, threats: ThreatArrays, r_uav: float,
+                     horizon: float) -> MainThreat | None:
+    """The earliest threat whose CPA miss distance within ``horizon`` [s] is below its (grown)
+    radius + ``r_uav`` [m]; ties broken by the smaller miss. None when nothing conflicts."""
+    if len(threats) == 0:
+        return None
+    t, miss = cpa(start, ref_vel, threats, horizon)
+    conflict = miss < threats.radius + threats.growth * t + r_uav
+    if not conflict.any():
+        return None
+    idx = np.flatnonzero(conflict)
+    return main_threat(int(idx[np.lexsort((miss[idx], t[idx]))[0]]), start, ref_vel, threats, horizon)
