@@ -1,0 +1,216 @@
+"""``GeometricAvoider``: the geometric candidate-path avoider (seed 001) behind the shared
+planner protocol ``avoidance.planner.Planner``.
+
+Boundary: estimates, threats and plans are local NED [m, m/s], sim time [s]; the core works in
+local ENU z-up and τ from the evading instant (converted here and in ``reference``).
+
+Per call: while a committed avoidance path is being flown it is re-checked (``still_valid``)
+and kept if still clear; otherwise the conflict monitor (CPA along the reference) looks for a
+main threat. No conflict -> the reference. Conflict -> candidates around it from the evading
+point (the vehicle's along-track position shifted ahead by ``start_shift_s``), the chosen path
+then the rest of the reference. No collision-free candidate (or too close) -> NO_SOLUTION with
+a hover plan at the current position.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from avoidance.geometric.avoider import AvoidanceResult, Status, path_is_clear, plan_avoidance
+from avoidance.geometric.config import PATH_TYPES, GeometricConfig, VehicleParams
+from avoidance.geometric.conflict import find_main_threat
+from avoidance.geometric.reference import ReferenceLine
+from avoidance.geometric.threats import Threat, ThreatArrays, inflate
+from avoidance.planner import Plan, PlanStatus, Threats
+from sim.frames import enu_to_ned, ned_to_enu
+from sim.state import VehicleState
+
+
+@dataclass(frozen=True, slots=True)
+class _Commitment:
+    """The avoidance path being flown: ENU points, absolute times [s], the plan handed out, the
+    main threat's id and the absolute time it reaches the collision point."""
+
+    points_enu: np.ndarray
+    times: np.ndarray
+    plan: Plan
+    main_id: str
+    t_cpa: float
+
+
+def sensed_threats(threats: Threats, t0: float, k_sigma: float) -> tuple[list[Threat], int]:
+    """Spheres and intruder tracks as core threats predicted to time ``t0`` [s] (ENU, radius
+    inflated by the covariances, §3.1), and the number of threat objects this planner ignores
+    (obstacles, geofences, storms, LiDAR)."""
+    out = []
+    for th in threats.spheres:
+        r, g = inflate(th.radius_m, th.center_cov, None, k_sigma, t0 - th.t)
+        out.append(_predicted(th.id, th.center_ned, th.vel_ned, r, g, t0 - th.t))
+    for tr in threats.intruders:
+        r, g = inflate(tr.radius_m, tr.pos_cov, tr.vel_cov, k_sigma, t0 - tr.t)
+        out.append(_predicted(tr.id, tr.pos_ned, tr.vel_ned, r, g, t0 - tr.t))
+    ignored = len(threats.obstacles) + len(threats.geofences) + len(threats.storms) + (threats.lidar is not None)
+    return out, ignored
+
+
+def _predicted(tid: str, p_ned, v_ned, radius: float, growth: float, age: float) -> Threat:
+    if not (np.isfinite(radius) and radius > 0):
+        raise ValueError(f"threat {tid!r}: radius must be finite and > 0, got {radius!r}")
+    v = ned_to_enu(v_ned)
+    return Threat(tid, ned_to_enu(p_ned) + v * age, v, radius, growth)
+
+
+def _json(v):
+    """Plain-JSON value: arrays to lists, NaN/inf to None."""
+    a = np.asarray(v)
+    if a.dtype.kind == "f":
+        return np.where(np.isfinite(a), a, None).tolist()
+    return a.tolist()
+
+
+class GeometricAvoider:
+    """Planner protocol implementation. ``reference_ned`` (M, 3) straight NED polyline and its
+    ``speed`` [m/s] may be given here or later with :meth:`set_reference`."""
+
+    name = "geometric"
+
+    def __init__(self, reference_ned: np.ndarray | None = None, speed: float | None = None,
+                 config: GeometricConfig | None = None, vehicle: VehicleParams | None = None):
+        self.config = config or GeometricConfig()
+        self.vehicle = vehicle or VehicleParams()
+        self.reference: ReferenceLine | None = None
+        self._commit: _Commitment | None = None
+        self._last: tuple[float, AvoidanceResult, list[Threat]] | None = None
+        if reference_ned is not None:
+            if speed is None:
+                raise ValueError("a reference needs its speed")
+            self.set_reference(reference_ned, speed)
+
+    def set_reference(self, reference_ned: np.ndarray, speed: float) -> None:
+        """Replace the reference (straight NED polyline [m], speed [m/s]); drops any commitment."""
+        self.reference = ReferenceLine.from_ned(reference_ned, speed)
+        self._commit = None
+
+    def reset(self) -> None:
+        self._commit = None
+        self._last = None
+
+    # -- protocol -------------------------------------------------------------------------------
+    def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
+        t_start = time.perf_counter()
+        ref = self._require_reference()
+        pos = ned_to_enu(estimate.pos_ned)
+        if not (np.isfinite(t) and np.all(np.isfinite(pos))):
+            raise ValueError("estimate position and time must be finite")
+        if self._commit is not None and t < self._commit.times[-1]:
+            if self.still_valid(threats, t):
+                return self._with_diagnostics(self._commit.plan, {"status": "committed"}, t_start)
+            replan = "invalid"
+        else:
+            replan = ""
+        self._commit = None
+        cfg = self.config
+        s_now, cross = ref.project(pos)
+        s_e = min(s_now + ref.speed * cfg.start_shift_s, ref.length)
+        t_e = t + (s_e - s_now) / ref.speed
+        core, ignored = sensed_threats(threats, t_e, cfg.k_sigma)
+        base = {"cross_track_m": cross, "ignored_threats": ignored, "replan_reason": replan}
+        start = ref.point(s_e)
+        ta = ThreatArrays.of(core)
+        horizon = min(cfg.conflict_horizon_s, (ref.length - s_e) / ref.speed)
+        main = find_main_threat(start, ref.velocity, ta, cfg.r_uav, horizon) if horizon > 0 else None
+        if main is None:
+            return self._with_diagnostics(self._reference_plan(t, s_now), {**base, "status": "no_conflict"}, t_start)
+        res = plan_avoidance(start, ref.x_hat, ref.speed, ta, main, cfg, self.vehicle)
+        self._last = (t, res, core)
+        diag = {**base, "status": res.status.value, "main_threat_id": core[main.index].id,
+                "t_cpa_s": main.t_cpa, "n_candidates": 0 if res.candidates is None else len(res.candidates),
+                "n_available": 0 if res.available is None else int(res.available.sum()),
+                **{f"t_{k}_s": v for k, v in res.timings.items()}}
+        if res.status is not Status.AVOID:
+            return self._with_diagnostics(self._hover_plan(t, estimate.pos_ned), diag, t_start)
+        diag |= {"chosen_index": res.chosen, "cost": res.cost}
+        plan = self._avoid_plan(t, s_now, t_e, res)
+        k = res.chosen
+        n = res.candidates.n_pts[k]
+        self._commit = _Commitment(res.candidates.points[k, :n], t_e + res.kinematics.tau[k, :n], plan,
+                                   core[main.index].id, t_e + main.t_cpa)
+        return self._with_diagnostics(plan, diag, t_start)
+
+    def still_valid(self, threats: Threats, t: float) -> bool:
+        """Whether the rest of the committed avoidance path (from time ``t`` [s]) is still clear of
+        the sensed threats, with the rules used to choose it. False when nothing is committed."""
+        c = self._commit
+        if c is None or t >= c.times[-1]:
+            return False
+        core, _ = sensed_threats(threats, t, self.config.k_sigma)
+        later = c.times > t
+        here = np.array([np.interp(t, c.times, c.points_enu[:, i]) for i in range(3)])
+        pts = np.vstack([here, c.points_enu[later]])
+        times = np.concatenate([[0.0], c.times[later] - t])
+        ids = [th.id for th in core]
+        main_index = ids.index(c.main_id) if c.main_id in ids else None
+        return path_is_clear(pts, times, ThreatArrays.of(core), main_index, c.t_cpa - t,
+                             self.reference.velocity, self.config)
+
+    def candidate_log(self) -> dict | None:
+        """The last planning event's candidates as plain lists/dicts (NED points K×N×3, n_pts,
+        ω [m], θ/α [deg], type, availability, raw and normalised cost terms, total, choice,
+        stage timings [s]); None before any candidates were generated."""
+        if self._last is None or self._last[1].candidates is None:
+            return None
+        t, res, core = self._last
+        c = res.candidates
+        return {
+            "t": t, "status": res.status.value, "main_threat_id": core[res.main.index].id,
+            "chosen": res.chosen, "t_max_s": res.t_max,
+            "points_ned": _json(enu_to_ned(c.points)), "n_pts": _json(c.n_pts),
+            "omega_m": _json(c.omega), "theta_deg": _json(np.degrees(c.theta)),
+            "alpha_deg": _json(np.degrees(c.alpha)), "path_type": [PATH_TYPES[k] for k in c.kind],
+            "available": _json(res.available), "min_clearance_m": _json(res.clearance.min(axis=1, initial=np.inf)),
+            "raw": {k: _json(v) for k, v in res.costs.raw.items()},
+            "normalised": {k: _json(v) for k, v in res.costs.normalised.items()},
+            "cost": _json(res.costs.total), "timings_s": dict(res.timings),
+        }
+
+    # -- plans ----------------------------------------------------------------------------------
+    def _require_reference(self) -> ReferenceLine:
+        if self.reference is None:
+            raise RuntimeError("GeometricAvoider has no reference; call set_reference() first")
+        return self.reference
+
+    def _reference_plan(self, t: float, s_now: float) -> Plan:
+        ref = self.reference
+        pos, times, idx, vel = ref.onward(s_now, t)
+        first_v = enu_to_ned(ref.velocity) if len(idx) else np.zeros(3)
+        return Plan(t, np.vstack([enu_to_ned(ref.point(s_now)), pos]), np.concatenate([[t], times]),
+                    np.concatenate([[-1], idx]), PlanStatus.OK, np.vstack([first_v, vel]), self.name)
+
+    def _hover_plan(self, t: float, pos_ned: np.ndarray) -> Plan:
+        return Plan(t, np.asarray(pos_ned, float)[None].copy(), np.array([t]), np.array([-1]),
+                    PlanStatus.NO_SOLUTION, np.zeros((1, 3)), self.name)
+
+    def _avoid_plan(self, t: float, s_now: float, t_e: float, res: AvoidanceResult) -> Plan:
+        """[along-track point now (if the start was shifted)] + chosen path + rest of the reference."""
+        ref, k = self.reference, res.chosen
+        n = res.candidates.n_pts[k]
+        pts = res.candidates.points[k, :n]
+        vel = res.kinematics.wp_vel[k, :n]
+        times = t_e + res.kinematics.tau[k, :n]
+        s_end, _ = ref.project(pts[-1])
+        tail_pos, tail_t, tail_idx, tail_vel = ref.onward(s_end, times[-1])
+        lead = t_e > t
+        pos = [enu_to_ned(ref.point(s_now))[None]] * lead + [enu_to_ned(pts), tail_pos]
+        vels = [enu_to_ned(ref.velocity)[None]] * lead + [enu_to_ned(vel), tail_vel]
+        return Plan(t, np.vstack(pos), np.concatenate([[t]] * lead + [times, tail_t]),
+                    np.concatenate([[-1]] * lead + [np.full(n, -1), tail_idx]), PlanStatus.OK,
+                    np.vstack(vels), self.name)
+
+    def _with_diagnostics(self, plan: Plan, diag: dict, t_start: float) -> Plan:
+        d = {k: v for k, v in diag.items() if v is not None}
+        d["t_total_s"] = time.perf_counter() - t_start
+        return Plan(plan.t, plan.positions, plan.times, plan.labels, plan.status, plan.velocities,
+                    plan.planner, d)
