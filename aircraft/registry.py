@@ -61,7 +61,7 @@ AIRFRAMES: dict[str, Airframe] = {
         ),
         Airframe(
             name="quadrotor", kind="multirotor", jsbsim_model="quadrotor",
-            folder=airframe_dir("quadrotor"), plant_hz=240, control_hz=50,
+            folder=airframe_dir("quadrotor"), plant_hz=240, control_hz=60,
             controller="aircraft.quadrotor.controller:MultirotorController",
             gains="aircraft.quadrotor.controller:MultirotorGains",
             description="F450-derived 1.4 kg quadrotor (aircraft/quadrotor/README.md)",
