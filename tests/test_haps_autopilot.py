@@ -118,6 +118,16 @@ def test_first_update_engages_inner_loops_once():
                            "fcs/throttle-cmd-norm[0]", "fcs/throttle-cmd-norm[1]"}
 
 
+def test_update_without_reset_starts_from_the_state():
+    ap = HapsAutopilot(HapsGains.load())
+    s = _state(0.0, 0.0, 0.0, speed=TAS)  # on the setpoint: no rate demands
+    s.euler[1] = math.radians(4.3)
+    out = ap.update(s, FixedWingSetpoint(0.0, ALT, TAS), DT)
+    assert out["ap/engage"] == 1.0
+    assert out["ap/pitch-cmd-rad"] == pytest.approx(math.radians(4.3), abs=math.radians(0.2))
+    assert 0.2 < out["fcs/throttle-cmd-norm[0]"] < 0.4  # level-flight feed-forward at 20 km
+
+
 def test_underspeed_pitches_down_for_speed():
     g = HapsGains.load()
     pitch = {}

@@ -31,7 +31,7 @@ from aircraft.haps.gains import RHO0, HapsGains
 from guidance.setpoints import FixedWingSetpoint
 from sim.state import VehicleState
 
-__all__ = ["HapsAutopilot", "HapsGains"]
+__all__ = ["HapsAutopilot", "HapsGains"]  # HapsGains re-exported for aircraft.registry
 
 G = 9.80665  # [m/s^2]
 _THROTTLES = ("fcs/throttle-cmd-norm[0]", "fcs/throttle-cmd-norm[1]")
@@ -51,6 +51,7 @@ class HapsAutopilot:
         self._thr_per_power = gains.mass_kg / (gains.prop_efficiency * gains.power_max_w)
         self._fcs = {**gains.fcs_properties(), "ap/engage": 1.0}
         self._send_fcs = True
+        self._is_reset = False
         self._h_ref = self._v_ref = self._v_prev = 0.0
         self._vdot = self._roll_cmd = self._i_thr = self._i_pitch = 0.0
 
@@ -71,6 +72,7 @@ class HapsAutopilot:
             ff = self._level_throttle(v, state.eas_mps, state.roll)
             self._i_thr = _clamp(throttle - ff, -g.thr_integ_limit, g.thr_integ_limit)
         self._send_fcs = True
+        self._is_reset = True
 
     def _level_throttle(self, tas: float, eas: float, roll: float) -> float:
         """Throttle for level flight at ``tas``/``eas`` [m/s] and bank ``roll`` [rad]: drag polar
@@ -82,7 +84,10 @@ class HapsAutopilot:
         return power / g.power_max_w
 
     def update(self, state: VehicleState, sp: FixedWingSetpoint, dt: float) -> dict[str, float]:
-        """One outer-loop step of ``dt`` [s]: property commands for JSBSim (see module docstring)."""
+        """One outer-loop step of ``dt`` [s]: property commands for JSBSim (see module docstring).
+        Resets from ``state`` first if :meth:`reset` was never called."""
+        if not self._is_reset:
+            self.reset(state)
         g = self.gains
         h = state.alt_msl_m
         hdot = -float(state.vel_ned[2])
