@@ -57,10 +57,10 @@ class CostCaps:
     includes the x1.15 factor. Defaults: our own sweep for the default vehicle and config
     (``scripts/geometric_caps_sweep.py``, derivation in docs/geometric.md)."""
 
-    time_lo: float = 1.2530
-    time_hi: float = 8.1436
-    energy_lo: float = 249.59
-    energy_hi: float = 1759.0
+    time_lo: float = 1.6487
+    time_hi: float = 8.2326
+    energy_lo: float = 312.60
+    energy_hi: float = 1434.64
 
     def __post_init__(self) -> None:
         for name in ("time_lo", "time_hi", "energy_lo", "energy_hi"):
