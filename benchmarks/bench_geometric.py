@@ -181,6 +181,14 @@ def environments(n_threats: int, count: int, seed: int = 7) -> list[Encounter]:
     return out
 
 
+def _cpu_model() -> str:
+    try:
+        lines = Path("/proc/cpuinfo").read_text().splitlines()
+        return next(ln.split(":", 1)[1].strip() for ln in lines if ln.startswith("model name"))
+    except (OSError, StopIteration):
+        return platform.processor() or platform.machine()
+
+
 def median_time(fn, encs, repeat: int) -> float:
     times = []
     for enc in encs:
@@ -218,7 +226,7 @@ def main() -> None:
               f"{1e3 * r['thesis_mean_s']:10.1f} {r['speedup_vs_thesis']:9.1f} {r['speedup_vs_baseline']:11.1f}")
     out = ROOT / "benchmarks" / "results"
     out.mkdir(parents=True, exist_ok=True)
-    info = {"cpu": platform.processor() or platform.machine(), "python": sys.version.split()[0],
+    info = {"cpu": _cpu_model(), "python": sys.version.split()[0],
             "numpy": np.__version__, "cpus": os.cpu_count(),
             "blas": (np.show_config(mode="dicts") or {}).get("Build Dependencies", {}).get("blas", {}).get("name", "?")}
     (out / "bench_geometric.json").write_text(json.dumps({"machine": info, "rows": rows}, indent=2))

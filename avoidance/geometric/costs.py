@@ -67,8 +67,11 @@ def closeness(points: np.ndarray, n_pts: np.ndarray, samples: np.ndarray, radii:
     M = ½ max_j f + ½ mean_j f. No threat -> 0 (G16)."""
     if len(samples) == 0:
         return np.zeros(len(points))
-    diff = points[:, :, None, None, :] - samples[None, None, :, :, :]          # (K, N, J, S, 3)
-    d = np.sqrt(np.einsum("knjsi,knjsi->knjs", diff, diff).min(axis=-1)) - radii
+    K, N, _ = points.shape
+    J, S, _ = samples.shape
+    a, b = points.reshape(-1, 3), samples.reshape(-1, 3)
+    sq = (a * a).sum(1)[:, None] + (b * b).sum(1)[None, :] - 2.0 * (a @ b.T)   # |a − b|², (K·N, J·S)
+    d = np.sqrt(np.maximum(sq.reshape(K, N, J, S).min(axis=-1), 0.0)) - radii
     d = np.maximum(d, cfg.cmo_min_distance)
     mask = waypoint_mask(n_pts, points.shape[1])[..., None]
     mean = np.where(mask, d, 0.0).sum(axis=1) / n_pts[:, None]
