@@ -1,0 +1,65 @@
+"""A* search on an implicit graph (seed 002, Algorithms 1 and 2).
+
+The successor function yields (child, step cost, heuristic of the child); the closed list is
+keyed by ``key(node)`` so that the caller decides which states are "the same" (for the MPTP a
+position/time/course lattice, Option 1 of Algorithm 2). Ties in F prefer the larger G (the
+deeper state). Closed states are never reopened, so an inconsistent heuristic (SSPH) may cost
+optimality, as the thesis notes; an admissible, consistent one returns an optimal path.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+from collections.abc import Callable, Hashable, Iterable
+from dataclasses import dataclass
+from typing import Generic, TypeVar
+
+N = TypeVar("N")
+
+
+@dataclass(frozen=True, slots=True)
+class SearchResult(Generic[N]):
+    """``path`` from start to goal (empty unless ``status == "ok"``), its cost, the number of
+    expanded states (EXST) and ``status``: "ok", "exhausted" (open list empty) or "limit"."""
+
+    path: list[N]
+    cost: float
+    expanded: int
+    status: str
+
+
+def astar(start: N, expand: Callable[[N], Iterable[tuple[N, float, float]]], is_goal: Callable[[N], bool],
+          key: Callable[[N], Hashable], max_expansions: int, h_start: float = 0.0) -> SearchResult[N]:
+    tie = itertools.count()
+    k0 = key(start)
+    nodes: dict[Hashable, N] = {k0: start}
+    parent: dict[Hashable, Hashable | None] = {k0: None}
+    best_g = {k0: 0.0}
+    open_list = [(h_start, -0.0, next(tie), k0)]
+    closed: set[Hashable] = set()
+    expanded = 0
+    while open_list:
+        _, neg_g, _, k = heapq.heappop(open_list)
+        g = -neg_g
+        if k in closed or g > best_g[k]:
+            continue
+        node = nodes[k]
+        if is_goal(node):
+            path = []
+            while k is not None:
+                path.append(nodes[k])
+                k = parent[k]
+            return SearchResult(path[::-1], g, expanded, "ok")
+        if expanded >= max_expansions:
+            return SearchResult([], float("inf"), expanded, "limit")
+        closed.add(k)
+        expanded += 1
+        for child, cost, h in expand(node):
+            kc = key(child)
+            g2 = g + cost
+            if kc in closed or g2 >= best_g.get(kc, float("inf")):
+                continue
+            best_g[kc], nodes[kc], parent[kc] = g2, child, k
+            heapq.heappush(open_list, (g2 + h, -g2, next(tie), kc))
+    return SearchResult([], float("inf"), expanded, "exhausted")

@@ -1,0 +1,102 @@
+"""Planner parameters of the MPTP, with the HAPS defaults and the thesis's 80 m/s aircraft.
+
+Units SI, angles in radians (the ``*_deg`` constructors are for people). The aircraft model is
+the thesis's low-fidelity one (seed 002, 3.2 and 5.1): constant true airspeed = ground speed
+(wind compensated), level flight, course changes of at most ``course_change_max`` per state.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Literal
+
+from shapely.geometry import Polygon
+
+G0 = 9.80665  # standard gravity [m/s^2]
+NM = 1852.0  # m per nautical mile
+
+Heuristic = Literal["dijkstra", "edh", "ssph"]
+Turning = Literal["both", "right", "left"]
+
+
+@dataclass(frozen=True, slots=True)
+class MptpConfig:
+    """Everything one replan depends on besides the nowcast and the states.
+
+    Aircraft: ``tas_mps`` planning speed [m/s]; ``bank_max`` [rad]; ``course_change_max`` the
+    largest course change at one state [rad] (thesis |dchi_max|); ``dt_s`` planning time
+    increment [s] (auxiliary-state leg = tas * dt; a divisor of the nowcast step keeps levels
+    on nowcast times); ``horizon_s`` planning horizon T_P [s]; ``replan_period_s`` cadence [s].
+
+    Search: ``heuristic``; ``turning`` sense(s) of the auxiliary states; ``max_expansions``
+    caps A* (the thesis's Monte-Carlo success criterion used 100).
+
+    Margins (seed 002 3.1): probabilistic radius r = sqrt(-2 ln(1-P)) * sigma(theta) * lead_time,
+    sigma from ``sigma_back_mps`` (against the motion) to ``sigma_front_mps`` (along it), capped
+    at ``prob_margin_max_m``; safety margins [m] by cell speed band (<10, <20, >=20 m/s) for a
+    single cell and a line of storms (aspect ratio >= ``line_aspect``); both added (ch. 6
+    "sum of safety and probabilistic margins"). ``cluster_eps_m`` > 0 closes passages narrower
+    than it (3.1.4); ``simplify_tol_m`` is the Douglas-Peucker tolerance, added to the margins
+    first so that smoothing never undercuts them (Fig. 4.3).
+
+    ``mission_area``: where the aircraft may fly, (north, east) [m]; None = unrestricted (the
+    workspace is then the disc reachable within the horizon, as in thesis ch. 6).
+    """
+
+    tas_mps: float = 26.0
+    bank_max: float = math.radians(20.0)
+    course_change_max: float = math.radians(45.0)
+    dt_s: float = 60.0
+    horizon_s: float = 3600.0
+    replan_period_s: float = 300.0
+    heuristic: Heuristic = "ssph"
+    turning: Turning = "both"
+    max_expansions: int = 400
+    probability: float = 0.9
+    sigma_front_mps: float = 1.5
+    sigma_back_mps: float = 0.75
+    prob_margin_max_m: float = 15_000.0
+    safety_single_m: tuple[float, float, float] = (5_000.0, 6_000.0, 8_000.0)
+    safety_line_m: tuple[float, float, float] = (8_000.0, 9_000.0, 10_000.0)
+    line_aspect: float = 3.0
+    cluster_eps_m: float = 0.0
+    simplify_tol_m: float = 200.0
+    ring_segments: int = 72
+    mission_area: Polygon | None = None
+    g: float = G0
+
+    def __post_init__(self) -> None:
+        if self.tas_mps <= 0 or self.dt_s <= 0 or self.horizon_s < self.dt_s:
+            raise ValueError("need tas_mps > 0, dt_s > 0 and horizon_s >= dt_s")
+        if not 0 < self.bank_max < math.pi / 2 or not 0 < self.course_change_max <= math.pi / 2:
+            raise ValueError("bank_max must be in (0, 90) deg and course_change_max in (0, 90] deg")
+        if not 0 <= self.probability < 1:
+            raise ValueError("probability must be in [0, 1)")
+        if self.heuristic not in ("dijkstra", "edh", "ssph") or self.turning not in ("both", "right", "left"):
+            raise ValueError(f"unknown heuristic {self.heuristic!r} or turning {self.turning!r}")
+
+    @property
+    def turn_radius_m(self) -> float:
+        """Minimum turn radius R = V^2 / (g tan(bank_max)) [m] (seed 002 eq. 5.67)."""
+        return self.tas_mps**2 / (self.g * math.tan(self.bank_max))
+
+    @property
+    def leg_m(self) -> float:
+        """Leg distance of an auxiliary state LD = V * dt [m]."""
+        return self.tas_mps * self.dt_s
+
+    def with_(self, **changes) -> MptpConfig:
+        return replace(self, **changes)
+
+    @classmethod
+    def thesis(cls, **changes) -> MptpConfig:
+        """The thesis's chapter-6 aircraft: 80 m/s, bank <= 25 deg, dt 100 s, |dchi| 45 deg,
+        margins 10 km at issue growing to 35 km after one hour, eps 0.022 deg (~2.4 km)."""
+        base = cls(tas_mps=80.0, bank_max=math.radians(25.0), course_change_max=math.radians(45.0),
+                   dt_s=100.0, horizon_s=3600.0, replan_period_s=300.0, max_expansions=400,
+                   probability=0.9, sigma_front_mps=25_000.0 / (math.sqrt(-2 * math.log(0.1)) * 3600.0),
+                   sigma_back_mps=12_500.0 / (math.sqrt(-2 * math.log(0.1)) * 3600.0),
+                   prob_margin_max_m=25_000.0, safety_single_m=(10_000.0,) * 3, safety_line_m=(10_000.0,) * 3,
+                   simplify_tol_m=0.022 * math.pi / 180 * 6_371_000.0)
+        return replace(base, **changes)

@@ -1,0 +1,107 @@
+"""Estimated future aircraft states and the free estimated state space (seed 002, 3.2-3.3).
+
+Frames/units: (north, east) [m], times [s].
+
+From an initial state (p_in, t_in) the aircraft's estimated future states at constant speed V
+(wind compensated, V_G = V_T) are the isochrones |p - p_in| = V (t - t_in), the approximate
+future states of 3.2 taken continuously in course. A state is in conflict when it lies inside
+the obstacle at its time. Over planning interval j the obstacle is the timeline's envelope E_j,
+and the states of that interval form the annulus A_j between the isochrones of t_j and t_j+1, so
+the estimated obstacle region is exactly
+
+    EX_obs(x_in) = U_j (A_j n E_j)          (the union of the estimated conflict areas, eq. 3.6)
+
+computed with shapely's vectorised intersection instead of the thesis's sampled states (same
+set, no course sampling). Annuli are polygons that circumscribe their outer isochrone and are
+inscribed in their inner one, so neighbouring annuli overlap and no state is missed. Beyond the
+timeline's last level the last envelope is held. The free space is EX_free = W \\ EX_obs (3.7),
+kept to the connected part that contains p_in. Every straight segment from p_in inside EX_free
+is a conflict-free trajectory at speed V: along it, time and range grow together.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from shapely.geometry import Point, Polygon
+from shapely.geometry.base import BaseGeometry
+
+from guidance.mptp.timeline import ObstacleTimeline
+from guidance.mptp.visibility import Boundary, boundary_of
+
+
+@dataclass(frozen=True, slots=True)
+class FreeSpace:
+    """EX_free(x_in) and its boundary; ``obstacle`` is EX_obs(x_in); ``trapped`` when p_in was
+    inside EX_obs and an escape disc had to be carved (see :func:`free_space`)."""
+
+    p_in: np.ndarray
+    t_in: float
+    free: BaseGeometry
+    obstacle: BaseGeometry
+    boundary: Boundary
+    trapped: bool
+
+
+def annuli(p: np.ndarray, radii: np.ndarray, segments: int) -> np.ndarray:
+    """Polygons between consecutive radii around p: hole inscribed in radii[k], shell
+    circumscribing radii[k+1]; the first one (radii[0] == 0) is a disc."""
+    ang = np.linspace(0.0, 2 * math.pi, segments, endpoint=False)
+    unit = np.stack([np.cos(ang), np.sin(ang)], 1)
+    grow = 1.0 / math.cos(math.pi / segments)
+    out = []
+    for r0, r1 in zip(radii[:-1], radii[1:]):
+        shell = p + unit * (r1 * grow)
+        out.append(Polygon(shell, [p + unit[::-1] * r0] if r0 > 0 else None))
+    return np.array(out, object)
+
+
+def obstacle_region(tl: ObstacleTimeline, p_in: np.ndarray, t_in: float, reach_m: float, speed: float,
+                    segments: int) -> BaseGeometry:
+    """EX_obs(x_in) out to range ``reach_m`` [m] (beyond the last level the last envelope)."""
+    j0 = int(tl.interval(t_in))
+    j_last = min(tl.n_levels - 1, j0 + int(math.ceil(reach_m / (speed * tl.dt))) + 1)
+    bounds = np.array([tl.level_time(j) for j in range(j0 + 1, j_last + 1)])
+    radii = np.concatenate([[0.0], speed * (bounds - t_in)])
+    radii = radii[np.r_[True, radii[1:] < reach_m]]
+    radii = np.append(radii, max(reach_m, radii[-1]) * 1.05 + 1.0)
+    rings = annuli(p_in, radii, segments)
+    env = tl.envelopes(j0, j0 + len(rings))
+    hit = shapely.intersects(rings, env)
+    if not hit.any():
+        return Polygon()
+    return shapely.union_all(shapely.intersection(rings[hit], env[hit]))
+
+
+def free_space(tl: ObstacleTimeline, p_in: np.ndarray, t_in: float, workspace: Polygon, speed: float,
+               segments: int, escape: bool = False) -> FreeSpace:
+    """EX_free(x_in) = W \\ EX_obs(x_in), the part connected to p_in.
+
+    With ``escape`` (the start state only), a p_in inside EX_obs is added to the free space as
+    the thesis does when the aircraft is suddenly trapped inside a margin: a disc around p_in
+    reaching 20 % beyond the nearest free point is removed from EX_obs, so that the search can
+    leave the margin the shortest way."""
+    p_in = np.asarray(p_in, float)
+    reach = _reach(p_in, workspace)
+    obs = obstacle_region(tl, p_in, t_in, reach, speed, segments)
+    pt = Point(p_in)
+    trapped = escape and obs.contains(pt)
+    if trapped:
+        d_out = obs.boundary.distance(pt)
+        obs = obs.difference(pt.buffer(1.2 * d_out + 1.0, quad_segs=8))
+    free = workspace.difference(obs)
+    parts = shapely.get_parts(free)
+    if len(parts) > 1:
+        near = shapely.distance(parts, pt)
+        free = parts[int(np.argmin(near))]
+    return FreeSpace(p_in, t_in, free, obs, boundary_of(free), bool(trapped))
+
+
+def _reach(p: np.ndarray, workspace: Polygon) -> float:
+    """Largest distance from p to the workspace's bounding box corners [m]."""
+    x0, y0, x1, y1 = workspace.bounds
+    corners = np.array([[x0, y0], [x0, y1], [x1, y0], [x1, y1]])
+    return float(np.linalg.norm(corners - p, axis=1).max())

@@ -1,0 +1,123 @@
+"""Visibility in the free estimated state space (seed 002, 4.1.2), vectorised with numpy.
+
+Frames/units: points (north, east) [m]. The free space is a shapely (Multi)Polygon; its rings are
+oriented so that the free space is on the right (exterior clockwise, holes counter-clockwise),
+i.e. the obstacle is on the left of every boundary edge, whether the obstacle is a storm region
+or the outside of the workspace (the thesis's reversed mission-area ring).
+
+- Tangent test (the thesis's M_pa / M_na matrices): a segment from s to vertex v is tangent at v
+  when the previous and next vertices of v lie on the same side of the line s-v (or on it).
+- Only convex obstacle corners (left turn with the obstacle on the left) can be on a shortest
+  path; reflex vertices are dropped (4.1.2).
+- Visibility: a candidate segment is visible when no boundary edge crosses it away from its two
+  end points (crossings through an edge's end point count, so passing exactly through a vertex
+  is conservatively blocked). With tangency at the ends this decides visibility by counting
+  intersections, as the thesis does, without perturbation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from shapely.geometry.base import BaseGeometry
+
+END_TOL_M = 1e-3  # crossings closer than this to a candidate's end points are ignored [m]
+_CHUNK = 2_000_000  # candidate x edge entries per numpy block
+
+
+@dataclass(frozen=True, slots=True)
+class Boundary:
+    """Boundary of a free space: convex corner vertices with their neighbours, and all edges."""
+
+    verts: np.ndarray  # (V, 2) convex corners
+    prev: np.ndarray  # (V, 2)
+    next: np.ndarray  # (V, 2)
+    ea: np.ndarray  # (E, 2) edge starts
+    eb: np.ndarray  # (E, 2) edge ends
+
+    @property
+    def n_edges(self) -> int:
+        return len(self.ea)
+
+
+def boundary_of(free: BaseGeometry) -> Boundary:
+    """Vertices and edges of ``free`` ((Multi)Polygon), obstacle on the left of every edge."""
+    free = shapely.orient_polygons(free, exterior_cw=True)
+    rings = shapely.get_rings(shapely.get_parts(free))
+    coords, idx = shapely.get_coordinates(rings, return_index=True)
+    keep = np.ones(len(coords), bool)
+    keep[np.r_[np.flatnonzero(np.diff(idx)), len(idx) - 1]] = False  # drop the closing points
+    pts, ring = coords[keep], idx[keep]
+    start = np.r_[0, np.flatnonzero(np.diff(ring)) + 1]
+    count = np.diff(np.r_[start, len(ring)])
+    local = np.arange(len(ring)) - np.repeat(start, count)
+    base, n = np.repeat(start, count), np.repeat(count, count)
+    prv, nxt = pts[base + (local - 1) % n], pts[base + (local + 1) % n]
+    turn = _cross(pts - prv, nxt - pts)
+    convex = turn > 0
+    return Boundary(pts[convex], prv[convex], nxt[convex], pts, nxt)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def tangent(src: np.ndarray, b: Boundary) -> np.ndarray:
+    """(S, V) bool: the segment from each source to each convex vertex is tangent at the vertex."""
+    d = b.verts[None, :, :] - src[:, None, :]
+    c1 = _cross(d, (b.prev - b.verts)[None])
+    c2 = _cross(d, (b.next - b.verts)[None])
+    return c1 * c2 >= 0.0
+
+
+def blocked(p: np.ndarray, q: np.ndarray, b: Boundary) -> np.ndarray:
+    """(C,) bool: segment p_i -> q_i is crossed by a boundary edge away from its end points."""
+    out = np.zeros(len(p), bool)
+    if not len(p) or not b.n_edges:
+        return out
+    step = max(1, _CHUNK // b.n_edges)
+    for i in range(0, len(p), step):
+        out[i:i + step] = _first_crossing(p[i:i + step], q[i:i + step], b) < np.inf
+    return out
+
+
+def first_hit(p: np.ndarray, q: np.ndarray, b: Boundary) -> np.ndarray:
+    """(C,) fraction along p -> q of the first boundary crossing (inf when none)."""
+    out = np.full(len(p), np.inf)
+    step = max(1, _CHUNK // max(b.n_edges, 1))
+    for i in range(0, len(p), step):
+        out[i:i + step] = _first_crossing(p[i:i + step], q[i:i + step], b)
+    return out
+
+
+def _first_crossing(p: np.ndarray, q: np.ndarray, b: Boundary) -> np.ndarray:
+    r = (q - p)[:, None, :]
+    s = (b.eb - b.ea)[None, :, :]
+    w = b.ea[None, :, :] - p[:, None, :]
+    den = _cross(r, s)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = _cross(w, s) / den  # along the candidate
+        v = _cross(w, r) / den  # along the edge
+    length = np.linalg.norm(q - p, axis=1)[:, None]
+    tol = END_TOL_M / np.maximum(length, END_TOL_M)
+    hit = (np.abs(den) > 1e-12) & (u > tol) & (u < 1.0 - tol) & (v >= 0.0) & (v <= 1.0)
+    return np.where(hit, u, np.inf).min(axis=1) if hit.shape[1] else np.full(len(p), np.inf)
+
+
+def visible_vertices(src: np.ndarray, b: Boundary) -> tuple[np.ndarray, np.ndarray]:
+    """Visible tangent edges from sources: (source index, vertex index) arrays."""
+    si, vi = np.nonzero(tangent(src, b))
+    ok = ~blocked(src[si], b.verts[vi], b)
+    return si[ok], vi[ok]
+
+
+def reduced_graph(b: Boundary) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Edges (i, j, length) of the reduced visibility graph VG_r among the convex vertices:
+    bitangent (tangent at both ends) and visible, each undirected edge once (i < j)."""
+    t = tangent(b.verts, b)
+    i, j = np.nonzero(np.triu(t & t.T, k=1))
+    ok = ~blocked(b.verts[i], b.verts[j], b)
+    i, j = i[ok], j[ok]
+    return i, j, np.linalg.norm(b.verts[j] - b.verts[i], axis=1)
