@@ -1,0 +1,112 @@
+"""Avoidance Grid geometry (spec §3): polar cells in the LCF, vectorised cell lookup, and the
+per-cell geometry used by the threat ratings (centres, outer cells, zones, horizontal
+footprints, altitude offsets, volume samples).
+
+Frame: LCF (X+ heading, Y+ left, Z+ up) [m]; angles [rad]. Flat cell index
+``c = ((i-1)·J + (j-1))·K + (k-1)`` with 1-based layer i, column j (j=1 rightmost), row k (k=1 bottom);
+arrays of per-cell values reshape to (I, J, K).
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+import numpy as np
+import shapely
+
+from avoidance.reachset.config import GridConfig
+from avoidance.reachset.frames import from_polar, to_polar
+
+
+class AvoidanceGrid:
+    """Geometry only; ratings live in per-decision arrays of length ``n_cells``."""
+
+    def __init__(self, cfg: GridConfig = GridConfig()):
+        self.cfg = cfg
+        self.shape = (cfg.n_layers, cfg.n_h, cfg.n_v)
+        self.n_cells = cfg.n_layers * cfg.n_h * cfg.n_v
+        self.starts = np.array([cfg.d_range[0], cfg.theta_range[0], cfg.phi_range[0]])
+        ends = np.array([cfg.d_range[1], cfg.theta_range[1], cfg.phi_range[1]])
+        self.steps = (ends - self.starts) / np.array(self.shape)
+        ijk = np.stack(np.unravel_index(np.arange(self.n_cells), self.shape), axis=1)  # 0-based
+        self.ijk0 = ijk
+        self.lower = self.starts + ijk * self.steps  # (n_cells, 3) polar lower bounds (open)
+        self.upper = self.lower + self.steps  # polar upper bounds (closed)
+        self.layer = ijk[:, 0]  # 0-based layer of each cell
+        self.centers_polar = 0.5 * (self.lower + self.upper)
+        self.centers = from_polar(self.centers_polar)
+        self.outer = (ijk[:, 0] == cfg.n_layers - 1) | np.isin(ijk[:, 1], (0, cfg.n_h - 1)) | np.isin(ijk[:, 2], (0, cfg.n_v - 1))
+        self.zone = np.where(ijk[:, 0] < cfg.safe_layers, 0, np.where(ijk[:, 0] >= cfg.n_layers - cfg.crash_layers, 2, 1))
+
+    @property
+    def range(self) -> float:
+        return float(self.cfg.d_range[1])
+
+    def cell_index_polar(self, dtp: np.ndarray) -> np.ndarray:
+        """Flat cell index of polar points (..., 3), -1 outside (bounds (start, end], A-6)."""
+        rel = np.ceil((dtp - self.starts) / self.steps - self.cfg.eps).astype(np.int64) - 1
+        ok = np.all((rel >= 0) & (rel < np.array(self.shape)), axis=-1) & (dtp[..., 0] > self.starts[0])
+        flat = (rel[..., 0] * self.shape[1] + rel[..., 1]) * self.shape[2] + rel[..., 2]
+        return np.where(ok, flat, -1)
+
+    def cell_index(self, p_lcf: np.ndarray) -> np.ndarray:
+        """Flat cell index of Cartesian LCF points (..., 3), -1 outside the grid."""
+        return self.cell_index_polar(to_polar(p_lcf))
+
+    def wall_distance(self, p_lcf: np.ndarray, cells: np.ndarray) -> np.ndarray:
+        """Distance of points to the 4 side walls (constant θ, constant φ) of their cells (§4.5)."""
+        d, th, ph = to_polar(p_lcf).T
+        lo, hi = self.lower[cells], self.upper[cells]
+        dth = np.minimum(np.abs(th - lo[:, 1]), np.abs(th - hi[:, 1]))
+        dph = np.minimum(np.abs(ph - lo[:, 2]), np.abs(ph - hi[:, 2]))
+        return np.minimum(d * np.cos(ph) * np.sin(dth), d * np.sin(dph))
+
+    def face_area(self, r: np.ndarray, cells: np.ndarray) -> np.ndarray:
+        """Area of the spherical face at range ``r`` spanned by the cells' angles (6.93/6.94)."""
+        lo, hi = self.lower[cells], self.upper[cells]
+        return r * r * (hi[:, 1] - lo[:, 1]) * (np.sin(hi[:, 2]) - np.sin(lo[:, 2]))
+
+    @cached_property
+    def volume(self) -> np.ndarray:
+        """Exact cell volumes [m³]."""
+        lo, hi = self.lower, self.upper
+        return (hi[:, 0] ** 3 - lo[:, 0] ** 3) / 3 * (hi[:, 1] - lo[:, 1]) * (np.sin(hi[:, 2]) - np.sin(lo[:, 2]))
+
+    @cached_property
+    def z_band(self) -> np.ndarray:
+        """(n_cells, 2) min/max height of each cell relative to the LCF origin [m]."""
+        z = np.stack([self.lower[:, 0] * np.sin(self.lower[:, 2]), self.lower[:, 0] * np.sin(self.upper[:, 2]),
+                      self.upper[:, 0] * np.sin(self.lower[:, 2]), self.upper[:, 0] * np.sin(self.upper[:, 2])], axis=1)
+        return np.stack([z.min(axis=1), z.max(axis=1)], axis=1)
+
+    @cached_property
+    def footprints(self) -> np.ndarray:
+        """(n_cells,) shapely polygons: horizontal LCF footprint of each cell, an annular sector
+        ρ ∈ [d_s·cos φ_far, d_e·cos φ_near], θ ∈ [θ_s, θ_e] (spec §5.3), arcs ≤ ``arc_step``."""
+        lo, hi = self.lower, self.upper
+        cos_near = np.where((lo[:, 2] <= 0) & (hi[:, 2] >= 0), 1.0, np.cos(np.minimum(np.abs(lo[:, 2]), np.abs(hi[:, 2]))))
+        cos_far = np.cos(np.maximum(np.abs(lo[:, 2]), np.abs(hi[:, 2])))
+        rho_in, rho_out = lo[:, 0] * cos_far, hi[:, 0] * cos_near
+        n_arc = max(2, int(np.ceil(self.steps[1] / np.radians(2.0))) + 1)
+        th = lo[:, 1:2] + (hi[:, 1] - lo[:, 1])[:, None] * np.linspace(0.0, 1.0, n_arc)[None, :]
+        outer = np.stack([rho_out[:, None] * np.cos(th), rho_out[:, None] * np.sin(th)], axis=-1)
+        inner = np.stack([rho_in[:, None] * np.cos(th), rho_in[:, None] * np.sin(th)], axis=-1)[:, ::-1]
+        rings = np.concatenate([outer, inner], axis=1)
+        return shapely.polygons(rings)
+
+    @cached_property
+    def volume_samples(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Polar lattice of ``samples_per_axis``³ points per cell: LCF points (M, 3), their cell
+        (M,), and the volume each represents (M,) [m³] (sums to the cell volume)."""
+        n = self.cfg.samples_per_axis
+        u = (np.arange(n) + 0.5) / n
+        uu = np.stack(np.meshgrid(u, u, u, indexing="ij"), axis=-1).reshape(-1, 3)
+        dtp = self.lower[:, None, :] + uu[None, :, :] * self.steps  # (n_cells, n³, 3)
+        w = dtp[..., 0] ** 2 * np.cos(dtp[..., 2])
+        w = w / w.sum(axis=1, keepdims=True) * self.volume[:, None]
+        cells = np.repeat(np.arange(self.n_cells), n ** 3)
+        return from_polar(dtp).reshape(-1, 3), cells, w.reshape(-1)
+
+    def per_cell(self, values: np.ndarray) -> np.ndarray:
+        """View of a per-cell array as (I, J, K)."""
+        return values.reshape(self.shape)

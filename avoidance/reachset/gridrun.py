@@ -1,0 +1,84 @@
+"""Avoidance grid run (spec §6.1, alg. 6.6 with A-17) and the category-wise emergency runs
+(spec §6.2 steps 7-11).
+
+A trajectory "in a cell" is a feasible node whose tip lies in the cell; goal and nodes in LCF [m].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from avoidance.reachset.fusion import EMERGENCY_ORDER, Categories, Fused, ThreatParts, fuse
+from avoidance.reachset.grid import AvoidanceGrid
+from avoidance.reachset.tree import ReachSetTree
+
+
+@dataclass(slots=True)
+class PathResult:
+    """Chosen node (-1 if none), its target cell (-1 if none) and the error text if none."""
+
+    node: int
+    cell: int
+    error: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.node >= 0
+
+
+@dataclass(slots=True)
+class GridRun:
+    categories: Categories
+    fused: Fused
+    path: PathResult
+
+
+def find_best_path(grid: AvoidanceGrid, tree: ReachSetTree, fused: Fused, goal_lcf: np.ndarray) -> PathResult:
+    """Alg. 6.6, deterministic form (A-17): the goal cell if reachable, else the best reachable
+    cell of its layer; for a goal outside the grid the reachable outer cell closest to it; then
+    the cheapest feasible node ending in that cell (ties: smaller depth, then node order)."""
+    ok = fused.node_ok
+    tip_cells = np.unique(tree.tip_cell[ok])
+    candidates = tip_cells[fused.reachable[tip_cells]]
+    if len(candidates) == 0:
+        return PathResult(-1, -1, "no path: empty reach set")
+    dist = np.linalg.norm(grid.centers[candidates] - goal_lcf, axis=1)
+    goal_cell = int(grid.cell_index(np.asarray(goal_lcf, float)[None])[0])
+    if goal_cell >= 0:
+        if goal_cell in candidates:
+            cell = goal_cell
+        else:
+            same = grid.layer[candidates] == grid.layer[goal_cell]
+            if not same.any():
+                return PathResult(-1, -1, "waypoint not reachable")
+            cell = int(candidates[same][np.argmin(dist[same])])
+    else:
+        outer = grid.outer[candidates]
+        if not outer.any():
+            return PathResult(-1, -1, "collision: no reachable outer cell")
+        cell = int(candidates[outer][np.argmin(dist[outer])])
+    nodes = np.flatnonzero(ok & (tree.tip_cell == cell))
+    best = nodes[np.lexsort((nodes, tree.depth[nodes], tree.cost[nodes]))[0]]
+    return PathResult(int(best), cell)
+
+
+def grid_run(grid: AvoidanceGrid, tree: ReachSetTree, parts: ThreatParts, goal_lcf: np.ndarray,
+             categories: Categories, threshold: float) -> GridRun:
+    """One assessment (fusion + reachability) and path search for one set of categories."""
+    fused = fuse(tree, parts, categories, threshold)
+    return GridRun(categories, fused, find_best_path(grid, tree, fused, goal_lcf))
+
+
+def emergency_runs(grid: AvoidanceGrid, tree: ReachSetTree, parts: ThreatParts, goal_lcf: np.ndarray,
+                   threshold: float) -> tuple[list[GridRun], int]:
+    """Steps 7-11 in selection priority order (soft, hard, intruder, obstacle paths): the runs
+    made and the index of the selected one (-1 if none found). Runs stop at the first path,
+    which is the one step 11 selects."""
+    runs = []
+    for cats in EMERGENCY_ORDER:
+        runs.append(grid_run(grid, tree, parts, goal_lcf, cats, threshold))
+        if runs[-1].path.ok:
+            return runs, len(runs) - 1
+    return runs, -1

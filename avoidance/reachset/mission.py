@@ -1,0 +1,181 @@
+"""Mission control run (spec §6.2): waypoint handling, situation assessment, operation modes
+(navigation / emergency avoidance), grid runs and movement-buffer replacement, one decision
+frame per call.
+
+Frames: z-up GCF [m] (waypoints, states), times [s]. The caller gives the state at the decision
+time t_i and the sensed threats; the movement executing in [t_i, t_{i+1}) is never changed, the
+grid is placed at the predicted state(t_{i+1}) (level, heading only) and the future movements
+are replaced by the selected path (step 12).
+
+Extension points for the UTM rule engine (spec §7, a later issue): ``restrict`` is called with the
+navigation run's context before path selection and may disable nodes (decision point
+"trajectory restrictions"); modes and events are plain values a rule can read and set.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from enum import Enum
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from avoidance.planner import Threats
+from avoidance.reachset.cache import reach_set
+from avoidance.reachset.config import AvoidanceConfig
+from avoidance.reachset.frames import GridPose
+from avoidance.reachset.fusion import Categories
+from avoidance.reachset.grid import AvoidanceGrid
+from avoidance.reachset.gridrun import GridRun, emergency_runs, find_best_path, grid_run
+from avoidance.reachset.movement import KinState, MovementType, SegmentedMovementAutomaton
+from avoidance.reachset.reference import ReferenceTrajectory, reference_trajectory
+from avoidance.reachset.situation import Assessor, situation_events
+from avoidance.reachset.tree import ReachSetTree
+
+
+class Mode(str, Enum):
+    NAVIGATION = "navigation"
+    EMERGENCY = "emergency"
+
+
+@dataclass(slots=True)
+class SegmentPlanning:
+    """Grid, reach sets and assessors of one MA segment (built once, cached)."""
+
+    grid: AvoidanceGrid
+    trees: dict[Mode, ReachSetTree]
+    assessors: dict[Mode, Assessor]
+
+
+@dataclass(slots=True)
+class Decision:
+    """What one mission-control run decided (logged every frame)."""
+
+    t: float
+    t_grid: float
+    mode: Mode
+    events: list[str]
+    goal_index: int
+    executing: int | None
+    buffer: list[int]
+    pose: GridPose
+    grid: AvoidanceGrid | None = None
+    tree: ReachSetTree | None = None
+    runs: list[GridRun] = field(default_factory=list)
+    selected: int = -1
+    reference: ReferenceTrajectory | None = None
+    status: str = "ok"
+    complete: bool = False
+    runtime_s: float = 0.0
+    reach_radius: float = 0.0  # waypoint-reached radius of the active segment [m]
+
+    @property
+    def run(self) -> GridRun | None:
+        """The run whose path was loaded (or the last one made if none succeeded)."""
+        if not self.runs:
+            return None
+        return self.runs[self.selected] if self.selected >= 0 else self.runs[-1]
+
+
+Restriction = Callable[[Decision, GridRun], np.ndarray | None]
+
+
+class MissionControl:
+    """Navigation loop of one vehicle (spec §6.2, steps 1-15)."""
+
+    def __init__(self, waypoints: np.ndarray, sma: SegmentedMovementAutomaton, cfg: AvoidanceConfig = AvoidanceConfig(),
+                 cache_dir: Path | None = None, restrict: Restriction | None = None):
+        self.waypoints = np.asarray(waypoints, float).reshape(-1, 3)
+        self.sma, self.cfg, self.cache_dir, self.restrict = sma, cfg, cache_dir, restrict
+        self.goal = 0
+        self.mode = Mode.NAVIGATION
+        self.buffer: list[int] = []
+        self._segments: dict[int, SegmentPlanning] = {}
+
+    def segment(self, index: int) -> SegmentPlanning:
+        """Grid and reach sets of MA segment ``index`` (grid scaled to its movement length)."""
+        if index not in self._segments:
+            table = self.sma.automata[index].table
+            grid = AvoidanceGrid(self.cfg.grid.scaled(table.config.length))
+            trees = {Mode.NAVIGATION: reach_set(grid, table, self.cfg.navigation, self.cache_dir),
+                     Mode.EMERGENCY: reach_set(grid, table, self.cfg.avoidance, self.cache_dir)}
+            self._segments[index] = SegmentPlanning(grid, trees, {m: Assessor(grid, t, self.cfg) for m, t in trees.items()})
+        return self._segments[index]
+
+    @property
+    def complete(self) -> bool:
+        return self.goal >= len(self.waypoints)
+
+    def step(self, s_now: KinState, threats: Threats) -> Decision:
+        t0 = time.perf_counter()
+        seg_index = self.sma.active_index(s_now)
+        ma = self.sma.automata[seg_index]
+        length = ma.table.config.length
+        events: list[str] = []
+        radius = self.cfg.mission.reach_radius_lengths * length
+        # 1-2: waypoint reached -> next goal
+        while not self.complete and np.linalg.norm(s_now.pos - self.waypoints[self.goal]) <= radius:
+            events.append(f"waypoint_reached:{self.goal}")
+            self.goal += 1
+        pose_now = GridPose(s_now.pos, float(s_now.att[2]))
+        if self.complete:
+            self.buffer = []
+            d = Decision(s_now.t, s_now.t, self.mode, events + ["mission_complete"], self.goal, None, [], pose_now,
+                         reference=reference_trajectory(ma, s_now, None, []), complete=True, reach_radius=radius)
+            d.runtime_s = time.perf_counter() - t0
+            return d
+        # 3, 6: executing movement (never changed) and the predicted state at t_{i+1}
+        if not self.buffer:
+            events.append("empty_buffer")
+        executing = self.buffer.pop(0) if self.buffer else int(MovementType.STRAIGHT)
+        s_next = ma.apply(s_now, executing)
+        pose = GridPose(s_next.pos, float(s_next.att[2]))
+        plan = self.segment(seg_index)
+        goal_lcf = pose.to_lcf(self.waypoints[self.goal])
+        # 4-5: threat collection and situation assessment with the current mode's reach set
+        parts = plan.assessors[self.mode].assess(pose, s_next.t, threats)
+        threat_events = situation_events(parts, self.cfg.fusion.threshold)
+        new_mode = Mode.EMERGENCY if threat_events else Mode.NAVIGATION
+        if new_mode != self.mode:
+            events.append(f"mode:{new_mode.value}")
+            if new_mode == Mode.NAVIGATION:
+                self.buffer = []  # drop the rest of the avoidance path
+            self.mode = new_mode
+            parts = plan.assessors[self.mode].assess(pose, s_next.t, threats)
+        events += threat_events
+        d = Decision(s_now.t, s_next.t, self.mode, events, self.goal, executing, self.buffer, pose, plan.grid,
+                     plan.trees[self.mode], reach_radius=radius)
+        replan = self.cfg.mission.replan_policy == "every_frame" or bool(threat_events) or not self.buffer or self.mode == Mode.EMERGENCY
+        if replan:
+            self._run(d, plan, parts, goal_lcf)
+        d.reference = reference_trajectory(ma, s_now, executing, self.buffer)
+        d.buffer = list(self.buffer)
+        d.runtime_s = time.perf_counter() - t0
+        return d
+
+    def _run(self, d: Decision, plan: SegmentPlanning, parts, goal_lcf: np.ndarray) -> None:
+        """Steps 7-12: grid run(s), path selection, buffer replacement."""
+        threshold = self.cfg.fusion.threshold
+        tree = plan.trees[self.mode]
+        if self.mode == Mode.NAVIGATION:
+            run = grid_run(plan.grid, tree, parts, goal_lcf, Categories(), threshold)
+            if self.restrict is not None:
+                disabled = self.restrict(d, run)
+                if disabled is not None:
+                    run.fused.node_ok &= ~disabled
+                    run.path = find_best_path(plan.grid, tree, run.fused, goal_lcf)
+            d.runs, d.selected = [run], 0 if run.path.ok else -1
+        else:
+            d.runs, d.selected = emergency_runs(plan.grid, tree, parts, goal_lcf, threshold)
+        run = d.run
+        if run.path.error == "waypoint not reachable" and self.goal < len(self.waypoints) - 1:
+            d.events.append(f"waypoint_unreachable:{self.goal}")
+            self.goal += 1
+        if d.selected >= 0:
+            self.buffer = tree.buffer(run.path.node)  # 12: flush the future, load the path
+            d.status = "ok" if run.categories == Categories() else "degraded"
+        else:
+            d.events.append(f"no_path:{run.path.error}")
+            d.status = "degraded" if self.buffer else "no_solution"
