@@ -39,8 +39,9 @@ class FixedWingPlanFollower:
         self.plan = plan
         self.leg = 0
 
-    def update(self, est: VehicleState) -> tuple[FixedWingSetpoint, list[int]]:
-        """Setpoint for now and the labels of the vertices passed since the last call."""
+    def update(self, est: VehicleState, t: float, dt: float) -> tuple[FixedWingSetpoint, list[int]]:
+        """Setpoint for now and the labels of the vertices passed since the last call
+        (``t``, ``dt`` [s] are unused: the legs are geometric)."""
         plan = self.plan
         if plan is None:
             raise RuntimeError("FixedWingPlanFollower.update before any plan")

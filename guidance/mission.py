@@ -21,6 +21,9 @@ class Mission:
     acceptance_radius: float
     reached: list[tuple[int, float]] = field(default_factory=list)  # (index, sim time [s])
     start: np.ndarray | None = None  # where the first leg starts (NED [m])
+    hold_s: dict[int, float] = field(default_factory=dict)  # hover time at waypoint index [s]
+    land: bool = False  # a multirotor lands after the last waypoint
+    landed_t: float | None = None  # sim time of touchdown [s]
 
     @property
     def next_index(self) -> int:
@@ -28,8 +31,20 @@ class Mission:
         return len(self.reached)
 
     @property
-    def complete(self) -> bool:
+    def waypoints_done(self) -> bool:
         return self.next_index >= len(self.waypoints)
+
+    @property
+    def complete(self) -> bool:
+        """Every waypoint reached (and, for a landing mission, landed)."""
+        return self.waypoints_done and (not self.land or self.landed_t is not None)
+
+    @property
+    def complete_time(self) -> float | None:
+        """Sim time the mission completed [s] (touchdown for a landing mission)."""
+        if not self.complete:
+            return None
+        return self.landed_t if self.land else self.reached[-1][1]
 
     def mark_reached(self, index: int, t: float) -> bool:
         """Record waypoint ``index`` reached at ``t``; True if that was news."""

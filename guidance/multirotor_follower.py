@@ -59,8 +59,8 @@ class MultirotorPlanFollower:
             self.s = _project(P, self._cum, self.carrot)
         else:
             self.s = 0.0
-        self.leg = int(np.searchsorted(self._cum, self.s, side="right") - 1) if len(P) > 1 else 0
-        self.leg = min(self.leg, max(len(P) - 2, 0))
+        # a carrot exactly at a vertex stays on the leg ending there, so the vertex is still passed
+        self.leg = min(max(int(np.searchsorted(self._cum, self.s, side="left")) - 1, 0), max(len(P) - 2, 0))
         self._arrived = False
 
     def _leg_speed(self, u: np.ndarray) -> float:

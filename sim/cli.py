@@ -122,7 +122,7 @@ def cmd_replay(args) -> int:
     out_dir = Path(args.output) if args.output else log.with_name(f"{log.stem}_report")
     try:
         report, metrics = write_report(log, out_dir)
-    except (LogReadError, KeyError) as exc:
+    except LogReadError as exc:
         _error(exc)
         return EXIT_BAD_INPUT
     if args.json:
@@ -141,7 +141,7 @@ def cmd_compare(args) -> int:
 
     try:
         rows = compare_logs(args.a, args.b)
-    except (LogReadError, KeyError) as exc:
+    except LogReadError as exc:
         _error(exc)
         return EXIT_BAD_INPUT
     t = Table("metric", "A", "B", "B - A", title=f"A = {args.a}   B = {args.b}", title_justify="left")

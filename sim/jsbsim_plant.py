@@ -64,7 +64,9 @@ def _quiet_logger() -> _QuietLogger:
 
 @dataclass(frozen=True, slots=True)
 class InitialConditions:
-    """Initial state: position (WGS84), true airspeed [m/s], heading [rad], attitude [rad]."""
+    """Initial state: position (WGS84), true airspeed [m/s], heading [rad], attitude [rad];
+    ``terrain_alt_m``: elevation of the (flat) ground, MSL [m]. ``on_ground`` puts the vehicle
+    on it, whatever ``position.alt_m`` says."""
 
     position: GeoPoint
     tas_mps: float = 0.0
@@ -72,6 +74,7 @@ class InitialConditions:
     roll_rad: float = 0.0
     pitch_rad: float = 0.0
     on_ground: bool = False
+    terrain_alt_m: float = 0.0
 
 
 _TRUTH_PROPS = (
@@ -139,8 +142,9 @@ class JSBSimPlant:
         f = self.fdm
         f["ic/lat-geod-deg"] = ic.position.lat_deg
         f["ic/long-gc-deg"] = ic.position.lon_deg
+        f["ic/terrain-elevation-ft"] = ic.terrain_alt_m / FT
         if ic.on_ground:
-            f["ic/h-agl-ft"] = max(ic.position.alt_m / FT, 0.5)
+            f["ic/h-agl-ft"] = 0.5  # lower and the gear springs catapult it (jsbsim-notes)
         else:
             f["ic/h-sl-ft"] = ic.position.alt_m / FT
         f["ic/vt-kts"] = ic.tas_mps / KT

@@ -46,6 +46,17 @@ FIXED_WING_SETPOINT = _obj("cosim.FixedWingSetpoint", {
     "turning": ({"type": "boolean"}, "true while capturing a new leg (not straight flight)"),
 })
 
+MULTIROTOR_SETPOINT = _obj("cosim.MultirotorSetpoint", {
+    "t": (_NUM, "sim time [s]"),
+    "pos_ned": (_VEC3, "position demand (the carrot), local-level NED [m]; null: velocity control"),
+    "vel_ned": (_VEC3, "velocity feed-forward NED [m/s]"),
+    "yaw_rad": (_NUM, "yaw demand [rad] (null: hold)"),
+    "altitude_m": (_NUM, "altitude demand, MSL [m]"),
+    "leg": ({"type": "integer"}, "index of the plan leg being followed"),
+    "cross_track_m": (_NUM, "distance from the leg line (3-D) [m]"),
+    "turning": ({"type": "boolean"}, "true while the carrot waits (vertex, hold, landing)"),
+})
+
 COMMANDS = _obj("cosim.Commands", {
     "t": (_NUM, "sim time [s]"),
     "properties": ({"type": "object", "additionalProperties": _NUM},

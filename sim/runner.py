@@ -99,6 +99,7 @@ def run_scenario(
             log.attach("scenario.toml", scenario_text.encode(), "application/toml")
         write_static_frames(log)
         vehicles = [Vehicle(v, origin, log) for v in scenario.vehicle]
+        log.metadata("vehicles", {v.name: v.airframe.kind for v in vehicles})
         base = _lcm_rates([v.airframe.plant_hz for v in vehicles])
         sched = LockstepScheduler(base)
         for v in vehicles:
@@ -126,7 +127,7 @@ def run_scenario(
         for v in vehicles:
             m = v.mission
             result.missions[v.name] = MissionResult(
-                len(m.reached), len(m.waypoints), m.complete, m.reached[-1][1] if m.complete else None)
+                len(m.reached), len(m.waypoints), m.complete, m.complete_time)
         try:
             result.metrics = run_metrics([v.recorder.trace() for v in vehicles])
             log.metadata("metrics", {"json": json.dumps(result.metrics, sort_keys=True)})

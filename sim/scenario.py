@@ -30,7 +30,8 @@ class _Strict(BaseModel):
 
 
 class Origin(_Strict):
-    """WGS84 origin of the local NED frame; lat/lon in degrees, altitude of the frame [m]."""
+    """WGS84 origin of the local NED frame; lat/lon in degrees; ``altitude`` [m MSL] is also
+    the elevation of the flat ground under the whole scenario."""
 
     lat: quantity("angle", -90.0, 90.0)
     lon: quantity("angle", -180.0, 180.0)
@@ -42,9 +43,13 @@ _Altitude = quantity("length", -500.0, 30000.0)
 
 
 class Waypoint(_Strict):
+    """A waypoint: north/east offset from the origin [m], altitude MSL [m]; a multirotor hovers
+    ``hold`` [s] there."""
+
     north: _Offset
     east: _Offset
     altitude: _Altitude
+    hold: quantity("time", 0.0, 86400.0) = 0.0
 
 
 class Mission(_Strict):
@@ -53,6 +58,7 @@ class Mission(_Strict):
     cruise_speed: quantity("speed", 0.0, 120.0, lo_open=True)
     acceptance_radius: quantity("length", 0.0, 5000.0, lo_open=True) = 100.0
     waypoints: Annotated[list[Waypoint], Field(min_length=1)]
+    land: bool = False
 
 
 class Initial(_Strict):
@@ -63,7 +69,7 @@ class Initial(_Strict):
     altitude: _Altitude
     airspeed: quantity("speed", 0.0, 120.0) = 0.0
     heading: Angle = 0.0
-    trim: bool = True
+    trim: bool | None = None  # default: JSBSim trim for fixed wing; multirotors start in hover
     on_ground: bool = False
 
 
@@ -88,6 +94,22 @@ class Vehicle(_Strict):
         except KeyError as exc:
             raise ValueError(exc.args[0]) from None
         return v
+
+    @model_validator(mode="after")
+    def _fits_airframe(self) -> "Vehicle":
+        kind = get_airframe(self.aircraft).kind
+        if kind == "multirotor":
+            if self.initial.trim:
+                raise ValueError("initial.trim: JSBSim cannot trim a multirotor; it starts in hover "
+                                 "(or on the ground) and its controller holds it")
+            return self
+        if self.mission.land:
+            raise ValueError(f"mission.land: only multirotors land at the end of a mission ({self.aircraft} is {kind})")
+        if self.initial.on_ground:
+            raise ValueError(f"initial.on_ground: {self.aircraft} ({kind}) starts in the air")
+        if any(w.hold > 0 for w in self.mission.waypoints):
+            raise ValueError(f"mission.waypoints: hold is for multirotors ({self.aircraft} is {kind})")
+        return self
 
 
 class Logging(_Strict):

@@ -19,6 +19,9 @@ from avoidance.planner import Plan, Threats
 from guidance.fixed_wing_follower import FixedWingPlanFollower
 from guidance.l1 import L1Guidance
 from guidance.mission import Mission
+from guidance.multirotor_follower import MultirotorPlanFollower
+from guidance.setpoints import MultirotorSetpoint
+from sim import log_schemas as S
 from sim import scenario as sc
 from sim.estimator import PerfectEstimator
 from sim.frames import GeoPoint, ned_to_geodetic
@@ -26,7 +29,7 @@ from sim.jsbsim_plant import InitialConditions, JSBSimPlant
 from sim.mcap_log import McapLog
 from sim.replay.trace import TraceRecorder
 from sim.scheduler import LockstepScheduler, Stage
-from sim.vehicle_log import VehicleLogWriter, setpoint_dict
+from sim.vehicle_log import VehicleLogWriter
 
 
 class SimulationDiverged(RuntimeError):
@@ -37,38 +40,49 @@ def _ned(north: float, east: float, altitude: float, origin: GeoPoint) -> np.nda
     return np.array([north, east, origin.alt_m - altitude])
 
 
+def _json_num(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
 class Vehicle:
     def __init__(self, cfg: sc.Vehicle, origin: GeoPoint, log: McapLog):
         self.name = cfg.name
         self.cfg = cfg
-        self.airframe = get_airframe(cfg.aircraft)
-        if self.airframe.kind != "fixed_wing":
-            raise NotImplementedError(f"vehicle {cfg.name}: {self.airframe.kind} vehicles are not supported yet")
+        self.origin = origin
+        self.airframe = af = get_airframe(cfg.aircraft)
         self.log = log
         self.logw = VehicleLogWriter(log, cfg.name)
-        af = self.airframe
         self.plant = JSBSimPlant(af.jsbsim_model, 1.0 / af.plant_hz, origin, af.folder)
         ini = cfg.initial
-        lat, lon, alt = ned_to_geodetic(_ned(ini.north, ini.east, ini.altitude, origin), origin)
+        start = _ned(ini.north, ini.east, ini.altitude, origin)
+        lat, lon, alt = ned_to_geodetic(start, origin)
         self.plant.initialise(InitialConditions(
             position=GeoPoint(float(lat), float(lon), float(alt)), tas_mps=ini.airspeed,
-            heading_rad=ini.heading, on_ground=ini.on_ground))
-        if ini.trim:
+            heading_rad=ini.heading, on_ground=ini.on_ground, terrain_alt_m=origin.alt_m))
+        if ini.trim if ini.trim is not None else af.kind == "fixed_wing":
             self.plant.trim()
         m = cfg.mission
         self.mission = Mission(
             waypoints=np.array([_ned(w.north, w.east, w.altitude, origin) for w in m.waypoints]),
-            cruise_speed=m.cruise_speed, acceptance_radius=m.acceptance_radius,
-            start=_ned(ini.north, ini.east, ini.altitude, origin))
+            cruise_speed=m.cruise_speed, acceptance_radius=m.acceptance_radius, start=start,
+            hold_s={k: w.hold for k, w in enumerate(m.waypoints) if w.hold > 0}, land=m.land)
         self.estimator = PerfectEstimator(self.plant)
         self.planner = FollowMissionPlanner(self.mission)
         self.controller = af.make_controller(cfg.gains)
-        self.follower = FixedWingPlanFollower(L1Guidance.for_airframe(self.controller), m.cruise_speed,
-                                              m.acceptance_radius, origin.alt_m)
-        self.recorder = TraceRecorder(cfg.name, len(self.mission.waypoints))
-        self.threats = Threats()
         self.estimate = self.estimator.update(0.0)
-        self.controller.reset(self.estimate)
+        if af.kind == "fixed_wing":
+            self.follower = FixedWingPlanFollower(L1Guidance.for_airframe(self.controller), m.cruise_speed,
+                                                  m.acceptance_radius, origin.alt_m)
+            self.controller.reset(self.estimate)
+            self._setpoint_schema = S.FIXED_WING_SETPOINT
+        else:
+            lim = self.controller.gains.limits
+            self.follower = MultirotorPlanFollower(m.cruise_speed, lim.max_climb, lim.max_descent,
+                                                   m.acceptance_radius, self.mission.hold_s)
+            self.controller.reset(self.estimate, landed=ini.on_ground)
+            self._setpoint_schema = S.MULTIROTOR_SETPOINT
+        self.recorder = TraceRecorder(cfg.name, af.kind, len(self.mission.waypoints))
+        self.threats = Threats()
         self._control_dt = 1.0 / af.control_hz
         self._setpoint: dict = {}
         self._commands: dict[str, float] = {}
@@ -93,20 +107,45 @@ class Vehicle:
         self.logw.plan(plan, latency)
         self.recorder.latency(latency)
 
+    def _event(self, t: float, text: str) -> None:
+        self.log.event(t, f"{self.name}: {text}", name=self.name)
+
     def _control(self, t: float) -> None:
-        sp, passed = self.follower.update(self.estimate)
+        m = self.mission
+        sp, passed = self.follower.update(self.estimate, t, self._control_dt)
         for label in passed:
-            if label >= 0 and self.mission.mark_reached(label, t):
-                total = len(self.mission.waypoints)
-                self.log.event(t, f"{self.name}: waypoint {label + 1}/{total} reached", name=self.name)
+            if label >= 0 and m.mark_reached(label, t):
+                self._event(t, f"waypoint {label + 1}/{len(m.waypoints)} reached")
                 self.recorder.reached(t)
-                if self.mission.complete:
-                    self.log.event(t, f"{self.name}: mission complete", name=self.name)
+                self._mission_progress(t)
+        if m.land and m.waypoints_done and m.landed_t is None:
+            last = m.waypoints[-1]
+            descent = self.controller.gains.limits.max_descent
+            sp = MultirotorSetpoint(np.array([last[0], last[1], np.nan]), np.array([0.0, 0.0, descent]),
+                                    float("nan"))
         cmds = self.controller.update(self.estimate, sp, self._control_dt)
+        if m.land and m.waypoints_done and m.landed_t is None and self.controller.landed:
+            m.landed_t = t
+            self._event(t, "landed")
+            self._mission_progress(t)
         self.plant.set_many(cmds)
-        self._setpoint = setpoint_dict(sp, leg=self.follower.leg, cross_track_m=self.follower.cross_track_m,
-                                       turning=self.follower.turning)
+        self._setpoint = self._setpoint_record(sp)
         self._commands = cmds
+
+    def _mission_progress(self, t: float) -> None:
+        if self.mission.complete:
+            self._event(t, "mission complete")
+            self.recorder.complete(t)
+
+    def _setpoint_record(self, sp) -> dict:
+        f = self.follower
+        common = {"leg": f.leg, "cross_track_m": f.cross_track_m, "turning": f.turning}
+        if isinstance(sp, MultirotorSetpoint):
+            d = float(sp.pos_ned[2])
+            return {"pos_ned": [_json_num(x) for x in sp.pos_ned], "vel_ned": [float(x) for x in sp.vel_ned],
+                    "yaw_rad": _json_num(sp.yaw_rad),
+                    "altitude_m": _json_num(self.origin.alt_m - d), **common}
+        return {"roll_rad": sp.roll_rad, "altitude_m": sp.altitude_m, "tas_mps": sp.tas_mps, **common}
 
     def _log(self, t: float) -> None:
         truth = self.plant.truth()
@@ -114,6 +153,6 @@ class Vehicle:
             self.log.event(t, f"{self.name}: state is not finite", level="error", name=self.name)
             raise SimulationDiverged(f"{self.name}: state went non-finite at t={t:.2f} s")
         self.recorder.state(self.logw.truth(truth), self._setpoint)
-        self.logw.control(t, self._setpoint, self._commands, dict(self.controller.debug))
+        self.logw.control(t, self._setpoint, self._setpoint_schema, self._commands, dict(self.controller.debug))
         m = self.mission
         self.logw.mission(t, m.next_index, len(m.waypoints), m.complete)

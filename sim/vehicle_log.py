@@ -10,7 +10,6 @@ vehicle's transform ``ned`` -> ``<v>`` in ``/tf`` (foxglove.FrameTransforms). Th
 from __future__ import annotations
 
 import math
-from dataclasses import asdict
 
 from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
@@ -82,8 +81,9 @@ class VehicleLogWriter:
         log.write_proto("/tf", t, FrameTransforms(transforms=[tf]))
         return sd
 
-    def control(self, t: float, setpoint: dict, commands: dict[str, float], debug: dict[str, float]) -> None:
-        self.log.write_json(self.t_sp, t, {"t": t, **setpoint}, S.FIXED_WING_SETPOINT)
+    def control(self, t: float, setpoint: dict, schema: dict, commands: dict[str, float],
+                debug: dict[str, float]) -> None:
+        self.log.write_json(self.t_sp, t, {"t": t, **setpoint}, schema)
         self.log.write_json(self.t_cmd, t, {"t": t, "properties": commands, "debug": debug}, S.COMMANDS)
 
     def mission(self, t: float, next_waypoint: int, waypoints: int, complete: bool) -> None:
@@ -101,6 +101,3 @@ class VehicleLogWriter:
         self.log.write_json(self.t_latency, t, {"t": t, "seconds": latency_s}, S.WALL_TIMING,
                             {"wallclock": "true"})
 
-
-def setpoint_dict(sp, **extra) -> dict:
-    return {**asdict(sp), **extra}

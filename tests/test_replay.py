@@ -55,7 +55,7 @@ def test_report_and_compare_cli(short_run, tmp_path):
 def _trace(name, t, pos):
     n = len(t)
     z = np.zeros(n)
-    return VehicleTrace(name, np.asarray(t, float), np.asarray(pos, float), z, z, np.zeros((n, 3)),
+    return VehicleTrace(name, "fixed_wing", np.asarray(t, float), np.asarray(pos, float), z, z, np.zeros((n, 3)),
                         {"altitude_m": z, "tas_mps": z, "cross_track_m": z, "turning": z}, np.zeros(0), 0, [])
 
 

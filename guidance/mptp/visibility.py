@@ -24,7 +24,6 @@ import shapely
 from shapely.geometry.base import BaseGeometry
 
 END_TOL_M = 1e-3  # crossings closer than this to a candidate's end points are ignored [m]
-_CHUNK = 2_000_000  # candidate x edge entries per numpy block
 
 
 @dataclass(frozen=True, slots=True)
@@ -36,6 +35,7 @@ class Boundary:
     next: np.ndarray  # (V, 2)
     ea: np.ndarray  # (E, 2) edge starts
     eb: np.ndarray  # (E, 2) edge ends
+    tree: shapely.STRtree  # of the edges, for bounding-box pre-selection
 
     @property
     def n_edges(self) -> int:
@@ -57,7 +57,8 @@ def boundary_of(free: BaseGeometry) -> Boundary:
     prv, nxt = pts[base + (local - 1) % n], pts[base + (local + 1) % n]
     turn = _cross(pts - prv, nxt - pts)
     convex = turn > 0
-    return Boundary(pts[convex], prv[convex], nxt[convex], pts, nxt)
+    tree = shapely.STRtree(shapely.linestrings(np.stack([pts, nxt], 1)))
+    return Boundary(pts[convex], prv[convex], nxt[convex], pts, nxt, tree)
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -74,36 +75,29 @@ def tangent(src: np.ndarray, b: Boundary) -> np.ndarray:
 
 def blocked(p: np.ndarray, q: np.ndarray, b: Boundary) -> np.ndarray:
     """(C,) bool: segment p_i -> q_i is crossed by a boundary edge away from its end points."""
-    out = np.zeros(len(p), bool)
-    if not len(p) or not b.n_edges:
-        return out
-    step = max(1, _CHUNK // b.n_edges)
-    for i in range(0, len(p), step):
-        out[i:i + step] = _first_crossing(p[i:i + step], q[i:i + step], b) < np.inf
-    return out
+    return first_hit(p, q, b) < np.inf
 
 
 def first_hit(p: np.ndarray, q: np.ndarray, b: Boundary) -> np.ndarray:
-    """(C,) fraction along p -> q of the first boundary crossing (inf when none)."""
+    """(C,) fraction along p -> q of the first boundary crossing (inf when none). Edges are
+    pre-selected by bounding box (STRtree), then intersected exactly in one numpy pass."""
     out = np.full(len(p), np.inf)
-    step = max(1, _CHUNK // max(b.n_edges, 1))
-    for i in range(0, len(p), step):
-        out[i:i + step] = _first_crossing(p[i:i + step], q[i:i + step], b)
-    return out
-
-
-def _first_crossing(p: np.ndarray, q: np.ndarray, b: Boundary) -> np.ndarray:
-    r = (q - p)[:, None, :]
-    s = (b.eb - b.ea)[None, :, :]
-    w = b.ea[None, :, :] - p[:, None, :]
+    if not len(p) or not b.n_edges:
+        return out
+    ci, ei = b.tree.query(shapely.linestrings(np.stack([p, q], 1)))
+    if not len(ci):
+        return out
+    pp, r = p[ci], q[ci] - p[ci]
+    s = b.eb[ei] - b.ea[ei]
+    w = b.ea[ei] - pp
     den = _cross(r, s)
     with np.errstate(divide="ignore", invalid="ignore"):
         u = _cross(w, s) / den  # along the candidate
         v = _cross(w, r) / den  # along the edge
-    length = np.linalg.norm(q - p, axis=1)[:, None]
-    tol = END_TOL_M / np.maximum(length, END_TOL_M)
+    tol = END_TOL_M / np.maximum(np.linalg.norm(r, axis=1), END_TOL_M)
     hit = (np.abs(den) > 1e-12) & (u > tol) & (u < 1.0 - tol) & (v >= 0.0) & (v <= 1.0)
-    return np.where(hit, u, np.inf).min(axis=1) if hit.shape[1] else np.full(len(p), np.inf)
+    np.minimum.at(out, ci[hit], u[hit])
+    return out
 
 
 def visible_vertices(src: np.ndarray, b: Boundary) -> tuple[np.ndarray, np.ndarray]:

@@ -12,10 +12,11 @@ import numpy as np
 
 from sim.replay.trace import VehicleTrace
 
-SETTLE_S = 60.0  # straight flight counts from this long after the last leg capture [s]
+# straight flight counts from this long after the last leg capture / carrot stop [s]
+SETTLE_S = {"fixed_wing": 60.0, "multirotor": 2.0}
 
 
-def straight_flight_mask(t: np.ndarray, turning: np.ndarray, settle_s: float = SETTLE_S) -> np.ndarray:
+def straight_flight_mask(t: np.ndarray, turning: np.ndarray, settle_s: float) -> np.ndarray:
     """True where the vehicle is in settled straight flight: not capturing a leg, and at least
     ``settle_s`` since it last was."""
     turning = turning.astype(bool)
@@ -34,15 +35,17 @@ def _stats(x: np.ndarray) -> dict[str, float]:
 def tracking_metrics(tr: VehicleTrace) -> dict:
     """Cross-track, altitude and airspeed holding in settled straight flight; bank extremes."""
     sp = tr.setpoint
-    settled = straight_flight_mask(tr.t, sp["turning"])
-    return {
+    settled = straight_flight_mask(tr.t, sp["turning"], SETTLE_S[tr.kind])
+    out = {
         "straight_fraction": float(settled.mean()) if settled.size else 0.0,
         "cross_track_m": _stats(sp["cross_track_m"][settled]),
         "altitude_error_m": _stats((tr.alt_msl_m - sp["altitude_m"])[settled]),
-        "airspeed_error_mps": _stats((tr.tas_mps - sp["tas_mps"])[settled]),
         "max_bank_deg": float(np.degrees(np.max(np.abs(tr.euler[:, 0])))) if len(tr.t) else 0.0,
         "finite": bool(np.isfinite(tr.pos_ned).all() and np.isfinite(tr.euler).all()),
     }
+    if "tas_mps" in sp:
+        out["airspeed_error_mps"] = _stats((tr.tas_mps - sp["tas_mps"])[settled])
+    return out
 
 
 def mission_metrics(tr: VehicleTrace) -> dict:
@@ -50,7 +53,7 @@ def mission_metrics(tr: VehicleTrace) -> dict:
         "complete": tr.mission_complete,
         "waypoints_reached": len(tr.waypoint_times),
         "waypoints": tr.waypoints_total,
-        "time_s": tr.waypoint_times[-1] if tr.mission_complete else None,
+        "time_s": tr.complete_t,
     }
 
 

@@ -50,9 +50,14 @@ def _time_plots(tr: VehicleTrace, path: Path) -> None:
     axes[0].plot(tm, tr.alt_msl_m, label="altitude")
     axes[0].plot(tm, tr.setpoint["altitude_m"], "--", label="demand")
     axes[0].set_ylabel("altitude MSL [m]")
-    axes[1].plot(tm, tr.tas_mps, label="TAS")
-    axes[1].plot(tm, tr.setpoint["tas_mps"], "--", label="demand")
-    axes[1].set_ylabel("airspeed [m/s]")
+    if "tas_mps" in tr.setpoint:
+        axes[1].plot(tm, tr.tas_mps, label="TAS")
+        axes[1].plot(tm, tr.setpoint["tas_mps"], "--", label="demand")
+        axes[1].set_ylabel("airspeed [m/s]")
+    else:
+        speed = np.linalg.norm(np.gradient(tr.pos_ned, tr.t, axis=0), axis=1) if len(tr.t) > 1 else tr.t * 0
+        axes[1].plot(tm, speed, label="ground speed (3-D)")
+        axes[1].set_ylabel("speed [m/s]")
     axes[2].plot(tm, np.degrees(tr.euler[:, 0]), label="bank")
     axes[2].plot(tm, tr.setpoint["cross_track_m"] / 10.0, label="cross-track / 10 [m]", alpha=0.7)
     axes[2].set_ylabel("bank [deg]")

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.mcap_read import LogInfo, iter_messages, read_info
+from sim.mcap_read import LogInfo, LogReadError, iter_messages, read_info
 
 
 @dataclass
@@ -74,7 +74,7 @@ class RunLog:
         try:
             return self._series[name]
         except KeyError:
-            raise KeyError(f"{self.path}: no topic {name!r} (has: {', '.join(self.topics)})") from None
+            raise LogReadError(f"{self.path}: no topic {name!r} (has: {', '.join(self.topics)})") from None
 
     @cached_property
     def vehicles(self) -> list[str]:

@@ -13,27 +13,30 @@ import numpy as np
 
 from sim.replay.runlog import RunLog
 
-# truth-state and setpoint fields kept per log tick
+# truth-state fields and the setpoint fields every follower logs; tas_mps only for fixed wing
 _STATE = ("t", "pos_ned", "alt_msl_m", "tas_mps", "euler")
-_SETPOINT = ("altitude_m", "tas_mps", "cross_track_m", "turning")
+_SETPOINT = ("altitude_m", "cross_track_m", "turning")
+_SETPOINT_OPTIONAL = ("tas_mps",)
 
 
 @dataclass
 class VehicleTrace:
     name: str
+    kind: str  # "fixed_wing" | "multirotor"
     t: np.ndarray
     pos_ned: np.ndarray  # (N, 3)
     alt_msl_m: np.ndarray
     tas_mps: np.ndarray
     euler: np.ndarray  # (N, 3)
-    setpoint: dict[str, np.ndarray]  # altitude_m, tas_mps, cross_track_m, turning (N,)
+    setpoint: dict[str, np.ndarray]  # altitude_m, cross_track_m, turning (+ tas_mps) (N,)
     plan_latency_s: np.ndarray
     waypoints_total: int
     waypoint_times: list[float]  # sim time each waypoint was reached
+    complete_t: float | None = None  # sim time the mission completed
 
     @property
     def mission_complete(self) -> bool:
-        return self.waypoints_total > 0 and len(self.waypoint_times) == self.waypoints_total
+        return self.complete_t is not None
 
     @classmethod
     def from_log(cls, log: RunLog, name: str) -> "VehicleTrace":
@@ -43,10 +46,14 @@ class VehicleTrace:
         latency = log.topic(lat_topic)["seconds"] if log.has(lat_topic) else np.zeros(0)
         status = log.topic(f"/{name}/mission/status")
         total = int(status["waypoints"][-1]) if len(status) else 0
+        events = log.events()
         prefix = f"{name}: waypoint "
-        reached = [t for t, text in log.events() if text.startswith(prefix) and text.endswith(" reached")]
-        return cls(name, st["t"], st["pos_ned"], st["alt_msl_m"], st["tas_mps"], st["euler"],
-                   {k: sp[k] for k in _SETPOINT}, latency, total, reached)
+        reached = [t for t, text in events if text.startswith(prefix) and text.endswith(" reached")]
+        complete = next((t for t, text in events if text == f"{name}: mission complete"), None)
+        keys = _SETPOINT + tuple(k for k in _SETPOINT_OPTIONAL if sp.messages and k in sp.messages[0])
+        kind = log.metadata.get("vehicles", {}).get(name, "fixed_wing")
+        return cls(name, kind, st["t"], st["pos_ned"], st["alt_msl_m"], st["tas_mps"], st["euler"],
+                   {k: sp[k] for k in keys}, latency, total, reached, complete)
 
 
 @dataclass
@@ -54,17 +61,20 @@ class TraceRecorder:
     """Collects the values a vehicle logs, as they are logged (the live side)."""
 
     name: str
+    kind: str
     waypoints_total: int
     _state: dict[str, list] = field(default_factory=lambda: {k: [] for k in _STATE})
-    _setpoint: dict[str, list] = field(default_factory=lambda: {k: [] for k in _SETPOINT})
+    _setpoint: dict[str, list] = field(default_factory=dict)
     _latency: list[float] = field(default_factory=list)
     _reached: list[float] = field(default_factory=list)
+    _complete_t: float | None = None
 
     def state(self, state: dict, setpoint: dict) -> None:
         for k in _STATE:
             self._state[k].append(state[k])
-        for k in _SETPOINT:
-            self._setpoint[k].append(setpoint[k])
+        for k in _SETPOINT + _SETPOINT_OPTIONAL:
+            if k in setpoint:
+                self._setpoint.setdefault(k, []).append(setpoint[k])
 
     def latency(self, seconds: float) -> None:
         self._latency.append(seconds)
@@ -72,9 +82,12 @@ class TraceRecorder:
     def reached(self, t: float) -> None:
         self._reached.append(t)
 
+    def complete(self, t: float) -> None:
+        self._complete_t = t
+
     def trace(self) -> VehicleTrace:
         s = {k: np.asarray(v, dtype=float) for k, v in self._state.items()}
-        return VehicleTrace(self.name, s["t"], s["pos_ned"], s["alt_msl_m"], s["tas_mps"], s["euler"],
+        return VehicleTrace(self.name, self.kind, s["t"], s["pos_ned"], s["alt_msl_m"], s["tas_mps"], s["euler"],
                             {k: np.asarray(v, dtype=float) for k, v in self._setpoint.items()},
                             np.asarray(self._latency, dtype=float), self.waypoints_total,
-                            list(self._reached))
+                            list(self._reached), self._complete_t)

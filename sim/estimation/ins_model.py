@@ -1,0 +1,152 @@
+"""Error-state INS model: nominal state, IMU propagation, measurement models, and their
+Jacobians — analytic, and by finite differences (the verification and benchmark baseline).
+
+Nominal state (local NED, flat non-rotating earth, constant gravity):
+  p [m], v [m/s] NED; q body FRD -> NED (Hamilton, scalar first); accelerometer bias ba
+  [m/s^2] and gyro bias bg [rad/s] body; baro altitude bias bb [m]; GNSS position error
+  (Gauss-Markov) gm NED [m].
+Error state (19): dp, dv, dtheta (body-frame attitude error, q_true = q (x) Exp(dtheta)), dba,
+dbg, dbb, dgm — indices in ``IDX``.
+
+IMU mechanisation over dt with the averaged samples (f, w) of its two ends:
+  w_hat = w - bg, f_hat = f - ba, R = R(q (x) Exp(w_hat dt / 2))   (mid-interval attitude)
+  a = R f_hat + g;  p += v dt + a dt^2 / 2;  v += a dt;  q = q (x) Exp(w_hat dt);
+  gm *= exp(-dt / tau).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.sensors.rotations import quat_conj, quat_exp, quat_log, quat_mul, quat_normalize, quat_to_dcm
+
+N = 19
+IDX = {"p": slice(0, 3), "v": slice(3, 6), "th": slice(6, 9), "ba": slice(9, 12), "bg": slice(12, 15),
+       "bb": slice(15, 16), "gm": slice(16, 19)}
+GRAVITY = np.array([0.0, 0.0, 9.80665])
+
+
+@dataclass(slots=True)
+class NavState:
+    p: np.ndarray
+    v: np.ndarray
+    q: tuple[float, float, float, float]
+    ba: np.ndarray
+    bg: np.ndarray
+    bb: float
+    gm: np.ndarray
+
+    def copy(self) -> NavState:
+        return NavState(self.p.copy(), self.v.copy(), self.q, self.ba.copy(), self.bg.copy(), self.bb,
+                        self.gm.copy())
+
+
+def boxplus(s: NavState, dx: np.ndarray) -> NavState:
+    """``s`` corrected by the error state ``dx`` (19,)."""
+    return NavState(s.p + dx[0:3], s.v + dx[3:6], quat_normalize(quat_mul(s.q, quat_exp(*dx[6:9]))),
+                    s.ba + dx[9:12], s.bg + dx[12:15], s.bb + float(dx[15]), s.gm + dx[16:19])
+
+
+def boxminus(a: NavState, b: NavState) -> np.ndarray:
+    """Error state ``dx`` with ``a = b [+] dx``."""
+    return np.concatenate((a.p - b.p, a.v - b.v, quat_log(quat_mul(quat_conj(b.q), a.q)), a.ba - b.ba,
+                           a.bg - b.bg, [a.bb - b.bb], a.gm - b.gm))
+
+
+def skew(v) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def propagate(s: NavState, f: np.ndarray, w: np.ndarray, dt: float, gm_decay: float
+              ) -> tuple[NavState, np.ndarray, np.ndarray, np.ndarray]:
+    """Nominal state after ``dt`` [s]; also the mid-interval R and bias-corrected f, w (for F)."""
+    fh = f - s.ba
+    wh = w - s.bg
+    wx, wy, wz = float(wh[0]) * dt, float(wh[1]) * dt, float(wh[2]) * dt
+    r = quat_to_dcm(quat_mul(s.q, quat_exp(0.5 * wx, 0.5 * wy, 0.5 * wz)))
+    a = r @ fh + GRAVITY
+    nxt = NavState(s.p + s.v * dt + (0.5 * dt * dt) * a, s.v + a * dt,
+                   quat_normalize(quat_mul(s.q, quat_exp(wx, wy, wz))), s.ba, s.bg, s.bb, s.gm * gm_decay)
+    return nxt, r, fh, wh
+
+
+def transition_analytic(out: np.ndarray, r: np.ndarray, fh: np.ndarray, wh: np.ndarray, dt: float,
+                        gm_decay: float) -> np.ndarray:
+    """Error-state transition Phi (19x19), written into ``out`` whose constant entries (identity,
+    dp/dv = I dt pattern) the caller keeps; first order except the attitude block."""
+    rf = r @ skew(fh)
+    out[0:3, 3:6] = np.eye(3) * dt
+    out[0:3, 6:9] = rf * (-0.5 * dt * dt)
+    out[0:3, 9:12] = r * (-0.5 * dt * dt)
+    out[3:6, 6:9] = rf * -dt
+    out[3:6, 9:12] = r * -dt
+    out[3:6, 12:15] = rf * (0.5 * dt * dt)
+    out[6:9, 6:9] = quat_to_dcm(quat_exp(*(wh * dt))).T
+    out[6:9, 12:15] = np.eye(3) * -dt
+    out[16:19, 16:19] = np.eye(3) * gm_decay
+    return out
+
+
+def transition_numeric(s: NavState, f: np.ndarray, w: np.ndarray, dt: float, gm_decay: float,
+                       eps: float = 1e-6) -> np.ndarray:
+    """Phi by forward differences of :func:`propagate` over each error-state axis."""
+    base = propagate(s, f, w, dt, gm_decay)[0]
+    phi = np.empty((N, N))
+    dx = np.zeros(N)
+    for j in range(N):
+        dx[j] = eps
+        phi[:, j] = boxminus(propagate(boxplus(s, dx), f, w, dt, gm_decay)[0], base) / eps
+        dx[j] = 0.0
+    return phi
+
+
+# -- measurement models: h(s, ...) and analytic H ------------------------------------------------
+
+def h_gnss(s: NavState, lag: float, acc_ned: np.ndarray) -> np.ndarray:
+    """GNSS position and velocity ``lag`` [s] before the filter time (first-order back-shift)."""
+    return np.concatenate((s.p + s.gm - s.v * lag, s.v - acc_ned * lag))
+
+
+def H_gnss(out: np.ndarray, lag: float) -> np.ndarray:
+    """6x19; the caller keeps the constant identities; sets the lag terms."""
+    out[0:3, 3:6] = np.eye(3) * -lag
+    return out
+
+
+def h_baro(s: NavState) -> np.ndarray:
+    """Baro height above the origin [m] = -D + bias."""
+    return np.array([-s.p[2] + s.bb])
+
+
+def yaw_of(q) -> float:
+    w, x, y, z = q
+    return math.atan2(2 * (x * y + w * z), 1 - 2 * (y * y + z * z))
+
+
+def h_heading(s: NavState) -> np.ndarray:
+    return np.array([yaw_of(s.q)])
+
+
+def H_heading(out: np.ndarray, q) -> np.ndarray:
+    """1x19 row of d yaw / d dtheta (body-frame error): yaw = atan2(R10, R00)."""
+    r = quat_to_dcm(q)
+    den = r[0, 0] ** 2 + r[1, 0] ** 2
+    out[0, 7] = (r[1, 0] * r[0, 2] - r[0, 0] * r[1, 2]) / den
+    out[0, 8] = (r[0, 0] * r[1, 1] - r[1, 0] * r[0, 1]) / den
+    return out
+
+
+def jacobian_numeric(h, s: NavState, eps: float = 1e-6) -> np.ndarray:
+    """d h(s [+] dx) / d dx at dx = 0 by forward differences (heading residuals wrapped)."""
+    base = h(s)
+    cols = []
+    dx = np.zeros(N)
+    for j in range(N):
+        dx[j] = eps
+        d = h(boxplus(s, dx)) - base
+        cols.append(np.angle(np.exp(1j * d)) / eps if h is h_heading else d / eps)
+        dx[j] = 0.0
+    return np.stack(cols, axis=1)
