@@ -117,7 +117,7 @@ def runs(sample_cells: np.ndarray, parent_tip_cell: np.ndarray, t0: np.ndarray, 
     row, col = np.nonzero(start)
     end_col = np.empty_like(col)
     end_col[:-1] = col[1:] - 1
-    last_in_row = np.r_[row[1:] != row[:-1], True]
+    last_in_row = np.r_[row[1:] != row[:-1], True][: len(row)]
     end_col[last_in_row] = m - 1
     cells = sample_cells[row, col]
     is_new = (col > 0) | (cells != parent_tip_cell[row])
