@@ -130,7 +130,7 @@ def baseline_plan(enc: Encounter, cfg: GeometricConfig, veh: VehicleParams) -> t
     if not enc.threats[enc.main_index].is_static:
         durations[enc.main_index] = main.t_cpa + cfg.main_threat_extension_s
     moving = [j for j, th in enumerate(enc.threats) if not th.is_static]
-    dist0 = {j: _seg_dist(enc.start, enc.start, enc.threats[j].p, enc.threats[j].p + enc.threats[j].v * durations[j]) for j in moving}
+    dist0 = {j: _seg_dist(enc.start, enc.start, enc.threats[j].p, enc.threats[j].at(durations[j])) for j in moving}
     cmo_ids = sorted((j for j in moving if dist0[j] <= cfg.cmo_max_range_m), key=lambda j: dist0[j])[: cfg.cmo_max_objects]
     trees = {}
     for j in cmo_ids:

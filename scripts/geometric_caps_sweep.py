@@ -60,7 +60,9 @@ def main() -> None:
     ln_srp = np.log(data["smoothness_rp"])
     m = data["cmo"][data["cmo"] > 0]
     report = {
-        "vehicle": asdict(veh), "config": {k: getattr(sweep_config(), k) for k in ("l", "n_planes", "path_types", "x_step_fraction", "dynamic_mode", "uav_shape")},
+        "vehicle": asdict(veh),
+        "config": {k: getattr(sweep_config(), k)
+                   for k in ("l", "n_planes", "path_types", "x_step_fraction", "dynamic_mode", "uav_shape")},
         "environments": len(envs), "samples": int(data["time"].size), "wall_s": wall,
         "caps": asdict(caps), "thesis_caps": THESIS_CAPS,
         "caps_vs_thesis_pct": {k: 100.0 * (getattr(caps, k) / v - 1.0) for k, v in THESIS_CAPS.items()},

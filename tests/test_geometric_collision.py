@@ -87,8 +87,10 @@ def test_timed_check_covers_the_reference_after_rejoin():
     pts = np.linspace([0, 0, 0], [10, 0, 0], 6)[None]
     kin = path_kinematics(pts, np.array([6]), 5.0, 3.0)               # ends at τ = 2 s
     ta = ThreatArrays.of([Threat("late", np.array([20.0, 0, 0]), np.zeros(3), 1.0)])
-    clear = lambda h: candidate_clearance(pts, kin.seg_vel, kin.tau, kin.seg_dt, ta, "timed", np.zeros(1), np.array([5.0, 0, 0]), h)  # noqa: E731
-    assert clear(2.5)[0, 0] > 1.0 and clear(4.0)[0, 0] < 0.0
+    tail = np.array([5.0, 0, 0])
+    clear = [candidate_clearance(pts, kin.seg_vel, kin.tau, kin.seg_dt, ta, "timed", np.zeros(1), tail, h)[0, 0]
+             for h in (2.5, 4.0)]
+    assert clear[0] > 1.0 and clear[1] < 0.0
 
 
 def test_inflation_from_covariance():

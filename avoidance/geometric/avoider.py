@@ -29,7 +29,6 @@ class Status(str, Enum):
 
 
 RAW_TERMS = ("time", "energy", "smoothness", "smoothness_rp", "cmo", "hover_power")
-NORMALISED_TERMS = ("time", "energy", "smoothness_rp", "cmo")
 
 
 @dataclass(slots=True)

@@ -38,15 +38,6 @@ def plane_angles(n_planes: int) -> np.ndarray:
     return np.pi * np.arange(n_planes + 1) / (n_planes + 1)
 
 
-def rot_x(theta: np.ndarray) -> np.ndarray:
-    """Rotation(s) about x by ``theta`` [rad]: shape (..., 3, 3)."""
-    c, s = np.cos(theta), np.sin(theta)
-    one, zero = np.ones_like(c), np.zeros_like(c)
-    return np.stack([np.stack([one, zero, zero], -1),
-                     np.stack([zero, c, -s], -1),
-                     np.stack([zero, s, c], -1)], -2)
-
-
 def plane_elevation(r_wu: np.ndarray, theta: np.ndarray) -> np.ndarray:
     """Angle between each rotated plane and the ground, α = arccos|n̂·ẑ_world| [rad], with
     n̂ = R_wu R_x(θ) ẑ."""

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from avoidance.geometric.config import PATH_TYPES, GeometricConfig
-from avoidance.geometric.frames import plane_angles, plane_elevation, rot_x, uav_frame
+from avoidance.geometric.frames import plane_angles, plane_elevation, uav_frame
 
 SIMPLE, SYMMETRIC = PATH_TYPES.index("simple"), PATH_TYPES.index("symmetric")
 
