@@ -1,0 +1,126 @@
+"""Open-loop decisions (spec §6): grid runs against an obstacle ahead and a head-on intruder,
+mission control (modes, waypoints, buffer replacement), the planner adapter and the scene."""
+
+import json
+
+import numpy as np
+import shapely
+
+from avoidance.planner import PlanStatus, Threats
+from avoidance.reachset.cache import reach_set
+from avoidance.reachset.config import AvoidanceConfig, MovementConfig
+from avoidance.reachset.frames import GridPose
+from avoidance.reachset.fusion import Categories, SpaceClass
+from avoidance.reachset.grid import AvoidanceGrid
+from avoidance.reachset.gridrun import emergency_runs, grid_run
+from avoidance.reachset.mission import MissionControl, Mode
+from avoidance.reachset.movement import KinState, MovementType as M, build_primitive_table, thesis_automaton
+from avoidance.reachset.planner import ReachSetAvoider
+from avoidance.reachset.record import decision_record, scene_update
+from avoidance.reachset.situation import Assessor
+from avoidance.threats import IntruderTrack, LidarScan, PrismObstacle
+from guidance.mission import Mission
+from sim.state import VehicleState
+
+CFG = AvoidanceConfig()
+GRID = AvoidanceGrid(CFG.grid)
+TREE = reach_set(GRID, build_primitive_table(MovementConfig()), CFG.avoidance)
+POSE = GridPose.from_ned(np.zeros(3), 0.0)  # grid at the origin heading north
+GOAL = POSE.ned_to_lcf(np.array([30.0, 0.0, 0.0]))
+
+
+def wall_scan(north: float = 5.0, half_width: float = 1.5, half_height: float = 1.5) -> LidarScan:
+    """Ray-cast a wall ⊥ north at ``north`` [m] with a 1° lattice covering the grid."""
+    az, el = np.meshgrid(np.radians(np.arange(-50.0, 50.5, 1.0)), np.radians(np.arange(-35.0, 35.5, 1.0)), indexing="ij")
+    dirs = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), -np.sin(el)], axis=-1).reshape(-1, 3)
+    rng = north / dirs[:, 0]
+    p = dirs * rng[:, None]
+    hit = (np.abs(p[:, 1]) <= half_width) & (np.abs(p[:, 2]) <= half_height) & (rng <= 30.0)
+    return LidarScan(0.0, np.zeros(3), dirs, np.where(hit, rng, 30.0), hit, 30.0)
+
+
+def path_ned(node: int) -> np.ndarray:
+    return POSE.lcf_to_ned(TREE.path_samples(node))
+
+
+def straight_node() -> int:
+    keys = TREE.buffers()
+    return max((n for n, k in enumerate(keys) if k and set(k) == {M.STRAIGHT}), key=lambda n: len(keys[n]))
+
+
+def test_obstacle_ahead_picks_a_free_trajectory():
+    parts = Assessor(GRID, TREE, CFG).assess(POSE, 0.0, Threats(lidar=wall_scan()))
+    run = grid_run(GRID, TREE, parts, GOAL, Categories(), CFG.fusion.threshold)
+    assert run.path.ok
+    f = run.fused
+    assert not f.node_ok[straight_node()]
+    assert (f.space_class == SpaceClass.OCCUPIED).any() and (f.space_class == SpaceClass.UNCERTAIN).any()
+    p = path_ned(run.path.node)
+    through_wall = (np.abs(p[:, 0] - 5.0) < 0.3) & (np.abs(p[:, 1]) <= 1.5) & (np.abs(p[:, 2]) <= 1.5)
+    assert not through_wall.any()
+    cells = GRID.cell_index(TREE.path_samples(run.path.node)[1:])
+    assert (f.space_class[cells] == SpaceClass.FREE).all()
+
+
+def test_head_on_intruder_picks_an_avoiding_trajectory():
+    intruder = IntruderTrack("i1", 0.0, np.array([12.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]), radius_m=1.0)
+    parts = Assessor(GRID, TREE, CFG).assess(POSE, 0.0, Threats(intruders=[intruder]))
+    runs, sel = emergency_runs(GRID, TREE, parts, GOAL, CFG.fusion.threshold)
+    assert sel == 0 and runs[0].categories.intruders
+    assert not runs[0].fused.node_ok[straight_node()]
+    node = runs[0].path.node
+    samples = TREE.path_samples(node)
+    t = np.linspace(0.0, TREE.depth[node] * TREE.period, len(samples))
+    own = POSE.lcf_to_ned(samples)
+    other = intruder.pos_ned + np.outer(t, intruder.vel_ned)
+    assert np.linalg.norm(own - other, axis=1).min() > intruder.radius_m
+    straight = POSE.lcf_to_ned(TREE.path_samples(straight_node()))
+    t_s = np.linspace(0.0, TREE.depth[straight_node()] * TREE.period, len(straight))
+    assert np.linalg.norm(straight - (intruder.pos_ned + np.outer(t_s, intruder.vel_ned)), axis=1).min() < intruder.radius_m
+
+
+def kin(n: float, e: float = 0.0, t: float = 0.0) -> KinState:
+    return KinState(np.array([e, n, 0.0]), np.array([0.0, 0.0, np.pi / 2]), t, 1.0)  # GCF, heading north
+
+
+def test_mission_control_modes_waypoints_and_buffer():
+    wps = np.array([[0.0, 1.5, 0.0], [0.0, 40.0, 0.0]])  # GCF (east, north, up)
+    mc = MissionControl(wps, thesis_automaton(), CFG)
+    d1 = mc.step(kin(0.0), Threats())
+    assert "waypoint_reached:0" in d1.events and d1.goal_index == 1 and d1.mode == Mode.NAVIGATION
+    assert d1.executing == M.STRAIGHT and "empty_buffer" in d1.events and len(d1.buffer) >= 9
+    planned = list(d1.buffer)
+    d2 = mc.step(kin(1.0, t=1.0), Threats())
+    assert d2.executing == planned[0]  # the movement planned for this frame is kept
+    wall = wall_scan(north=6.0)
+    d3 = mc.step(kin(2.0, t=2.0), Threats(lidar=LidarScan(2.0, np.array([2.0, 0, 0]), wall.directions_ned, wall.ranges_m, wall.hit, 30.0)))
+    assert d3.mode == Mode.EMERGENCY and "mode:emergency" in d3.events and "obstacle" in d3.events
+    assert d3.status == "ok" and d3.runs[d3.selected].categories == Categories()
+    d4 = mc.step(kin(3.0, t=3.0), Threats())
+    assert d4.mode == Mode.NAVIGATION and "mode:navigation" in d4.events
+    np.testing.assert_allclose(d4.reference.times[:2], [3.0, 4.0])
+
+
+def test_planner_adapter_returns_ned_plan_record_and_scene():
+    mission = Mission(np.array([[20.0, 0.0, -5.0]]), cruise_speed=1.0, acceptance_radius=2.0)
+    av = ReachSetAvoider(mission, thesis_automaton())
+    est = VehicleState(0.0, np.array([0.0, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0)
+    wall = wall_scan()
+    scan = LidarScan(0.0, est.pos_ned, wall.directions_ned, wall.ranges_m, wall.hit, 30.0)
+    plan = av.plan(est, Threats(lidar=scan), 0.0)
+    assert plan.status == PlanStatus.OK and plan.planner == "reachset" and plan.diagnostics["mode"] == "emergency"
+    assert plan.positions.shape == (len(plan.times), 3) and np.all(np.diff(plan.times) > 0)
+    np.testing.assert_allclose(plan.positions[0], est.pos_ned)
+    np.testing.assert_allclose(plan.positions[1], [1.0, 0.0, -5.0], atol=1e-9)  # executing Straight, north
+    assert (plan.labels == -1).all()
+    rec = decision_record(av.last_decision)
+    json.dumps(rec)
+    assert len(rec["cells"]["class"]) == 350 and rec["mode"] == "emergency" and rec["reference_ned"]
+    scene = scene_update(av.last_decision, 1e9)
+    ent = scene.entities[0]
+    assert ent.frame_id == "ned" and len(ent.cubes) == int((np.array(rec["cells"]["class"]) != 0).sum())
+    assert len(ent.lines[0].points) == len(av.last_decision.reference.positions)
+    assert scene.SerializeToString()
+    est_near = VehicleState(15.0, np.array([19.0, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0)
+    done = av.plan(est_near, Threats(), 15.0)
+    assert done.diagnostics["complete"] == 1 and done.labels[-1] == 0
