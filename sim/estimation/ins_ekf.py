@@ -58,8 +58,10 @@ class InsEkfConfig(StrictConfig):
     gnss_vel_std_ne: float = Field(0.05, gt=0.0)
     gnss_vel_std_d: float = Field(0.1, gt=0.0)
     baro_noise_pa: float = Field(10.0, gt=0.0)
-    heading_std_rad: float = Field(math.radians(2.0), gt=0.0)
-    mag_declination_rad: float = 0.0
+    mag_noise_ut: float = Field(0.15, gt=0.0)
+    mag_intensity_ut: float = Field(50.0, gt=0.0)
+    mag_inclination_rad: float = Field(math.radians(60.0), ge=-math.pi / 2, le=math.pi / 2)
+    mag_declination_rad: float = Field(0.0, ge=-math.pi, le=math.pi)
     init_pos_std_m: float = Field(3.0, gt=0.0)
     init_vel_std_mps: float = Field(0.5, gt=0.0)
     init_tilt_std_rad: float = Field(math.radians(2.0), gt=0.0)
@@ -85,7 +87,8 @@ class InsEkfConfig(StrictConfig):
         if (b := sensors.baro) is not None:
             f |= dict(baro_noise_pa=_white(b.pressure))
         if (mg := sensors.mag) is not None:
-            f |= dict(mag_declination_rad=mg.declination_rad)
+            f |= dict(mag_noise_ut=1.5 * _white(mg.field), mag_intensity_ut=mg.intensity_ut,
+                      mag_inclination_rad=mg.inclination_rad, mag_declination_rad=mg.declination_rad)
         return cls.build(**(f | overrides))
 
 
@@ -127,8 +130,11 @@ class InsEkf:
                                 c.gnss_vel_std_ne, c.gnss_vel_std_ne, c.gnss_vel_std_d]) ** 2
         self._H_baro = np.zeros((1, m.N))
         self._H_baro[0, 2], self._H_baro[0, 15] = -1.0, 1.0
-        self._H_head = np.zeros((1, m.N))
-        self._R_head = np.array([[c.heading_std_rad ** 2]])
+        self._H_mag = np.zeros((3, m.N))
+        self._R_mag = np.eye(3) * c.mag_noise_ut ** 2
+        hm = c.mag_intensity_ut * math.cos(c.mag_inclination_rad)
+        self._field_ned = np.array([hm * math.cos(c.mag_declination_rad), hm * math.sin(c.mag_declination_rad),
+                                    c.mag_intensity_ut * math.sin(c.mag_inclination_rad)])
         self._numeric = c.jacobians == "numeric"
         self._inbox: list = []
         self._imu: ImuSample | None = None
@@ -193,9 +199,9 @@ class InsEkf:
         self.t = z.t
 
     # -- updates --------------------------------------------------------------------------------
-    def _fuse(self, z: np.ndarray, hx: np.ndarray, H: np.ndarray, R: np.ndarray, residual=np.subtract) -> None:
+    def _fuse(self, z: np.ndarray, hx: np.ndarray, H: np.ndarray, R: np.ndarray) -> None:
         kf = self.kf
-        kf.update(z, lambda _x: H, lambda _x: hx, R=R, residual=residual)
+        kf.update(z, lambda _x: H, lambda _x: hx, R=R)
         self.nav = m.boxplus(self.nav, kf.x)
         kf.x = np.zeros(m.N)
 
@@ -214,14 +220,10 @@ class InsEkf:
         self._fuse(np.array([height]), m.h_baro(self.nav), H, np.array([[std * std]]))
 
     def fuse_mag(self, z: MagSample) -> None:
-        roll, pitch, _ = dcm_to_euler(quat_to_dcm(self.nav.q))
-        mx, my, mz = z.field_body_ut
-        cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
-        hx = mx * cp + my * sr * sp + mz * cr * sp
-        hy = my * cr - mz * sr
-        heading = math.atan2(-hy, hx) + self.cfg.mag_declination_rad
-        H = m.jacobian_numeric(m.h_heading, self.nav) if self._numeric else m.H_heading(self._H_head, self.nav.q)
-        self._fuse(np.array([heading]), m.h_heading(self.nav), H, self._R_head, residual=_angle_residual)
+        h = lambda s: m.h_mag(s, self._field_ned)  # noqa: E731
+        hx = h(self.nav)
+        H = m.jacobian_numeric(h, self.nav) if self._numeric else m.H_mag(self._H_mag, hx)
+        self._fuse(z.field_body_ut, hx, H, self._R_mag)
 
     # -- outputs --------------------------------------------------------------------------------
     @property
@@ -254,7 +256,3 @@ class InsEkf:
         return VehicleState(t=t, pos_ned=pos, vel_ned=nav.v.copy(), euler=dcm_to_euler(quat_to_dcm(nav.q)),
                             rates_body=self._rates.copy(), alt_msl_m=float(alt), lat_deg=float(lat),
                             lon_deg=float(lon), tas_mps=tas, eas_mps=eas)
-
-
-def _angle_residual(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.angle(np.exp(1j * (a - b)))

@@ -121,32 +121,24 @@ def h_baro(s: NavState) -> np.ndarray:
     return np.array([-s.p[2] + s.bb])
 
 
-def yaw_of(q) -> float:
-    w, x, y, z = q
-    return math.atan2(2 * (x * y + w * z), 1 - 2 * (y * y + z * z))
+def h_mag(s: NavState, field_ned: np.ndarray) -> np.ndarray:
+    """Magnetometer field in body FRD [uT]: ``R^T m_ned`` (known earth field)."""
+    return field_ned @ quat_to_dcm(s.q)
 
 
-def h_heading(s: NavState) -> np.ndarray:
-    return np.array([yaw_of(s.q)])
-
-
-def H_heading(out: np.ndarray, q) -> np.ndarray:
-    """1x19 row of d yaw / d dtheta (body-frame error): yaw = atan2(R10, R00)."""
-    r = quat_to_dcm(q)
-    den = r[0, 0] ** 2 + r[1, 0] ** 2
-    out[0, 7] = (r[1, 0] * r[0, 2] - r[0, 0] * r[1, 2]) / den
-    out[0, 8] = (r[0, 0] * r[1, 1] - r[1, 0] * r[0, 1]) / den
+def H_mag(out: np.ndarray, field_body: np.ndarray) -> np.ndarray:
+    """3x19: d (R Exp(dtheta))^T m / d dtheta = [m_body]x."""
+    out[0:3, 6:9] = skew(field_body)
     return out
 
 
 def jacobian_numeric(h, s: NavState, eps: float = 1e-6) -> np.ndarray:
-    """d h(s [+] dx) / d dx at dx = 0 by forward differences (heading residuals wrapped)."""
+    """d h(s [+] dx) / d dx at dx = 0 by forward differences."""
     base = h(s)
     cols = []
     dx = np.zeros(N)
     for j in range(N):
         dx[j] = eps
-        d = h(boxplus(s, dx)) - base
-        cols.append(np.angle(np.exp(1j * d)) / eps if h is h_heading else d / eps)
+        cols.append((h(boxplus(s, dx)) - base) / eps)
         dx[j] = 0.0
     return np.stack(cols, axis=1)
