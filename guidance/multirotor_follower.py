@@ -1,11 +1,15 @@
 """Multirotor plan following: a carrot that moves along the plan at cruise speed.
 
+With ``step=True`` the carrot jumps to each vertex instead (a position step, as in a position
+mode "go to" or a step-response test).
+
 The carrot is a point on the plan's polyline (local-level NED [m]) advanced at the cruise speed,
 slowed on climbing/descending legs so that the vertical rate stays within the climb/descent
 limits [m/s]. It waits at each vertex until the vehicle is within the acceptance radius [m]
 (the vertex then counts as passed), hovers there for the vertex's hold time [s], and never runs
 more than ``max_lead_m`` ahead of the vehicle. Setpoint: carrot position, carrot velocity as
-feed-forward, yaw along the horizontal leg direction (held on vertical legs).
+feed-forward, yaw from ``yaw_rad`` of the vertex the leg ends at if given, else along the
+horizontal leg direction (held on vertical legs).
 """
 
 from __future__ import annotations
@@ -32,12 +36,15 @@ def _project(points: np.ndarray, cum: np.ndarray, p: np.ndarray) -> float:
 
 class MultirotorPlanFollower:
     def __init__(self, cruise_speed: float, max_climb: float, max_descent: float, acceptance_radius: float,
-                 hold_s: dict[int, float] | None = None, max_lead_m: float = 5.0):
+                 hold_s: dict[int, float] | None = None, yaw_rad: dict[int, float] | None = None,
+                 max_lead_m: float = 5.0, step: bool = False):
         self.cruise_speed = cruise_speed
         self.max_climb = max_climb
         self.max_descent = max_descent
         self.acceptance_radius = acceptance_radius
         self.hold_s = hold_s or {}
+        self.yaw_rad = yaw_rad or {}
+        self.step = step
         self.max_lead_m = max_lead_m
         self.plan: Plan | None = None
         self._cum = np.zeros(1)
@@ -96,6 +103,8 @@ class MultirotorPlanFollower:
                 if self._arrived and t >= self._hold_until and self.leg + 2 < len(P):
                     self.leg += 1
                     self._arrived = False
+            elif self.step:
+                self.s = float(cum[self.leg + 1])
             else:
                 a, u = P[self.leg], self._unit(self.leg)
                 if np.linalg.norm(a + u * (self.s - cum[self.leg]) - pos) < self.max_lead_m:
@@ -104,7 +113,10 @@ class MultirotorPlanFollower:
                     vel = u * v
         a, u = P[self.leg], self._unit(self.leg)
         self.carrot = a + u * (self.s - cum[self.leg])
-        if math.hypot(u[0], u[1]) > 0.2:
+        end_label = int(plan.labels[self.leg + 1])
+        if end_label in self.yaw_rad:
+            self._yaw = self.yaw_rad[end_label]
+        elif math.hypot(u[0], u[1]) > 0.2:
             self._yaw = math.atan2(u[1], u[0])
         ap = pos - a
         self.cross_track_m = float(np.linalg.norm(ap - u * float(ap @ u)))

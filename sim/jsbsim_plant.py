@@ -6,6 +6,7 @@ rad]. JSBSim's own units (ft, kt, slug) stay inside this module and ``sim.frames
 
 from __future__ import annotations
 
+import math
 import threading
 from collections import deque
 from dataclasses import dataclass
@@ -182,7 +183,7 @@ class JSBSimPlant:
             t=self.time,
             pos_ned=geodetic_to_ned(lat, lon, alt, self.origin),
             vel_ned=np.array([vn * FT, ve * FT, vd * FT]),
-            euler=np.array([phi, theta, psi]),
+            euler=np.array([phi, theta, math.remainder(psi, math.tau)]),  # JSBSim: psi in [0, 2 pi)
             rates_body=np.array([p, q, r]),
             alt_msl_m=alt, lat_deg=lat, lon_deg=lon,
             tas_mps=vt * FT, eas_mps=veas * FT, alpha_rad=alpha, beta_rad=beta,

@@ -50,6 +50,7 @@ class Waypoint(_Strict):
     east: _Offset
     altitude: _Altitude
     hold: quantity("time", 0.0, 86400.0) = 0.0
+    yaw: Angle | None = None  # multirotor heading at this waypoint (default: along the path)
 
 
 class Mission(_Strict):
@@ -59,6 +60,9 @@ class Mission(_Strict):
     acceptance_radius: quantity("length", 0.0, 5000.0, lo_open=True) = 100.0
     waypoints: Annotated[list[Waypoint], Field(min_length=1)]
     land: bool = False
+    # multirotor guidance: "path" flies the legs at cruise speed; "step" jumps the position
+    # setpoint to each waypoint in turn (step-response tests, position-mode "go to")
+    guidance: Literal["path", "step"] = "path"
 
 
 class Initial(_Strict):
@@ -69,6 +73,8 @@ class Initial(_Strict):
     altitude: _Altitude
     airspeed: quantity("speed", 0.0, 120.0) = 0.0
     heading: Angle = 0.0
+    roll: quantity("angle", -90.0, 90.0) = 0.0
+    pitch: quantity("angle", -90.0, 90.0) = 0.0
     trim: bool | None = None  # default: JSBSim trim for fixed wing; multirotors start in hover
     on_ground: bool = False
 
@@ -107,8 +113,10 @@ class Vehicle(_Strict):
             raise ValueError(f"mission.land: only multirotors land at the end of a mission ({self.aircraft} is {kind})")
         if self.initial.on_ground:
             raise ValueError(f"initial.on_ground: {self.aircraft} ({kind}) starts in the air")
-        if any(w.hold > 0 for w in self.mission.waypoints):
-            raise ValueError(f"mission.waypoints: hold is for multirotors ({self.aircraft} is {kind})")
+        if any(w.hold > 0 or w.yaw is not None for w in self.mission.waypoints):
+            raise ValueError(f"mission.waypoints: hold and yaw are for multirotors ({self.aircraft} is {kind})")
+        if self.mission.guidance != "path":
+            raise ValueError(f"mission.guidance: step guidance is for multirotors ({self.aircraft} is {kind})")
         return self
 
 

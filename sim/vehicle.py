@@ -58,7 +58,8 @@ class Vehicle:
         lat, lon, alt = ned_to_geodetic(start, origin)
         self.plant.initialise(InitialConditions(
             position=GeoPoint(float(lat), float(lon), float(alt)), tas_mps=ini.airspeed,
-            heading_rad=ini.heading, on_ground=ini.on_ground, terrain_alt_m=origin.alt_m))
+            heading_rad=ini.heading, roll_rad=ini.roll, pitch_rad=ini.pitch, on_ground=ini.on_ground,
+            terrain_alt_m=origin.alt_m))
         if ini.trim if ini.trim is not None else af.kind == "fixed_wing":
             self.plant.trim()
         m = cfg.mission
@@ -77,8 +78,10 @@ class Vehicle:
             self._setpoint_schema = S.FIXED_WING_SETPOINT
         else:
             lim = self.controller.gains.limits
-            self.follower = MultirotorPlanFollower(m.cruise_speed, lim.max_climb, lim.max_descent,
-                                                   m.acceptance_radius, self.mission.hold_s)
+            self.follower = MultirotorPlanFollower(
+                m.cruise_speed, lim.max_climb, lim.max_descent, m.acceptance_radius, self.mission.hold_s,
+                yaw_rad={k: w.yaw for k, w in enumerate(m.waypoints) if w.yaw is not None},
+                step=m.guidance == "step")
             self.controller.reset(self.estimate, landed=ini.on_ground)
             self._setpoint_schema = S.MULTIROTOR_SETPOINT
         self.recorder = TraceRecorder(cfg.name, af.kind, len(self.mission.waypoints))
@@ -118,7 +121,7 @@ class Vehicle:
                 self._event(t, f"waypoint {label + 1}/{len(m.waypoints)} reached")
                 self.recorder.reached(t)
                 self._mission_progress(t)
-        if m.land and m.waypoints_done and m.landed_t is None:
+        if m.land and m.waypoints_done:  # descend, and stay down once landed
             last = m.waypoints[-1]
             descent = self.controller.gains.limits.max_descent
             sp = MultirotorSetpoint(np.array([last[0], last[1], np.nan]), np.array([0.0, 0.0, descent]),

@@ -77,10 +77,13 @@ class StormField:
     life_s: float = 5400.0
     t0: float = 0.0
     span_s: float = 3600.0
+    centres: np.ndarray | None = None  # (n_cells, 2) [m]: place the cells here (t = t0) instead
 
     def __post_init__(self) -> None:
         rng = np.random.default_rng(self.seed)
         self.cells: list[Cell] = [self._random_cell(rng) for _ in range(self.n_cells)]
+        if self.centres is not None:
+            self.cells = [self._placed(c, np.asarray(x, float)) for c, x in zip(self.cells, self.centres)]
         children = []
         for c in self.cells:
             if c.split_at is not None:
@@ -96,6 +99,11 @@ class StormField:
                     axes=(r, r * rng.uniform(0.5, 1.0)), heading=rng.uniform(0, math.pi),
                     harmonics=np.stack([rng.uniform(0, 0.12, 3), rng.uniform(0, 2 * math.pi, 3)], 1),
                     noise=rng.normal(0, 0.03, self.n_vertices), born=born, life=life, split_at=split)
+
+    def _placed(self, c: Cell, centre_at_t0: np.ndarray) -> Cell:
+        """The same cell moved so that its centre is at ``centre_at_t0`` at t0."""
+        return Cell(centre_at_t0 - c.velocity * (self.t0 - c.born), c.velocity, c.axes, c.heading, c.harmonics,
+                    c.noise, c.born, c.life, c.split_at)
 
     def _split(self, c: Cell, rng: np.random.Generator) -> list[Cell]:
         """Two children continuing from the split time with half the area each."""

@@ -1,0 +1,92 @@
+"""Closed loop: the JSBSim quadrotor under its cascaded controller, read back from the MCAP."""
+
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim.replay.report import load_traces
+from sim.replay.metrics import run_metrics
+from sim.replay.runlog import RunLog
+from sim.runner import run_scenario
+from sim.scenario import load_scenario, parse_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+pytestmark = pytest.mark.closed_loop
+
+
+def _fly(tmp_path, name: str, **overrides):
+    path = ROOT / "scenarios" / f"{name}.toml"
+    if overrides:
+        data = tomllib.loads(path.read_text())
+        data.update(overrides)
+        scenario = parse_scenario(data, str(path))
+    else:
+        scenario, _ = load_scenario(path)
+    out = tmp_path / f"{name}.mcap"
+    result = run_scenario(scenario, out)
+    return result, RunLog(out)
+
+
+def test_hover_from_attitude_offsets_converges(tmp_path):
+    _, log = _fly(tmp_path, "quad_hover_offset")
+    st = log.topic("/quad/truth/state")
+    euler, pos = st["euler"], st["pos_ned"]
+    assert np.degrees(euler[0, :2]) == pytest.approx([5.0, 5.0])
+    late = st.t >= 5.0
+    assert np.degrees(np.abs(euler[late, :2])).max() < 0.5
+    assert np.abs(pos[late] - pos[0]).max() < 0.1
+    assert np.isfinite(pos).all()
+
+
+def test_position_step_with_yaw_settles(tmp_path):
+    _, log = _fly(tmp_path, "quad_step")
+    st = log.topic("/quad/truth/state")
+    t, pos, yaw = st.t, st["pos_ned"], st["euler"][:, 2]
+    step = np.array([10.0, 5.0, -5.0])
+    target = pos[0] + step
+    progress = (pos - pos[0]) @ step / (step @ step)
+    assert progress.max() - 1.0 <= 0.20  # overshoot along the step
+    err = np.linalg.norm(pos - target, axis=1)
+    outside = np.nonzero(err > 0.02 * np.linalg.norm(step))[0]
+    settle_time = t[outside[-1] + 1] if len(outside) else 0.0
+    assert settle_time <= 15.0
+    assert err[t >= 20.0].max() <= 0.1
+    assert np.degrees(yaw[-1]) == pytest.approx(90.0, abs=1.0)
+
+
+def test_square_mission_takeoff_tracking_landing(tmp_path):
+    result, log = _fly(tmp_path, "quad_square_mission", stop_when_complete=False, duration=80.0)
+    m = run_metrics(load_traces(log))["vehicles"]["quad"]
+    assert m["mission"]["complete"] and m["mission"]["waypoints_reached"] == 5
+    assert m["tracking"]["cross_track_m"]["rms"] <= 1.0
+    st = log.topic("/quad/truth/state")
+    ground_d = 0.0  # the origin altitude is the ground
+    events = dict((text, t) for t, text in log.events())
+    t_land = events["quad: landed"]
+    # cruise at 5 m/s on the legs
+    speed = np.linalg.norm(np.gradient(st["pos_ned"], st.t, axis=0), axis=1)
+    assert 4.5 <= np.percentile(speed[(st.t > 10) & (st.t < t_land - 15)], 90) <= 5.6
+    # no bounce: after touchdown the vehicle never rises more than 0.3 m above the ground
+    height = ground_d - st["pos_ned"][:, 2]
+    assert height[st.t >= t_land].max() <= 0.3
+    # took off from the ground
+    assert height[0] < 0.3 and height.max() > 24.0
+    # motors idle after landing, disarmed after the delay
+    cmds = log.topic("/quad/ctrl/commands")
+    after = cmds.t >= t_land
+    assert (cmds["properties.ap/thrust-cmd-norm"][after] == 0.0).all()
+    assert cmds["debug.armed"][cmds.t >= t_land + 2.5].max() == 0.0
+    assert result.status == "completed"
+
+
+def test_mixed_haps_and_multirotor_in_one_log(tmp_path):
+    result, log = _fly(tmp_path, "mixed_haps_quad")
+    assert result.status == "completed"
+    assert set(log.vehicles) == {"haps", "quad"}
+    metrics = run_metrics(load_traces(log))
+    assert all(v["mission"]["complete"] for v in metrics["vehicles"].values())
+    assert metrics["separation"]["haps-quad"]["distance_m"] > 15_000
+    for v in ("haps", "quad"):
+        assert log.has(f"/{v}/truth/location") and log.has(f"/{v}/ctrl/setpoint")
