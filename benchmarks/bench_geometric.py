@@ -11,6 +11,9 @@ drawn from the Table 4.1 sweep geometry (``avoidance.geometric.sweep``); l = 4, 
 paths (L = 16), thesis collision rules (swept) and the default time-synchronised check.
 
     python benchmarks/bench_geometric.py [--envs 60] [--repeat 5]
+
+BLAS runs single-threaded (one plan is a handful of tiny matrix products; threads only add
+contention). The JSON records the machine and its load average, since both move the numbers.
 """
 
 from __future__ import annotations
@@ -24,8 +27,10 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-from scipy.spatial import KDTree
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+from scipy.spatial import KDTree  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -227,7 +232,7 @@ def main() -> None:
     out = ROOT / "benchmarks" / "results"
     out.mkdir(parents=True, exist_ok=True)
     info = {"cpu": _cpu_model(), "python": sys.version.split()[0],
-            "numpy": np.__version__, "cpus": os.cpu_count(),
+            "numpy": np.__version__, "cpus": os.cpu_count(), "load_avg_1m": os.getloadavg()[0],
             "blas": (np.show_config(mode="dicts") or {}).get("Build Dependencies", {}).get("blas", {}).get("name", "?")}
     (out / "bench_geometric.json").write_text(json.dumps({"machine": info, "rows": rows}, indent=2))
     print(f"machine: {info}; written {out / 'bench_geometric.json'}")
