@@ -245,6 +245,13 @@ def test_silent_gcs_gets_retries_then_cancel(h):
     assert not h.link.mission.uploading
 
 
+def test_gcs_can_cancel_its_upload(h):
+    h.gcs.mav.mission_count_send(SYSID, 1, 3, mav.MAV_MISSION_TYPE_MISSION)
+    assert h.recv("MISSION_REQUEST_INT").seq == 0
+    assert h.link.mission.uploading
+    h.gcs.mav.mission_ack_send(SYSID, 1, mav.MAV_MISSION_OPERATION_CANCELLED, mav.MAV_MISSION_TYPE_MISSION)
+    h.settle()
+    assert not h.link.mission.uploading
 def test_unsupported_frame_is_refused(h):
     ack = upload(h, WAYPOINTS, frame=mav.MAV_FRAME_LOCAL_NED)
     assert ack.type == mav.MAV_MISSION_UNSUPPORTED_FRAME

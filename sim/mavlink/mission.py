@@ -6,7 +6,8 @@ too); after the last item the vehicle sends MISSION_ACK(ACCEPTED) and the upload
 A request unanswered for ``timeout_s`` (wall clock: the GCS is a real program) is sent again up to
 ``retries`` times, then the upload is cancelled (MISSION_ACK OPERATION_CANCELLED). An item ahead
 of the expected one cancels with INVALID_SEQUENCE; a repeated earlier item is ignored and the
-expected one requested again. Invalid items cancel with the specific MAV_MISSION_RESULT.
+expected one requested again. Invalid items cancel with the specific MAV_MISSION_RESULT. A
+MISSION_ACK from the uploading GCS cancels the upload from its side.
 
 Download (vehicle -> GCS): MISSION_REQUEST_LIST is answered with MISSION_COUNT and each
 MISSION_REQUEST_INT / MISSION_REQUEST with the item (frame GLOBAL[_INT], altitude MSL). Fence and
@@ -95,7 +96,10 @@ class MissionServer:
         elif kind == "MISSION_CLEAR_ALL":
             self._event("mission clear refused: the simulated vehicle keeps a mission", "warning")
             reply(self._m.mission_ack_encode(*src, mav.MAV_MISSION_DENIED, msg.mission_type))
-        # MISSION_ACK from the GCS ends a download; nothing to do (downloads are stateless)
+        elif kind == "MISSION_ACK" and self._upload is not None and self._upload.src == src:
+            self._upload = None  # the GCS gave up on its upload
+            self._event(f"mission upload cancelled by the GCS (MISSION_ACK {msg.type})", "warning")
+        # any other MISSION_ACK ends a download: nothing to do, downloads are stateless
         return None
 
     def check_timeout(self, now: float) -> None:
