@@ -4,7 +4,6 @@ mission control (modes, waypoints, buffer replacement), the planner adapter and 
 import json
 
 import numpy as np
-import shapely
 
 from avoidance.planner import PlanStatus, Threats
 from avoidance.reachset.cache import reach_set
@@ -18,7 +17,7 @@ from avoidance.reachset.movement import KinState, MovementType as M, build_primi
 from avoidance.reachset.planner import ReachSetAvoider
 from avoidance.reachset.record import decision_record, scene_update
 from avoidance.reachset.situation import Assessor
-from avoidance.threats import IntruderTrack, LidarScan, PrismObstacle
+from avoidance.threats import IntruderTrack, LidarScan
 from guidance.mission import Mission
 from sim.state import VehicleState
 

@@ -113,7 +113,7 @@ class LidarConfig:
 @dataclass(frozen=True, slots=True)
 class MapConfig:
     """Map obstacles (spec §5.2): safety margin around each body [m], threshold volume [m³]
-    (a cell whose volume inside the obstacle reaches it rates 1), selection range slack [m]."""
+    (a cell whose volume inside the obstacle reaches it rates 1)."""
 
     safety_margin: float = 0.5
     threshold_volume: float = 0.01
@@ -122,12 +122,10 @@ class MapConfig:
 @dataclass(frozen=True, slots=True)
 class ConstraintConfig:
     """Static/moving constraints (spec §5.3/§5.5): margin ring width [m] (soft), ``mode`` =
-    ``polygon`` (exact, shapely) or ``circle`` (Welzl barrel of the thesis), arc step of the
-    cell footprints [rad]."""
+    ``polygon`` (exact, shapely) or ``circle`` (Welzl barrel of the thesis)."""
 
     safety_margin: float = 5.0
     mode: str = "polygon"
-    arc_step: float = pi / 90
 
 
 @dataclass(frozen=True, slots=True)

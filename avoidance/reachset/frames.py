@@ -87,10 +87,6 @@ class GridPose:
     def lcf_to_ned(self, p_lcf: np.ndarray) -> np.ndarray:
         return enu_to_ned(self.to_gcf(p_lcf))
 
-    def xy_to_lcf(self, xy_gcf: np.ndarray) -> np.ndarray:
-        """Horizontal GCF points (..., 2) to LCF (x, y) (..., 2)."""
-        return (np.asarray(xy_gcf, float) - self.origin[:2]) @ self.rot[:2, :2]
-
 
 def ne_to_gcf_xy(ne: np.ndarray) -> np.ndarray:
     """Horizontal (north, east) [m] (..., 2) to GCF (x = east, y = north)."""

@@ -35,6 +35,3 @@ def trajectory_count(tree: ReachSetTree) -> int:
     """Trajectories = root-to-leaf paths."""
     return len(tree.leaves())
 
-
-def mean_leaf_smoothness(tree: ReachSetTree) -> float:
-    return float(tree.smoothness[tree.leaves()].mean())

@@ -53,10 +53,6 @@ class ReachSetTree:
         """(E,) node of every CSR entry."""
         return np.repeat(np.arange(self.n_nodes), np.diff(self.cells_ptr))
 
-    @property
-    def t_end(self) -> np.ndarray:
-        return self.depth * self.period
-
     def leaves(self) -> np.ndarray:
         has_child = np.zeros(self.n_nodes, bool)
         has_child[self.parent[self.parent >= 0]] = True
