@@ -111,14 +111,15 @@ class MptpPlanner:
         if traj.start_space is not None:
             diag["vertices"] = len(traj.start_space.boundary.verts)
         if traj.status == "ok":
-            holding = traj.turns >= 2 * math.pi - 1e-6
+            holding = traj.holding_turn >= 2 * math.pi - 1e-6
             labels = np.full(len(traj.positions), -1)
             labels[-1] = k
-            diag.update(path_length_m=traj.length_m, eta_s=float(traj.times[-1] - t), loops=traj.turns / (2 * math.pi))
+            diag.update(path_length_m=traj.length_m, eta_s=float(traj.times[-1] - t),
+                        holding_turns=traj.holding_turn / (2 * math.pi))
             status = PlanStatus.DEGRADED if holding else PlanStatus.OK
             return self._to_plan(t, est, traj.positions, traj.times, labels, status, diag)
         fs = traj.start_space or free_space(tl, p0, t, default_workspace(p0, goal.at(t), cfg), cfg.tas_mps,
-                                            cfg.ring_segments, escape=True)
+                                            cfg.ring_segments)
         end, _ = safe_area_leg(fs, course, cfg, cfg.tas_mps * cfg.replan_period_s * 2)
         pts = np.vstack([p0, end])
         times = t + np.r_[0.0, np.linalg.norm(end - p0) / cfg.tas_mps]

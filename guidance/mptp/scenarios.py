@@ -52,21 +52,21 @@ def _storms(seed: int, centres_km: list[tuple[float, float]], speed: float = 10.
     v = speed * np.array([math.cos(STORM_COURSE), math.sin(STORM_COURSE)])
     return StormField(seed=seed, n_cells=len(centres_km), mean_velocity=tuple(v), speed_spread=2.5,
                       mean_radius_m=radius_km * 1000.0, life_s=4 * 3600.0, split_prob=0.3,
-                      centres=np.array(centres_km) * 1000.0)
+                      centres=np.array(centres_km) * 1000.0, births_after_t0=False)
 
 
 def _thesis(**changes) -> MptpConfig:
     return MptpConfig.thesis(mission_area=mission_area(), **changes)
 
 
-def scenario_1(heuristic: str = "ssph", turning: str = "right") -> Scenario:
+def scenario_1(heuristic: str = "ssph", turning: str = "both") -> Scenario:
     """Continuous avoidance 1 (Table 6.1): dt 100 s, |dchi| 45 deg, eps 0.022 deg."""
     cells = [(120, 200), (150, 195), (178, 190), (205, 185), (135, 165), (190, 160), (230, 175)]
     return Scenario("scenario 1", ne(48.83, 13.54), math.radians(280.0), GoalTrack.fixed(ne(49.01, 11.98)),
                     _thesis(heuristic=heuristic, turning=turning), _storms(1, cells), 10)
 
 
-def scenario_2(heuristic: str = "ssph", turning: str = "right") -> Scenario:
+def scenario_2(heuristic: str = "ssph", turning: str = "both") -> Scenario:
     """Continuous avoidance 2 (Table 6.9): dt 100 s, |dchi| 84 deg, eps 0.031 deg."""
     cells = [(95, 225), (120, 215), (145, 205), (105, 185), (140, 170), (165, 150), (80, 200), (175, 185)]
     eps = 0.031 * math.pi / 180 * 6_371_000.0
@@ -80,7 +80,7 @@ def holding_scenario(heuristic: str = "edh") -> Scenario:
     g = ne(49.006, 11.980)
     cells = [(g[0] / 1000 - 8.0, g[1] / 1000 - 20.0)]
     field = StormField(seed=3, n_cells=1, mean_velocity=(3.0, 9.0), speed_spread=0.0, mean_radius_m=6000.0,
-                       life_s=6 * 3600.0, split_prob=0.0, centres=np.array(cells) * 1000.0)
+                       life_s=6 * 3600.0, split_prob=0.0, centres=np.array(cells) * 1000.0, births_after_t0=False)
     return Scenario("holding", ne(49.134, 12.168), math.radians(220.0), GoalTrack.fixed(g),
                     _thesis(heuristic=heuristic, dt_s=60.0), field, 6)
 

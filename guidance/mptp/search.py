@@ -26,7 +26,7 @@ from guidance.mptp.goal import GoalTrack
 from guidance.mptp.heuristics import StaticPaths, edh
 from guidance.mptp.statespace import FreeSpace, free_space
 from guidance.mptp.timeline import ObstacleTimeline
-from guidance.mptp.turning import admissible, aux_states
+from guidance.mptp.turning import admissible, aux_states, min_leg_m
 from guidance.mptp.visibility import blocked, visible_vertices
 
 START, VERTEX, AUX, GOAL = "start", "vertex", "aux", "goal"
@@ -60,9 +60,15 @@ class Trajectory:
         return float(np.linalg.norm(np.diff(self.positions, axis=0), axis=1).sum()) if len(self.positions) > 1 else 0.0
 
     @property
-    def turns(self) -> float:
-        """Total absolute course change along the trajectory [rad]."""
-        return float(np.abs(np.angle(np.exp(1j * np.diff(self.courses)))).sum()) if len(self.courses) > 1 else 0.0
+    def holding_turn(self) -> float:
+        """Largest course change [rad] turned one way over consecutive auxiliary states: 2 pi
+        or more is a holding pattern (5.4)."""
+        dchi = np.angle(np.exp(1j * np.diff(self.courses)))
+        run, best = 0.0, 0.0
+        for d, kind in zip(dchi, self.kinds[1:]):
+            run = run + d if kind == AUX and run * d >= 0 else (d if kind == AUX else 0.0)
+            best = max(best, abs(run))
+        return best
 
 
 def default_workspace(start: np.ndarray, goal: np.ndarray, cfg: MptpConfig) -> Polygon:
@@ -78,11 +84,12 @@ class _Expander:
     def __init__(self, tl: ObstacleTimeline, goal: GoalTrack, cfg: MptpConfig, workspace: Polygon, turning: str):
         self.tl, self.goal, self.cfg, self.w, self.turning = tl, goal, cfg, workspace, turning
         self.start_space: FreeSpace | None = None
+        self.escape_m = 2.0 * float(min_leg_m(cfg.course_change_max, cfg))
 
     def __call__(self, s: State):
         cfg, v = self.cfg, self.cfg.tas_mps
         p = np.array(s.p)
-        fs = free_space(self.tl, p, s.t, self.w, v, cfg.ring_segments, escape=s.kind == START)
+        fs = free_space(self.tl, p, s.t, self.w, v, cfg.ring_segments, self.escape_m if s.kind == START else 0.0)
         if self.start_space is None:
             self.start_space = fs
         b = fs.boundary

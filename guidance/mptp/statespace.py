@@ -51,12 +51,9 @@ def annuli(p: np.ndarray, radii: np.ndarray, segments: int) -> np.ndarray:
     circumscribing radii[k+1]; the first one (radii[0] == 0) is a disc."""
     ang = np.linspace(0.0, 2 * math.pi, segments, endpoint=False)
     unit = np.stack([np.cos(ang), np.sin(ang)], 1)
-    grow = 1.0 / math.cos(math.pi / segments)
-    out = []
-    for r0, r1 in zip(radii[:-1], radii[1:]):
-        shell = p + unit * (r1 * grow)
-        out.append(Polygon(shell, [p + unit[::-1] * r0] if r0 > 0 else None))
-    return np.array(out, object)
+    shells = shapely.linearrings(p + radii[1:, None, None] * unit[None] / math.cos(math.pi / segments))
+    holes = shapely.linearrings(p + radii[1:-1, None, None] * unit[None, ::-1])
+    return np.concatenate([shapely.polygons(shells[:1]), shapely.polygons(shells[1:], holes=holes[:, None])])
 
 
 def obstacle_region(tl: ObstacleTimeline, p_in: np.ndarray, t_in: float, reach_m: float, speed: float,
@@ -77,21 +74,20 @@ def obstacle_region(tl: ObstacleTimeline, p_in: np.ndarray, t_in: float, reach_m
 
 
 def free_space(tl: ObstacleTimeline, p_in: np.ndarray, t_in: float, workspace: Polygon, speed: float,
-               segments: int, escape: bool = False) -> FreeSpace:
+               segments: int, escape_m: float = 0.0) -> FreeSpace:
     """EX_free(x_in) = W \\ EX_obs(x_in), the part connected to p_in.
 
-    With ``escape`` (the start state only), a p_in inside EX_obs is added to the free space as
-    the thesis does when the aircraft is suddenly trapped inside a margin: a disc around p_in
-    reaching 20 % beyond the nearest free point is removed from EX_obs, so that the search can
-    leave the margin the shortest way."""
+    With ``escape_m`` > 0 (the start state only), a p_in inside EX_obs is added to the free space
+    as the thesis does when the aircraft is suddenly trapped inside a margin: a disc around p_in
+    reaching ``escape_m`` [m] (one flyable leg) beyond the nearest free point is removed from
+    EX_obs, so that the search can leave the margin the shortest way."""
     p_in = np.asarray(p_in, float)
     reach = _reach(p_in, workspace)
     obs = obstacle_region(tl, p_in, t_in, reach, speed, segments)
     pt = Point(p_in)
-    trapped = escape and obs.contains(pt)
+    trapped = escape_m > 0 and obs.contains(pt)
     if trapped:
-        d_out = obs.boundary.distance(pt)
-        obs = obs.difference(pt.buffer(1.2 * d_out + 1.0, quad_segs=8))
+        obs = obs.difference(pt.buffer(obs.boundary.distance(pt) + escape_m, quad_segs=8))
     free = workspace.difference(obs)
     parts = shapely.get_parts(free)
     if len(parts) > 1:

@@ -78,6 +78,7 @@ class StormField:
     t0: float = 0.0
     span_s: float = 3600.0
     centres: np.ndarray | None = None  # (n_cells, 2) [m]: place the cells here (t = t0) instead
+    births_after_t0: bool = True  # False: every cell is alive at t0 (no cell pops up unforeseen)
 
     def __post_init__(self) -> None:
         rng = np.random.default_rng(self.seed)
@@ -92,7 +93,8 @@ class StormField:
 
     def _random_cell(self, rng: np.random.Generator) -> Cell:
         life = self.life_s * rng.uniform(0.7, 1.3)
-        born = rng.uniform(self.t0 - 0.6 * life, self.t0 + 0.3 * self.span_s)
+        late = self.t0 + 0.3 * self.span_s if self.births_after_t0 else self.t0 - 0.1 * life
+        born = rng.uniform(self.t0 - 0.6 * life, late)
         r = self.mean_radius_m * rng.uniform(0.5, 1.5)
         split = born + life * rng.uniform(0.4, 0.6) if rng.uniform() < self.split_prob else None
         return Cell(centre=rng.uniform([0, 0], self.size_m), velocity=np.array(self.mean_velocity) + rng.normal(0, self.speed_spread, 2),
