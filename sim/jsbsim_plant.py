@@ -15,7 +15,7 @@ from pathlib import Path
 import jsbsim
 import numpy as np
 
-from sim.frames import FT, KT, GeoPoint, geodetic_to_ned
+from sim.frames import FT, KT, GeoPoint, LocalLevelFrame
 from sim.state import VehicleState
 
 
@@ -99,6 +99,7 @@ class JSBSimPlant:
         self.model = model
         self.dt = float(dt)
         self.origin = origin
+        self._frame = LocalLevelFrame(origin)
         self._log = _quiet_logger()
         self.fdm = jsbsim.FGFDMExec(jsbsim.get_default_root_dir())
         self.fdm.set_debug_level(0)
@@ -115,6 +116,11 @@ class JSBSimPlant:
         self.fdm.set_dt(self.dt)
         pm = self.fdm.get_property_manager()
         self._truth_nodes = [pm.get_node(p, False) for p in _TRUTH_PROPS]
+
+    @property
+    def warnings(self) -> list[str]:
+        """JSBSim's recent warnings and errors (its console is silenced)."""
+        return list(self._log.recent)
 
     def _with_log(self, msg: str) -> str:
         tail = "; ".join(list(self._log.recent)[-3:])
@@ -181,7 +187,7 @@ class JSBSimPlant:
         alt = h_ft * FT
         return VehicleState(
             t=self.time,
-            pos_ned=geodetic_to_ned(lat, lon, alt, self.origin),
+            pos_ned=np.array(self._frame.ned(lat, lon, alt)),
             vel_ned=np.array([vn * FT, ve * FT, vd * FT]),
             euler=np.array([phi, theta, math.remainder(psi, math.tau)]),  # JSBSim: psi in [0, 2 pi)
             rates_body=np.array([p, q, r]),

@@ -24,7 +24,7 @@ def trimmed(alt_m: float, tas_mps: float) -> JSBSimPlant:
 
 def test_model_loads_without_warnings():
     plant = JSBSimPlant("haps", 1.0 / 120.0, ORIGIN, airframe_dir("haps"))
-    assert list(plant._log.recent) == []  # JSBSim warnings caught by the plant's quiet logger
+    assert plant.warnings == []  # JSBSim warnings caught by the plant's quiet logger
     assert plant["inertia/weight-lbs"] * 0.45359237 == pytest.approx(75.0, rel=1e-3)
     assert plant["metrics/bw-ft"] * FT == pytest.approx(25.0)
     assert plant["metrics/Sw-sqft"] * FT**2 == pytest.approx(20.0)

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sim.frames import GeoPoint, enu_to_ned, euler_to_quaternion, geodetic_to_ned, ned_to_enu, ned_to_geodetic
+from sim.frames import GeoPoint, LocalLevelFrame, enu_to_ned, euler_to_quaternion, geodetic_to_ned, ned_to_enu, ned_to_geodetic
 from sim.units import to_si
 
 
@@ -52,3 +52,12 @@ def test_enu_ned_swap_and_quaternion():
     # yaw 90 deg: body x points east
     x, y, z, w = euler_to_quaternion(0.0, 0.0, math.pi / 2)
     assert (x, y) == pytest.approx((0.0, 0.0)) and z == pytest.approx(math.sqrt(0.5)) and w == pytest.approx(math.sqrt(0.5))
+
+
+@given(lat=st.floats(-80, 80), lon=st.floats(-179, 179), n=st.floats(-2e5, 2e5), e=st.floats(-2e5, 2e5),
+       h=st.floats(-400, 30000))
+def test_fast_local_frame_equals_the_array_conversion(lat, lon, n, e, h):
+    origin = GeoPoint(lat, lon, 350.0)
+    la, lo, al = ned_to_geodetic(np.array([n, e, 350.0 - h]), origin)
+    fast = LocalLevelFrame(origin).ned(float(la), float(lo), float(al))
+    assert np.allclose(fast, geodetic_to_ned(la, lo, al, origin), atol=1e-6)

@@ -32,7 +32,8 @@ from filterpy.kalman import ExtendedKalmanFilter
 from pydantic import Field
 
 from sim.estimation import ins_model as m
-from sim.frames import GeoPoint, ned_to_geodetic
+from sim.estimation.geodetic import LocalGeodetic
+from sim.frames import GeoPoint
 from sim.sensors import isa
 from sim.sensors.config import StrictConfig
 from sim.sensors.measurements import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample
@@ -107,6 +108,7 @@ class InsEkf:
     def __init__(self, cfg: InsEkfConfig, initial: VehicleState, origin: GeoPoint):
         self.cfg = cfg
         self.origin = origin
+        self._geo = LocalGeodetic(origin)
         c = cfg
         self.nav = m.NavState(np.array(initial.pos_ned, float), np.array(initial.vel_ned, float),
                               euler_to_quat(*initial.euler), np.zeros(3), np.zeros(3), 0.0, np.zeros(3))
@@ -246,7 +248,7 @@ class InsEkf:
         """Estimate extrapolated from the filter time to ``t`` [s] (constant velocity)."""
         nav = self.nav
         pos = nav.p + nav.v * (t - self.t)
-        lat, lon, alt = ned_to_geodetic(pos, self.origin)
+        lat, lon, alt = self._geo.ned_to_geodetic(*pos)
         if self._dp is not None and self._p_static is not None:
             tas, eas = isa.airspeeds_from_dp(self._dp, self._p_static)
         else:  # no pitot: ground speed, air density from the ISA at the estimated altitude

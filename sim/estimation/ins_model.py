@@ -27,6 +27,7 @@ N = 19
 IDX = {"p": slice(0, 3), "v": slice(3, 6), "th": slice(6, 9), "ba": slice(9, 12), "bg": slice(12, 15),
        "bb": slice(15, 16), "gm": slice(16, 19)}
 GRAVITY = np.array([0.0, 0.0, 9.80665])
+_I3 = np.eye(3)
 
 
 @dataclass(slots=True)
@@ -78,15 +79,15 @@ def transition_analytic(out: np.ndarray, r: np.ndarray, fh: np.ndarray, wh: np.n
     """Error-state transition Phi (19x19), written into ``out`` whose constant entries (identity,
     dp/dv = I dt pattern) the caller keeps; first order except the attitude block."""
     rf = r @ skew(fh)
-    out[0:3, 3:6] = np.eye(3) * dt
+    out[0:3, 3:6] = _I3 * dt
     out[0:3, 6:9] = rf * (-0.5 * dt * dt)
     out[0:3, 9:12] = r * (-0.5 * dt * dt)
     out[3:6, 6:9] = rf * -dt
     out[3:6, 9:12] = r * -dt
     out[3:6, 12:15] = rf * (0.5 * dt * dt)
     out[6:9, 6:9] = quat_to_dcm(quat_exp(*(wh * dt))).T
-    out[6:9, 12:15] = np.eye(3) * -dt
-    out[16:19, 16:19] = np.eye(3) * gm_decay
+    out[6:9, 12:15] = _I3 * -dt
+    out[16:19, 16:19] = _I3 * gm_decay
     return out
 
 
@@ -112,7 +113,7 @@ def h_gnss(s: NavState, lag: float, acc_ned: np.ndarray) -> np.ndarray:
 
 def H_gnss(out: np.ndarray, lag: float) -> np.ndarray:
     """6x19; the caller keeps the constant identities; sets the lag terms."""
-    out[0:3, 3:6] = np.eye(3) * -lag
+    out[0:3, 3:6] = _I3 * -lag
     return out
 
 
