@@ -148,7 +148,7 @@ def cast_rays(origin_ned: np.ndarray, dirs_ned: np.ndarray, prisms: Sequence[_Pr
         with np.errstate(divide="ignore", invalid="ignore"):
             s = (an * ee - ae * en) / den
             u = (an * de - ae * dn) / den
-        up = o_up + s * du
+            up = o_up + s * du
         ok = (den != 0) & (s >= 0) & (u >= 0) & (u <= 1) & (up >= pr.up_min) & (up <= pr.up_max)
         s_wall = np.where(ok, s, np.inf).min(axis=1)
         # top and bottom faces
