@@ -89,7 +89,7 @@ class _Expander:
     def __call__(self, s: State):
         cfg, v = self.cfg, self.cfg.tas_mps
         p = np.array(s.p)
-        fs = free_space(self.tl, p, s.t, self.w, v, cfg.ring_segments, self.escape_m if s.kind == START else 0.0)
+        fs = free_space(self.tl, p, s.t, self.w, v, cfg.ring_segments, self.escape_m)
         if self.start_space is None:
             self.start_space = fs
         b = fs.boundary

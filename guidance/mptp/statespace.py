@@ -15,7 +15,7 @@ computed with shapely's vectorised intersection instead of the thesis's sampled 
 set, no course sampling). Annuli are polygons that circumscribe their outer isochrone and are
 inscribed in their inner one, so neighbouring annuli overlap and no state is missed. Beyond the
 timeline's last level the last envelope is held. The free space is EX_free = W \\ EX_obs (3.7),
-kept to the connected part that contains p_in. Every straight segment from p_in inside EX_free
+kept to the connected parts that contain or touch p_in. Every straight segment from p_in inside EX_free
 is a conflict-free trajectory at speed V: along it, time and range grow together.
 """
 
@@ -31,6 +31,8 @@ from shapely.geometry.base import BaseGeometry
 
 from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.visibility import Boundary, boundary_of
+
+TOUCH_M = 1.0  # parts of the free space closer than this to p_in count as touching it [m]
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,8 +79,9 @@ def free_space(tl: ObstacleTimeline, p_in: np.ndarray, t_in: float, workspace: P
                segments: int, escape_m: float = 0.0) -> FreeSpace:
     """EX_free(x_in) = W \\ EX_obs(x_in), the part connected to p_in.
 
-    With ``escape_m`` > 0 (the start state only), a p_in inside EX_obs is added to the free space
-    as the thesis does when the aircraft is suddenly trapped inside a margin: a disc around p_in
+    With ``escape_m`` > 0, a p_in inside EX_obs is added to the free space as the thesis does
+    when the aircraft is suddenly trapped inside a margin (and for the states of its way out,
+    or a state a rounding error inside): a disc around p_in
     reaching ``escape_m`` [m] (one flyable leg) beyond the nearest free point is removed from
     EX_obs, so that the search can leave the margin the shortest way."""
     p_in = np.asarray(p_in, float)
@@ -90,9 +93,9 @@ def free_space(tl: ObstacleTimeline, p_in: np.ndarray, t_in: float, workspace: P
         obs = obs.difference(pt.buffer(obs.boundary.distance(pt) + escape_m, quad_segs=8))
     free = workspace.difference(obs)
     parts = shapely.get_parts(free)
-    if len(parts) > 1:
+    if len(parts) > 1:  # keep the parts p_in is in or on: the others cannot be reached
         near = shapely.distance(parts, pt)
-        free = parts[int(np.argmin(near))]
+        free = shapely.multipolygons(parts[near <= max(near.min(), 0.0) + TOUCH_M])
     return FreeSpace(p_in, t_in, free, obs, boundary_of(free), bool(trapped))
 
 
