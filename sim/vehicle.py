@@ -89,6 +89,7 @@ class Vehicle:
         self._control_dt = 1.0 / af.control_hz
         self._setpoint: dict = {}
         self._commands: dict[str, float] = {}
+        self._mission_logged: tuple[int, bool] | None = None
 
     # -- tasks -------------------------------------------------------------------------------
     def schedule(self, sched: LockstepScheduler, log_hz: float) -> None:
@@ -158,4 +159,7 @@ class Vehicle:
         self.recorder.state(self.logw.truth(truth), self._setpoint)
         self.logw.control(t, self._setpoint, self._setpoint_schema, self._commands, dict(self.controller.debug))
         m = self.mission
-        self.logw.mission(t, m.next_index, len(m.waypoints), m.complete)
+        status = (m.next_index, m.complete)
+        if status != self._mission_logged:
+            self._mission_logged = status
+            self.logw.mission(t, m.next_index, len(m.waypoints), m.complete)

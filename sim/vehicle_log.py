@@ -1,9 +1,9 @@
 """What one vehicle writes to the run log each log tick.
 
 Topics (``<v>`` = vehicle name): ``/<v>/truth/state`` (cosim.VehicleState), ``/<v>/truth/location``
-(foxglove.LocationFix, Map panel), ``/<v>/truth/pose`` (foxglove.PoseInFrame in frame ``ned``),
-``/<v>/ctrl/setpoint``, ``/<v>/ctrl/commands``, ``/<v>/mission/status``, ``/<v>/plan``; and the
-vehicle's transform ``ned`` -> ``<v>`` in ``/tf`` (foxglove.FrameTransforms). The static
+(foxglove.LocationFix, Map panel), ``/<v>/ctrl/setpoint``, ``/<v>/ctrl/commands``,
+``/<v>/mission/status`` (when it changes), ``/<v>/plan``; and the vehicle's pose as the transform
+``ned`` -> ``<v>`` in ``/tf`` (foxglove.FrameTransforms, 3D panel). The static
 ``world`` (ENU, Foxglove's z-up convention) -> ``ned`` transform is written once at t = 0.
 """
 
@@ -14,7 +14,6 @@ import math
 from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.LocationFix_pb2 import LocationFix
-from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
 
 from avoidance.planner import Plan
 from sim import log_schemas as S
@@ -51,7 +50,7 @@ class VehicleLogWriter:
         self.log = log
         self.name = name
         p = f"/{name}"
-        self.t_state, self.t_loc, self.t_pose = f"{p}/truth/state", f"{p}/truth/location", f"{p}/truth/pose"
+        self.t_state, self.t_loc = f"{p}/truth/state", f"{p}/truth/location"
         self.t_sp, self.t_cmd, self.t_mission = f"{p}/ctrl/setpoint", f"{p}/ctrl/commands", f"{p}/mission/status"
         self.t_plan, self.t_latency = f"{p}/plan", f"{p}/plan/latency"
 
@@ -67,12 +66,6 @@ class VehicleLogWriter:
         log.write_proto(self.t_loc, t, fix)
         qx, qy, qz, qw = euler_to_quaternion(*s.euler)
         n, e, d = s.pos_ned.tolist()
-        pose = PoseInFrame(frame_id=NED_FRAME)
-        pose.timestamp.FromNanoseconds(ns)
-        pose.pose.position.x, pose.pose.position.y, pose.pose.position.z = n, e, d
-        o = pose.pose.orientation
-        o.x, o.y, o.z, o.w = qx, qy, qz, qw
-        log.write_proto(self.t_pose, t, pose)
         tf = FrameTransform(parent_frame_id=NED_FRAME, child_frame_id=self.name)
         tf.timestamp.FromNanoseconds(ns)
         tf.translation.x, tf.translation.y, tf.translation.z = n, e, d

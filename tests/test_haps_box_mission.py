@@ -69,7 +69,6 @@ def test_box_mission_completes_with_tight_tracking(box_run):
     assert info.attachments == ["scenario.toml"]
     topics = {t.topic: t.schema for t in info.topics}
     assert topics["/haps/truth/location"] == "foxglove.LocationFix"
-    assert topics["/haps/truth/pose"] == "foxglove.PoseInFrame"
     assert topics["/tf"] == "foxglove.FrameTransforms"
     assert topics["/log"] == "foxglove.Log"
 
