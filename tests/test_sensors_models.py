@@ -21,11 +21,9 @@ from sim.sensors.gnss import Gnss, GnssConfig
 from sim.sensors.imu import Imu, ImuConfig
 from sim.sensors.lidar import Lidar, LidarConfig, cast_rays, _prepare
 from sim.sensors.suite import SensorSuite, SensorSuiteConfig
-from sim.sensors.synthetic import Segment, generate
 from sim.sensors.truth import TruthSample
 from sim.state import VehicleState
 
-ORIGIN = GeoPoint(47.0, 8.0, 400.0)
 
 
 def _truth(t=0.0, pos=(0.0, 0.0, -50.0), vel=(0.0, 0.0, 0.0), euler=(0.0, 0.0, 0.0), rates=(0.0, 0.0, 0.0),

@@ -16,7 +16,6 @@ IMU mechanisation over dt with the averaged samples (f, w) of its two ends:
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,26 +67,29 @@ def propagate(s: NavState, f: np.ndarray, w: np.ndarray, dt: float, gm_decay: fl
     wh = w - s.bg
     wx, wy, wz = float(wh[0]) * dt, float(wh[1]) * dt, float(wh[2]) * dt
     r = quat_to_dcm(quat_mul(s.q, quat_exp(0.5 * wx, 0.5 * wy, 0.5 * wz)))
-    a = r @ fh + GRAVITY
-    nxt = NavState(s.p + s.v * dt + (0.5 * dt * dt) * a, s.v + a * dt,
+    dv = (r @ fh + GRAVITY) * dt
+    nxt = NavState(s.p + (s.v + 0.5 * dv) * dt, s.v + dv,
                    quat_normalize(quat_mul(s.q, quat_exp(wx, wy, wz))), s.ba, s.bg, s.bb, s.gm * gm_decay)
     return nxt, r, fh, wh
 
 
+_CONST_IDX = (np.array([0, 1, 2, 6, 7, 8, 16, 17, 18]), np.array([3, 4, 5, 12, 13, 14, 16, 17, 18]))
+
+
 def transition_analytic(out: np.ndarray, r: np.ndarray, fh: np.ndarray, wh: np.ndarray, dt: float,
                         gm_decay: float) -> np.ndarray:
-    """Error-state transition Phi (19x19), written into ``out`` whose constant entries (identity,
-    dp/dv = I dt pattern) the caller keeps; first order except the attitude block."""
+    """Error-state transition Phi (19x19) written into ``out`` (an identity the caller reuses:
+    only the entries below change); first order in dt except the attitude block and the
+    dt^2 terms of dp and dv."""
     rf = r @ skew(fh)
-    out[0:3, 3:6] = _I3 * dt
-    out[0:3, 6:9] = rf * (-0.5 * dt * dt)
-    out[0:3, 9:12] = r * (-0.5 * dt * dt)
+    k = 0.5 * dt * dt
+    out[0:3, 6:9] = rf * -k
+    out[0:3, 9:12] = r * -k
     out[3:6, 6:9] = rf * -dt
     out[3:6, 9:12] = r * -dt
-    out[3:6, 12:15] = rf * (0.5 * dt * dt)
-    out[6:9, 6:9] = quat_to_dcm(quat_exp(*(wh * dt))).T
-    out[6:9, 12:15] = _I3 * -dt
-    out[16:19, 16:19] = _I3 * gm_decay
+    out[3:6, 12:15] = rf * k
+    out[6:9, 6:9] = quat_to_dcm(quat_exp(float(wh[0]) * dt, float(wh[1]) * dt, float(wh[2]) * dt)).T
+    out[_CONST_IDX] = (dt, dt, dt, -dt, -dt, -dt, gm_decay, gm_decay, gm_decay)
     return out
 
 
