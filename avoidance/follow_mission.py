@@ -22,7 +22,7 @@ class FollowMissionPlanner:
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         m = self.mission
-        if m.complete:
+        if m.waypoints_done:
             pos = m.waypoints[-1:]
             return Plan(t, pos.copy(), np.array([t]), np.array([len(m.waypoints) - 1]),
                         PlanStatus.OK, planner=self.name, diagnostics={"complete": 1})

@@ -38,6 +38,9 @@ class MultirotorPlanFollower:
     def __init__(self, cruise_speed: float, max_climb: float, max_descent: float, acceptance_radius: float,
                  hold_s: dict[int, float] | None = None, yaw_rad: dict[int, float] | None = None,
                  max_lead_m: float = 5.0, step: bool = False):
+        """``hold_s`` / ``yaw_rad``: hover time [s] / yaw [rad] at the vertices labelled with these
+        mission waypoint indices (replace them with :meth:`set_waypoint_attributes` when the
+        mission changes)."""
         self.cruise_speed = cruise_speed
         self.max_climb = max_climb
         self.max_descent = max_descent
@@ -56,6 +59,9 @@ class MultirotorPlanFollower:
         self._yaw = float("nan")
         self.cross_track_m = 0.0
         self.turning = False
+
+    def set_waypoint_attributes(self, hold_s: dict[int, float], yaw_rad: dict[int, float]) -> None:
+        self.hold_s, self.yaw_rad = hold_s, yaw_rad
 
     def set_plan(self, plan: Plan) -> None:
         """Follow ``plan``, continuing from where the carrot is (projected onto the new plan)."""

@@ -91,6 +91,7 @@ def run_scenario(
     sched: LockstepScheduler | None = None
     vehicles: list[Vehicle] = []
     failure: Exception | None = None
+    session = None
     try:
         log.metadata("run", {
             "scenario": scenario.name, "seed": scenario.seed, "epoch_ns": scenario.epoch_ns,
@@ -104,6 +105,11 @@ def run_scenario(
         sched = LockstepScheduler(base)
         for v in vehicles:
             v.schedule(sched, scenario.logging.rate_hz)
+        if scenario.mavlink.enabled:
+            from sim.mavlink.session import MavlinkSession
+
+            session = MavlinkSession(scenario.mavlink, vehicles, origin, log)
+            sched.add_task("mavlink", scenario.logging.rate_hz, Stage.LOG, session.tick)
         if progress is not None:
             sched.add_task("progress", progress_hz, Stage.LOG, lambda t: progress(t, end))
         if tick_hook is not None:
@@ -122,6 +128,8 @@ def run_scenario(
         result.error = f"{type(exc).__name__}: {exc}"
         failure = exc
     finally:
+        if session is not None:
+            session.close()
         result.sim_time_s = sched.time if sched is not None else 0.0
         result.wall_time_s = time.perf_counter() - wall0
         for v in vehicles:

@@ -120,6 +120,18 @@ class Vehicle(_Strict):
         return self
 
 
+class Mavlink(_Strict):
+    """MAVLink to a ground station during the run (vehicle k: system id k+1, GCS port
+    ``base_port + k``). ``pace``: at most this many times the wall clock (0: sim time, no
+    waiting)."""
+
+    enabled: bool = False
+    gcs_host: str = "127.0.0.1"
+    base_port: Annotated[int, Field(ge=1024, le=65000)] = 14550
+    rate_hz: Annotated[float, Field(gt=0.0, le=50.0)] = 4.0
+    pace: Annotated[float, Field(ge=0.0, le=1000.0)] = 1.0
+
+
 class Logging(_Strict):
     rate_hz: Annotated[float, Field(gt=0.0, le=1000.0)] = 10.0
 
@@ -136,6 +148,7 @@ class Scenario(_Strict):
     stop_when_complete: bool = True
     origin: Origin
     logging: Logging = Logging()
+    mavlink: Mavlink = Mavlink()
     vehicle: Annotated[list[Vehicle], Field(min_length=1)]
 
     @field_validator("start_time")

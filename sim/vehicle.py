@@ -16,6 +16,7 @@ import numpy as np
 from aircraft.registry import get_airframe
 from avoidance.follow_mission import FollowMissionPlanner
 from avoidance.planner import Plan, Threats
+from avoidance.position_planners import GotoPlanner, HoldPositionPlanner
 from guidance.fixed_wing_follower import FixedWingPlanFollower
 from guidance.l1 import L1Guidance
 from guidance.mission import Mission
@@ -24,8 +25,9 @@ from guidance.setpoints import MultirotorSetpoint
 from sim import log_schemas as S
 from sim import scenario as sc
 from sim.estimator import PerfectEstimator
-from sim.frames import GeoPoint, ned_to_geodetic
+from sim.frames import GeoPoint, geodetic_to_ned, ned_to_geodetic
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
+from sim.mavlink.commands import Arm, MissionUpload, PositionTarget, SetMode
 from sim.mcap_log import McapLog
 from sim.replay.trace import TraceRecorder
 from sim.scheduler import LockstepScheduler, Stage
@@ -69,6 +71,7 @@ class Vehicle:
             hold_s={k: w.hold for k, w in enumerate(m.waypoints) if w.hold > 0}, land=m.land)
         self.estimator = PerfectEstimator(self.plant)
         self.planner = FollowMissionPlanner(self.mission)
+        self.mode = "AUTO"  # AUTO: the mission; HOLD: hover in place; GUIDED: ground-station targets
         self.controller = af.make_controller(cfg.gains)
         self.estimate = self.estimator.update(0.0)
         if af.kind == "fixed_wing":
@@ -90,6 +93,56 @@ class Vehicle:
         self._setpoint: dict = {}
         self._commands: dict[str, float] = {}
         self._mission_logged: tuple[int, bool] | None = None
+
+    @property
+    def armed(self) -> bool:
+        """Motors armed (fixed wing: always, its motors never stop in flight)."""
+        return bool(getattr(self.controller, "armed", True))
+
+    # -- ground-station commands (MAVLink) -----------------------------------------------------
+    def apply_command(self, cmd, t: float) -> bool:
+        """Act on a ground-station command at sim time ``t`` [s]; every one is logged as an
+        event. Returns True when the mission changed."""
+        multirotor = self.airframe.kind == "multirotor"
+        if isinstance(cmd, MissionUpload):
+            wps = geodetic_to_ned(*np.asarray(cmd.waypoints, float).T, self.origin)
+            m = self.mission
+            self.mission = Mission(wps, m.cruise_speed, m.acceptance_radius, start=self.estimate.pos_ned.copy(),
+                                   land=m.land)
+            self.planner = FollowMissionPlanner(self.mission)
+            if multirotor:
+                self.follower.set_waypoint_attributes({}, {})
+            self.recorder.waypoints_total = len(wps)
+            self.mode = "AUTO"
+            self._event(t, f"mission uploaded: {len(wps)} waypoints, mode AUTO")
+            self._plan(t)
+            return True
+        if isinstance(cmd, SetMode):
+            if cmd.name == "AUTO":
+                self.planner = FollowMissionPlanner(self.mission)
+            elif cmd.name in ("HOLD", "GUIDED") and multirotor:
+                self.planner = HoldPositionPlanner(self.estimate.pos_ned)
+            else:
+                self._event(t, f"mode {cmd.name} refused: not available for a {self.airframe.kind}")
+                return False
+            self.mode = cmd.name
+            self._event(t, f"mode {cmd.name}")
+            self._plan(t)
+            return False
+        if isinstance(cmd, PositionTarget):
+            if self.mode != "GUIDED" or not multirotor or cmd.pos_ned is None or np.isnan(cmd.pos_ned).any():
+                self._event(t, "position target ignored (needs GUIDED mode, a multirotor and a full position)")
+                return False
+            self.planner = GotoPlanner(self.estimate.pos_ned, cmd.pos_ned, self.mission.cruise_speed)
+            self._event(t, "position target: " + ", ".join(f"{x:.1f}" for x in cmd.pos_ned) + " m NED")
+            self._plan(t)
+            return False
+        if isinstance(cmd, Arm):
+            # arming follows from the mission (take-off demand); disarming in flight is refused
+            self._event(t, f"{'arm' if cmd.arm else 'disarm'} request noted; motors follow the flight "
+                           f"controller (armed: {self.armed})")
+            return False
+        raise TypeError(f"unknown command {cmd!r}")
 
     # -- tasks -------------------------------------------------------------------------------
     def schedule(self, sched: LockstepScheduler, log_hz: float) -> None:
