@@ -79,10 +79,10 @@ def holding_scenario(heuristic: str = "edh") -> Scenario:
     """Automatic holding (Table 6.18): dt 60 s; a cell sits on the goal and drifts off."""
     g = ne(49.006, 11.980)
     cells = [(g[0] / 1000, g[1] / 1000)]
-    field = StormField(seed=3, n_cells=1, mean_velocity=(-10.0, -11.0), speed_spread=0.0, mean_radius_m=5000.0,
+    field = StormField(seed=3, n_cells=1, mean_velocity=(-6.0, -6.5), speed_spread=0.0, mean_radius_m=3000.0,
                        life_s=6 * 3600.0, split_prob=0.0, centres=np.array(cells) * 1000.0, births_after_t0=False)
     return Scenario("holding", ne(49.134, 12.168), math.radians(220.0), GoalTrack.fixed(g),
-                    _thesis(heuristic=heuristic, dt_s=60.0), field, 6)
+                    _thesis(heuristic=heuristic, dt_s=60.0), field, 12)
 
 
 GOAL_TRACK_620 = [(0, 49.006, 11.980), (5, 48.957, 11.896), (10, 48.948, 11.776), (15, 48.903, 11.750),
