@@ -1,0 +1,133 @@
+"""MPTP replanning time per cycle, its growth with the storm vertex count, and the heuristics.
+
+Measured in this run on this machine (one core, single-threaded numpy/GEOS):
+- per cycle: the open-loop replans of the thesis's scenarios 1 and 2 (SSPH, bidirectional
+  turning), split into weather processing (margins + interpolation, once per nowcast) and the
+  trajectory search; target <= 1 s per replan;
+- growth: the first replan of scenario 2 with every storm outline densified k times (same shapes,
+  k x the vertices), with and without line smoothing; the ratio is against k = 1 in this run;
+- heuristics: first-iteration explored / trajectory states (EXST, TRST), length and runtime of
+  Dijkstra, EDH and SSPH with one-way and two-way turning (the thesis's Tables 6.2-6.16).
+
+    python benchmarks/bench_mptp.py [--quick]
+
+Writes benchmarks/results/mptp.json and prints Markdown tables.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import shapely
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from avoidance.threats import StormSnapshot  # noqa: E402
+from guidance.mptp import scenarios as S  # noqa: E402
+from guidance.mptp.openloop import run_open_loop  # noqa: E402
+from guidance.mptp.search import plan_trajectory  # noqa: E402
+from guidance.mptp.timeline import ObstacleTimeline  # noqa: E402
+
+
+def per_cycle(make) -> dict:
+    sc = make()
+    run = run_open_loop(sc)
+    w = np.array([p.diagnostics.get("weather_s", 0.0) for p in run.plans])
+    s = np.array([p.diagnostics.get("runtime_s", 0.0) for p in run.plans])
+    return {"scenario": sc.name, "cycles": len(run.plans), "weather_mean_s": w.mean(), "search_mean_s": s.mean(),
+            "total_mean_s": (w + s).mean(), "total_max_s": (w + s).max(), "flown_km": run.length_m / 1000,
+            "arrival_min": run.arrived_s / 60, "tl_km": [p.diagnostics.get("path_length_m", float("nan")) / 1000
+                                                         for p in run.plans]}
+
+
+def densified(snaps: list[StormSnapshot], k: int) -> list[StormSnapshot]:
+    if k == 1:
+        return snaps
+    out = []
+    for s in snaps:
+        cells = []
+        for c in s.cells:
+            edge = np.median(np.linalg.norm(np.diff(np.asarray(c.exterior.coords), axis=0), axis=1))
+            cells.append(shapely.segmentize(c, edge / k * 1.01))
+        out.append(StormSnapshot(s.t, tuple(cells), s.velocities_ne))
+    return out
+
+
+def one_replan(sc, snaps, cfg, repeat: int) -> tuple[float, float, int]:
+    best_w, best_s, exst = np.inf, np.inf, 0
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        tl = ObstacleTimeline(snaps, cfg, 2 * cfg.horizon_s)
+        w = time.perf_counter() - t0
+        tr = plan_trajectory(tl, sc.start, 0.0, sc.course, sc.goal, cfg)
+        best_w, best_s, exst = min(best_w, w), min(best_s, tr.runtime_s), tr.expanded
+    return best_w, best_s, exst
+
+
+def growth(multipliers, repeat: int) -> list[dict]:
+    sc = S.scenario_2()
+    base = sc.storms.nowcast(0.0)
+    rows = []
+    for smooth in (True, False):
+        cfg = sc.cfg if smooth else sc.cfg.with_(simplify_tol_m=0.0)
+        ref = None
+        for k in multipliers:
+            snaps = densified(base, k)
+            nv = sum(len(c.exterior.coords) - 1 for c in snaps[0].cells)
+            w, s, exst = one_replan(sc, snaps, cfg, repeat)
+            ref = ref or (w + s)
+            rows.append({"smoothing": smooth, "multiplier": k, "storm_vertices": nv, "weather_s": w, "search_s": s,
+                         "total_s": w + s, "ratio": (w + s) / ref, "exst": exst})
+    return rows
+
+
+def heuristics() -> list[dict]:
+    rows = []
+    for make in (S.scenario_1, S.scenario_2):
+        for turning in ("right", "both"):
+            for h in ("dijkstra", "edh", "ssph"):
+                sc = make(h, turning)
+                tl = ObstacleTimeline(sc.storms.nowcast(0.0), sc.cfg, 2 * sc.cfg.horizon_s)
+                tr = plan_trajectory(tl, sc.start, 0.0, sc.course, sc.goal, sc.cfg)
+                rows.append({"scenario": sc.name, "turning": turning, "heuristic": h, "status": tr.status,
+                             "exst": tr.expanded, "trst": max(len(tr.positions) - 1, 0),
+                             "tl_km": tr.length_m / 1000 if tr.status == "ok" else float("nan"),
+                             "search_s": tr.runtime_s})
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true", help="fewer repeats and multipliers")
+    args = ap.parse_args()
+    mult = (1, 3) if args.quick else (1, 2, 3, 4, 6)
+    res = {"cycles": [per_cycle(S.scenario_1), per_cycle(S.scenario_2)],
+           "growth": growth(mult, 1 if args.quick else 3), "heuristics": heuristics()}
+    out = ROOT / "benchmarks" / "results"
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "mptp.json").write_text(json.dumps(res, indent=1, default=float))
+    print("| scenario | cycles | weather mean [s] | search mean [s] | total mean [s] | total max [s] | flown [km] | arrival [min] |")
+    print("|---|---|---|---|---|---|---|---|")
+    for r in res["cycles"]:
+        print(f"| {r['scenario']} | {r['cycles']} | {r['weather_mean_s']:.3f} | {r['search_mean_s']:.3f} | "
+              f"{r['total_mean_s']:.3f} | {r['total_max_s']:.3f} | {r['flown_km']:.1f} | {r['arrival_min']:.1f} |")
+    print("\n| smoothing | vertices x | storm vertices | weather [s] | search [s] | total [s] | ratio | EXST |")
+    print("|---|---|---|---|---|---|---|---|")
+    for r in res["growth"]:
+        print(f"| {'on' if r['smoothing'] else 'off'} | {r['multiplier']} | {r['storm_vertices']} | {r['weather_s']:.3f} | "
+              f"{r['search_s']:.3f} | {r['total_s']:.3f} | {r['ratio']:.2f} | {r['exst']} |")
+    print("\n| scenario | turning | heuristic | status | EXST | TRST | TRST/EXST [%] | TL [km] | search [s] |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for r in res["heuristics"]:
+        print(f"| {r['scenario']} | {r['turning']} | {r['heuristic']} | {r['status']} | {r['exst']} | {r['trst']} | "
+              f"{100 * r['trst'] / max(r['exst'], 1):.1f} | {r['tl_km']:.1f} | {r['search_s']:.2f} |")
+
+
+if __name__ == "__main__":
+    main()
