@@ -9,7 +9,13 @@ from shapely.geometry import Point, Polygon, box
 
 from avoidance.threats import StormSnapshot
 from guidance.mptp.config import MptpConfig
-from guidance.mptp.margins import close_gaps, margin_hulls, merge, probability_factor, safety_margin_m
+from guidance.mptp.margins import (
+    close_gaps,
+    margin_hulls,
+    merge,
+    probability_factor,
+    safety_margin_m,
+)
 from guidance.mptp.timeline import ObstacleTimeline, minkowski_sequences
 
 CFG = MptpConfig(simplify_tol_m=0.0, safety_single_m=(1000.0, 1500.0, 2000.0), safety_line_m=(3000.0,) * 3,

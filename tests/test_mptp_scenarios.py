@@ -18,8 +18,8 @@ from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
 from guidance.mptp.openloop import run_open_loop, vehicle_state
 from guidance.mptp.planner import MptpPlanner
-from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.search import plan_trajectory
+from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.turning import flyby_path
 
 

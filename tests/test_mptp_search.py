@@ -19,12 +19,24 @@ from guidance.mptp.astar import astar
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.geojson import plan_geojson
 from guidance.mptp.goal import GoalTrack
-from guidance.mptp.nowcast import NowcastError, dump_nowcast, load_nowcast, parse_nowcast, save_nowcast
+from guidance.mptp.nowcast import (
+    NowcastError,
+    dump_nowcast,
+    load_nowcast,
+    parse_nowcast,
+    save_nowcast,
+)
 from guidance.mptp.openloop import vehicle_state
 from guidance.mptp.planner import MptpPlanner
 from guidance.mptp.synthetic import StormField
 from guidance.mptp.turning import flyby_path, wrap
-from guidance.mptp.visibility import blocked, boundary_of, reduced_graph, tangent, visible_vertices
+from guidance.mptp.visibility import (
+    blocked,
+    boundary_of,
+    reduced_graph,
+    tangent,
+    visible_vertices,
+)
 from sim.frames import GeoPoint
 
 

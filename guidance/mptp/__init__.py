@@ -9,8 +9,6 @@ positive towards east. The pipeline of one replan (see docs/mptp.md):
 """
 
 from guidance.mptp.config import MptpConfig
-
-
 from guidance.mptp.planner import MptpPlanner
 
 __all__ = ["MptpConfig", "MptpPlanner"]
