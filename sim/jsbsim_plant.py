@@ -177,6 +177,10 @@ class JSBSimPlant:
                 raise PlantError(self._with_log(f"{self.model}: JSBSim stopped at t={self.time:.3f} s"))
 
     @property
+    def engine_count(self) -> int:
+        return self.fdm.get_propulsion().get_num_engines()
+
+    @property
     def time(self) -> float:
         return self.fdm.get_sim_time()
 

@@ -16,15 +16,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import jsbsim
+import numpy as np
 
 from sim import __version__
+from sim.environment import geofence, obstacle_prism
+from sim.faults import FaultSchedule
 from sim.frames import GeoPoint
 from sim.mcap_log import McapLog
 from sim.replay.metrics import run_metrics
 from sim.scenario import Scenario
 from sim.scheduler import LockstepScheduler, Stage
 from sim.vehicle import Vehicle
-from sim.vehicle_log import write_static_frames
+from sim.vehicle_log import write_map, write_static_frames
 
 
 @dataclass
@@ -99,12 +102,21 @@ def run_scenario(
         if scenario_text:
             log.attach("scenario.toml", scenario_text.encode(), "application/toml")
         write_static_frames(log)
-        vehicles = [Vehicle(v, origin, log) for v in scenario.vehicle]
+        seeds = np.random.SeedSequence(scenario.seed).generate_state(len(scenario.vehicle), dtype=np.uint32)
+        vehicles = [Vehicle(v, origin, log, int(seed), scenario.wind) for v, seed in zip(scenario.vehicle, seeds)]
+        obstacles = [obstacle_prism(o, origin.alt_m) for o in scenario.obstacle]
+        fences = [geofence(g, origin.alt_m) for g in scenario.geofence]
+        for v in vehicles:
+            v.threats.obstacles, v.threats.geofences = obstacles, fences  # known from the map
+        write_map(log, obstacles, fences, origin)
+        faults = FaultSchedule(scenario.fault, {v.name: v for v in vehicles}, log)
         log.metadata("vehicles", {v.name: v.airframe.kind for v in vehicles})
         base = _lcm_rates([v.airframe.plant_hz for v in vehicles])
         sched = LockstepScheduler(base)
         for v in vehicles:
             v.schedule(sched, scenario.logging.rate_hz)
+        if scenario.fault:
+            sched.add_task("faults", scenario.logging.rate_hz, Stage.SENSE, faults.tick)
         if scenario.mavlink.enabled:
             from sim.mavlink.session import MavlinkSession
 
@@ -135,7 +147,7 @@ def run_scenario(
         for v in vehicles:
             m = v.mission
             result.missions[v.name] = MissionResult(
-                len(m.reached), len(m.waypoints), m.complete, m.complete_time)
+                len(m.reached), len(m.waypoints), m.complete, m.completed_t)
         try:
             result.metrics = run_metrics([v.recorder.trace() for v in vehicles])
             log.metadata("metrics", {"json": json.dumps(result.metrics, sort_keys=True)})

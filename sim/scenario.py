@@ -14,9 +14,10 @@ from pathlib import Path
 from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from shapely.geometry import Polygon
 
 from aircraft.registry import get_airframe
-from sim.units import Angle, quantity
+from sim.units import Angle, Speed, quantity
 
 SCHEMA_VERSION = 1
 
@@ -132,6 +133,110 @@ class Mavlink(_Strict):
     pace: Annotated[float, Field(ge=0.0, le=1000.0)] = 1.0
 
 
+class Wind(_Strict):
+    """Steady wind: velocity of the air mass, NED [m/s] (``north = 5`` blows towards north),
+    and MIL-F-8785C Dryden turbulence (JSBSim's Milspec model; seeded from the scenario)."""
+
+    north: Speed = 0.0
+    east: Speed = 0.0
+    down: Speed = 0.0
+    turbulence: Literal["none", "light", "moderate", "severe"] = "none"
+
+
+class Obstacle(_Strict):
+    """A static obstacle: a footprint extruded from ``base`` to ``top`` (altitudes MSL [m];
+    ``base`` defaults to the ground = origin altitude). Shapes: ``box`` (centre north/east,
+    ``length`` along ``heading``, ``width`` across), ``cylinder`` (centre, ``radius``),
+    ``polygon`` (``points`` = [[north, east], ...] [m])."""
+
+    id: Annotated[str, Field(min_length=1)]
+    shape: Literal["box", "cylinder", "polygon"]
+    north: _Offset = 0.0
+    east: _Offset = 0.0
+    length: quantity("length", 0.0, 1e5, lo_open=True) | None = None
+    width: quantity("length", 0.0, 1e5, lo_open=True) | None = None
+    heading: Angle = 0.0
+    radius: quantity("length", 0.0, 1e5, lo_open=True) | None = None
+    points: list[tuple[float, float]] | None = None
+    base: _Altitude | None = None
+    top: _Altitude
+
+    @model_validator(mode="after")
+    def _shape_fields(self) -> "Obstacle":
+        need = {"box": ("length", "width"), "cylinder": ("radius",), "polygon": ("points",)}[self.shape]
+        missing = [f for f in need if getattr(self, f) is None]
+        if missing:
+            raise ValueError(f"{missing[0]}: a {self.shape} needs {' and '.join(need)}")
+        if self.shape == "polygon":
+            _simple_polygon(self.points)
+        return self
+
+
+class Geofence(_Strict):
+    """An area with an altitude band (MSL [m]) the vehicles must stay in (``keep_in``) or out of."""
+
+    id: Annotated[str, Field(min_length=1)]
+    points: list[tuple[float, float]]
+    floor: _Altitude = -500.0
+    ceiling: _Altitude = 30000.0
+    keep_in: bool = True
+
+    @field_validator("points")
+    @classmethod
+    def _simple(cls, v):
+        return _simple_polygon(v)
+
+
+def _simple_polygon(points):
+    """``points`` if they make a simple polygon of >= 3 [north, east] vertices, else ValueError."""
+    if len(points) < 3:
+        raise ValueError("points: a polygon needs at least 3 [north, east] points")
+    if not Polygon(points).is_valid:
+        raise ValueError("points: the polygon is not simple (its edges cross)")
+    return points
+
+
+class _Fault(_Strict):
+    vehicle: str
+    at: quantity("time", 0.0, 30 * 86400.0)
+    duration: quantity("time", 0.0, 30 * 86400.0, lo_open=True) | None = None  # None: to the end
+
+
+class GnssLoss(_Fault):
+    kind: Literal["gnss_loss"]
+
+
+class SensorBias(_Fault):
+    """A bias step added to a sensor's output, in the sensor's units (per axis or scalar)."""
+
+    kind: Literal["sensor_bias"]
+    sensor: Literal["accel", "gyro", "gnss", "baro", "airspeed", "mag"]
+    bias: float | list[float]
+
+
+class SensorStuck(_Fault):
+    kind: Literal["sensor_stuck"]
+    sensor: Literal["accel", "gyro", "gnss", "baro", "airspeed", "mag"]
+
+
+class MotorFailure(_Fault):
+    kind: Literal["motor_failure"]
+    engine: Annotated[int, Field(ge=0, le=16)]
+
+
+class Gust(_Fault):
+    """A 1-cosine gust: air-mass velocity NED [m/s] ramped in over ``ramp``, held, ramped out."""
+
+    kind: Literal["gust"]
+    north: Speed = 0.0
+    east: Speed = 0.0
+    down: Speed = 0.0
+    ramp: quantity("time", 0.0, 600.0) = 2.0
+
+
+Fault = Annotated[GnssLoss | SensorBias | SensorStuck | MotorFailure | Gust, Field(discriminator="kind")]
+
+
 class Logging(_Strict):
     rate_hz: Annotated[float, Field(gt=0.0, le=1000.0)] = 10.0
 
@@ -149,6 +254,10 @@ class Scenario(_Strict):
     origin: Origin
     logging: Logging = Logging()
     mavlink: Mavlink = Mavlink()
+    wind: Wind = Wind()
+    obstacle: list[Obstacle] = []
+    geofence: list[Geofence] = []
+    fault: list[Fault] = []
     vehicle: Annotated[list[Vehicle], Field(min_length=1)]
 
     @field_validator("start_time")
@@ -159,11 +268,18 @@ class Scenario(_Strict):
         return v.astimezone(timezone.utc)
 
     @model_validator(mode="after")
-    def _unique_names(self) -> "Scenario":
+    def _references(self) -> "Scenario":
         names = [v.name for v in self.vehicle]
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise ValueError(f"vehicle names must be unique, repeated: {', '.join(dup)}")
+        for k, f in enumerate(self.fault):
+            if f.vehicle not in names:
+                raise ValueError(f"fault[{k}].vehicle: no vehicle {f.vehicle!r} (vehicles: {', '.join(names)})")
+        ids = [o.id for o in self.obstacle] + [g.id for g in self.geofence]
+        dup = sorted({i for i in ids if ids.count(i) > 1})
+        if dup:
+            raise ValueError(f"obstacle/geofence ids must be unique, repeated: {', '.join(dup)}")
         return self
 
     @property

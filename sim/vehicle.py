@@ -24,6 +24,7 @@ from guidance.multirotor_follower import MultirotorPlanFollower
 from guidance.setpoints import MultirotorSetpoint
 from sim import log_schemas as S
 from sim import scenario as sc
+from sim.environment import apply_wind
 from sim.estimator import PerfectEstimator
 from sim.frames import GeoPoint, geodetic_to_ned, ned_to_geodetic
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
@@ -47,7 +48,8 @@ def _json_num(x: float) -> float | None:
 
 
 class Vehicle:
-    def __init__(self, cfg: sc.Vehicle, origin: GeoPoint, log: McapLog):
+    def __init__(self, cfg: sc.Vehicle, origin: GeoPoint, log: McapLog, seed: int, wind: sc.Wind = sc.Wind()):
+        """``seed``: this vehicle's own seed (its JSBSim turbulence and sensor noise)."""
         self.name = cfg.name
         self.cfg = cfg
         self.origin = origin
@@ -64,6 +66,7 @@ class Vehicle:
             terrain_alt_m=origin.alt_m))
         if ini.trim if ini.trim is not None else af.kind == "fixed_wing":
             self.plant.trim()
+        apply_wind(self.plant, wind, seed)
         m = cfg.mission
         self.mission = Mission(
             waypoints=np.array([_ned(w.north, w.east, w.altitude, origin) for w in m.waypoints]),
@@ -174,7 +177,6 @@ class Vehicle:
             if label >= 0 and m.mark_reached(label, t):
                 self._event(t, f"waypoint {label + 1}/{len(m.waypoints)} reached")
                 self.recorder.reached(t)
-                self._mission_progress(t)
         if m.land and m.waypoints_done:  # descend, and stay down once landed
             last = m.waypoints[-1]
             descent = self.controller.gains.limits.max_descent
@@ -184,15 +186,12 @@ class Vehicle:
         if m.land and m.waypoints_done and m.landed_t is None and self.controller.landed:
             m.landed_t = t
             self._event(t, "landed")
-            self._mission_progress(t)
+        if m.check_complete(t):
+            self._event(t, "mission complete")
+            self.recorder.complete(t)
         self.plant.set_many(cmds)
         self._setpoint = self._setpoint_record(sp)
         self._commands = cmds
-
-    def _mission_progress(self, t: float) -> None:
-        if self.mission.complete:
-            self._event(t, "mission complete")
-            self.recorder.complete(t)
 
     def _setpoint_record(self, sp) -> dict:
         f = self.follower

@@ -9,15 +9,19 @@ Topics (``<v>`` = vehicle name): ``/<v>/truth/state`` (cosim.VehicleState), ``/<
 
 from __future__ import annotations
 
+import json
 import math
 
 from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.GeoJSON_pb2 import GeoJSON
+from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
 from foxglove_schemas_protobuf.LocationFix_pb2 import LocationFix
+from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
 from avoidance.planner import Plan
 from sim import log_schemas as S
-from sim.frames import euler_to_quaternion
+from sim.frames import euler_to_quaternion, ned_to_geodetic
 from sim.mcap_log import McapLog
 from sim.state import VehicleState
 
@@ -94,3 +98,43 @@ class VehicleLogWriter:
         self.log.write_json(self.t_latency, t, {"t": t, "seconds": latency_s}, S.WALL_TIMING,
                             {"wallclock": "true"})
 
+
+
+def _prism_lines(footprint, d_top: float, d_bottom: float) -> list[tuple[float, float, float]]:
+    """LINE_LIST segments outlining a prism in NED: top and bottom rings and the verticals."""
+    polys = getattr(footprint, "geoms", [footprint])
+    pts: list[tuple[float, float, float]] = []
+    for poly in polys:
+        ring = list(poly.exterior.coords)
+        for (n0, e0), (n1, e1) in zip(ring, ring[1:]):
+            pts += [(n0, e0, d_top), (n1, e1, d_top), (n0, e0, d_bottom), (n1, e1, d_bottom),
+                    (n0, e0, d_top), (n0, e0, d_bottom)]
+    return pts
+
+
+def write_map(log: McapLog, obstacles: list, fences: list, origin) -> None:
+    """Obstacles and geofences once at t = 0: ``/world/map`` (foxglove.GeoJSON, Map panel) and
+    ``/world/obstacles`` (foxglove.SceneUpdate outlines in frame ``ned``, 3D panel)."""
+    if not obstacles and not fences:
+        return
+    features = []
+    scene = SceneUpdate()
+    for item, colour in [(o, (0.9, 0.3, 0.2)) for o in obstacles] + [(g, (0.2, 0.6, 0.9)) for g in fences]:
+        shape = item.footprint if hasattr(item, "footprint") else item.area
+        for poly in getattr(shape, "geoms", [shape]):
+            lat, lon, _ = ned_to_geodetic([(n, e, 0.0) for n, e in poly.exterior.coords], origin)
+            features.append({"type": "Feature", "properties": {
+                "id": item.id, "kind": "obstacle" if hasattr(item, "footprint") else "geofence",
+                "up_min_m": item.up_min_m, "up_max_m": item.up_max_m},
+                "geometry": {"type": "Polygon", "coordinates": [list(zip(lon.tolist(), lat.tolist()))]}})
+        ent = scene.entities.add(frame_id=NED_FRAME, id=item.id)
+        ent.timestamp.FromNanoseconds(log.epoch_ns)
+        line = ent.lines.add(type=LinePrimitive.LINE_LIST, thickness=2.0, scale_invariant=True)
+        line.pose.orientation.w = 1.0
+        line.color.r, line.color.g, line.color.b, line.color.a = (*colour, 1.0)
+        for n, e, d in _prism_lines(shape, -item.up_max_m, -max(item.up_min_m, -1e4)):
+            p = line.points.add()
+            p.x, p.y, p.z = n, e, d
+    log.write_proto("/world/map", 0.0, GeoJSON(geojson=json.dumps({"type": "FeatureCollection",
+                                                                   "features": features})))
+    log.write_proto("/world/obstacles", 0.0, scene)
