@@ -47,6 +47,17 @@ CASES = [
     ("naive_time", None, 'name="x"\nseed=1\nduration=10\nstart_time=2026-06-21T06:00:00\n'
      '[origin]\nlat=0\nlon=0\n', "start_time: start_time needs a time zone"),
     ("bad_toml", None, 'name = "x\nseed = 1\n', "not valid TOML"),
+    ("fault_vehicle", {**GOOD, "fault": [{"vehicle": "hapz", "kind": "gust", "at": 10, "east": 3}]}, None,
+     "fault[0].vehicle: no vehicle 'hapz' (vehicles: haps)"),
+    ("fault_kind", {**GOOD, "fault": [{"vehicle": "haps", "kind": "lightning", "at": 10}]}, None,
+     "fault[0]: Input tag 'lightning' found using 'kind' does not match any of the expected tags"),
+    ("obstacle_fields", {**GOOD, "obstacle": [{"id": "t", "shape": "cylinder", "top": 500}]}, None,
+     "obstacle[0]: radius: a cylinder needs radius"),
+    ("crossed_polygon", {**GOOD, "geofence": [{"id": "g", "points": [[0, 0], [1, 1], [1, 0], [0, 1]]}]}, None,
+     "geofence[0].points: points: the polygon is not simple (its edges cross)"),
+    ("turbulence", {**GOOD, "wind": {"turbulence": "extreme"}}, None, "wind.turbulence: Input should be 'none'"),
+    ("fixed_wing_land", _mutate(["vehicle", 0, "mission", "land"], True), None,
+     "vehicle[0]: mission.land: only multirotors land at the end of a mission (haps is fixed_wing)"),
 ]
 
 
