@@ -24,6 +24,7 @@ class Mission:
     hold_s: dict[int, float] = field(default_factory=dict)  # hover time at waypoint index [s]
     land: bool = False  # a multirotor lands after the last waypoint
     landed_t: float | None = None  # sim time of touchdown [s]
+    completed_t: float | None = None  # sim time the mission completed [s]
 
     @property
     def next_index(self) -> int:
@@ -36,15 +37,18 @@ class Mission:
 
     @property
     def complete(self) -> bool:
-        """Every waypoint reached (and, for a landing mission, landed)."""
-        return self.waypoints_done and (not self.land or self.landed_t is not None)
+        return self.completed_t is not None
 
-    @property
-    def complete_time(self) -> float | None:
-        """Sim time the mission completed [s] (touchdown for a landing mission)."""
-        if not self.complete:
-            return None
-        return self.landed_t if self.land else self.reached[-1][1]
+    def check_complete(self, t: float) -> bool:
+        """Mark the mission complete at ``t`` once every waypoint is reached, the last one's hold
+        is over and (landing mission) the vehicle has landed; True when it just completed."""
+        if self.completed_t is not None or not self.waypoints_done:
+            return False
+        last, t_last = self.reached[-1]
+        if t < t_last + self.hold_s.get(last, 0.0) or (self.land and self.landed_t is None):
+            return False
+        self.completed_t = t
+        return True
 
     def mark_reached(self, index: int, t: float) -> bool:
         """Record waypoint ``index`` reached at ``t``; True if that was news."""

@@ -24,11 +24,16 @@ TURBULENCE = {"none": (0.0, 0), "light": (25.0, 3), "moderate": (50.0, 4), "seve
 _MILSPEC = 3
 
 
-def apply_wind(plant: JSBSimPlant, wind: sc.Wind, seed: int) -> None:
-    """Steady wind and turbulence into one JSBSim instance; ``seed`` seeds its random numbers."""
-    plant["simulation/randomseed"] = seed % 2**31
+def apply_steady_wind(plant: JSBSimPlant, wind: sc.Wind) -> None:
+    """Steady wind into one JSBSim instance; before its initial conditions and trim, so that
+    the initial airspeed is relative to the moving air."""
     plant.set_many({"atmosphere/wind-north-fps": wind.north / FT, "atmosphere/wind-east-fps": wind.east / FT,
                     "atmosphere/wind-down-fps": wind.down / FT})
+
+
+def apply_turbulence(plant: JSBSimPlant, wind: sc.Wind, seed: int) -> None:
+    """Turbulence (after the trim); ``seed`` seeds this JSBSim instance's random numbers."""
+    plant["simulation/randomseed"] = seed % 2**31
     speed_fps, severity = TURBULENCE[wind.turbulence]
     if severity:
         plant.set_many({"atmosphere/turb-type": _MILSPEC,

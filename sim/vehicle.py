@@ -24,7 +24,7 @@ from guidance.multirotor_follower import MultirotorPlanFollower
 from guidance.setpoints import MultirotorSetpoint
 from sim import log_schemas as S
 from sim import scenario as sc
-from sim.environment import apply_wind
+from sim.environment import apply_steady_wind, apply_turbulence
 from sim.estimator import PerfectEstimator
 from sim.frames import GeoPoint, geodetic_to_ned, ned_to_geodetic
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
@@ -57,6 +57,7 @@ class Vehicle:
         self.log = log
         self.logw = VehicleLogWriter(log, cfg.name)
         self.plant = JSBSimPlant(af.jsbsim_model, 1.0 / af.plant_hz, origin, af.folder)
+        apply_steady_wind(self.plant, wind)
         ini = cfg.initial
         start = _ned(ini.north, ini.east, ini.altitude, origin)
         lat, lon, alt = ned_to_geodetic(start, origin)
@@ -66,7 +67,7 @@ class Vehicle:
             terrain_alt_m=origin.alt_m))
         if ini.trim if ini.trim is not None else af.kind == "fixed_wing":
             self.plant.trim()
-        apply_wind(self.plant, wind, seed)
+        apply_turbulence(self.plant, wind, seed)
         m = cfg.mission
         self.mission = Mission(
             waypoints=np.array([_ned(w.north, w.east, w.altitude, origin) for w in m.waypoints]),

@@ -50,3 +50,22 @@ class Channel:
         if c.quantum > 0.0:
             y = c.quantum * np.round(y / c.quantum)
         return y
+
+    def apply_block(self, true: np.ndarray, dt: float) -> np.ndarray:
+        """Measured values of ``true`` (n, dim), sampled every ``dt`` [s] after the previous
+        sample; the same model as :meth:`apply` row by row (bias random walk per sample), drawn
+        in one go (bias steps of all rows first, then the white noise of all rows)."""
+        c = self.cfg
+        n = true.shape[0]
+        if c.bias_rw > 0.0 and dt > 0.0:
+            b = np.cumsum((c.bias_rw * math.sqrt(dt)) * self._rng.standard_normal((n, self.dim)), axis=0)
+            b += self.bias
+            self.bias = b[-1].copy()
+        else:
+            b = self.bias
+        y = self.scale * true + b
+        if c.noise_std > 0.0:
+            y += c.noise_std * self._rng.standard_normal((n, self.dim))
+        if c.quantum > 0.0:
+            y = c.quantum * np.round(y / c.quantum)
+        return y

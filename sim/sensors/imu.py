@@ -66,3 +66,20 @@ class Imu(SampledSensor[ImuSample]):
 
     def _package(self, t: float, y: np.ndarray) -> ImuSample:
         return ImuSample(t, y[:3], y[3:])
+
+    def measure_block(self, t: np.ndarray, accel_true: np.ndarray, gyro_true: np.ndarray,
+                      dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Samples taken at times ``t`` (n,) every ``dt`` [s] from the true specific force and
+        rates (n, 3) each: the per-sample error model applied to the whole block at once (the
+        estimator's fast path; :meth:`poll` is the one-sample path). Faults apply per sample;
+        dropped samples are left out. Returns (times (k,), outputs (k, 6): accel, gyro)."""
+        y = np.concatenate((self.accel.apply_block(accel_true, dt), self.gyro.apply_block(gyro_true, dt)), axis=1)
+        if not self.faults.faults:
+            return t, y
+        keep = []
+        for i in range(len(t)):
+            yi = self.faults.apply(float(t[i]), y[i])
+            if yi is not None:
+                y[i] = yi
+                keep.append(i)
+        return t[keep], y[keep]
