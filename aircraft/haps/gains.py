@@ -13,20 +13,17 @@ section as JSBSim ``ap/*`` properties) and :meth:`guidance.l1.L1Guidance.for_air
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
+
+from aircraft.gains_file import GainsError, read_gains_toml
 
 DEFAULT_PATH = Path(__file__).with_name("gains.toml")
 
 # Equivalent airspeed -> dynamic pressure: 0.5 * rho0 * EAS^2 [Pa], and Pa -> lbf/ft^2 (JSBSim).
 RHO0 = 1.225  # ISA sea-level density [kg/m^3]
 PA_TO_PSF = 0.020885434273039
-
-
-class GainsError(ValueError):
-    """A gains file is not TOML, misses a key, has an unknown key or a non-numeric value."""
 
 
 def _in(section: str) -> Any:
@@ -88,13 +85,8 @@ class HapsGains:
     @classmethod
     def load(cls, path: str | Path | None = None) -> HapsGains:
         """Read a gains file (default: ``gains.toml`` beside this module)."""
-        p = Path(path) if path is not None else DEFAULT_PATH
-        try:
-            with p.open("rb") as fh:
-                table = tomllib.load(fh)
-        except tomllib.TOMLDecodeError as exc:
-            raise GainsError(f"{p}: not valid TOML: {exc}") from exc
-        return cls(**_flatten(table, str(p)))
+        table, where = read_gains_toml(path, DEFAULT_PATH)
+        return cls(**_flatten(table, where))
 
     def fcs_properties(self) -> dict[str, float]:
         """The ``[inner]`` gains and the attitude limits as JSBSim properties of

@@ -12,16 +12,13 @@ the inner-loop groups become JSBSim FCS properties through :meth:`MultirotorGain
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, fields, is_dataclass
 from pathlib import Path
 from typing import Any, get_type_hints
 
+from aircraft.gains_file import GainsError, read_gains_toml
+
 DEFAULT_PATH = Path(__file__).with_name("gains.toml")
-
-
-class GainsError(ValueError):
-    """A gains file is missing a key, has an unknown key or a value of the wrong type."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -137,13 +134,8 @@ class MultirotorGains:
     @classmethod
     def load(cls, path: str | Path | None = None) -> MultirotorGains:
         """Read a gains file (default: ``gains.toml`` beside this module)."""
-        p = Path(path) if path is not None else DEFAULT_PATH
-        try:
-            with p.open("rb") as fh:
-                table = tomllib.load(fh)
-        except tomllib.TOMLDecodeError as exc:
-            raise GainsError(f"{p}: not valid TOML: {exc}") from exc
-        return _build(cls, table, str(p))
+        table, where = read_gains_toml(path, DEFAULT_PATH)
+        return _build(cls, table, where)
 
     def fcs_properties(self) -> dict[str, float]:
         """Inner-loop gains as the JSBSim properties of ``systems/flight-control.xml``."""
