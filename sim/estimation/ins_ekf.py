@@ -75,6 +75,7 @@ class InsEkfConfig(StrictConfig):
     init_accel_bias_std: float = Field(0.2, gt=0.0)
     init_gyro_bias_std: float = Field(math.radians(0.5), gt=0.0)
     init_baro_bias_std_m: float = Field(30.0, gt=0.0)
+    gravity_mps2: float = Field(9.80665, gt=9.7, lt=9.9)
     jacobians: Literal["analytic", "numeric"] = "analytic"
 
     @classmethod
@@ -139,10 +140,14 @@ class InsEkf:
         self._H_baro[0, 2], self._H_baro[0, 15] = -1.0, 1.0
         self._H_mag = np.zeros((3, m.N))
         self._R_mag = np.eye(3) * c.mag_noise_ut ** 2
+        self._R_gnss_diag = np.diag(self._R_gnss).copy()
+        self._R_mag_diag = np.diag(self._R_mag).copy()
         hm = c.mag_intensity_ut * math.cos(c.mag_inclination_rad)
         self._field_ned = np.array([hm * math.cos(c.mag_declination_rad), hm * math.sin(c.mag_declination_rad),
                                     c.mag_intensity_ut * math.sin(c.mag_inclination_rad)])
         self._numeric = c.jacobians == "numeric"
+        self._gravity = np.array([0.0, 0.0, c.gravity_mps2])
+        self._qd = np.empty(m.N)
         self._inbox: list = []
         self._imu: ImuSample | None = None
         self._acc_ned = np.zeros(3)
@@ -191,10 +196,10 @@ class InsEkf:
         decay = math.exp(-dt / self.cfg.gnss_gm_tau_s)
         if self._numeric:
             phi = m.transition_numeric(self.nav, f, w, dt, decay)
-        nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay)
+        nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity)
         if not self._numeric:
             phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay)
-        self._acc_ned = r @ fh + m.GRAVITY
+        self._acc_ned = r @ fh + self._gravity
         self._rates = z.gyro_body - nav.bg
         q = self._Q
         q[self._diag] = self._q_rates * dt
@@ -231,6 +236,77 @@ class InsEkf:
         hx = h(self.nav)
         H = m.jacobian_numeric(h, self.nav) if self._numeric else m.H_mag(self._H_mag, hx)
         self._fuse(z.field_body_ut, hx, H, self._R_mag)
+
+    # -- fast paths (sim.estimation.sensor_estimator): one predict per fusion interval from the
+    # IMU samples averaged over it, and one stacked update per interval, without filterpy ------
+    def predict_mean(self, f: np.ndarray, w: np.ndarray, dt: float, t_end: float, w_last: np.ndarray) -> None:
+        """Propagate over ``dt`` [s] to ``t_end`` with the specific force ``f`` and rate ``w``
+        averaged over the interval (trapezoid over its IMU samples); ``w_last`` is the newest
+        gyro sample (the output body rate). ``P <- Phi P Phi^T + Q`` in place of filterpy."""
+        if dt <= 0.0:
+            return
+        decay = math.exp(-dt / self.cfg.gnss_gm_tau_s)
+        nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity)
+        phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay)
+        self._acc_ned = r @ fh + self._gravity
+        self._rates = w_last - nav.bg
+        qd = np.multiply(self._q_rates, dt, out=self._qd)
+        qd[16:19] = self._gm_var * (1.0 - decay * decay)
+        P = phi @ self.kf.P @ phi.T
+        P[self._diag] += qd
+        self.kf.P = P
+        self.nav = nav
+        self.t = t_end
+
+    def fuse_batch(self, measurements: Iterable) -> int:
+        """Fuse aiding measurements (GNSS, baro, magnetometer; airspeed is stored) in ONE
+        stacked Kalman update linearised at the current state (they are independent given the
+        state, so this equals sequential updates to first order). Each is back-shifted by its
+        lag (filter time - time of validity): GNSS as in :meth:`fuse_gnss`, baro height by
+        ``v_D lag``. Returns the number of rows fused."""
+        zs, hs, Hs, rs = [], [], [], []
+        nav = self.nav
+        for z in measurements:
+            tz = type(z)
+            if tz is GnssFix:
+                lag = self.t - z.t
+                zs.append(z.pos_ned)
+                zs.append(z.vel_ned)
+                hs.append(m.h_gnss(nav, lag, self._acc_ned))
+                Hs.append(m.H_gnss(self._H_gnss, lag).copy())
+                rs.append(self._R_gnss_diag)
+            elif tz is BaroSample:
+                p = z.pressure_pa
+                self._p_static = p
+                lag = self.t - z.t
+                std = self.cfg.baro_noise_pa * isa.height_per_pascal(p)
+                zs.append((isa.altitude_of_pressure(p) - self.origin.alt_m,))
+                hs.append((-(nav.p[2] - nav.v[2] * lag) + nav.bb,))
+                H = self._H_baro.copy()
+                H[0, 5] = lag
+                Hs.append(H)
+                rs.append((std * std,))
+            elif tz is MagSample:
+                hx = m.h_mag(nav, self._field_ned)
+                zs.append(z.field_body_ut)
+                hs.append(hx)
+                Hs.append(m.H_mag(self._H_mag, hx).copy())
+                rs.append(self._R_mag_diag)
+            elif tz is AirspeedSample:
+                self._dp = z.diff_pressure_pa
+        if not zs:
+            return 0
+        H = np.concatenate(Hs) if len(Hs) > 1 else Hs[0]
+        y = np.concatenate(zs) - np.concatenate(hs)
+        P = self.kf.P
+        PHt = P @ H.T
+        S = H @ PHt
+        S[np.diag_indices(len(y))] += np.concatenate(rs)
+        K = np.linalg.solve(S, PHt.T).T
+        P = P - K @ PHt.T
+        self.kf.P = 0.5 * (P + P.T)
+        self.nav = m.boxplus(nav, K @ y)
+        return len(y)
 
     # -- outputs --------------------------------------------------------------------------------
     @property

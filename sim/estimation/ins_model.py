@@ -60,14 +60,15 @@ def skew(v) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
-def propagate(s: NavState, f: np.ndarray, w: np.ndarray, dt: float, gm_decay: float
-              ) -> tuple[NavState, np.ndarray, np.ndarray, np.ndarray]:
-    """Nominal state after ``dt`` [s]; also the mid-interval R and bias-corrected f, w (for F)."""
+def propagate(s: NavState, f: np.ndarray, w: np.ndarray, dt: float, gm_decay: float,
+              gravity: np.ndarray = GRAVITY) -> tuple[NavState, np.ndarray, np.ndarray, np.ndarray]:
+    """Nominal state after ``dt`` [s]; also the mid-interval R and bias-corrected f, w (for F).
+    ``gravity``: NED gravity vector [m/s^2] (default: standard gravity, down)."""
     fh = f - s.ba
     wh = w - s.bg
     wx, wy, wz = float(wh[0]) * dt, float(wh[1]) * dt, float(wh[2]) * dt
     r = quat_to_dcm(quat_mul(s.q, quat_exp(0.5 * wx, 0.5 * wy, 0.5 * wz)))
-    dv = (r @ fh + GRAVITY) * dt
+    dv = (r @ fh + gravity) * dt
     nxt = NavState(s.p + (s.v + 0.5 * dv) * dt, s.v + dv,
                    quat_normalize(quat_mul(s.q, quat_exp(wx, wy, wz))), s.ba, s.bg, s.bb, s.gm * gm_decay)
     return nxt, r, fh, wh
