@@ -6,8 +6,6 @@ Foxglove's well-known types (LocationFix, PoseInFrame, FrameTransforms, Log...) 
 
 from __future__ import annotations
 
-import json
-
 _NUM = {"type": "number"}
 _VEC3 = {"type": "array", "items": _NUM, "minItems": 3, "maxItems": 3}
 
@@ -80,6 +78,17 @@ WALL_TIMING = _obj("cosim.WallTiming", {
     "seconds": (_NUM, "wall-clock time the call took [s]; differs run to run by nature"),
 })
 
+THREATS = _obj("cosim.Threats", {
+    "t": (_NUM, "sim time the planner saw these threats [s]"),
+    "intruders": ({"type": "array", "items": {"type": "object"}},
+                  "tracked intruders: id, t, pos_ned [m], vel_ned [m/s], radius_m, pos_cov, vel_cov, cooperative"),
+    "spheres": ({"type": "array", "items": {"type": "object"}},
+                "spherical threats: id, t, center_ned [m], radius_m, vel_ned [m/s], center_cov"),
+    "storms": ({"type": "array", "items": {"type": "object"}},
+               "storm nowcast snapshots: t [s], cells = polygons [[north, east], ...] [m]"),
+    "lidar_hits": ({"type": "integer"}, "returns in the latest LiDAR scan"),
+})
+
 MISSION_STATUS = _obj("cosim.MissionStatus", {
     "t": (_NUM, "sim time [s]"),
     "next_waypoint": ({"type": "integer"}, "index of the waypoint being flown to"),
@@ -87,6 +96,3 @@ MISSION_STATUS = _obj("cosim.MissionStatus", {
     "complete": ({"type": "boolean"}, "all waypoints reached"),
 })
 
-
-def encoded(schema: dict) -> bytes:
-    return json.dumps(schema, sort_keys=True).encode()

@@ -13,6 +13,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+import orjson
 from foxglove_schemas_protobuf.Log_pb2 import Log
 from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
@@ -60,13 +61,15 @@ class McapLog:
 
     def write_json(self, topic: str, t: float, obj: dict[str, Any], schema: dict,
                    metadata: dict[str, str] | None = None) -> None:
-        """``obj`` (plain floats/lists/dicts) as JSON on ``topic`` with a JSON Schema."""
+        """``obj`` (floats, lists, dicts, numpy arrays) as JSON on ``topic`` with a JSON Schema.
+        Floats are written in their shortest exact form (they read back bit-identical); NaN and
+        infinities become ``null``."""
         cid = self._channels.get(topic)
         if cid is None:
             sid = self._schema(schema["title"], "jsonschema",
                                lambda: json.dumps(schema, sort_keys=True).encode())
             cid = self._channel(topic, "json", sid, metadata or {})
-        self._add(cid, t, json.dumps(obj, separators=(",", ":")).encode())
+        self._add(cid, t, orjson.dumps(obj, option=orjson.OPT_SERIALIZE_NUMPY))
 
     def write_proto(self, topic: str, t: float, message, metadata: dict[str, str] | None = None) -> None:
         """A protobuf message (e.g. a Foxglove schema) on ``topic``."""

@@ -165,6 +165,7 @@ class Vehicle:
         plan: Plan = self.planner.plan(self.estimate, self.threats, t)
         latency = time.perf_counter() - t0
         self.follower.set_plan(plan)
+        self.logw.threats(t, self.threats)
         self.logw.plan(plan, latency)
         self.recorder.latency(latency)
 
@@ -210,6 +211,7 @@ class Vehicle:
             self.log.event(t, f"{self.name}: state is not finite", level="error", name=self.name)
             raise SimulationDiverged(f"{self.name}: state went non-finite at t={t:.2f} s")
         self.recorder.state(self.logw.truth(truth), self._setpoint)
+        self.logw.estimate(self.estimate)
         self.logw.control(t, self._setpoint, self._setpoint_schema, self._commands, dict(self.controller.debug))
         m = self.mission
         status = (m.next_index, m.complete)

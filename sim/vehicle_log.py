@@ -39,6 +39,20 @@ def state_dict(s: VehicleState) -> dict:
     }
 
 
+def threats_dict(t: float, th) -> dict:
+    """Sensed threats as plain JSON (map obstacles and geofences are logged once in /world/map)."""
+    return {
+        "t": t,
+        "intruders": [{"id": i.id, "t": i.t, "pos_ned": i.pos_ned.tolist(), "vel_ned": i.vel_ned.tolist(),
+                       "radius_m": i.radius_m, "pos_cov": i.pos_cov.tolist(), "vel_cov": i.vel_cov.tolist(),
+                       "cooperative": i.cooperative} for i in th.intruders],
+        "spheres": [{"id": s.id, "t": s.t, "center_ned": s.center_ned.tolist(), "radius_m": s.radius_m,
+                     "vel_ned": s.vel_ned.tolist(), "center_cov": s.center_cov.tolist()} for s in th.spheres],
+        "storms": [{"t": s.t, "cells": [list(c.exterior.coords) for c in s.cells]} for s in th.storms],
+        "lidar_hits": int(th.lidar.hit.sum()) if th.lidar is not None else 0,
+    }
+
+
 def write_static_frames(log: McapLog) -> None:
     """``world`` (ENU) -> ``ned``: NED axes expressed in ENU, a 180 deg turn about (1, 1, 0)."""
     tf = FrameTransform(parent_frame_id=WORLD_FRAME, child_frame_id=NED_FRAME)
@@ -57,6 +71,7 @@ class VehicleLogWriter:
         self.t_state, self.t_loc = f"{p}/truth/state", f"{p}/truth/location"
         self.t_sp, self.t_cmd, self.t_mission = f"{p}/ctrl/setpoint", f"{p}/ctrl/commands", f"{p}/mission/status"
         self.t_plan, self.t_latency = f"{p}/plan", f"{p}/plan/latency"
+        self.t_est, self.t_threats = f"{p}/est/state", f"{p}/threats"
 
     def truth(self, s: VehicleState) -> dict:
         """Log the true state; returns the state as logged (a plain dict)."""
@@ -77,6 +92,18 @@ class VehicleLogWriter:
         r.x, r.y, r.z, r.w = qx, qy, qz, qw
         log.write_proto("/tf", t, FrameTransforms(transforms=[tf]))
         return sd
+
+    def estimate(self, s: VehicleState) -> dict:
+        """Log what controllers and planners saw (same schema as the truth)."""
+        sd = state_dict(s)
+        self.log.write_json(self.t_est, s.t, sd, S.VEHICLE_STATE,
+                            {"frame": "local-level NED from the scenario origin", "units": "SI, rad"})
+        return sd
+
+    def threats(self, t: float, threats) -> None:
+        """The threats as sensed when a plan was made (what the planner saw)."""
+        self.log.write_json(self.t_threats, t, threats_dict(t, threats), S.THREATS,
+                            {"frame": "local-level NED from the scenario origin"})
 
     def control(self, t: float, setpoint: dict, schema: dict, commands: dict[str, float],
                 debug: dict[str, float]) -> None:

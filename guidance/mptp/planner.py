@@ -66,7 +66,7 @@ class MptpPlanner:
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         m = self.mission
-        if m.complete:
+        if m.waypoints_done:
             last = m.waypoints[-1:]
             return Plan(t, last.copy(), np.array([t]), np.array([len(m.waypoints) - 1]), PlanStatus.OK,
                         planner=self.name, diagnostics={"complete": 1})
