@@ -125,6 +125,19 @@ def cmd_replay(args) -> int:
     except LogReadError as exc:
         _error(exc)
         return EXIT_BAD_INPUT
+    if args.rerun_planner:
+        from sim.replay.rerun import rerun_planner
+
+        try:
+            rep = rerun_planner(log, args.rerun_planner)
+        except LogReadError as exc:
+            _error(exc)
+            return EXIT_BAD_INPUT
+        out.print(f"planner re-run ({rep.vehicle}, {rep.planner}): {rep.same}/{rep.plans} plans identical; "
+                  f"max vertex difference {rep.max_position_diff_m:.3g} m / {rep.max_time_diff_s:.3g} s",
+                  soft_wrap=True, highlight=False)
+        for line in rep.differences:
+            out.print(f"  {line}", soft_wrap=True, highlight=False)
     if args.json:
         import json
 
@@ -227,6 +240,9 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("log")
     rp.add_argument("-o", "--output", help="report folder (default: <log>_report next to the log)")
     rp.add_argument("--json", action="store_true", help="also print the metrics as JSON")
+    rp.add_argument("--rerun-planner", metavar="VEHICLE",
+                    help="re-run VEHICLE's planner open-loop on the logged estimates and threats and "
+                         "compare its plans with the recorded ones")
     rp.set_defaults(fn=cmd_replay)
     cp = sub.add_parser("compare", help="A/B: metrics of two run logs side by side")
     cp.add_argument("a")

@@ -86,6 +86,32 @@ def read_info(path: str | Path) -> LogInfo:
         attachments=attachments)
 
 
+def read_attachment(path: str | Path, name: str) -> bytes | None:
+    """The data of the attachment called ``name`` (e.g. ``scenario.toml``), or None."""
+    path, f = _open(path)
+    with f:
+        try:
+            for a in make_reader(f).iter_attachments():
+                if a.name == name:
+                    return a.data
+        except _READ_ERRORS as exc:
+            raise LogReadError(f"{path}: damaged MCAP ({exc or type(exc).__name__})") from None
+    return None
+
+
+def read_attached_scenario(path: str | Path):
+    """The validated scenario attached to a run log (``scenario.toml``), or None if there is
+    none; ScenarioError if it no longer validates."""
+    import tomllib
+
+    from sim.scenario import parse_scenario
+
+    raw = read_attachment(path, "scenario.toml")
+    if raw is None:
+        return None
+    return parse_scenario(tomllib.loads(raw.decode()), f"{path}:scenario.toml")
+
+
 def iter_messages(path: str | Path, topics: list[str] | None = None) -> Iterator[tuple[str, float, Any]]:
     """(topic, sim time [s], decoded message) in log-time order; JSON decodes to dicts,
     protobuf to message objects."""

@@ -14,7 +14,7 @@ import time
 import numpy as np
 
 from aircraft.registry import get_airframe
-from avoidance.follow_mission import FollowMissionPlanner
+from avoidance.factory import make_planner
 from avoidance.planner import Plan, Threats
 from avoidance.position_planners import GotoPlanner, HoldPositionPlanner
 from guidance.fixed_wing_follower import FixedWingPlanFollower
@@ -47,6 +47,16 @@ def _json_num(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
+def mission_from_config(cfg: sc.Vehicle, origin: GeoPoint) -> Mission:
+    """The vehicle's mission in the local-level NED frame, starting at its initial position."""
+    m, ini = cfg.mission, cfg.initial
+    return Mission(
+        waypoints=np.array([_ned(w.north, w.east, w.altitude, origin) for w in m.waypoints]),
+        cruise_speed=m.cruise_speed, acceptance_radius=m.acceptance_radius,
+        start=_ned(ini.north, ini.east, ini.altitude, origin),
+        hold_s={k: w.hold for k, w in enumerate(m.waypoints) if w.hold > 0}, land=m.land)
+
+
 class Vehicle:
     def __init__(self, cfg: sc.Vehicle, origin: GeoPoint, log: McapLog, seed: int, wind: sc.Wind = sc.Wind()):
         """``seed``: this vehicle's own seed (its JSBSim turbulence and sensor noise)."""
@@ -69,12 +79,9 @@ class Vehicle:
             self.plant.trim()
         apply_turbulence(self.plant, wind, seed)
         m = cfg.mission
-        self.mission = Mission(
-            waypoints=np.array([_ned(w.north, w.east, w.altitude, origin) for w in m.waypoints]),
-            cruise_speed=m.cruise_speed, acceptance_radius=m.acceptance_radius, start=start,
-            hold_s={k: w.hold for k, w in enumerate(m.waypoints) if w.hold > 0}, land=m.land)
+        self.mission = mission_from_config(cfg, origin)
         self.estimator = PerfectEstimator(self.plant)
-        self.planner = FollowMissionPlanner(self.mission)
+        self.planner = make_planner(cfg.planner.type, self.mission)
         self.mode = "AUTO"  # AUTO: the mission; HOLD: hover in place; GUIDED: ground-station targets
         self.controller = af.make_controller(cfg.gains)
         self.estimate = self.estimator.update(0.0)
@@ -113,7 +120,7 @@ class Vehicle:
             m = self.mission
             self.mission = Mission(wps, m.cruise_speed, m.acceptance_radius, start=self.estimate.pos_ned.copy(),
                                    land=m.land)
-            self.planner = FollowMissionPlanner(self.mission)
+            self.planner = make_planner(self.cfg.planner.type, self.mission)
             if multirotor:
                 self.follower.set_waypoint_attributes({}, {})
             self.recorder.waypoints_total = len(wps)
@@ -123,7 +130,7 @@ class Vehicle:
             return True
         if isinstance(cmd, SetMode):
             if cmd.name == "AUTO":
-                self.planner = FollowMissionPlanner(self.mission)
+                self.planner = make_planner(self.cfg.planner.type, self.mission)
             elif cmd.name in ("HOLD", "GUIDED") and multirotor:
                 self.planner = HoldPositionPlanner(self.estimate.pos_ned)
             else:

@@ -76,3 +76,22 @@ def test_straight_flight_mask_waits_after_turns():
     m = straight_flight_mask(t, turning, settle_s=60.0)
     # straight before the first turn; not during it nor for 60 s after its last sample (t = 59 s)
     assert m[:50].all() and not m[50:119].any() and m[119:].all()
+
+
+def test_planner_rerun_reproduces_recorded_decisions_and_flags_a_changed_planner(short_run):
+    from avoidance.follow_mission import FollowMissionPlanner
+    from sim.replay.rerun import rerun_planner
+
+    _, path = short_run
+    same = rerun_planner(path, "haps")
+    assert same.plans == 901 and same.same == 901 and same.first_difference_t is None
+    assert same.max_position_diff_m == 0.0 and same.max_time_diff_s == 0.0
+
+    def slower(mission):  # another parameter set: 10 % lower cruise speed
+        mission.cruise_speed *= 0.9
+        return FollowMissionPlanner(mission)
+
+    other = rerun_planner(path, "haps", slower)
+    assert other.same == 0 and other.first_difference_t == 0.0
+    assert other.max_time_diff_s > 60.0 and other.max_position_diff_m == 0.0
+    assert "vertices differ" in other.differences[0]

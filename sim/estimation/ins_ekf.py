@@ -302,7 +302,7 @@ class InsEkf:
         PHt = P @ H.T
         S = H @ PHt
         S[np.diag_indices(len(y))] += np.concatenate(rs)
-        K = np.linalg.solve(S, PHt.T).T
+        K = PHt @ np.linalg.inv(S)
         P = P - K @ PHt.T
         self.kf.P = 0.5 * (P + P.T)
         self.nav = m.boxplus(nav, K @ y)

@@ -226,7 +226,8 @@ class SensorEstimator:
 
     # -- internals ----------------------------------------------------------------------------
     def _poll_aiding(self, t: float) -> None:
-        truth = self._truth.sample()
+        due = any(t + _EPS >= s._next_k * s._period for s in self._aiding)
+        truth = self._truth.sample() if due else _Instant(t)  # deliveries only: no truth needed
         nxt = math.inf
         for s in self._aiding:
             out = s.poll(truth)
@@ -288,6 +289,16 @@ class SensorEstimator:
         nav = self.ekf.nav
         return {"accel": _floats(nav.ba), "gyro": _floats(nav.bg), "baro": [float(nav.bb)],
                 "gnss_gm": _floats(nav.gm)}
+
+
+class _Instant:
+    """Stands in for a truth sample when sensors only deliver (``SampledSensor.poll`` reads
+    ``t`` alone then)."""
+
+    __slots__ = ("t",)
+
+    def __init__(self, t: float):
+        self.t = t
 
 
 def _record(z) -> dict:

@@ -22,22 +22,20 @@ import argparse
 import math
 import sys
 import time
-import tomllib
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from mcap.reader import make_reader
 
 from aircraft.registry import get_airframe
 from sim.frames import GeoPoint, ned_to_geodetic
 from sim.mavlink.bridge import EventFn, LinkConfig, VehicleLink
 from sim.mavlink.mission import Waypoint
 from sim.mavlink.pacing import WallClockPacer
-from sim.mcap_read import LogReadError, iter_messages, read_info
-from sim.scenario import Scenario, parse_scenario
+from sim.mcap_read import LogReadError, iter_messages, read_attached_scenario, read_info
+from sim.scenario import Scenario
 from sim.state import VehicleState
 
 
@@ -66,17 +64,14 @@ def state_from_dict(d: dict) -> VehicleState:
 def _attached_scenario(path: Path, event: EventFn) -> Scenario | None:
     """The scenario attached to the log, or ``None`` (with a warning) if absent or unreadable."""
     try:
-        with open(path, "rb") as f:
-            text = next((a.data.decode() for a in make_reader(f).iter_attachments()
-                         if a.name == "scenario.toml"), None)
-        if text is None:
-            event("replay: the log has no scenario.toml attachment; origin taken from the first state", "warning")
-            return None
-        return parse_scenario(tomllib.loads(text), f"{path}:scenario.toml")
+        sc = read_attached_scenario(path)
     except Exception as exc:  # noqa: BLE001 - damaged attachment, bad TOML, stale schema: all optional
         event(f"replay: attached scenario unusable ({type(exc).__name__}: {exc}); "
               "origin taken from the first state", "warning")
         return None
+    if sc is None:
+        event("replay: the log has no scenario.toml attachment; origin taken from the first state", "warning")
+    return sc
 
 
 def _scenario_origin(sc: Scenario) -> GeoPoint:
