@@ -39,6 +39,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import tomli_w
 
 from sim.replay.metrics import flatten
 from sim.scenario import ScenarioError, parse_scenario
@@ -148,7 +149,8 @@ def run_one(spec: RunSpec) -> dict:
     scenario = parse_scenario(spec.scenario, spec.run_id)
     row = {"run_id": spec.run_id, **{f"param.{k}": v for k, v in spec.params.items()}}
     try:
-        r = run_scenario(scenario, spec.log_path, duration=spec.duration)
+        r = run_scenario(scenario, spec.log_path, duration=spec.duration,
+                         scenario_text=tomli_w.dumps(spec.scenario))
         row.update(status=r.status, sim_time_s=r.sim_time_s, error="")
         metrics = r.metrics
     except RunFailed as exc:
