@@ -42,7 +42,7 @@ from sim.frames import GeoPoint
 from sim.sensors import isa
 from sim.sensors.config import StrictConfig
 from sim.sensors.measurements import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample
-from sim.sensors.rotations import dcm_to_euler, euler_to_quat, quat_to_dcm
+from sim.sensors.rotations import dcm_to_euler, euler_to_quat, quat_exp, quat_mul, quat_normalize, quat_to_dcm
 from sim.sensors.suite import SensorSuiteConfig
 from sim.state import VehicleState
 
@@ -305,7 +305,14 @@ class InsEkf:
         K = PHt @ np.linalg.inv(S)
         P = P - K @ PHt.T
         self.kf.P = 0.5 * (P + P.T)
-        self.nav = m.boxplus(nav, K @ y)
+        dx = K @ y
+        nav.p += dx[0:3]  # inject the error in place (the fast path owns its arrays)
+        nav.v += dx[3:6]
+        nav.q = quat_normalize(quat_mul(nav.q, quat_exp(dx[6], dx[7], dx[8])))
+        nav.ba += dx[9:12]
+        nav.bg += dx[12:15]
+        nav.bb += float(dx[15])
+        nav.gm += dx[16:19]
         return len(y)
 
     # -- outputs --------------------------------------------------------------------------------

@@ -82,15 +82,14 @@ def transition_analytic(out: np.ndarray, r: np.ndarray, fh: np.ndarray, wh: np.n
     """Error-state transition Phi (19x19) written into ``out`` (an identity the caller reuses:
     only the entries below change); first order in dt except the attitude block and the
     dt^2 terms of dp and dv."""
-    rf = r @ skew(fh)
+    rfr = np.concatenate((r @ skew(fh), r), axis=1)  # [R [f]x, R]
     k = 0.5 * dt * dt
-    out[0:3, 6:9] = rf * -k
-    out[0:3, 9:12] = r * -k
-    out[3:6, 6:9] = rf * -dt
-    out[3:6, 9:12] = r * -dt
-    out[3:6, 12:15] = rf * k
+    out[0:3, 6:12] = rfr * -k
+    out[3:6, 6:12] = rfr * -dt
+    out[3:6, 12:15] = rfr[:, 0:3] * k
     out[6:9, 6:9] = quat_to_dcm(quat_exp(float(wh[0]) * dt, float(wh[1]) * dt, float(wh[2]) * dt)).T
-    out[_CONST_IDX] = (dt, dt, dt, -dt, -dt, -dt, gm_decay, gm_decay, gm_decay)
+    if out[0, 3] != dt or out[16, 16] != gm_decay:  # constant for a fixed step: set once
+        out[_CONST_IDX] = (dt, dt, dt, -dt, -dt, -dt, gm_decay, gm_decay, gm_decay)
     return out
 
 

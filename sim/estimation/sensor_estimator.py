@@ -112,15 +112,15 @@ class SensorEstimatorConfig(StrictConfig):
     @classmethod
     def for_kind(cls, kind: Literal["fixed_wing", "multirotor"], **overrides) -> SensorEstimatorConfig:
         """Defaults per airframe kind (rates dividing the registry's plant rates):
-        - ``fixed_wing`` (HAPS, plant 120 Hz): IMU 60 Hz, EKF 10 Hz, GNSS 5 Hz, baro, pitot and
-          magnetometer 10 Hz (aligned with the fusion ticks);
+        - ``fixed_wing`` (HAPS, plant 120 Hz): IMU 60 Hz, EKF predict 10 Hz, GNSS, baro, pitot
+          and magnetometer 5 Hz (slow dynamics; one stacked update every other fusion tick);
         - ``multirotor`` (plant 240 Hz): IMU 120 Hz, EKF 60 Hz, GNSS 5 Hz, baro and
           magnetometer 20 Hz, no pitot.
         ``overrides``: fields of this config (e.g. ``fusion_hz=20``, ``sensors=...``)."""
         if kind == "fixed_wing":
             sensors = SensorSuiteConfig(imu=ImuConfig(rate_hz=60.0), gnss=GnssConfig(rate_hz=5.0),
-                                        baro=BaroConfig(rate_hz=10.0), airspeed=AirspeedConfig(rate_hz=10.0),
-                                        mag=MagnetometerConfig(rate_hz=10.0))
+                                        baro=BaroConfig(rate_hz=5.0), airspeed=AirspeedConfig(rate_hz=5.0),
+                                        mag=MagnetometerConfig(rate_hz=5.0))
             base = dict(sensors=sensors, fusion_hz=10.0)
         elif kind == "multirotor":
             sensors = SensorSuiteConfig(imu=ImuConfig(rate_hz=120.0), gnss=GnssConfig(rate_hz=5.0),
@@ -242,7 +242,7 @@ class SensorEstimator:
     def _fuse(self, t: float) -> None:
         block = np.array(self._block).reshape(-1, 7)
         self._block.clear()
-        ts, y = self.imu.measure_block(block[:, 0], block[:, 1:4], block[:, 4:7], self._imu_period)
+        ts, y = self.imu.measure_block(block[:, 0], block[:, 1:], self._imu_period)
         if len(ts):
             if self._t_fused is None:  # first sample: the start of the first interval
                 self.ekf.t = t

@@ -60,7 +60,7 @@ class Imu(SampledSensor[ImuSample]):
         self.accel = Channel(cfg.accel_channel(), 3, rng)
         self.gyro = Channel(cfg.gyro_channel(), 3, rng)
         self._blk = None
-        self._pool = np.empty((0, 12))
+        self._walk = self._white = np.empty((0, 6))
         self._pool_i = 0
 
     def _measure(self, truth: TruthSample, dt: float) -> np.ndarray:
@@ -70,46 +70,47 @@ class Imu(SampledSensor[ImuSample]):
     def _package(self, t: float, y: np.ndarray) -> ImuSample:
         return ImuSample(t, y[:3], y[3:])
 
-    def measure_block(self, t: np.ndarray, accel_true: np.ndarray, gyro_true: np.ndarray,
-                      dt: float) -> tuple[np.ndarray, np.ndarray]:
+    def measure_block(self, t: np.ndarray, true: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Samples taken at times ``t`` (n,) every ``dt`` [s] from the true specific force and
-        rates (n, 3) each: the per-sample error model of :meth:`poll` (scale, bias random walk
-        per sample, white noise, quantisation) applied to the whole block in a few vectorised
-        operations on all six axes (the estimator's fast path). The standard normals come from
-        a pool refilled from this IMU's generator 4096 rows at a time (reproducible, but not the
-        same numbers as :meth:`poll`). Faults apply per sample; dropped samples are left out.
-        Returns (times (k,), outputs (k, 6): accel, gyro)."""
+        rates ``true`` (n, 6: accel x, y, z, gyro x, y, z): the per-sample error model of
+        :meth:`poll` (scale, bias random walk per sample, white noise, quantisation) applied to
+        the whole block at once (the estimator's fast path). The noise comes from a pool of
+        4096 rows drawn from this IMU's generator at a time, pre-scaled, with the bias random
+        walk pre-summed (reproducible, but not the same numbers as :meth:`poll`). Faults apply
+        per sample; dropped samples are left out. Returns (times (k,), outputs (k, 6))."""
         n = len(t)
         if self._blk is None or self._blk[0] != dt:
             a, g = self.accel.cfg, self.gyro.cfg
             q = np.array([a.quantum] * 3 + [g.quantum] * 3)
             self._blk = (dt, np.array([a.bias_rw] * 3 + [g.bias_rw] * 3) * math.sqrt(dt),
                          np.array([a.noise_std] * 3 + [g.noise_std] * 3), np.where(q > 0.0, q, 1.0),
-                         bool((q > 0.0).all()), q > 0.0, np.concatenate((self.accel.scale, self.gyro.scale)))
-        _, rw, noise, quantum, q_all, q_mask, scale = self._blk
-        if self._pool_i + n > len(self._pool):
-            self._pool = self.rng.standard_normal((max(4096, n), 12))
-            self._pool_i = 0
-        z = self._pool[self._pool_i:self._pool_i + n]
-        self._pool_i += n
-        b = np.cumsum(z[:, :6] * rw, axis=0)
-        b += np.concatenate((self.accel.bias, self.gyro.bias))
-        self.accel.bias = b[-1, :3].copy()
-        self.gyro.bias = b[-1, 3:].copy()
-        y = np.concatenate((accel_true, gyro_true), axis=1)
-        y *= scale
-        y += b
-        y += z[:, 6:] * noise
-        if q_all:
+                         q > 0.0, np.concatenate((self.accel.scale, self.gyro.scale)))
+            self._pool_i = len(self._walk)  # refill with this dt
+        _, rw, noise, quantum, q_mask, scale = self._blk
+        i = self._pool_i
+        if i + n > len(self._walk):
+            m = max(4096, n)
+            base = np.concatenate((self.accel.bias, self.gyro.bias))
+            self._walk = np.cumsum(self.rng.standard_normal((m, 6)) * rw, axis=0) + base
+            self._white = self.rng.standard_normal((m, 6)) * noise
+            i = 0
+        self._pool_i = i + n
+        b = self._walk[i + n - 1]
+        self.accel.bias = b[:3].copy()
+        self.gyro.bias = b[3:].copy()
+        y = true * scale
+        y += self._walk[i:i + n]
+        y += self._white[i:i + n]
+        if q_mask.all():
             y = np.round(y / quantum) * quantum
         elif q_mask.any():
             y = np.where(q_mask, np.round(y / quantum) * quantum, y)
         if not self.faults.faults:
             return t, y
         keep = []
-        for i in range(n):
-            yi = self.faults.apply(float(t[i]), y[i])
-            if yi is not None:
-                y[i] = yi
-                keep.append(i)
+        for k in range(n):
+            yk = self.faults.apply(float(t[k]), y[k])
+            if yk is not None:
+                y[k] = yk
+                keep.append(k)
         return t[keep], y[keep]
