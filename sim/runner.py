@@ -23,7 +23,7 @@ from sim.environment import geofence, obstacle_prism
 from sim.faults import FaultSchedule
 from sim.frames import GeoPoint
 from sim.mcap_log import McapLog
-from sim.replay.metrics import run_metrics
+from sim.replay.metrics import MetricsWorld, run_metrics
 from sim.scenario import Scenario
 from sim.scheduler import LockstepScheduler, Stage
 from sim.vehicle import Vehicle
@@ -149,7 +149,7 @@ def run_scenario(
             result.missions[v.name] = MissionResult(
                 len(m.reached), len(m.waypoints), m.complete, m.completed_t)
         try:
-            result.metrics = run_metrics([v.recorder.trace() for v in vehicles])
+            result.metrics = run_metrics([v.recorder.trace() for v in vehicles], MetricsWorld.from_scenario(scenario))
             log.metadata("metrics", {"json": json.dumps(result.metrics, sort_keys=True)})
             if result.status != "completed":
                 log.event(result.sim_time_s, f"run ended: {result.status}"

@@ -237,6 +237,14 @@ class Gust(_Fault):
 Fault = Annotated[GnssLoss | SensorBias | SensorStuck | MotorFailure | Gust, Field(discriminator="kind")]
 
 
+class Metrics(_Strict):
+    """Thresholds of the run metrics: the well-clear volume between two aircraft (horizontal
+    radius, vertical half height; default ASTM F3442 small-UAS well clear)."""
+
+    well_clear_horizontal: quantity("length", 0.0, 1e5, lo_open=True) = 2000 * 0.3048
+    well_clear_vertical: quantity("length", 0.0, 1e4, lo_open=True) = 250 * 0.3048
+
+
 class Logging(_Strict):
     rate_hz: Annotated[float, Field(gt=0.0, le=1000.0)] = 10.0
 
@@ -254,6 +262,7 @@ class Scenario(_Strict):
     origin: Origin
     logging: Logging = Logging()
     mavlink: Mavlink = Mavlink()
+    metrics: Metrics = Metrics()
     wind: Wind = Wind()
     obstacle: list[Obstacle] = []
     geofence: list[Geofence] = []

@@ -217,7 +217,7 @@ class Vehicle:
         if not all(math.isfinite(x) for x in (*truth.pos_ned, *truth.vel_ned, *truth.euler)):
             self.log.event(t, f"{self.name}: state is not finite", level="error", name=self.name)
             raise SimulationDiverged(f"{self.name}: state went non-finite at t={t:.2f} s")
-        self.recorder.state(self.logw.truth(truth), self._setpoint)
+        self.recorder.state(self.logw.truth(truth), self._setpoint, self._commands)
         self.logw.estimate(self.estimate)
         self.logw.control(t, self._setpoint, self._setpoint_schema, self._commands, dict(self.controller.debug))
         m = self.mission

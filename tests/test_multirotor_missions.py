@@ -6,8 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim.replay.report import load_traces
-from sim.replay.metrics import run_metrics
+from sim.replay.report import log_metrics
 from sim.replay.runlog import RunLog
 from sim.runner import run_scenario
 from sim.scenario import load_scenario, parse_scenario
@@ -58,7 +57,7 @@ def test_position_step_with_yaw_settles(tmp_path):
 
 def test_square_mission_takeoff_tracking_landing(tmp_path):
     result, log = _fly(tmp_path, "quad_square_mission", stop_when_complete=False, duration=80.0)
-    m = run_metrics(load_traces(log))["vehicles"]["quad"]
+    m = log_metrics(log)["vehicles"]["quad"]
     assert m["mission"]["complete"] and m["mission"]["waypoints_reached"] == 5
     assert m["tracking"]["cross_track_m"]["rms"] <= 1.0
     st = log.topic("/quad/truth/state")
@@ -85,7 +84,7 @@ def test_mixed_haps_and_multirotor_in_one_log(tmp_path):
     result, log = _fly(tmp_path, "mixed_haps_quad")
     assert result.status == "completed"
     assert set(log.vehicles) == {"haps", "quad"}
-    metrics = run_metrics(load_traces(log))
+    metrics = log_metrics(log)
     assert all(v["mission"]["complete"] for v in metrics["vehicles"].values())
     assert metrics["separation"]["haps-quad"]["distance_m"] > 15_000
     for v in ("haps", "quad"):

@@ -7,9 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import tomli_w
 
-from sim.replay.metrics import differing_keys, min_separation, run_metrics, straight_flight_mask
-from sim.replay.report import load_traces, write_report
+from sim.replay.metrics import differing_keys, min_separation, straight_flight_mask
+from sim.replay.report import log_metrics, write_report
 from sim.replay.runlog import RunLog
 from sim.replay.trace import VehicleTrace
 from sim.runner import run_scenario
@@ -29,7 +30,7 @@ def short_run(tmp_path_factory):
 
 def test_replayed_metrics_equal_live_metrics(short_run):
     result, path = short_run
-    replayed = run_metrics(load_traces(RunLog(path)))
+    replayed = log_metrics(RunLog(path))
     assert differing_keys(result.metrics, replayed) == []
     # and the live metrics stored in the log are the same numbers too
     stored = json.loads(RunLog(path).metadata["metrics"]["json"])
@@ -95,3 +96,34 @@ def test_planner_rerun_reproduces_recorded_decisions_and_flags_a_changed_planner
     assert other.same == 0 and other.first_difference_t == 0.0
     assert other.max_time_diff_s > 60.0 and other.max_position_diff_m == 0.0
     assert "vertices differ" in other.differences[0]
+
+
+def test_clearance_geofence_and_well_clear_metrics_on_a_known_geometry(tmp_path):
+    from sim.scenario import parse_scenario
+
+    def quad(name, north):
+        return {"name": name, "aircraft": "quadrotor", "initial": {"north": north, "altitude": 420.0},
+                "mission": {"cruise_speed": 5.0, "acceptance_radius": 0.5, "guidance": "step",
+                            "waypoints": [{"north": north, "east": 0, "altitude": 420, "hold": "60 s"}]}}
+
+    data = {"name": "geometry", "seed": 1, "duration": 5.0, "stop_when_complete": False,
+            "origin": {"lat": 47.0, "lon": 8.0, "altitude": 400.0},
+            "obstacle": [{"id": "mast", "shape": "cylinder", "north": 0, "east": 30, "radius": 5, "top": 410}],
+            "geofence": [{"id": "site", "points": [[-200, -200], [200, -200], [200, 200], [-200, 200]],
+                          "ceiling": 500}],
+            "metrics": {"well_clear_horizontal": "100 m", "well_clear_vertical": "20 m"},
+            "vehicle": [quad("a", 0.0), quad("b", 60.0)]}
+    path = tmp_path / "geo.mcap"
+    result = run_scenario(parse_scenario(data, "geometry"), path, scenario_text=tomli_w.dumps(data))
+    m = log_metrics(RunLog(path))
+    assert differing_keys(result.metrics, m) == []
+    a = m["vehicles"]["a"]["clearance"]
+    # 25 m to the mast's side, 10 m above its top -> sqrt(25^2 + 10^2) (hover holds to ~0.1 m)
+    assert a["obstacle.mast"]["distance_m"] == pytest.approx(np.hypot(25.0, 10.0), abs=0.2)
+    # keep-in: 200 m to the sides, 80 m under the ceiling (500 - 420 MSL)
+    assert a["geofence.site"]["margin_m"] == pytest.approx(80.0, abs=0.2) and not a["geofence.site"]["violated"]
+    sep = m["separation"]["a-b"]
+    assert sep["distance_m"] == pytest.approx(60.0, abs=0.2)
+    assert sep["well_clear_losses"] == 1
+    assert sep["well_clear_loss_events"][0]["start"] == 0.0 and sep["well_clear_loss_events"][0]["end"] == 5.0
+    assert "ap/thrust-cmd-norm" in m["vehicles"]["a"]["control_effort"]

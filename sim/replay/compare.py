@@ -4,15 +4,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sim.replay.metrics import flatten, run_metrics
-from sim.replay.report import load_traces
+from sim.replay.metrics import flatten
+from sim.replay.report import log_metrics
 from sim.replay.runlog import RunLog
 
 
 def compare_logs(a: str | Path, b: str | Path) -> list[tuple[str, object, object, float | None]]:
     """Rows (metric, value in A, value in B, B - A where both are numbers)."""
-    fa = flatten(run_metrics(load_traces(RunLog(a))))
-    fb = flatten(run_metrics(load_traces(RunLog(b))))
+    fa = flatten(log_metrics(RunLog(a)))
+    fb = flatten(log_metrics(RunLog(b)))
     rows = []
     for k in sorted(set(fa) | set(fb)):
         x, y = fa.get(k), fb.get(k)

@@ -7,10 +7,35 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import dataclass
 
 import numpy as np
+import shapely
 
 from sim.replay.trace import VehicleTrace
+
+FT = 0.3048
+
+
+@dataclass(frozen=True, slots=True)
+class MetricsWorld:
+    """What metrics measure against besides the vehicles: map obstacles and geofences
+    (``avoidance.threats`` types) and the well-clear volume (horizontal radius, vertical half
+    height [m]; default ASTM F3442 small-UAS well clear, 2000 ft / 250 ft)."""
+
+    obstacles: tuple = ()
+    geofences: tuple = ()
+    well_clear_h_m: float = 2000 * FT
+    well_clear_v_m: float = 250 * FT
+
+    @classmethod
+    def from_scenario(cls, scenario) -> "MetricsWorld":
+        from sim.environment import geofence, obstacle_prism
+
+        alt0 = scenario.origin.altitude
+        m = scenario.metrics
+        return cls(tuple(obstacle_prism(o, alt0) for o in scenario.obstacle),
+                   tuple(geofence(g, alt0) for g in scenario.geofence), m.well_clear_horizontal, m.well_clear_vertical)
 
 # straight flight counts from this long after the last leg capture / carrot stop [s]
 SETTLE_S = {"fixed_wing": 60.0, "multirotor": 2.0}
@@ -75,16 +100,72 @@ def min_separation(a: VehicleTrace, b: VehicleTrace) -> dict:
     return {"distance_m": float(d[k]), "t": float(common[k])}
 
 
-def run_metrics(traces: list[VehicleTrace]) -> dict:
+def _clearance(tr: VehicleTrace, footprint, up_min: float, up_max: float) -> np.ndarray:
+    """3-D distance [m] from each position to a prism (0 inside)."""
+    h = shapely.distance(shapely.points(tr.pos_ned[:, :2]), footprint)
+    up = -tr.pos_ned[:, 2]
+    v = np.maximum(np.maximum(up_min - up, up - up_max), 0.0)
+    return np.hypot(h, v)
+
+
+def _min_at(t: np.ndarray, d: np.ndarray) -> dict:
+    if d.size == 0:
+        return {"distance_m": None, "t": None}
+    k = int(np.argmin(d))
+    return {"distance_m": float(d[k]), "t": float(t[k])}
+
+
+def obstacle_metrics(tr: VehicleTrace, world: MetricsWorld) -> dict:
+    """Closest approach to every obstacle, and the smallest margin inside every keep-in geofence
+    (negative: outside) or to every keep-out one, with times."""
+    out = {f"obstacle.{o.id}": _min_at(tr.t, _clearance(tr, o.footprint, o.up_min_m, o.up_max_m))
+           for o in world.obstacles}
+    for g in world.geofences:
+        if g.keep_in:
+            pts = shapely.points(tr.pos_ned[:, :2])
+            h = shapely.distance(pts, g.area.exterior)
+            h = np.where(shapely.contains(g.area, pts), h, -h)
+            up = -tr.pos_ned[:, 2]
+            margin = np.minimum(h, np.minimum(up - g.up_min_m, g.up_max_m - up))
+        else:
+            margin = _clearance(tr, g.area, g.up_min_m, g.up_max_m)
+        m = _min_at(tr.t, margin)
+        out[f"geofence.{g.id}"] = {"margin_m": m["distance_m"], "t": m["t"],
+                                   "violated": bool(m["distance_m"] is not None and m["distance_m"] < 0)}
+    return out
+
+
+def well_clear_losses(a: VehicleTrace, b: VehicleTrace, world: MetricsWorld) -> list[dict]:
+    """Intervals where two vehicles are inside each other's well-clear volume: start, end [s] and
+    the smallest 3-D distance in it [m]."""
+    common, ia, ib = np.intersect1d(a.t, b.t, assume_unique=True, return_indices=True)
+    d = a.pos_ned[ia] - b.pos_ned[ib]
+    inside = (np.hypot(d[:, 0], d[:, 1]) < world.well_clear_h_m) & (np.abs(d[:, 2]) < world.well_clear_v_m)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], inside.astype(int), [0]])))
+    dist = np.linalg.norm(d, axis=1)
+    return [{"start": float(common[s]), "end": float(common[e - 1]), "min_distance_m": float(dist[s:e].min())}
+            for s, e in zip(edges[::2], edges[1::2])]
+
+
+def control_effort(tr: VehicleTrace) -> dict[str, float]:
+    """RMS of each commanded JSBSim property over the run (JSBSim units)."""
+    return {k: float(np.sqrt(np.nanmean(v * v))) for k, v in sorted(tr.commands.items())
+            if np.isfinite(v).any()}
+
+
+def run_metrics(traces: list[VehicleTrace], world: MetricsWorld = MetricsWorld()) -> dict:
     """Every metric of a run, as plain JSON-able values."""
     out: dict = {"vehicles": {}, "separation": {}}
     for tr in traces:
         out["vehicles"][tr.name] = {
             "mission": mission_metrics(tr), "tracking": tracking_metrics(tr),
-            "planner_latency": latency_metrics(tr),
+            "planner_latency": latency_metrics(tr), "clearance": obstacle_metrics(tr, world),
+            "control_effort": control_effort(tr),
         }
     for a, b in itertools.combinations(traces, 2):
-        out["separation"][f"{a.name}-{b.name}"] = min_separation(a, b)
+        losses = well_clear_losses(a, b, world)
+        out["separation"][f"{a.name}-{b.name}"] = {**min_separation(a, b), "well_clear_losses": len(losses),
+                                                   "well_clear_loss_events": losses}
     return out
 
 

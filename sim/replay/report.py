@@ -15,13 +15,25 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from sim.replay.metrics import flatten, run_metrics  # noqa: E402
+from sim.mcap_read import read_attached_scenario  # noqa: E402
+from sim.replay.metrics import MetricsWorld, flatten, run_metrics  # noqa: E402
 from sim.replay.runlog import RunLog  # noqa: E402
 from sim.replay.trace import VehicleTrace  # noqa: E402
 
 
 def load_traces(log: RunLog) -> list[VehicleTrace]:
     return [VehicleTrace.from_log(log, v) for v in log.vehicles]
+
+
+def load_world(log: RunLog) -> MetricsWorld:
+    """Obstacles, geofences and thresholds of the run, from its attached scenario."""
+    scenario = read_attached_scenario(log.path)
+    return MetricsWorld.from_scenario(scenario) if scenario is not None else MetricsWorld()
+
+
+def log_metrics(log: RunLog) -> dict:
+    """The run's metrics recomputed from its log."""
+    return run_metrics(load_traces(log), load_world(log))
 
 
 def _map_plot(traces: list[VehicleTrace], log: RunLog, path: Path) -> None:
@@ -97,7 +109,7 @@ def write_report(log_path: str | Path, out_dir: str | Path) -> tuple[Path, dict]
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     traces = load_traces(log)
-    metrics = run_metrics(traces)
+    metrics = run_metrics(traces, load_world(log))
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True))
     _map_plot(traces, log, out / "map.png")
     for tr in traces:

@@ -33,6 +33,7 @@ class VehicleTrace:
     waypoints_total: int
     waypoint_times: list[float]  # sim time each waypoint was reached
     complete_t: float | None = None  # sim time the mission completed
+    commands: dict[str, np.ndarray] = field(default_factory=dict)  # JSBSim property -> values
 
     @property
     def mission_complete(self) -> bool:
@@ -52,8 +53,11 @@ class VehicleTrace:
         complete = next((t for t, text in events if text == f"{name}: mission complete"), None)
         keys = _SETPOINT + tuple(k for k in _SETPOINT_OPTIONAL if sp.messages and k in sp.messages[0])
         kind = log.metadata.get("vehicles", {}).get(name, "fixed_wing")
+        cmd = log.topic(f"/{name}/ctrl/commands")
+        props = cmd.messages[-1]["properties"].keys() if cmd.messages else ()
         return cls(name, kind, st["t"], st["pos_ned"], st["alt_msl_m"], st["tas_mps"], st["euler"],
-                   {k: sp[k] for k in keys}, latency, total, reached, complete)
+                   {k: sp[k] for k in keys}, latency, total, reached, complete,
+                   {p: np.array([m["properties"].get(p, np.nan) for m in cmd.messages]) for p in props})
 
 
 @dataclass
@@ -68,13 +72,15 @@ class TraceRecorder:
     _latency: list[float] = field(default_factory=list)
     _reached: list[float] = field(default_factory=list)
     _complete_t: float | None = None
+    _commands: list[dict[str, float]] = field(default_factory=list)
 
-    def state(self, state: dict, setpoint: dict) -> None:
+    def state(self, state: dict, setpoint: dict, commands: dict[str, float]) -> None:
         for k in _STATE:
             self._state[k].append(state[k])
         for k in _SETPOINT + _SETPOINT_OPTIONAL:
             if k in setpoint:
                 self._setpoint.setdefault(k, []).append(setpoint[k])
+        self._commands.append(commands)
 
     def latency(self, seconds: float) -> None:
         self._latency.append(seconds)
@@ -90,4 +96,8 @@ class TraceRecorder:
         return VehicleTrace(self.name, self.kind, s["t"], s["pos_ned"], s["alt_msl_m"], s["tas_mps"], s["euler"],
                             {k: np.asarray(v, dtype=float) for k, v in self._setpoint.items()},
                             np.asarray(self._latency, dtype=float), self.waypoints_total,
-                            list(self._reached), self._complete_t)
+                            list(self._reached), self._complete_t, self._command_arrays())
+
+    def _command_arrays(self) -> dict[str, np.ndarray]:
+        props = self._commands[-1].keys() if self._commands else ()
+        return {p: np.array([c.get(p, np.nan) for c in self._commands]) for p in props}
