@@ -250,8 +250,7 @@ class SensorEstimator:
                 mean = (y.sum(axis=0) - 0.5 * y[-1] + 0.5 * self._prev) / len(ts)
                 dt = t - self._t_fused
                 self.ekf.predict_mean(mean[:3], mean[3:], dt, t, y[-1, 3:])
-                self._log.setdefault("imu", []).append(
-                    {"t": t, "dt": dt, "accel_body": _floats(mean[:3]), "gyro_body": _floats(mean[3:])})
+                self._log.setdefault("imu", []).append((t, dt, mean))  # converted on demand
             self._prev = y[-1].copy()
             self._t_fused = t
         elif self._t_fused is not None:  # IMU dropout: coast on the previous average
@@ -273,7 +272,8 @@ class SensorEstimator:
         out: dict[str, list[dict]] = {}
         for name, items in self._log.items():
             if name == "imu":
-                out[name] = items
+                out[name] = [{"t": t, "dt": dt, "accel_body": _floats(mn[:3]), "gyro_body": _floats(mn[3:])}
+                             for t, dt, mn in items]
             else:
                 out[name] = [_record(z) for z in items]
         self._log = {}
