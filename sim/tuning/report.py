@@ -19,8 +19,10 @@ def _fmt(v) -> str:
     if isinstance(v, float):
         if math.isnan(v):
             return ""
-        if v != 0.0 and (abs(v) < 1e-3 or abs(v) >= 1e5):
+        if v != 0.0 and abs(v) < 1e-3:
             return f"{v:.1e}"
+        if abs(v) >= 1000:
+            return f"{v:.0f}"
         return f"{v:.4g}"
     return str(v)
 

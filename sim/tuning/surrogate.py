@@ -188,7 +188,8 @@ class HapsTrimModel:
         if cl_need > d.cl_table.max():
             reason = f"below the 1-g stall speed: CL {cl_need:.2f} needed > CLmax {d.cl_table.max():.2f}"
         elif not stats.get("success", False) or not np.all(np.isfinite(z)) or np.max(np.abs(r)) > 1e-8:
-            reason = f"Newton did not converge (residual {np.max(np.abs(r)):.1e})"
+            reason = (f"Newton did not converge (residual {np.max(np.abs(r)):.1e}; CL {cl_need:.2f} "
+                      f"needed, CLmax {d.cl_table.max():.2f})")
         elif z[0] > d.alpha_max_rad:
             reason = f"alpha {math.degrees(z[0]):.1f} deg beyond the model's alpha limit"
         elif not 0.0 <= z[2] <= 1.0:
