@@ -24,7 +24,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from sim.batch import load_batch, run_batch  # noqa: E402
+from sim.batch import load_batch, run_batch
 
 BATCH = ROOT / "scenarios" / "batch" / "haps_monte_carlo.toml"
 
@@ -43,7 +43,7 @@ def main(argv=None) -> int:
     ap.add_argument("--runs", type=int, default=8)
     ap.add_argument("--duration", type=float, default=300.0, help="sim time per run [s] (the file: 5 min)")
     args = ap.parse_args(argv)
-    name, runs = load_batch(BATCH)
+    _name, runs = load_batch(BATCH)
     runs = [dataclasses.replace(r, duration=args.duration) for r in runs[: args.runs]]
     result = {"batch": str(BATCH.relative_to(ROOT)), "runs": len(runs), "sim_seconds_per_run": args.duration,
               "cpu_count": os.cpu_count(), "machine": platform.processor() or platform.machine(),
@@ -57,7 +57,7 @@ def main(argv=None) -> int:
         rows_by[workers] = rows
         print(f"workers={workers}: {wall:.1f} s, {60 * len(runs) / wall:.1f} runs/min, {failed} failed")
     result["speedup_2_vs_1"] = round(result["workers_1"]["wall_s"] / result["workers_2"]["wall_s"], 3)
-    strip = lambda r: {k: v for k, v in r.items() if "wall" not in k and "latency" not in k and "runtime" not in k}  # noqa: E731
+    strip = lambda r: {k: v for k, v in r.items() if "wall" not in k and "latency" not in k and "runtime" not in k}
     result["identical_metrics"] = [strip(r) for r in rows_by[1]] == [strip(r) for r in rows_by[2]]
     print(f"speed-up 2 vs 1 worker: {result['speedup_2_vs_1']:.2f}; identical metrics: {result['identical_metrics']}")
     out = ROOT / "benchmarks" / "results" / "batch.json"

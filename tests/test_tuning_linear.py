@@ -38,7 +38,7 @@ def test_modes_match_model_card(trimmed):
 def test_linear_model_predicts_doublet_within_10_percent(trimmed):
     plant, lm = trimmed
     amp, dt, seconds = 0.02, plant.dt, 5.0  # elevator doublet +-0.02 (0.4 deg), 1 s each way
-    n = int(round(seconds / dt))
+    n = round(seconds / dt)
     t = dt * np.arange(n + 1)
     u = np.where(t < 1.0, amp, np.where(t < 2.0, -amp, 0.0))
     e0 = plant["fcs/elevator-cmd-norm"]

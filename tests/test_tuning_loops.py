@@ -8,8 +8,15 @@ from aircraft.haps.gains import HapsGains
 from aircraft.quadrotor.gains import MultirotorGains
 from sim.tuning.evaluator import JSBSimEvaluator
 from sim.tuning.linearize import linearize
-from sim.tuning.loops import (HapsPitchGains, RatePid, analyse, haps_pitch_loops, identify_rotor_axis,
-                              quad_axis_loops, second_order_overshoot)
+from sim.tuning.loops import (
+    HapsPitchGains,
+    RatePid,
+    analyse,
+    haps_pitch_loops,
+    identify_rotor_axis,
+    quad_axis_loops,
+    second_order_overshoot,
+)
 from sim.tuning.steps import haps_pitch_step, overshoot_pct, quad_roll_step
 from sim.tuning.trim_haps import jsbsim_trim
 from sim.tuning.tuner import propose_roll_attitude_gain, verify_in_jsbsim
@@ -56,7 +63,7 @@ def test_quadrotor_roll_overshoot_consistent_with_phase_margin(roll_axis):
 
 
 def test_haps_pitch_loop_matches_jsbsim_step():
-    pt, plant = jsbsim_trim(20_000.0, 29.7)
+    _pt, plant = jsbsim_trim(20_000.0, 29.7)
     lm = linearize(JSBSimEvaluator(plant))
     g = HapsGains.load()
     sched = g.fcs_properties()["ap/qbar-ref-psf"] / plant["aero/qbar-psf"]

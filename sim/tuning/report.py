@@ -39,8 +39,8 @@ def write_csv(rows: list[TrimPoint], path: Path) -> None:
 def markdown(rows: list[TrimPoint], title: str) -> str:
     """A Markdown table of the trimmed points, then the list of failures with reasons."""
     cols = [c for c in COLUMNS if c != "reason"]
-    lines = [f"# {title}", "", "Units: m, m/s, deg, normalised surface/throttle, rpm; residuals "
-             "m/s^2 (translational), rad/s^2 (rotational), casadi model residual dimensionless.", "",
+    lines = [f"# {title}", "", ("Units: m, m/s, deg, normalised surface/throttle, rpm; residuals "
+             "m/s^2 (translational), rad/s^2 (rotational), casadi model residual dimensionless."), "",
              "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     lines += ["| " + " | ".join(_fmt(r.row()[c]) for c in cols) + " |" for r in rows if r.ok]
     bad = [r for r in rows if not r.ok]

@@ -34,7 +34,7 @@ def haps_pitch_step(alt_m: float = 20_000.0, tas_mps: float = 29.7, step_deg: fl
     theta0 = plant["attitude/theta-rad"]
     plant.set_many({"ap/engage": 1.0, "ap/roll-cmd-rad": 0.0,
                     "ap/pitch-cmd-rad": theta0 + math.radians(step_deg)})
-    n = int(round(seconds / plant.dt))
+    n = round(seconds / plant.dt)
     y = np.empty(n)
     for k in range(n):
         plant.step()
@@ -59,7 +59,7 @@ def quad_roll_step(alt_m: float = 100.0, step_deg: float = 5.0, seconds: float =
     plant["forces/hold-down"] = 0.0
     phi0 = plant["attitude/phi-rad"]
     plant["ap/roll-cmd-rad"] = phi0 + math.radians(step_deg)
-    n = int(round(seconds / plant.dt))
+    n = round(seconds / plant.dt)
     y = np.empty(n)
     for k in range(n):
         plant.step()

@@ -98,7 +98,7 @@ class HapsAeroData:
         j, ct = _table(prop, ".//table[@name='C_THRUST']/tableData")
         j2, cp = _table(prop, ".//table[@name='C_POWER']/tableData")
         assert np.allclose(j, j2)
-        elev = [g for g in ac.iter("pure_gain") if g.get("name") == "fcs/elevator-pos-rad"][0]
+        elev = next(g for g in ac.iter("pure_gain") if g.get("name") == "fcs/elevator-pos-rad")
         area = ac.find("metrics/wingarea")
         return cls(
             mass_kg=_si(ac.find("mass_balance/emptywt"), {"KG": 1.0, "LBS": 0.45359237}),

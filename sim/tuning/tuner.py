@@ -22,8 +22,15 @@ import numpy as np
 from scipy.optimize import brentq
 
 from aircraft.quadrotor.gains import MultirotorGains
-from sim.tuning.loops import (LoopReport, RatePid, RotorAxis, analyse, identify_rotor_axis,
-                              quad_axis_loops, second_order_overshoot)
+from sim.tuning.loops import (
+    LoopReport,
+    RatePid,
+    RotorAxis,
+    analyse,
+    identify_rotor_axis,
+    quad_axis_loops,
+    second_order_overshoot,
+)
 from sim.tuning.steps import overshoot_pct, quad_roll_step
 
 
@@ -55,7 +62,7 @@ def propose_roll_attitude_gain(axis: RotorAxis, gains: MultirotorGains | None = 
 
     if crossover_rad_s is None:
         target = math.radians(-180.0 + phase_margin_deg)
-        phase = lambda w: np.unwrap([np.angle(resp(v)) for v in np.geomspace(1e-3, w, 200)])[-1]  # noqa: E731
+        phase = lambda w: np.unwrap([np.angle(resp(v)) for v in np.geomspace(1e-3, w, 200)])[-1]
         ws = np.geomspace(0.1, 500, 400)
         ph = np.unwrap([np.angle(resp(v)) for v in ws])
         k = int(np.argmax(ph < target))
