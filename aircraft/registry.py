@@ -35,7 +35,8 @@ class Airframe:
     folder: Path | None  # None: a model shipped with JSBSim
     plant_hz: int
     control_hz: int
-    controller: str  # "module:Class" with a classmethod-free ctor taking the gains object
+    radius_m: float  # radius of a sphere around the airframe [m] (separation, surveillance)
+    controller: str  # "module:Class" with a ctor taking the gains object
     gains: str  # "module:Class" with ``load(path=None)``
     description: str
 
@@ -54,14 +55,14 @@ AIRFRAMES: dict[str, Airframe] = {
     for a in (
         Airframe(
             name="haps", kind="fixed_wing", jsbsim_model="haps", folder=airframe_dir("haps"),
-            plant_hz=120, control_hz=10,
+            plant_hz=120, control_hz=10, radius_m=12.5,
             controller="aircraft.haps.autopilot:HapsAutopilot",
             gains="aircraft.haps.autopilot:HapsGains",
             description="Zephyr-class solar-electric HAPS, 25 m span, 75 kg (aircraft/haps/README.md)",
         ),
         Airframe(
             name="quadrotor", kind="multirotor", jsbsim_model="quadrotor",
-            folder=airframe_dir("quadrotor"), plant_hz=240, control_hz=60,
+            folder=airframe_dir("quadrotor"), plant_hz=240, control_hz=60, radius_m=0.45,
             controller="aircraft.quadrotor.controller:MultirotorController",
             gains="aircraft.quadrotor.controller:MultirotorGains",
             description="F450-derived 1.4 kg quadrotor (aircraft/quadrotor/README.md)",

@@ -89,6 +89,12 @@ THREATS = _obj("cosim.Threats", {
     "lidar_hits": ({"type": "integer"}, "returns in the latest LiDAR scan"),
 })
 
+OBJECTS = _obj("cosim.Objects", {
+    "t": (_NUM, "sim time [s]"),
+    "objects": ({"type": "array", "items": {"type": "object"}},
+                "scripted traffic: id, pos_ned [m], vel_ned [m/s], radius_m (true)"),
+})
+
 MISSION_STATUS = _obj("cosim.MissionStatus", {
     "t": (_NUM, "sim time [s]"),
     "next_waypoint": ({"type": "integer"}, "index of the waypoint being flown to"),

@@ -118,29 +118,22 @@ def iter_messages(path: str | Path, topics: list[str] | None = None) -> Iterator
     path, f = _open(path)
     with f:
         try:
-            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            reader = make_reader(f)
             meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
             epoch = int(meta.get("run", {}).get("epoch_ns", 0))
+            factory = DecoderFactory()  # per file: it caches decoders by schema id
+            decoders: dict[int, Any] = {}
             for schema, channel, message in reader.iter_messages(topics=topics, log_time_order=True):
                 if channel.message_encoding == "json":
                     decoded = json.loads(message.data)
                 else:
-                    decoded = _decode_proto(schema, channel, message)
+                    dec = decoders.get(schema.id)
+                    if dec is None:
+                        dec = decoders[schema.id] = factory.decoder_for(channel.message_encoding, schema)
+                    decoded = dec(message.data)
                 yield channel.topic, (message.log_time - epoch) / 1e9, decoded
         except _READ_ERRORS as exc:
             raise LogReadError(f"{path}: damaged MCAP ({exc or type(exc).__name__})") from None
-
-
-_proto_decoders: dict[tuple[str, bytes], Any] = {}
-_factory = DecoderFactory()
-
-
-def _decode_proto(schema, channel, message):
-    key = (schema.name, schema.data)
-    dec = _proto_decoders.get(key)
-    if dec is None:
-        dec = _proto_decoders[key] = _factory.decoder_for(channel.message_encoding, schema)
-    return dec(message.data)
 
 
 def read_topic(path: str | Path, topic: str) -> list[tuple[float, Any]]:

@@ -16,18 +16,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import jsbsim
-import numpy as np
-
 from sim import __version__
-from sim.environment import geofence, obstacle_prism
-from sim.faults import FaultSchedule
-from sim.frames import GeoPoint
 from sim.mcap_log import McapLog
 from sim.replay.metrics import MetricsWorld, run_metrics
 from sim.scenario import Scenario
 from sim.scheduler import LockstepScheduler, Stage
-from sim.vehicle import Vehicle
-from sim.vehicle_log import write_map, write_static_frames
+from sim.vehicle_log import write_static_frames
+from sim.world import World
 
 
 @dataclass
@@ -66,10 +61,6 @@ class RunFailed(RuntimeError):
 ProgressFn = Callable[[float, float], None]  # (sim time, end time) [s]
 
 
-def _lcm_rates(rates: list[int]) -> int:
-    return math.lcm(*rates)
-
-
 def run_scenario(
     scenario: Scenario,
     out: str | Path,
@@ -86,13 +77,11 @@ def run_scenario(
     Returns a RunResult; raises RunFailed (log already closed) if the simulation raised.
     """
     end = float(duration if duration is not None else scenario.duration)
-    origin = GeoPoint(math.degrees(scenario.origin.lat), math.degrees(scenario.origin.lon),
-                      scenario.origin.altitude)
     log = McapLog(out, scenario.epoch_ns)
     result = RunResult(scenario.name, Path(out), "failed", 0.0, 0.0)
     wall0 = time.perf_counter()
     sched: LockstepScheduler | None = None
-    vehicles: list[Vehicle] = []
+    world: World | None = None
     failure: Exception | None = None
     session = None
     try:
@@ -102,36 +91,21 @@ def run_scenario(
         if scenario_text:
             log.attach("scenario.toml", scenario_text.encode(), "application/toml")
         write_static_frames(log)
-        seeds = np.random.SeedSequence(scenario.seed).generate_state(len(scenario.vehicle), dtype=np.uint32)
-        vehicles = [Vehicle(v, origin, log, int(seed), scenario.wind) for v, seed in zip(scenario.vehicle, seeds)]
-        obstacles = [obstacle_prism(o, origin.alt_m) for o in scenario.obstacle]
-        fences = [geofence(g, origin.alt_m) for g in scenario.geofence]
-        for v in vehicles:
-            v.threats.obstacles, v.threats.geofences = obstacles, fences  # known from the map
-        write_map(log, obstacles, fences, origin)
-        faults = FaultSchedule(scenario.fault, {v.name: v for v in vehicles}, log)
-        log.metadata("vehicles", {v.name: v.airframe.kind for v in vehicles})
-        base = _lcm_rates([v.airframe.plant_hz for v in vehicles])
-        sched = LockstepScheduler(base)
-        for v in vehicles:
-            v.schedule(sched, scenario.logging.rate_hz)
-        if scenario.fault:
-            sched.add_task("faults", scenario.logging.rate_hz, Stage.SENSE, faults.tick)
+        world = World(scenario, log)
+        sched = LockstepScheduler(world.base_hz)
+        world.schedule(sched)
         if scenario.mavlink.enabled:
             from sim.mavlink.session import MavlinkSession
 
-            session = MavlinkSession(scenario.mavlink, vehicles, origin, log)
+            session = MavlinkSession(scenario.mavlink, world.vehicles, world.origin, log)
             sched.add_task("mavlink", scenario.logging.rate_hz, Stage.LOG, session.tick)
         if progress is not None:
             sched.add_task("progress", progress_hz, Stage.LOG, lambda t: progress(t, end))
         if tick_hook is not None:
             sched.add_task("tick_hook", scenario.logging.rate_hz, Stage.LOG, tick_hook)
         log.event(0.0, f"run start: {scenario.name} (seed {scenario.seed})")
-        def all_complete() -> bool:
-            return all(v.mission.complete for v in vehicles)
-
-        sched.run(round(end * base), stop=all_complete if scenario.stop_when_complete else (lambda: False))
-        result.status = "completed" if all_complete() else "duration_elapsed"
+        sched.run(round(end * world.base_hz), stop=world.all_complete if scenario.stop_when_complete else (lambda: False))
+        result.status = "completed" if world.all_complete() else "duration_elapsed"
     except KeyboardInterrupt:
         result.status = "interrupted"
         result.error = "interrupted by the user"
@@ -144,6 +118,7 @@ def run_scenario(
             session.close()
         result.sim_time_s = sched.time if sched is not None else 0.0
         result.wall_time_s = time.perf_counter() - wall0
+        vehicles = world.vehicles if world is not None else []
         for v in vehicles:
             m = v.mission
             result.missions[v.name] = MissionResult(

@@ -81,7 +81,7 @@ class Initial(_Strict):
 
 
 class PlannerConfig(_Strict):
-    type: Literal["follow_mission"] = "follow_mission"
+    type: Literal["follow_mission", "geometric", "reachset", "mptp"] = "follow_mission"
     rate_hz: Annotated[float, Field(gt=0.0, le=100.0)] = 1.0
 
 
@@ -196,6 +196,61 @@ def _simple_polygon(points):
     return points
 
 
+class Velocity(_Strict):
+    north: Speed = 0.0
+    east: Speed = 0.0
+    down: Speed = 0.0
+
+
+class TrafficObject(_Strict):
+    """Scripted traffic that is not flown by JSBSim: a sphere of ``radius`` [m] at ``north``,
+    ``east``, ``altitude`` (MSL) at time ``appear`` [s], moving at constant ``velocity`` NED
+    [m/s] (zero: a static threat). ``cooperative`` ones broadcast their position."""
+
+    id: Annotated[str, Field(min_length=1)]
+    radius: quantity("length", 0.0, 1e4, lo_open=True)
+    north: _Offset
+    east: _Offset
+    altitude: _Altitude
+    velocity: Velocity = Velocity()
+    appear: quantity("time", 0.0, 30 * 86400.0) = 0.0
+    cooperative: bool = False
+
+
+class Surveillance(_Strict):
+    """How each vehicle senses the traffic (the other vehicles and the objects): position
+    reports (ADS-B for cooperative traffic, a surveillance sensor of the same error model for
+    the rest) at ``rate_hz`` with ``latency``, ``dropout`` probability, position noise (std,
+    horizontal/vertical) and velocity noise; a constant-velocity Kalman track per target."""
+
+    rate_hz: Annotated[float, Field(gt=0.0, le=50.0)] = 2.0
+    latency: quantity("time", 0.0, 60.0) = 0.5
+    dropout: Annotated[float, Field(ge=0.0, lt=1.0)] = 0.05
+    position_noise_horizontal: quantity("length", 0.0, 1e4) = 3.0
+    position_noise_vertical: quantity("length", 0.0, 1e4) = 5.0
+    velocity_noise: Speed = 0.5
+
+
+class Weather(_Strict):
+    """Synthetic convective weather (seeded from the scenario): ``cells`` storm cells over a
+    box of ``size`` x ``size`` [m] south-west-cornered at the origin, drifting at
+    (``drift_north``, ``drift_east``) [m/s] +- ``drift_spread``, mean radius ``radius``; a nowcast of the next ``horizon`` in
+    ``step`` slices is issued every ``nowcast_period`` (what the vehicles see)."""
+
+    cells: Annotated[int, Field(ge=0, le=500)] = 12
+    size: quantity("length", 1000.0, 2e6) = 250_000.0
+    drift_north: Speed = 0.0
+    drift_east: Speed = 10.0
+    drift_spread: Speed = 3.0
+    radius: quantity("length", 100.0, 2e5) = 8000.0
+    split_probability: Annotated[float, Field(ge=0.0, le=1.0)] = 0.3
+    life: quantity("time", 60.0, 86400.0) = 5400.0
+    nowcast_period: quantity("time", 10.0, 86400.0) = 300.0
+    horizon: quantity("time", 60.0, 86400.0) = 3600.0
+    step: quantity("time", 10.0, 86400.0) = 300.0
+    centres: list[tuple[float, float]] | None = None  # [[north, east], ...] [m] to place the cells
+
+
 class _Fault(_Strict):
     vehicle: str
     at: quantity("time", 0.0, 30 * 86400.0)
@@ -264,6 +319,9 @@ class Scenario(_Strict):
     mavlink: Mavlink = Mavlink()
     metrics: Metrics = Metrics()
     wind: Wind = Wind()
+    surveillance: Surveillance = Surveillance()
+    weather: Weather | None = None
+    object: list[TrafficObject] = []
     obstacle: list[Obstacle] = []
     geofence: list[Geofence] = []
     fault: list[Fault] = []
@@ -285,6 +343,10 @@ class Scenario(_Strict):
         for k, f in enumerate(self.fault):
             if f.vehicle not in names:
                 raise ValueError(f"fault[{k}].vehicle: no vehicle {f.vehicle!r} (vehicles: {', '.join(names)})")
+        traffic = names + [o.id for o in self.object]
+        dup = sorted({i for i in traffic if traffic.count(i) > 1})
+        if dup:
+            raise ValueError(f"object ids must differ from each other and from vehicle names, repeated: {', '.join(dup)}")
         ids = [o.id for o in self.obstacle] + [g.id for g in self.geofence]
         dup = sorted({i for i in ids if ids.count(i) > 1})
         if dup:

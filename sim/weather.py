@@ -1,0 +1,46 @@
+"""Synthetic convective weather: the true storm field and the nowcasts issued to the vehicles.
+
+The field is MPTP's seeded storm generator (``guidance.mptp.synthetic.StormField``: cells that
+drift, grow, decay, split and merge) in the local (north, east) plane [m]. Every
+``nowcast_period`` a nowcast of the next ``horizon`` is issued: what planners see
+(``Threats.storms``); the truth is for logging and metrics only.
+"""
+
+from __future__ import annotations
+
+import json
+
+from guidance.mptp.synthetic import StormField
+from avoidance.threats import StormSnapshot
+from sim import scenario as sc
+
+
+class WeatherService:
+    def __init__(self, cfg: sc.Weather, seed: int):
+        self.cfg = cfg
+        self.field = StormField(
+            seed=seed, n_cells=cfg.cells, size_m=(cfg.size, cfg.size),
+            mean_velocity=(cfg.drift_north, cfg.drift_east), speed_spread=cfg.drift_spread,
+            mean_radius_m=cfg.radius, split_prob=cfg.split_probability, life_s=cfg.life,
+            centres=None if cfg.centres is None else [list(c) for c in cfg.centres])
+        self.nowcast: list[StormSnapshot] = []
+        self.issued_t: float | None = None
+
+    def update(self, t: float) -> bool:
+        """Issue a nowcast if one is due at ``t`` [s]; True when a new one was issued."""
+        if self.issued_t is not None and t < self.issued_t + self.cfg.nowcast_period - 1e-9:
+            return False
+        self.nowcast = self.field.nowcast(t, self.cfg.horizon, self.cfg.step)
+        self.issued_t = t
+        return True
+
+    def truth(self, t: float) -> StormSnapshot:
+        return self.field.truth(t)
+
+
+def storms_geojson(snapshot: StormSnapshot, to_lonlat) -> str:
+    """A snapshot as a GeoJSON FeatureCollection string (lon/lat via ``to_lonlat(coords)``)."""
+    features = [{"type": "Feature", "properties": {"kind": "storm", "t": snapshot.t},
+                 "geometry": {"type": "Polygon", "coordinates": [to_lonlat(list(c.exterior.coords))]}}
+                for c in snapshot.cells]
+    return json.dumps({"type": "FeatureCollection", "features": features})

@@ -1,0 +1,115 @@
+"""The world of one run: vehicles, traffic objects, weather, map obstacles and geofences,
+faults, and what each vehicle senses of the rest.
+
+Seeds: one ``numpy.random.SeedSequence`` from the scenario seed spawns independent streams for
+every vehicle (JSBSim turbulence, sensors), every vehicle's surveillance sensor and the weather,
+so one seed fixes the whole run and adding a vehicle leaves the others' streams unchanged.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+
+from sim import log_schemas as S
+from sim.environment import geofence, obstacle_prism
+from sim.faults import FaultSchedule
+from sim.frames import GeoPoint, ned_to_geodetic
+from sim.mcap_log import McapLog
+from sim.perception import Perception
+from sim.scenario import Scenario
+from sim.scheduler import LockstepScheduler, Stage
+from sim.traffic import TrafficObject
+from sim.vehicle import Vehicle
+from sim.vehicle_log import NED_FRAME, write_map
+from sim.weather import WeatherService, storms_geojson
+
+
+class World:
+    def __init__(self, scenario: Scenario, log: McapLog):
+        self.scenario = scenario
+        self.log = log
+        o = scenario.origin
+        self.origin = GeoPoint(math.degrees(o.lat), math.degrees(o.lon), o.altitude)
+        n = len(scenario.vehicle)
+        vehicle_ss, sensing_ss, weather_ss = np.random.SeedSequence(scenario.seed).spawn(3)
+        vehicle_seeds = vehicle_ss.generate_state(n, dtype=np.uint32)
+        self.vehicles = [Vehicle(v, self.origin, log, int(s), scenario.wind)
+                         for v, s in zip(scenario.vehicle, vehicle_seeds)]
+        self.objects = [TrafficObject(c, self.origin) for c in scenario.object]
+        self.obstacles = [obstacle_prism(c, self.origin.alt_m) for c in scenario.obstacle]
+        self.fences = [geofence(c, self.origin.alt_m) for c in scenario.geofence]
+        for v in self.vehicles:
+            v.threats.obstacles, v.threats.geofences = self.obstacles, self.fences  # known from the map
+        has_traffic = n > 1 or bool(self.objects)
+        self.perception = ({v.name: Perception(scenario.surveillance, np.random.default_rng(ss))
+                            for v, ss in zip(self.vehicles, sensing_ss.spawn(n))} if has_traffic else {})
+        self.weather = (WeatherService(scenario.weather, int(weather_ss.generate_state(1)[0]))
+                        if scenario.weather is not None else None)
+        self.faults = FaultSchedule(scenario.fault, {v.name: v for v in self.vehicles}, log)
+        write_map(log, self.obstacles, self.fences, self.origin)
+        log.metadata("vehicles", {v.name: v.airframe.kind for v in self.vehicles})
+
+    @property
+    def base_hz(self) -> int:
+        """The scheduler's base rate: the least common multiple of the plant rates."""
+        return math.lcm(*[v.airframe.plant_hz for v in self.vehicles])
+
+    def schedule(self, sched: LockstepScheduler) -> None:
+        log_hz = self.scenario.logging.rate_hz
+        if self.scenario.fault:
+            sched.add_task("faults", log_hz, Stage.SENSE, self.faults.tick)
+        if self.perception or self.weather is not None:
+            sched.add_task("world.sense", log_hz, Stage.SENSE, self.sense)
+        for v in self.vehicles:
+            v.schedule(sched, log_hz)
+        if self.objects:
+            sched.add_task("world.log", log_hz, Stage.LOG, self._log_objects)
+
+    def all_complete(self) -> bool:
+        return all(v.mission.complete for v in self.vehicles)
+
+    # -- sensing the rest of the world ---------------------------------------------------------
+    def sense(self, t: float) -> None:
+        """Weather nowcasts and traffic tracks into every vehicle's threats."""
+        if self.weather is not None and self.weather.update(t):
+            for v in self.vehicles:
+                v.threats.storms = self.weather.nowcast
+            truth = self.weather.truth(t)
+            self.log.write_proto("/world/weather/storms", t, _geojson(storms_geojson(truth, self._lonlat)))
+        if not self.perception:
+            return
+        truths = {v.name: (v.plant.truth(), v.airframe.radius_m, True) for v in self.vehicles}
+        objects = {o.id: (o.state(t), o.radius_m, o.cooperative) for o in self.objects if o.exists(t)}
+        for v in self.vehicles:
+            traffic = {k: x for k, x in truths.items() if k != v.name} | objects
+            v.threats.intruders = self.perception[v.name].update(t, traffic)
+
+    def _lonlat(self, coords) -> list[list[float]]:
+        lat, lon, _ = ned_to_geodetic([(n, e, 0.0) for n, e in coords], self.origin)
+        return [[x, y] for x, y in zip(lon.tolist(), lat.tolist())]
+
+    def _log_objects(self, t: float) -> None:
+        """Objects' true positions: JSON for metrics, spheres for the 3D panel."""
+        live = [o for o in self.objects if o.exists(t)]
+        self.log.write_json("/world/objects", t, {"t": t, "objects": [
+            {"id": o.id, "pos_ned": o.position(t), "vel_ned": o.v, "radius_m": o.radius_m} for o in live]},
+            S.OBJECTS, {"frame": "local-level NED from the scenario origin"})
+        scene = SceneUpdate()
+        for o in live:
+            ent = scene.entities.add(frame_id=NED_FRAME, id=o.id)
+            ent.timestamp.FromNanoseconds(self.log.epoch_ns + round(t * 1e9))
+            sph = ent.spheres.add()
+            sph.pose.position.x, sph.pose.position.y, sph.pose.position.z = o.position(t).tolist()
+            sph.pose.orientation.w = 1.0
+            sph.size.x = sph.size.y = sph.size.z = 2.0 * o.radius_m
+            sph.color.r, sph.color.g, sph.color.b, sph.color.a = 0.9, 0.5, 0.1, 0.6
+        self.log.write_proto("/world/objects/scene", t, scene)
+
+
+def _geojson(text: str):
+    from foxglove_schemas_protobuf.GeoJSON_pb2 import GeoJSON
+
+    return GeoJSON(geojson=text)
