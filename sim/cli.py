@@ -257,6 +257,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--no-resume", action="store_true", help="re-run runs that already finished")
     b.add_argument("-q", "--quiet", action="store_true")
     b.set_defaults(fn=cmd_batch)
+    sub.add_parser("tune", help="trim, linearise, loop margins, gain proposals (cosim tune --help)")
     v = sub.add_parser("validate", help="check a scenario file without flying it")
     v.add_argument("scenario")
     v.set_defaults(fn=cmd_validate)
@@ -264,6 +265,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["tune"]:  # its own parser, options included
+        from sim.tuning.cli import tune_main
+
+        return tune_main(argv[1:])
     args = build_parser().parse_args(argv)
     try:
         return args.fn(args)
