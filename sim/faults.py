@@ -30,9 +30,11 @@ class FaultSchedule:
             if isinstance(f, sc.MotorFailure) and f.engine >= v.plant.engine_count:
                 raise FaultError(f"fault on {f.vehicle}: engine {f.engine} does not exist "
                                  f"({v.plant.engine_count} engines)")
-            if isinstance(f, (sc.GnssLoss, sc.SensorBias, sc.SensorStuck)) and not hasattr(v.estimator, "inject"):
-                raise FaultError(f"fault on {f.vehicle}: {f.kind} needs sensor models, but its estimator is "
-                                 f"{v.estimator.name!r}")
+            if isinstance(f, (sc.GnssLoss, sc.SensorBias, sc.SensorStuck)):
+                if not hasattr(v.estimator, "inject"):
+                    raise FaultError(f"fault on {f.vehicle}: {f.kind} needs sensor models, but its estimator is "
+                                     f"{v.estimator.name!r}")
+                v.inject_sensor_fault(f)  # the sensor models switch it on and off at its times
 
     def _event(self, t: float, f, text: str) -> None:
         self.log.event(t, f"{f.vehicle}: fault {f.kind}: {text}", level="warning", name="faults")
@@ -55,8 +57,7 @@ class FaultSchedule:
         elif isinstance(f, sc.Gust):
             start_gust(v.plant, f)
             self._event(t, f, f"gust {f.north:.1f}/{f.east:.1f}/{f.down:.1f} m/s NED")
-        else:
-            v.estimator.inject(f)
+        else:  # already scheduled in the sensor models; logged here
             self._event(t, f, "started" + (f" ({f.sensor})" if hasattr(f, "sensor") else ""))
 
     def _end(self, t: float, f) -> None:

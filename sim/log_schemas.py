@@ -89,6 +89,28 @@ THREATS = _obj("cosim.Threats", {
     "lidar_hits": ({"type": "integer"}, "returns in the latest LiDAR scan"),
 })
 
+_RECORDS = {"type": "array", "items": {"type": "object"}}
+SENSORS = _obj("cosim.Sensors", {
+    "t": (_NUM, "sim time of the log tick [s]"),
+    "imu": (_RECORDS, "per fusion interval: t, dt [s], accel_body [m/s^2], gyro_body [rad/s] (FRD, mean)"),
+    "gnss": (_RECORDS, "fixes: t (validity) [s], pos_ned [m], vel_ned [m/s]"),
+    "baro": (_RECORDS, "t [s], pressure_pa"),
+    "airspeed": (_RECORDS, "t [s], diff_pressure_pa"),
+    "mag": (_RECORDS, "t [s], field_body_ut"),
+}, extra=True)
+
+ESTIMATE_SIGMA = _obj("cosim.EstimateSigma", {
+    "t": (_NUM, "sim time [s]"),
+    "pos": (_VEC3, "3-sigma position NED [m]"),
+    "vel": (_VEC3, "3-sigma velocity NED [m/s]"),
+    "att": (_VEC3, "3-sigma attitude error, body axes [rad]"),
+    "heading": ({"type": "array", "items": _NUM}, "3-sigma heading [rad]"),
+    "accel": (_VEC3, "3-sigma accel bias [m/s^2]"),
+    "gyro": (_VEC3, "3-sigma gyro bias [rad/s]"),
+    "baro": ({"type": "array", "items": _NUM}, "3-sigma baro height bias [m]"),
+    "bias": ({"type": "object"}, "estimated biases: accel [m/s^2], gyro [rad/s], baro [m], gnss_gm [m]"),
+})
+
 OBJECTS = _obj("cosim.Objects", {
     "t": (_NUM, "sim time [s]"),
     "objects": ({"type": "array", "items": {"type": "object"}},

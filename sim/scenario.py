@@ -89,6 +89,8 @@ class Vehicle(_Strict):
     name: Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$")]
     aircraft: str
     gains: Path | None = None
+    # "ekf": sensor models + INS/GNSS EKF, the loop closes on estimates; "perfect": ideal sensors
+    estimator: Literal["ekf", "perfect"] = "ekf"
     initial: Initial
     mission: Mission
     planner: PlannerConfig = PlannerConfig()

@@ -25,7 +25,9 @@ from guidance.setpoints import MultirotorSetpoint
 from sim import log_schemas as S
 from sim import scenario as sc
 from sim.environment import apply_steady_wind, apply_turbulence
+from sim.estimation.sensor_estimator import SensorEstimator, SensorEstimatorConfig
 from sim.estimator import PerfectEstimator
+from sim.sensors.faults import SensorFault
 from sim.frames import GeoPoint, geodetic_to_ned, ned_to_geodetic
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
 from sim.mavlink.commands import Arm, MissionUpload, PositionTarget, SetMode
@@ -80,7 +82,7 @@ class Vehicle:
         apply_turbulence(self.plant, wind, seed)
         m = cfg.mission
         self.mission = mission_from_config(cfg, origin)
-        self.estimator = PerfectEstimator(self.plant)
+        self.estimator = self._make_estimator(cfg.estimator, seed)
         self.planner = make_planner(cfg.planner.type, self.mission)
         self.mode = "AUTO"  # AUTO: the mission; HOLD: hover in place; GUIDED: ground-station targets
         self.controller = af.make_controller(cfg.gains)
@@ -104,6 +106,32 @@ class Vehicle:
         self._setpoint: dict = {}
         self._commands: dict[str, float] = {}
         self._mission_logged: tuple[int, bool] | None = None
+
+    def _make_estimator(self, kind: str, seed: int):
+        """``ekf``: sensor models + INS/GNSS EKF (the default: the loop closes on estimates);
+        ``perfect``: ideal sensors (controller characterisation against the model)."""
+        if kind == "perfect":
+            return PerfectEstimator(self.plant)
+        cfg = SensorEstimatorConfig.for_kind(self.airframe.kind)
+        cfg.check_rates(self.airframe.plant_hz)
+        rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))  # not the turbulence stream
+        return SensorEstimator(self.plant, cfg, rng, self.origin, self.plant.truth())
+
+    def inject_sensor_fault(self, fault) -> None:
+        """A scenario sensor fault (gnss_loss, sensor_bias, sensor_stuck) into the sensor models."""
+        end = math.inf if fault.duration is None else fault.at + fault.duration
+        if isinstance(fault, sc.GnssLoss):
+            self.estimator.inject("gnss", SensorFault(kind="dropout", t_start=fault.at, t_end=end))
+            return
+        sensor = {"accel": "imu", "gyro": "imu"}.get(fault.sensor, fault.sensor)
+        if isinstance(fault, sc.SensorStuck):
+            self.estimator.inject(sensor, SensorFault(kind="stuck", t_start=fault.at, t_end=end))
+            return
+        value = fault.bias
+        if fault.sensor in ("accel", "gyro"):  # the IMU's output is accel x, y, z then gyro x, y, z
+            b = np.broadcast_to(np.asarray(value, float), (3,))
+            value = (*b, 0.0, 0.0, 0.0) if fault.sensor == "accel" else (0.0, 0.0, 0.0, *b)
+        self.estimator.inject(sensor, SensorFault(kind="bias_step", t_start=fault.at, t_end=end, value=value))
 
     @property
     def armed(self) -> bool:
@@ -159,6 +187,8 @@ class Vehicle:
     def schedule(self, sched: LockstepScheduler, log_hz: float) -> None:
         af, n = self.airframe, self.name
         sched.add_plant(f"{n}.plant", af.plant_hz, self.plant.step)
+        if isinstance(self.estimator, SensorEstimator):
+            sched.add_task(f"{n}.sense", self.estimator.sense_hz, Stage.SENSE, self.estimator.sense)
         sched.add_task(f"{n}.estimator", af.control_hz, Stage.ESTIMATE, self._estimate)
         sched.add_task(f"{n}.planner", self.cfg.planner.rate_hz, Stage.PLAN, self._plan)
         sched.add_task(f"{n}.control", af.control_hz, Stage.CONTROL, self._control)
@@ -219,6 +249,9 @@ class Vehicle:
             raise SimulationDiverged(f"{self.name}: state went non-finite at t={t:.2f} s")
         self.recorder.state(self.logw.truth(truth), self._setpoint, self._commands)
         self.logw.estimate(self.estimate)
+        if isinstance(self.estimator, SensorEstimator):
+            est = self.estimator
+            self.logw.sensors(t, est.measurements(), est.three_sigma(), est.biases())
         self.logw.control(t, self._setpoint, self._setpoint_schema, self._commands, dict(self.controller.debug))
         m = self.mission
         status = (m.next_index, m.complete)

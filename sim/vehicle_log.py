@@ -72,6 +72,7 @@ class VehicleLogWriter:
         self.t_sp, self.t_cmd, self.t_mission = f"{p}/ctrl/setpoint", f"{p}/ctrl/commands", f"{p}/mission/status"
         self.t_plan, self.t_latency = f"{p}/plan", f"{p}/plan/latency"
         self.t_est, self.t_threats = f"{p}/est/state", f"{p}/threats"
+        self.t_sensors, self.t_sigma = f"{p}/sensors", f"{p}/est/sigma3"
 
     def truth(self, s: VehicleState) -> dict:
         """Log the true state; returns the state as logged (a plain dict)."""
@@ -99,6 +100,13 @@ class VehicleLogWriter:
         self.log.write_json(self.t_est, s.t, sd, S.VEHICLE_STATE,
                             {"frame": "local-level NED from the scenario origin", "units": "SI, rad"})
         return sd
+
+    def sensors(self, t: float, measurements: dict, sigma3: dict, biases: dict) -> None:
+        """Measurements delivered since the last log tick (one message, a list per sensor) and
+        the estimate's 3-sigma bounds and estimated biases."""
+        self.log.write_json(self.t_sensors, t, {"t": t, **measurements}, S.SENSORS, {"units": "SI, rad"})
+        self.log.write_json(self.t_sigma, t, {"t": t, **sigma3, "bias": biases}, S.ESTIMATE_SIGMA,
+                            {"frame": "NED; attitude error in body axes", "units": "SI, rad"})
 
     def threats(self, t: float, threats) -> None:
         """The threats as sensed when a plan was made (what the planner saw)."""

@@ -102,7 +102,7 @@ def test_clearance_geofence_and_well_clear_metrics_on_a_known_geometry(tmp_path)
     from sim.scenario import parse_scenario
 
     def quad(name, north):
-        return {"name": name, "aircraft": "quadrotor", "initial": {"north": north, "altitude": 420.0},
+        return {"name": name, "aircraft": "quadrotor", "estimator": "perfect", "initial": {"north": north, "altitude": 420.0},
                 "mission": {"cruise_speed": 5.0, "acceptance_radius": 0.5, "guidance": "step",
                             "waypoints": [{"north": north, "east": 0, "altitude": 420, "hold": "60 s"}]}}
 
