@@ -248,10 +248,13 @@ class Vehicle:
             self.log.event(t, f"{self.name}: state is not finite", level="error", name=self.name)
             raise SimulationDiverged(f"{self.name}: state went non-finite at t={t:.2f} s")
         self.recorder.state(self.logw.truth(truth), self._setpoint, self._commands)
-        self.logw.estimate(self.estimate)
+        est_logged = self.logw.estimate(self.estimate)
+        sigma3 = None
         if isinstance(self.estimator, SensorEstimator):
             est = self.estimator
-            self.logw.sensors(t, est.measurements(), est.three_sigma(), est.biases())
+            sigma3 = est.three_sigma()
+            self.logw.sensors(t, est.measurements(), sigma3, est.biases())
+        self.recorder.estimate(est_logged, sigma3)
         self.logw.control(t, self._setpoint, self._setpoint_schema, self._commands, dict(self.controller.debug))
         m = self.mission
         status = (m.next_index, m.complete)

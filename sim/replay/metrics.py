@@ -153,6 +153,28 @@ def control_effort(tr: VehicleTrace) -> dict[str, float]:
             if np.isfinite(v).any()}
 
 
+def estimation_metrics(tr: VehicleTrace) -> dict:
+    """Estimate against truth at the log ticks: RMS errors per NED axis, the fraction of errors
+    inside the 3-sigma bounds, and the mean NEES of position+velocity (diagonal covariance;
+    consistent filter: about 6)."""
+    if tr.est_pos_ned is None or len(tr.est_pos_ned) != len(tr.t) or not len(tr.t):
+        return {}
+    ep, ev = tr.est_pos_ned - tr.pos_ned, tr.est_vel_ned - _truth_velocity(tr)
+    out = {"pos_rms_m": np.sqrt(np.mean(ep * ep, axis=0)).tolist(),
+           "vel_rms_mps": np.sqrt(np.mean(ev * ev, axis=0)).tolist()}
+    if tr.sigma3_pos is not None and len(tr.sigma3_pos) == len(tr.t):
+        sp, sv = tr.sigma3_pos, tr.sigma3_vel
+        out["pos_within_3sigma"] = np.mean(np.abs(ep) <= sp, axis=0).tolist()
+        out["vel_within_3sigma"] = np.mean(np.abs(ev) <= sv, axis=0).tolist()
+        nees = np.sum((ep / (sp / 3.0)) ** 2, axis=1) + np.sum((ev / (sv / 3.0)) ** 2, axis=1)
+        out["nees_mean"] = float(np.mean(nees))
+    return out
+
+
+def _truth_velocity(tr: VehicleTrace) -> np.ndarray:
+    return tr.truth_vel_ned if tr.truth_vel_ned is not None else np.gradient(tr.pos_ned, tr.t, axis=0)
+
+
 def run_metrics(traces: list[VehicleTrace], world: MetricsWorld = MetricsWorld()) -> dict:
     """Every metric of a run, as plain JSON-able values."""
     out: dict = {"vehicles": {}, "separation": {}}
@@ -160,7 +182,7 @@ def run_metrics(traces: list[VehicleTrace], world: MetricsWorld = MetricsWorld()
         out["vehicles"][tr.name] = {
             "mission": mission_metrics(tr), "tracking": tracking_metrics(tr),
             "planner_latency": latency_metrics(tr), "clearance": obstacle_metrics(tr, world),
-            "control_effort": control_effort(tr),
+            "control_effort": control_effort(tr), "estimation": estimation_metrics(tr),
         }
     for a, b in itertools.combinations(traces, 2):
         losses = well_clear_losses(a, b, world)

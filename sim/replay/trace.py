@@ -14,7 +14,7 @@ import numpy as np
 from sim.replay.runlog import RunLog
 
 # truth-state fields and the setpoint fields every follower logs; tas_mps only for fixed wing
-_STATE = ("t", "pos_ned", "alt_msl_m", "tas_mps", "euler")
+_STATE = ("t", "pos_ned", "vel_ned", "alt_msl_m", "tas_mps", "euler")
 _SETPOINT = ("altitude_m", "cross_track_m", "turning")
 _SETPOINT_OPTIONAL = ("tas_mps",)
 
@@ -34,6 +34,11 @@ class VehicleTrace:
     waypoint_times: list[float]  # sim time each waypoint was reached
     complete_t: float | None = None  # sim time the mission completed
     commands: dict[str, np.ndarray] = field(default_factory=dict)  # JSBSim property -> values
+    est_pos_ned: np.ndarray | None = None  # (N, 3) estimate at the same ticks [m]
+    est_vel_ned: np.ndarray | None = None  # (N, 3) [m/s]
+    sigma3_pos: np.ndarray | None = None  # (N, 3) 3-sigma bounds [m] (None: perfect estimator)
+    sigma3_vel: np.ndarray | None = None  # (N, 3) [m/s]
+    truth_vel_ned: np.ndarray | None = None  # (N, 3) true velocity [m/s]
 
     @property
     def mission_complete(self) -> bool:
@@ -55,9 +60,14 @@ class VehicleTrace:
         kind = log.metadata.get("vehicles", {}).get(name, "fixed_wing")
         cmd = log.topic(f"/{name}/ctrl/commands")
         props = cmd.messages[-1]["properties"].keys() if cmd.messages else ()
+        est = log.topic(f"/{name}/est/state")
+        sig_topic = f"/{name}/est/sigma3"
+        sig = log.topic(sig_topic) if log.has(sig_topic) else None
         return cls(name, kind, st["t"], st["pos_ned"], st["alt_msl_m"], st["tas_mps"], st["euler"],
                    {k: sp[k] for k in keys}, latency, total, reached, complete,
-                   {p: np.array([m["properties"].get(p, np.nan) for m in cmd.messages]) for p in props})
+                   {p: np.array([m["properties"].get(p, np.nan) for m in cmd.messages]) for p in props},
+                   est["pos_ned"], est["vel_ned"], None if sig is None else sig["pos"],
+                   None if sig is None else sig["vel"], st["vel_ned"])
 
 
 @dataclass
@@ -73,6 +83,15 @@ class TraceRecorder:
     _reached: list[float] = field(default_factory=list)
     _complete_t: float | None = None
     _commands: list[dict[str, float]] = field(default_factory=list)
+    _est: dict[str, list] = field(default_factory=lambda: {"pos_ned": [], "vel_ned": []})
+    _sigma: dict[str, list] = field(default_factory=lambda: {"pos": [], "vel": []})
+
+    def estimate(self, est: dict, sigma3: dict | None) -> None:
+        for k in self._est:
+            self._est[k].append(est[k])
+        if sigma3 is not None:
+            for k in self._sigma:
+                self._sigma[k].append(sigma3[k])
 
     def state(self, state: dict, setpoint: dict, commands: dict[str, float]) -> None:
         for k in _STATE:
@@ -96,7 +115,10 @@ class TraceRecorder:
         return VehicleTrace(self.name, self.kind, s["t"], s["pos_ned"], s["alt_msl_m"], s["tas_mps"], s["euler"],
                             {k: np.asarray(v, dtype=float) for k, v in self._setpoint.items()},
                             np.asarray(self._latency, dtype=float), self.waypoints_total,
-                            list(self._reached), self._complete_t, self._command_arrays())
+                            list(self._reached), self._complete_t, self._command_arrays(),
+                            *(np.asarray(self._est[k], dtype=float) for k in ("pos_ned", "vel_ned")),
+                            *((np.asarray(self._sigma[k], dtype=float) if self._sigma[k] else None)
+                              for k in ("pos", "vel")), s["vel_ned"])
 
     def _command_arrays(self) -> dict[str, np.ndarray]:
         props = self._commands[-1].keys() if self._commands else ()
