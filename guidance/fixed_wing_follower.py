@@ -33,6 +33,12 @@ class FixedWingPlanFollower:
         self.leg = 0
         self.cross_track_m = 0.0
         self.turning = True
+        self._leg_ab: tuple[np.ndarray, np.ndarray] | None = None
+
+    def track_error(self, pos_ned: np.ndarray) -> float:
+        """Signed horizontal cross-track [m] of ``pos_ned`` to the leg being followed (the
+        metrics call it with the true position)."""
+        return leg_progress(pos_ned, *self._leg_ab).cross_m if self._leg_ab is not None else 0.0
 
     def set_plan(self, plan: Plan) -> None:
         """Follow ``plan`` from its first leg (vertex 0 is where the plan's first leg starts)."""
@@ -60,6 +66,7 @@ class FixedWingPlanFollower:
             a, b = P[-1], 2.0 * P[-1] - P[-2]
         else:
             a, b = est.pos_ned, P[-1]
+        self._leg_ab = (a, b)
         prog = leg_progress(est.pos_ned, a, b)
         roll, self.cross_track_m = self.l1.update(est, a, b)
         d = a[2] + prog.fraction * (b[2] - a[2])

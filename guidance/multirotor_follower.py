@@ -59,6 +59,7 @@ class MultirotorPlanFollower:
         self._yaw = float("nan")
         self.cross_track_m = 0.0
         self.turning = False
+        self._leg_au: tuple[np.ndarray, np.ndarray] | None = None
 
     def set_waypoint_attributes(self, hold_s: dict[int, float], yaw_rad: dict[int, float]) -> None:
         self.hold_s, self.yaw_rad = hold_s, yaw_rad
@@ -124,10 +125,19 @@ class MultirotorPlanFollower:
             self._yaw = self.yaw_rad[end_label]
         elif math.hypot(u[0], u[1]) > 0.2:
             self._yaw = math.atan2(u[1], u[0])
-        ap = pos - a
-        self.cross_track_m = float(np.linalg.norm(ap - u * float(ap @ u)))
+        self._leg_au = (a, u)
+        self.cross_track_m = self.track_error(pos)
         self.turning = not vel.any()
         return MultirotorSetpoint(self.carrot.copy(), vel, self._yaw), passed
+
+    def track_error(self, pos_ned: np.ndarray) -> float:
+        """3-D distance [m] of ``pos_ned`` from the line of the leg being followed (the metrics
+        call it with the true position)."""
+        if self._leg_au is None:
+            return 0.0
+        a, u = self._leg_au
+        ap = pos_ned - a
+        return float(np.linalg.norm(ap - u * float(ap @ u)))
 
     def _unit(self, leg: int) -> np.ndarray:
         seg = self.plan.positions[leg + 1] - self.plan.positions[leg]

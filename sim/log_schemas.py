@@ -55,6 +55,13 @@ MULTIROTOR_SETPOINT = _obj("cosim.MultirotorSetpoint", {
     "turning": ({"type": "boolean"}, "true while the carrot waits (vertex, hold, landing)"),
 })
 
+TRACKING = _obj("cosim.Tracking", {
+    "t": (_NUM, "sim time [s]"),
+    "cross_track_m": (_NUM, "TRUE cross-track error to the leg being followed [m] (fixed wing: signed, "
+                            "horizontal, right positive; multirotor: 3-D distance)"),
+    "leg": ({"type": "integer"}, "index of the plan leg being followed"),
+})
+
 COMMANDS = _obj("cosim.Commands", {
     "t": (_NUM, "sim time [s]"),
     "properties": ({"type": "object", "additionalProperties": _NUM},

@@ -247,7 +247,9 @@ class Vehicle:
         if not all(math.isfinite(x) for x in (*truth.pos_ned, *truth.vel_ned, *truth.euler)):
             self.log.event(t, f"{self.name}: state is not finite", level="error", name=self.name)
             raise SimulationDiverged(f"{self.name}: state went non-finite at t={t:.2f} s")
-        self.recorder.state(self.logw.truth(truth), self._setpoint, self._commands)
+        track = self.follower.track_error(truth.pos_ned)
+        self.logw.tracking(t, track, self.follower.leg)
+        self.recorder.state(self.logw.truth(truth), self._setpoint, self._commands, track)
         est_logged = self.logw.estimate(self.estimate)
         sigma3 = None
         if isinstance(self.estimator, SensorEstimator):

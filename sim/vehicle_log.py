@@ -73,6 +73,7 @@ class VehicleLogWriter:
         self.t_plan, self.t_latency = f"{p}/plan", f"{p}/plan/latency"
         self.t_est, self.t_threats = f"{p}/est/state", f"{p}/threats"
         self.t_sensors, self.t_sigma = f"{p}/sensors", f"{p}/est/sigma3"
+        self.t_tracking = f"{p}/truth/tracking"
 
     def truth(self, s: VehicleState) -> dict:
         """Log the true state; returns the state as logged (a plain dict)."""
@@ -93,6 +94,10 @@ class VehicleLogWriter:
         r.x, r.y, r.z, r.w = qx, qy, qz, qw
         log.write_proto("/tf", t, FrameTransforms(transforms=[tf]))
         return sd
+
+    def tracking(self, t: float, cross_track_m: float, leg: int) -> None:
+        """True cross-track error to the leg being followed (what the metrics judge)."""
+        self.log.write_json(self.t_tracking, t, {"t": t, "cross_track_m": cross_track_m, "leg": leg}, S.TRACKING)
 
     def estimate(self, s: VehicleState) -> dict:
         """Log what controllers and planners saw (same schema as the truth)."""

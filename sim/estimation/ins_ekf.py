@@ -24,6 +24,12 @@ samples). An aiding measurement is fused when it is handed over; its latency (fi
 its time of validity) is compensated by back-shifting the prediction to the time of validity to
 first order (``p - v lag``, ``v - a lag``) — cheaper than PX4's delayed fusion horizon, exact
 enough for the 0.1–0.2 s GNSS delays here.
+
+Frames: velocity and attitude are local NED at the vehicle, position is scenario coordinates
+(tangent plane at the origin); position moves with ``C v``, ``C`` from
+:meth:`LocalGeodetic.velocity_map` at the current estimate (recomputed every
+``_C_REFRESH_M`` of travel), in the prediction, the GNSS lag term and the output
+extrapolation (see :mod:`sim.estimation.ins_model`).
 """
 
 from __future__ import annotations
@@ -45,6 +51,8 @@ from sim.sensors.measurements import AirspeedSample, BaroSample, GnssFix, ImuSam
 from sim.sensors.rotations import dcm_to_euler, euler_to_quat, quat_exp, quat_mul, quat_normalize, quat_to_dcm
 from sim.sensors.suite import SensorSuiteConfig
 from sim.state import VehicleState
+
+_C_REFRESH_M = 10.0  # recompute the velocity map after this much travel [m] (C changes ~2e-6/10 m)
 
 
 class InsEkfConfig(StrictConfig):
@@ -153,6 +161,8 @@ class InsEkf:
         self._acc_ned = np.zeros(3)
         self._rates = np.array(initial.rates_body, float)
         self.t = initial.t
+        self._c_at = np.full(3, np.inf)
+        self._c = np.eye(3)
         self._p_static: float | None = None
         self._dp: float | None = None
 
@@ -161,6 +171,15 @@ class InsEkf:
         """Covariance of a NED-frame attitude error (tilt N, E, yaw) as a body-frame error."""
         r = quat_to_dcm(q)
         return r.T @ p_ned @ r
+
+    def velocity_map(self) -> np.ndarray:
+        """``C`` at the current position estimate (local-NED velocity -> rate of the scenario
+        coordinates), cached until the estimate has moved ``_C_REFRESH_M``."""
+        p, a = self.nav.p, self._c_at
+        if abs(p[0] - a[0]) + abs(p[1] - a[1]) + abs(p[2] - a[2]) > _C_REFRESH_M:
+            self._c = self._geo.velocity_map(float(p[0]), float(p[1]), float(p[2]))
+            self._c_at = p.copy()
+        return self._c
 
     # -- Estimator protocol ---------------------------------------------------------------------
     def push(self, measurements: Iterable) -> None:
@@ -194,11 +213,12 @@ class InsEkf:
         f = 0.5 * (prev.accel_body + z.accel_body)
         w = 0.5 * (prev.gyro_body + z.gyro_body)
         decay = math.exp(-dt / self.cfg.gnss_gm_tau_s)
+        c = self.velocity_map()
         if self._numeric:
-            phi = m.transition_numeric(self.nav, f, w, dt, decay)
-        nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity)
+            phi = m.transition_numeric(self.nav, f, w, dt, decay, c_pos=c)
+        nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity, c)
         if not self._numeric:
-            phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay)
+            phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay, c)
         self._acc_ned = r @ fh + self._gravity
         self._rates = z.gyro_body - nav.bg
         q = self._Q
@@ -219,8 +239,9 @@ class InsEkf:
 
     def fuse_gnss(self, z: GnssFix) -> None:
         lag = self.t - z.t
-        h = lambda s: m.h_gnss(s, lag, self._acc_ned)  # noqa: E731
-        H = m.jacobian_numeric(h, self.nav) if self._numeric else m.H_gnss(self._H_gnss, lag)
+        c = self.velocity_map()
+        h = lambda s: m.h_gnss(s, lag, self._acc_ned, c)  # noqa: E731
+        H = m.jacobian_numeric(h, self.nav) if self._numeric else m.H_gnss(self._H_gnss, lag, c)
         self._fuse(np.concatenate((z.pos_ned, z.vel_ned)), h(self.nav), H, self._R_gnss)
 
     def fuse_baro(self, z: BaroSample) -> None:
@@ -246,8 +267,9 @@ class InsEkf:
         if dt <= 0.0:
             return
         decay = math.exp(-dt / self.cfg.gnss_gm_tau_s)
-        nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity)
-        phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay)
+        c = self.velocity_map()
+        nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity, c)
+        phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay, c)
         self._acc_ned = r @ fh + self._gravity
         self._rates = w_last - nav.bg
         qd = np.multiply(self._q_rates, dt, out=self._qd)
@@ -270,10 +292,11 @@ class InsEkf:
             tz = type(z)
             if tz is GnssFix:
                 lag = self.t - z.t
+                c = self.velocity_map()
                 zs.append(z.pos_ned)
                 zs.append(z.vel_ned)
-                hs.append(m.h_gnss(nav, lag, self._acc_ned))
-                Hs.append(m.H_gnss(self._H_gnss, lag).copy())
+                hs.append(m.h_gnss(nav, lag, self._acc_ned, c))
+                Hs.append(m.H_gnss(self._H_gnss, lag, c).copy())
                 rs.append(self._R_gnss_diag)
             elif tz is BaroSample:
                 p = z.pressure_pa
@@ -333,9 +356,10 @@ class InsEkf:
                 "accel": sd[9:12], "gyro": sd[12:15], "baro": sd[15:16]}
 
     def state(self, t: float) -> VehicleState:
-        """Estimate extrapolated from the filter time to ``t`` [s] (constant velocity)."""
+        """Estimate extrapolated from the filter time to ``t`` [s] (constant velocity, moving the
+        scenario position along ``C v``)."""
         nav = self.nav
-        pos = nav.p + nav.v * (t - self.t)
+        pos = nav.p + self.velocity_map() @ nav.v * (t - self.t) if t != self.t else nav.p.copy()
         lat, lon, alt = self._geo.ned_to_geodetic(*pos)
         if self._dp is not None and self._p_static is not None:
             tas, eas = isa.airspeeds_from_dp(self._dp, self._p_static)

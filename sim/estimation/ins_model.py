@@ -10,8 +10,17 @@ dbg, dbb, dgm — indices in ``IDX``.
 
 IMU mechanisation over dt with the averaged samples (f, w) of its two ends:
   w_hat = w - bg, f_hat = f - ba, R = R(q (x) Exp(w_hat dt / 2))   (mid-interval attitude)
-  a = R f_hat + g;  p += v dt + a dt^2 / 2;  v += a dt;  q = q (x) Exp(w_hat dt);
+  a = R f_hat + g;  p += C (v dt + a dt^2 / 2);  v += a dt;  q = q (x) Exp(w_hat dt);
   gm *= exp(-dt / tau).
+
+Frames: v, q, f, w, gravity are in the local NED frame at the vehicle (where JSBSim, the GNSS
+velocity and the magnetometer express them); p and gm are scenario coordinates (tangent plane
+at the origin, local-level D), where the GNSS position is. ``C`` (3x3,
+:meth:`sim.estimation.geodetic.LocalGeodetic.velocity_map`, held constant over a step) maps a
+local velocity to the rate of the scenario coordinates; the identity at the origin. Without it
+a flat-earth filter integrates the local velocity into the scenario position and drifts by the
+meridian convergence (0.19 deg at 20 km east at 47 deg N: 0.09 m/s at 26 m/s), which GNSS
+position fixes then push into the Gauss-Markov state far beyond its prior.
 """
 
 from __future__ import annotations
@@ -61,61 +70,73 @@ def skew(v) -> np.ndarray:
 
 
 def propagate(s: NavState, f: np.ndarray, w: np.ndarray, dt: float, gm_decay: float,
-              gravity: np.ndarray = GRAVITY) -> tuple[NavState, np.ndarray, np.ndarray, np.ndarray]:
+              gravity: np.ndarray = GRAVITY, c_pos: np.ndarray | None = None,
+              ) -> tuple[NavState, np.ndarray, np.ndarray, np.ndarray]:
     """Nominal state after ``dt`` [s]; also the mid-interval R and bias-corrected f, w (for F).
-    ``gravity``: NED gravity vector [m/s^2] (default: standard gravity, down)."""
+    ``gravity``: NED gravity vector [m/s^2] (default: standard gravity, down). ``c_pos``: the
+    local-velocity -> scenario-position-rate map ``C`` (module doc; ``None`` = identity)."""
     fh = f - s.ba
     wh = w - s.bg
     wx, wy, wz = float(wh[0]) * dt, float(wh[1]) * dt, float(wh[2]) * dt
     r = quat_to_dcm(quat_mul(s.q, quat_exp(0.5 * wx, 0.5 * wy, 0.5 * wz)))
     dv = (r @ fh + gravity) * dt
-    nxt = NavState(s.p + (s.v + 0.5 * dv) * dt, s.v + dv,
+    dp = (s.v + 0.5 * dv) * dt
+    nxt = NavState(s.p + (dp if c_pos is None else c_pos @ dp), s.v + dv,
                    quat_normalize(quat_mul(s.q, quat_exp(wx, wy, wz))), s.ba, s.bg, s.bb, s.gm * gm_decay)
     return nxt, r, fh, wh
 
 
-_CONST_IDX = (np.array([0, 1, 2, 6, 7, 8, 16, 17, 18]), np.array([3, 4, 5, 12, 13, 14, 16, 17, 18]))
+_CONST_IDX = (np.array([6, 7, 8, 16, 17, 18]), np.array([12, 13, 14, 16, 17, 18]))
 
 
 def transition_analytic(out: np.ndarray, r: np.ndarray, fh: np.ndarray, wh: np.ndarray, dt: float,
-                        gm_decay: float) -> np.ndarray:
+                        gm_decay: float, c_pos: np.ndarray | None = None) -> np.ndarray:
     """Error-state transition Phi (19x19) written into ``out`` (an identity the caller reuses:
     only the entries below change); first order in dt except the attitude block and the
-    dt^2 terms of dp and dv."""
+    dt^2 terms of dp and dv. ``c_pos``: as in :func:`propagate` (the dp rows are ``C`` times
+    the flat-earth ones)."""
     rfr = np.concatenate((r @ skew(fh), r), axis=1)  # [R [f]x, R]
     k = 0.5 * dt * dt
-    out[0:3, 6:12] = rfr * -k
+    if c_pos is None:
+        out[0:3, 3:6] = _I3 * dt
+        out[0:3, 6:12] = rfr * -k
+    else:
+        out[0:3, 3:6] = c_pos * dt
+        out[0:3, 6:12] = (c_pos @ rfr) * -k
     out[3:6, 6:12] = rfr * -dt
     out[3:6, 12:15] = rfr[:, 0:3] * k
     out[6:9, 6:9] = quat_to_dcm(quat_exp(float(wh[0]) * dt, float(wh[1]) * dt, float(wh[2]) * dt)).T
-    if out[0, 3] != dt or out[16, 16] != gm_decay:  # constant for a fixed step: set once
-        out[_CONST_IDX] = (dt, dt, dt, -dt, -dt, -dt, gm_decay, gm_decay, gm_decay)
+    if out[6, 12] != -dt or out[16, 16] != gm_decay:  # constant for a fixed step: set once
+        out[_CONST_IDX] = (-dt, -dt, -dt, gm_decay, gm_decay, gm_decay)
     return out
 
 
 def transition_numeric(s: NavState, f: np.ndarray, w: np.ndarray, dt: float, gm_decay: float,
-                       eps: float = 1e-6) -> np.ndarray:
-    """Phi by forward differences of :func:`propagate` over each error-state axis."""
-    base = propagate(s, f, w, dt, gm_decay)[0]
+                       eps: float = 1e-6, c_pos: np.ndarray | None = None) -> np.ndarray:
+    """Phi by forward differences of :func:`propagate` over each error-state axis (``C`` held
+    fixed, as the filter does over a step)."""
+    base = propagate(s, f, w, dt, gm_decay, c_pos=c_pos)[0]
     phi = np.empty((N, N))
     dx = np.zeros(N)
     for j in range(N):
         dx[j] = eps
-        phi[:, j] = boxminus(propagate(boxplus(s, dx), f, w, dt, gm_decay)[0], base) / eps
+        phi[:, j] = boxminus(propagate(boxplus(s, dx), f, w, dt, gm_decay, c_pos=c_pos)[0], base) / eps
         dx[j] = 0.0
     return phi
 
 
 # -- measurement models: h(s, ...) and analytic H ------------------------------------------------
 
-def h_gnss(s: NavState, lag: float, acc_ned: np.ndarray) -> np.ndarray:
-    """GNSS position and velocity ``lag`` [s] before the filter time (first-order back-shift)."""
-    return np.concatenate((s.p + s.gm - s.v * lag, s.v - acc_ned * lag))
+def h_gnss(s: NavState, lag: float, acc_ned: np.ndarray, c_pos: np.ndarray | None = None) -> np.ndarray:
+    """GNSS position and velocity ``lag`` [s] before the filter time (first-order back-shift;
+    the position one moves along ``C v``, the scenario-frame rate)."""
+    vp = s.v if c_pos is None else c_pos @ s.v
+    return np.concatenate((s.p + s.gm - vp * lag, s.v - acc_ned * lag))
 
 
-def H_gnss(out: np.ndarray, lag: float) -> np.ndarray:
+def H_gnss(out: np.ndarray, lag: float, c_pos: np.ndarray | None = None) -> np.ndarray:
     """6x19; the caller keeps the constant identities; sets the lag terms."""
-    out[0:3, 3:6] = _I3 * -lag
+    out[0:3, 3:6] = (_I3 if c_pos is None else c_pos) * -lag
     return out
 
 

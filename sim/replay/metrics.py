@@ -58,12 +58,13 @@ def _stats(x: np.ndarray) -> dict[str, float]:
 
 
 def tracking_metrics(tr: VehicleTrace) -> dict:
-    """Cross-track, altitude and airspeed holding in settled straight flight; bank extremes."""
+    """True cross-track, altitude and airspeed holding in settled straight flight; bank
+    extremes."""
     sp = tr.setpoint
     settled = straight_flight_mask(tr.t, sp["turning"], SETTLE_S[tr.kind])
     out = {
         "straight_fraction": float(settled.mean()) if settled.size else 0.0,
-        "cross_track_m": _stats(sp["cross_track_m"][settled]),
+        "cross_track_m": _stats(tr.truth_cross_track_m[settled]),
         "altitude_error_m": _stats((tr.alt_msl_m - sp["altitude_m"])[settled]),
         "max_bank_deg": float(np.degrees(np.max(np.abs(tr.euler[:, 0])))) if len(tr.t) else 0.0,
         "finite": bool(np.isfinite(tr.pos_ned).all() and np.isfinite(tr.euler).all()),

@@ -39,6 +39,7 @@ class VehicleTrace:
     sigma3_pos: np.ndarray | None = None  # (N, 3) 3-sigma bounds [m] (None: perfect estimator)
     sigma3_vel: np.ndarray | None = None  # (N, 3) [m/s]
     truth_vel_ned: np.ndarray | None = None  # (N, 3) true velocity [m/s]
+    truth_cross_track_m: np.ndarray | None = None  # (N,) true cross-track to the followed leg [m]
 
     @property
     def mission_complete(self) -> bool:
@@ -67,7 +68,8 @@ class VehicleTrace:
                    {k: sp[k] for k in keys}, latency, total, reached, complete,
                    {p: np.array([m["properties"].get(p, np.nan) for m in cmd.messages]) for p in props},
                    est["pos_ned"], est["vel_ned"], None if sig is None else sig["pos"],
-                   None if sig is None else sig["vel"], st["vel_ned"])
+                   None if sig is None else sig["vel"], st["vel_ned"],
+                   log.topic(f"/{name}/truth/tracking")["cross_track_m"])
 
 
 @dataclass
@@ -83,6 +85,7 @@ class TraceRecorder:
     _reached: list[float] = field(default_factory=list)
     _complete_t: float | None = None
     _commands: list[dict[str, float]] = field(default_factory=list)
+    _cross: list[float] = field(default_factory=list)
     _est: dict[str, list] = field(default_factory=lambda: {"pos_ned": [], "vel_ned": []})
     _sigma: dict[str, list] = field(default_factory=lambda: {"pos": [], "vel": []})
 
@@ -93,7 +96,8 @@ class TraceRecorder:
             for k in self._sigma:
                 self._sigma[k].append(sigma3[k])
 
-    def state(self, state: dict, setpoint: dict, commands: dict[str, float]) -> None:
+    def state(self, state: dict, setpoint: dict, commands: dict[str, float], cross_track_m: float) -> None:
+        self._cross.append(cross_track_m)
         for k in _STATE:
             self._state[k].append(state[k])
         for k in _SETPOINT + _SETPOINT_OPTIONAL:
@@ -118,7 +122,7 @@ class TraceRecorder:
                             list(self._reached), self._complete_t, self._command_arrays(),
                             *(np.asarray(self._est[k], dtype=float) for k in ("pos_ned", "vel_ned")),
                             *((np.asarray(self._sigma[k], dtype=float) if self._sigma[k] else None)
-                              for k in ("pos", "vel")), s["vel_ned"])
+                              for k in ("pos", "vel")), s["vel_ned"], np.asarray(self._cross, dtype=float))
 
     def _command_arrays(self) -> dict[str, np.ndarray]:
         props = self._commands[-1].keys() if self._commands else ()
