@@ -1,15 +1,82 @@
 """Build a vehicle's planner from its scenario configuration (one place for the runner and for
-re-running planners on a log)."""
+re-running planners on a log).
+
+``options`` are fields of the planner's own configuration dataclass, in its units (SI):
+geometric ``GeometricConfig``, MPTP ``MptpConfig``; the reach-set planner takes ``period`` (its
+movement period [s]); follow_mission takes none. Unknown options are an error naming them.
+"""
 
 from __future__ import annotations
+
+import dataclasses
+import importlib
+
+import numpy as np
 
 from avoidance.follow_mission import FollowMissionPlanner
 from avoidance.planner import Planner
 from guidance.mission import Mission
 
+# planner -> (airframe kinds it flies, its config dataclass "module:Class" or the option names)
+_PLANNERS: dict[str, tuple[tuple[str, ...], str | tuple[str, ...]]] = {
+    "follow_mission": (("fixed_wing", "multirotor"), ()),
+    "geometric": (("multirotor",), "avoidance.geometric.config:GeometricConfig"),
+    "reachset": (("fixed_wing", "multirotor"), ("period",)),
+    "mptp": (("fixed_wing",), "guidance.mptp.config:MptpConfig"),
+}
 
-def make_planner(kind: str, mission: Mission) -> Planner:
-    """The planner called ``kind`` for ``mission``."""
+
+class PlannerConfigError(ValueError):
+    """A planner is unknown, does not fit the airframe, or an option is unknown or invalid."""
+
+
+def _class(ref: str):
+    module, _, name = ref.partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def check_planner(kind: str, airframe_kind: str, options: dict) -> None:
+    """Cheap check of a planner choice (no planner is built); PlannerConfigError otherwise."""
+    if kind not in _PLANNERS:
+        raise PlannerConfigError(f"unknown planner {kind!r} (known: {', '.join(_PLANNERS)})")
+    kinds, conf = _PLANNERS[kind]
+    if airframe_kind not in kinds:
+        raise PlannerConfigError(f"{kind} planner does not fly a {airframe_kind} (it flies: {', '.join(kinds)})")
+    names = {f.name for f in dataclasses.fields(_class(conf))} if isinstance(conf, str) else set(conf)
+    unknown = sorted(set(options) - names)
+    if unknown:
+        raise PlannerConfigError(f"{kind} planner: unknown option(s) {', '.join(unknown)}"
+                                 + (f" (known: {', '.join(sorted(names))})" if names else " (it takes none)"))
+
+
+def _config(kind: str, options: dict, **fixed):
+    try:
+        return _class(_PLANNERS[kind][1])(**{**fixed, **options})
+    except (TypeError, ValueError) as exc:
+        raise PlannerConfigError(f"{kind} planner: {exc}") from None
+
+
+def make_planner(kind: str, mission: Mission, airframe_kind: str = "multirotor", options: dict | None = None,
+                 bank_limit_rad: float = np.radians(20.0)) -> Planner:
+    """The planner called ``kind`` for ``mission`` flown by an ``airframe_kind`` vehicle."""
+    options = dict(options or {})
+    check_planner(kind, airframe_kind, options)
     if kind == "follow_mission":
         return FollowMissionPlanner(mission)
-    raise ValueError(f"unknown planner {kind!r}")
+    if kind == "geometric":
+        from avoidance.geometric.planner import GeometricAvoider
+
+        start = mission.start if mission.start is not None else mission.waypoints[0]
+        return GeometricAvoider(np.vstack([start, mission.waypoints]), mission.cruise_speed,
+                                _config(kind, options), first_label=-1)
+    if kind == "reachset":
+        from avoidance.reachset.movement import haps_automaton, multirotor_automaton
+        from avoidance.reachset.planner import ReachSetAvoider
+
+        period = float(options.get("period", 1.0))
+        sma = (multirotor_automaton(mission.cruise_speed, period) if airframe_kind == "multirotor"
+               else haps_automaton(mission.cruise_speed, period, bank_limit_rad))
+        return ReachSetAvoider(mission, sma)
+    from guidance.mptp.planner import MptpPlanner
+
+    return MptpPlanner(mission, _config(kind, options, tas_mps=mission.cruise_speed, bank_max=bank_limit_rad))

@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from shapely.geometry import Polygon
 
 from aircraft.registry import get_airframe
+from avoidance.factory import PlannerConfigError, check_planner
 from sim.units import Angle, Speed, quantity
 
 SCHEMA_VERSION = 1
@@ -81,8 +82,13 @@ class Initial(_Strict):
 
 
 class PlannerConfig(_Strict):
+    """``type``: follow_mission (no avoidance), geometric (candidate paths, multirotor),
+    reachset (avoidance grid), mptp (weather, fixed wing). ``options``: fields of the planner's
+    own configuration, in its units (SI)."""
+
     type: Literal["follow_mission", "geometric", "reachset", "mptp"] = "follow_mission"
     rate_hz: Annotated[float, Field(gt=0.0, le=100.0)] = 1.0
+    options: dict[str, float | int | str | bool | list] = {}
 
 
 class Vehicle(_Strict):
@@ -107,6 +113,10 @@ class Vehicle(_Strict):
     @model_validator(mode="after")
     def _fits_airframe(self) -> "Vehicle":
         kind = get_airframe(self.aircraft).kind
+        try:
+            check_planner(self.planner.type, kind, self.planner.options)
+        except PlannerConfigError as exc:
+            raise ValueError(f"planner: {exc}") from None
         if kind == "multirotor":
             if self.initial.trim:
                 raise ValueError("initial.trim: JSBSim cannot trim a multirotor; it starts in hover "

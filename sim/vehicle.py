@@ -83,9 +83,9 @@ class Vehicle:
         m = cfg.mission
         self.mission = mission_from_config(cfg, origin)
         self.estimator = self._make_estimator(cfg.estimator, seed)
-        self.planner = make_planner(cfg.planner.type, self.mission)
-        self.mode = "AUTO"  # AUTO: the mission; HOLD: hover in place; GUIDED: ground-station targets
         self.controller = af.make_controller(cfg.gains)
+        self.planner = self._make_planner()
+        self.mode = "AUTO"  # AUTO: the mission; HOLD: hover in place; GUIDED: ground-station targets
         self.estimate = self.estimator.update(0.0)
         if af.kind == "fixed_wing":
             self.follower = FixedWingPlanFollower(L1Guidance.for_airframe(self.controller), m.cruise_speed,
@@ -106,6 +106,10 @@ class Vehicle:
         self._setpoint: dict = {}
         self._commands: dict[str, float] = {}
         self._mission_logged: tuple[int, bool] | None = None
+
+    def _make_planner(self):
+        return make_planner(self.cfg.planner.type, self.mission, self.airframe.kind, self.cfg.planner.options,
+                            getattr(self.controller.gains, "roll_limit_rad", np.radians(20.0)))
 
     def _make_estimator(self, kind: str, seed: int):
         """``ekf``: sensor models + INS/GNSS EKF (the default: the loop closes on estimates);
@@ -148,7 +152,7 @@ class Vehicle:
             m = self.mission
             self.mission = Mission(wps, m.cruise_speed, m.acceptance_radius, start=self.estimate.pos_ned.copy(),
                                    land=m.land)
-            self.planner = make_planner(self.cfg.planner.type, self.mission)
+            self.planner = self._make_planner()
             if multirotor:
                 self.follower.set_waypoint_attributes({}, {})
             self.recorder.waypoints_total = len(wps)
@@ -158,7 +162,7 @@ class Vehicle:
             return True
         if isinstance(cmd, SetMode):
             if cmd.name == "AUTO":
-                self.planner = make_planner(self.cfg.planner.type, self.mission)
+                self.planner = self._make_planner()
             elif cmd.name in ("HOLD", "GUIDED") and multirotor:
                 self.planner = HoldPositionPlanner(self.estimate.pos_ned)
             else:

@@ -78,7 +78,12 @@ class GeometricAvoider:
     name = "geometric"
 
     def __init__(self, reference_ned: np.ndarray | None = None, speed: float | None = None,
-                 config: GeometricConfig | None = None, vehicle: VehicleParams | None = None):
+                 config: GeometricConfig | None = None, vehicle: VehicleParams | None = None,
+                 first_label: int = 0):
+        """``first_label``: the label of the reference's first vertex (plans label the reference
+        vertices ``index + first_label``, -1 where that is negative): -1 when the reference is
+        [start, mission waypoints...] so that the labels are the mission waypoint indices."""
+        self.first_label = first_label
         self.config = config or GeometricConfig()
         self.vehicle = vehicle or VehicleParams()
         self.reference: ReferenceLine | None = None
@@ -177,6 +182,10 @@ class GeometricAvoider:
         }
 
     # -- plans ----------------------------------------------------------------------------------
+    def _labels(self, idx: np.ndarray) -> np.ndarray:
+        lab = np.asarray(idx, int) + self.first_label
+        return np.where(lab >= 0, lab, -1)
+
     def _require_reference(self) -> ReferenceLine:
         if self.reference is None:
             raise RuntimeError("GeometricAvoider has no reference; call set_reference() first")
@@ -187,7 +196,7 @@ class GeometricAvoider:
         pos, times, idx, vel = ref.onward(s_now, t)
         first_v = enu_to_ned(ref.velocity) if len(idx) else np.zeros(3)
         return Plan(t, np.vstack([enu_to_ned(ref.point(s_now)), pos]), np.concatenate([[t], times]),
-                    np.concatenate([[-1], idx]), PlanStatus.OK, np.vstack([first_v, vel]), self.name)
+                    np.concatenate([[-1], self._labels(idx)]), PlanStatus.OK, np.vstack([first_v, vel]), self.name)
 
     def _hover_plan(self, t: float, pos_ned: np.ndarray) -> Plan:
         return Plan(t, np.asarray(pos_ned, float)[None].copy(), np.array([t]), np.array([-1]),
@@ -206,7 +215,7 @@ class GeometricAvoider:
         pos = [enu_to_ned(ref.point(s_now))[None]] * lead + [enu_to_ned(pts), tail_pos]
         vels = [enu_to_ned(ref.velocity)[None]] * lead + [enu_to_ned(vel), tail_vel]
         return Plan(t, np.vstack(pos), np.concatenate([[t]] * lead + [times, tail_t]),
-                    np.concatenate([[-1]] * lead + [np.full(n, -1), tail_idx]), PlanStatus.OK,
+                    np.concatenate([[-1]] * lead + [np.full(n, -1), self._labels(tail_idx)]), PlanStatus.OK,
                     np.vstack(vels), self.name)
 
     def _with_diagnostics(self, plan: Plan, diag: dict, t_start: float) -> Plan:

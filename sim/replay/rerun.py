@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from shapely.geometry import Polygon
 
+from aircraft.registry import get_airframe
 from avoidance.factory import make_planner
 from avoidance.planner import Planner, Threats
 from avoidance.threats import IntruderTrack, SphereThreat, StormSnapshot
@@ -69,7 +70,8 @@ def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> 
     o = scenario.origin
     origin = GeoPoint(float(np.degrees(o.lat)), float(np.degrees(o.lon)), o.altitude)
     mission = mission_from_config(cfg, origin)
-    planner = factory(mission) if factory else make_planner(cfg.planner.type, mission)
+    kind = get_airframe(cfg.aircraft).kind
+    planner = factory(mission) if factory else make_planner(cfg.planner.type, mission, kind, cfg.planner.options)
     est = log.topic(f"/{vehicle}/est/state")
     threats = log.topic(f"/{vehicle}/threats")
     plans = log.topic(f"/{vehicle}/plan")
