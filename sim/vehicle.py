@@ -32,6 +32,7 @@ from sim.frames import GeoPoint, geodetic_to_ned, ned_to_geodetic
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
 from sim.mavlink.commands import Arm, MissionUpload, PositionTarget, SetMode
 from sim.mcap_log import McapLog
+from sim.planner_log import PlannerLogger
 from sim.replay.trace import TraceRecorder
 from sim.scheduler import LockstepScheduler, Stage
 from sim.vehicle_log import VehicleLogWriter
@@ -68,6 +69,7 @@ class Vehicle:
         self.airframe = af = get_airframe(cfg.aircraft)
         self.log = log
         self.logw = VehicleLogWriter(log, cfg.name)
+        self.planner_log = PlannerLogger(log, cfg.name, origin)
         self.plant = JSBSimPlant(af.jsbsim_model, 1.0 / af.plant_hz, origin, af.folder)
         apply_steady_wind(self.plant, wind)
         ini = cfg.initial
@@ -208,6 +210,7 @@ class Vehicle:
         self.follower.set_plan(plan)
         self.logw.threats(t, self.threats)
         self.logw.plan(plan, latency)
+        self.planner_log.write(self.planner, plan, t)
         self.recorder.latency(latency)
 
     def _event(self, t: float, text: str) -> None:
