@@ -51,9 +51,15 @@ def main_threat(index: int, start: np.ndarray, ref_vel: np.ndarray, threats: Thr
 
 
 def find_main_threat(start: np.ndarray, ref_vel: np.ndarray, threats: ThreatArrays, r_uav: float,
-                     horizon: float) -> MainThreat | None:
+                     horizon: float, geometry_horizon: float | None = None) -> MainThreat | None:
     """The earliest threat whose CPA miss distance within ``horizon`` [s] is below its (grown)
-    radius + ``r_uav`` [m]; ties broken by the smaller miss. None when nothing conflicts."""
+    radius + ``r_uav`` [m]; ties broken by the smaller miss. None when nothing conflicts.
+
+    The main threat's collision point and enclosing sphere come from its CPA clipped to
+    ``geometry_horizon`` [s] (default ``horizon``; the planner passes the time to the reference
+    end): a threat detected at the edge of the look-ahead (a static sphere whose surface is
+    within reach while its centre is beyond it) would otherwise get p_c at the horizon and an
+    enclosing radius swollen by the clipped miss distance."""
     if len(threats) == 0:
         return None
     t, miss = cpa(start, ref_vel, threats, horizon)
@@ -61,4 +67,5 @@ def find_main_threat(start: np.ndarray, ref_vel: np.ndarray, threats: ThreatArra
     if not conflict.any():
         return None
     idx = np.flatnonzero(conflict)
-    return main_threat(int(idx[np.lexsort((miss[idx], t[idx]))[0]]), start, ref_vel, threats, horizon)
+    return main_threat(int(idx[np.lexsort((miss[idx], t[idx]))[0]]), start, ref_vel, threats,
+                       horizon if geometry_horizon is None else max(geometry_horizon, horizon))

@@ -125,8 +125,9 @@ class GeometricAvoider:
         base = {"cross_track_m": cross, "ignored_threats": ignored, "replan_reason": replan}
         start = ref.point(s_e)
         ta = ThreatArrays.of(core)
-        horizon = min(cfg.conflict_horizon_s, (ref.length - s_e) / ref.speed)
-        main = find_main_threat(start, ref.velocity, ta, cfg.r_uav, horizon) if horizon > 0 else None
+        to_end = (ref.length - s_e) / ref.speed
+        horizon = min(cfg.conflict_horizon_s, to_end)
+        main = find_main_threat(start, ref.velocity, ta, cfg.r_uav, horizon, to_end) if horizon > 0 else None
         if main is None:
             return self._with_diagnostics(self._reference_plan(t, s_now), {**base, "status": "no_conflict"}, t_start)
         res = plan_avoidance(start, ref.x_hat, ref.speed, ta, main, cfg, self.vehicle)
