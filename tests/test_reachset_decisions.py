@@ -121,5 +121,10 @@ def test_planner_adapter_returns_ned_plan_record_and_scene():
     assert len(ent.lines[0].points) == len(av.last_decision.reference.positions)
     assert scene.SerializeToString()
     est_near = VehicleState(15.0, np.array([19.0, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0)
-    done = av.plan(est_near, Threats(), 15.0)
-    assert done.diagnostics["complete"] == 1 and done.labels[-1] == 0
+    near = av.plan(est_near, Threats(), 15.0)  # final approach: a leg ending exactly at the waypoint
+    assert near.diagnostics["complete"] == 0 and near.labels.tolist() == [-1, 0]
+    np.testing.assert_allclose(near.positions, [est_near.pos_ned, mission.waypoints[0]])
+    assert mission.mark_reached(0, 16.0)  # the follower passed it
+    done = av.plan(est_near, Threats(), 16.0)
+    assert done.diagnostics["complete"] == 1 and done.labels.tolist() == [0]
+    np.testing.assert_allclose(done.positions, mission.waypoints)

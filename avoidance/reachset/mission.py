@@ -70,6 +70,7 @@ class Decision:
     complete: bool = False
     runtime_s: float = 0.0
     reach_radius: float = 0.0  # waypoint-reached radius of the active segment [m]
+    threat_events: list[str] = field(default_factory=list)  # situation events in the grid
 
     @property
     def run(self) -> GridRun | None:
@@ -86,9 +87,13 @@ class MissionControl:
     """Navigation loop of one vehicle (spec §6.2, steps 1-15)."""
 
     def __init__(self, waypoints: np.ndarray, sma: SegmentedMovementAutomaton, cfg: AvoidanceConfig = AvoidanceConfig(),
-                 cache_dir: Path | None = None, restrict: Restriction | None = None):
+                 cache_dir: Path | None = None, restrict: Restriction | None = None, advance_on_reach: bool = True):
+        """``advance_on_reach``: step 1-2 (goal reached at the reach radius) done here; False when
+        the caller owns waypoint progress (the planner adapter, whose plan follower marks waypoints
+        reached within the mission's acceptance radius) and sets :attr:`goal` itself."""
         self.waypoints = np.asarray(waypoints, float).reshape(-1, 3)
         self.sma, self.cfg, self.cache_dir, self.restrict = sma, cfg, cache_dir, restrict
+        self.advance_on_reach = advance_on_reach
         self.goal = 0
         self.mode = Mode.NAVIGATION
         self.buffer: list[int] = []
@@ -116,7 +121,7 @@ class MissionControl:
         events: list[str] = []
         radius = self.cfg.mission.reach_radius_lengths * length
         # 1-2: waypoint reached -> next goal
-        while not self.complete and np.linalg.norm(s_now.pos - self.waypoints[self.goal]) <= radius:
+        while self.advance_on_reach and not self.complete and np.linalg.norm(s_now.pos - self.waypoints[self.goal]) <= radius:
             events.append(f"waypoint_reached:{self.goal}")
             self.goal += 1
         pose_now = GridPose(s_now.pos, float(s_now.att[2]))
@@ -146,7 +151,7 @@ class MissionControl:
             parts = plan.assessors[self.mode].assess(pose, s_next.t, threats)
         events += threat_events
         d = Decision(s_now.t, s_next.t, self.mode, events, self.goal, executing, self.buffer, pose, plan.grid,
-                     plan.trees[self.mode], reach_radius=radius)
+                     plan.trees[self.mode], reach_radius=radius, threat_events=list(threat_events))
         replan = self.cfg.mission.replan_policy == "every_frame" or bool(threat_events) or not self.buffer or self.mode == Mode.EMERGENCY
         if replan:
             self._run(d, plan, parts, goal_lcf)

@@ -20,7 +20,8 @@ import numpy as np
 from avoidance.planner import Plan, PlanStatus, Threats
 from avoidance.reachset.config import AvoidanceConfig
 from avoidance.reachset.frames import heading_from_yaw_ned
-from avoidance.reachset.mission import Decision, MissionControl, Restriction
+from avoidance.reachset.fusion import SpaceClass
+from avoidance.reachset.mission import Decision, MissionControl, Mode, Restriction
 from avoidance.reachset.movement import KinState, SegmentedMovementAutomaton
 from guidance.mission import Mission
 from sim.frames import enu_to_ned, ned_to_enu
@@ -35,10 +36,12 @@ class ReachSetAvoider:
     def __init__(self, mission: Mission, sma: SegmentedMovementAutomaton, cfg: AvoidanceConfig = AvoidanceConfig(),
                  cache_dir: Path | None = None, restrict: Restriction | None = None, heading_from_velocity: float = 0.5):
         self.mission = mission
-        self.control = MissionControl(ned_to_enu(mission.waypoints), sma, cfg, cache_dir, restrict)
+        self.control = MissionControl(ned_to_enu(mission.waypoints), sma, cfg, cache_dir, restrict, advance_on_reach=False)
         self.speed = float(mission.cruise_speed)
         self.heading_from_velocity = heading_from_velocity
         self.last_decision: Decision | None = None
+        self._last: Plan | None = None
+        self._last_goal = -1
 
     def kin_state(self, est: VehicleState, t: float) -> KinState:
         vel = ned_to_enu(est.vel_ned)
@@ -50,21 +53,16 @@ class ReachSetAvoider:
         return KinState(ned_to_enu(est.pos_ned), np.array([0.0, pitch, psi]), t, self.speed)
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
+        """One decision frame per movement period; called more often, the last plan is returned
+        until the frame's grid time t_{i+1} (the executing movement is then over)."""
+        if self._last is not None and self.last_decision is not None and t < self.last_decision.t_grid - 1e-6 \
+                and not self.mission.next_index > self._last_goal:
+            return self._last
         ctl = self.control
         ctl.goal = max(ctl.goal, self.mission.next_index)  # progress marked by the plan follower
         d = ctl.step(self.kin_state(estimate, t), threats)
         self.last_decision = d
-        ref = d.reference
-        ends = np.flatnonzero(ref.movement_end)
-        pos = enu_to_ned(ref.positions[ends])
-        times = ref.times[ends]
-        labels = np.full(len(pos), -1)
-        if not d.complete:
-            near = np.linalg.norm(ref.positions[ends] - ctl.waypoints[ctl.goal], axis=1)
-            if (near <= d.reach_radius).any():
-                labels[int(np.argmax(near <= d.reach_radius))] = ctl.goal
-        else:
-            labels[-1] = len(ctl.waypoints) - 1
+        pos, times, labels = self._vertices(d, estimate)
         vel = np.vstack([np.diff(pos, axis=0) / np.diff(times)[:, None], np.zeros((1, 3))]) if len(pos) > 1 else np.zeros((1, 3))
         run = d.run
         diag: dict[str, float | int | str] = {
@@ -72,4 +70,58 @@ class ReachSetAvoider:
             "category": d.runs[d.selected].categories.name if d.selected >= 0 else "",
             "feasible_nodes": int(run.fused.node_ok.sum()) if run is not None else 0,
             "buffer": "".join(str(m) for m in d.buffer), "runtime_ms": 1e3 * d.runtime_s, "complete": int(d.complete)}
-        return Plan(t, pos, times, labels, PlanStatus(d.status), vel, self.name, diag)
+        self._last = Plan(t, pos, times, labels, PlanStatus(d.status), vel, self.name, diag)
+        self._last_goal = self.mission.next_index
+        return self._last
+
+    def _vertices(self, d: Decision, estimate: VehicleState) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """NED vertices, times and labels of decision ``d``.
+
+        The movements end on a 1-movement-length lattice, so the mission's waypoint (acceptance
+        radius of the follower, usually below a movement length) is added exactly:
+        - complete: hold at the last waypoint (labelled);
+        - final approach (navigation mode, no threat in the grid, the estimate within the reach
+          radius of the goal): a direct leg from the estimate to the goal;
+        - otherwise the path up to its first movement end within the reach radius of the goal,
+          then the goal itself, if that last leg only crosses Free cells of the assessed grid.
+        The goal vertex carries the goal's mission index; every other vertex -1."""
+        ctl = self.control
+        speed = max(self.speed, 1e-6)
+        if d.complete:
+            last = len(ctl.waypoints) - 1
+            return enu_to_ned(ctl.waypoints[last:]), np.array([d.t]), np.array([last])
+        goal = ctl.waypoints[ctl.goal]
+        here = ned_to_enu(estimate.pos_ned)
+        dist = float(np.linalg.norm(goal - here))
+        if d.mode == Mode.NAVIGATION and not d.threat_events and dist <= d.reach_radius:
+            return (enu_to_ned(np.vstack([here, goal])), np.array([d.t, d.t + max(dist / speed, 1e-3)]),
+                    np.array([-1, ctl.goal]))
+        ref = d.reference
+        ends = np.flatnonzero(ref.movement_end)
+        gcf, times = ref.positions[ends], ref.times[ends]
+        labels = np.full(len(gcf), -1)
+        near = np.flatnonzero(np.linalg.norm(gcf - goal, axis=1) <= d.reach_radius)
+        if len(near) and self._leg_free(d, gcf[near[0]], goal):
+            k = int(near[0])
+            gap = float(np.linalg.norm(goal - gcf[k]))
+            gcf = np.vstack([gcf[:k + 1], goal])
+            times = np.append(times[:k + 1], times[k] + max(gap / speed, 1e-3))
+            labels = np.append(labels[:k + 1], ctl.goal)
+        return enu_to_ned(gcf), times, labels
+
+    @staticmethod
+    def _leg_free(d: Decision, a: np.ndarray, b: np.ndarray, spacing: float = 0.2) -> bool:
+        """Whether the straight leg a -> b (GCF) lies in Free cells of the decision's grid run
+        (a grid without threat events is all Free)."""
+        if not d.threat_events:
+            return True
+        run = d.run
+        if run is None or d.grid is None:
+            return False
+        n = max(int(np.ceil(np.linalg.norm(b - a) / spacing)), 1)
+        pts = a + np.linspace(0.0, 1.0, n + 1)[:, None] * (b - a)
+        lcf = d.pose.to_lcf(pts)
+        cells = d.grid.cell_index(lcf)
+        inside = cells >= 0
+        at_origin = np.linalg.norm(lcf, axis=1) < 1e-6  # the grid's own origin (no cell)
+        return bool((inside | at_origin).all() and (run.fused.space_class[cells[inside]] == SpaceClass.FREE).all())
