@@ -148,7 +148,7 @@ def plan_avoidance(start: np.ndarray, x_dir: np.ndarray, ref_speed: float, threa
     durations = sweep_durations(threats, main.index, main.t_cpa, t_max, cfg)
     clearance = candidate_clearance(cands.points, kin.seg_vel, kin.tau, kin.seg_dt, threats, cfg.dynamic_mode,
                                     durations, x_hat * ref_speed, t_max + cfg.rejoin_check_s)
-    available = np.all(clearance >= cfg.r_uav, axis=1)
+    available = np.all(clearance >= cfg.r_uav + cfg.select_margin_m, axis=1)
     t3 = clock()
     costs = evaluate_costs(cands, kin, np.flatnonzero(available), threats, durations, cfg, veh)
     t4 = clock()

@@ -83,6 +83,9 @@ class GeometricConfig:
     - ``dynamic_mode``: ``timed`` compares UAV and threat at the same time (over the candidate and
       the reference after the rejoin, up to the longest candidate + ``rejoin_check_s``);
       ``swept`` rejects a candidate near any point of a threat's collision path (thesis).
+    - ``select_margin_m`` [m]: extra clearance a candidate needs to be chosen (and a predicted
+      miss needs to count as a conflict); the committed path's re-check uses ``r_uav`` alone, so
+      the margin is also a hysteresis against track noise (closed loop; 0 = thesis).
     - ``main_threat_extension_s`` [s]: swept mode, extends a moving main threat past p_c.
     - ``k_sigma``: threat radius inflation in standard deviations of the track covariance.
     - ``start_shift_s`` [s]: latency compensation, start point moved ahead along the reference.
@@ -102,6 +105,7 @@ class GeometricConfig:
     uav_shape: str = "sphere_inscribed"
     dynamic_mode: str = "timed"
     rejoin_check_s: float = 2.0
+    select_margin_m: float = 0.0
     main_threat_extension_s: float = 0.0
     k_sigma: float = 0.0
     smoothness: str = "curvature"
@@ -134,7 +138,7 @@ class GeometricConfig:
         _require(0 < self.x_step_fraction <= 0.5, "x_step_fraction must be in (0, 0.5]")
         for name in ("min_sep_factor", "collision_radius", "rho", "g", "cmo_min_distance"):
             _positive(name, getattr(self, name))
-        for name in ("rejoin_check_s", "main_threat_extension_s", "k_sigma", "k_p", "start_shift_s",
+        for name in ("rejoin_check_s", "select_margin_m", "main_threat_extension_s", "k_sigma", "k_p", "start_shift_s",
                      "k1", "k2"):
             v = getattr(self, name)
             _require(math.isfinite(v) and v >= 0, f"{name} must be finite and >= 0, got {v!r}")

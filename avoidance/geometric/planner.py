@@ -127,7 +127,7 @@ class GeometricAvoider:
         ta = ThreatArrays.of(core)
         to_end = (ref.length - s_e) / ref.speed
         horizon = min(cfg.conflict_horizon_s, to_end)
-        main = find_main_threat(start, ref.velocity, ta, cfg.r_uav, horizon, to_end) if horizon > 0 else None
+        main = find_main_threat(start, ref.velocity, ta, cfg.r_uav + cfg.select_margin_m, horizon, to_end) if horizon > 0 else None
         if main is None:
             return self._with_diagnostics(self._reference_plan(t, s_now), {**base, "status": "no_conflict"}, t_start)
         res = plan_avoidance(start, ref.x_hat, ref.speed, ta, main, cfg, self.vehicle)

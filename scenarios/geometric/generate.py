@@ -83,7 +83,7 @@ def on_course(p_c, v, t_c=2.0):
 
 # Operational options shared by every file: the 2 m box as its circumscribed sphere (the
 # closed-loop clearance criterion), track covariance inflation, the default latency shift.
-BASE = {"uav_shape": "sphere_circumscribed", "k_sigma": 1.0}
+BASE = {"uav_shape": "sphere_circumscribed", "k_sigma": 1.0, "select_margin_m": 1.0}
 PC = (10.0, 0.0, 0.0)
 
 
@@ -118,7 +118,7 @@ FILES = {
                     s1(174, 1.5), {"conflict_horizon_s": 2.0}),
     "s2_climb_over": ("Thesis scenario 2: climbing at 20°, main threat from below (R = 1, v = (0, -2, 2)),\n"
                       "two threats flying parallel at ±3.5 m. Expected: climbs over the collision point.",
-                      s2(), {"conflict_horizon_s": 2.0}),
+                      s2(), {"conflict_horizon_s": 2.0, "select_margin_m": 0.3}),
     "s3a_static_main": ("Thesis scenario 3a: static main threat R = 2 on the reference, two threats moving\n"
                         "diagonally above the collision point. Expected: descends first.",
                         s3(False), {"conflict_horizon_s": 1.25}),
