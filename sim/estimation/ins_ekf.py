@@ -161,8 +161,9 @@ class InsEkf:
         self._acc_ned = np.zeros(3)
         self._rates = np.array(initial.rates_body, float)
         self.t = initial.t
-        self._c_at = np.full(3, np.inf)
+        self._c_at = (math.inf, math.inf, math.inf)
         self._c = np.eye(3)
+        self._refresh_c()
         self._p_static: float | None = None
         self._dp: float | None = None
 
@@ -173,12 +174,17 @@ class InsEkf:
         return r.T @ p_ned @ r
 
     def velocity_map(self) -> np.ndarray:
-        """``C`` at the current position estimate (local-NED velocity -> rate of the scenario
-        coordinates), cached until the estimate has moved ``_C_REFRESH_M``."""
-        p, a = self.nav.p, self._c_at
-        if abs(p[0] - a[0]) + abs(p[1] - a[1]) + abs(p[2] - a[2]) > _C_REFRESH_M:
-            self._c = self._geo.velocity_map(float(p[0]), float(p[1]), float(p[2]))
-            self._c_at = p.copy()
+        """``C`` (local-NED velocity -> rate of the scenario coordinates) near the current
+        position estimate: refreshed by the predictions once the estimate has moved
+        ``_C_REFRESH_M`` (C changes by ~2e-6 per 10 m)."""
+        return self._c
+
+    def _refresh_c(self) -> np.ndarray:
+        x, y, z = self.nav.p.tolist()
+        a = self._c_at
+        if abs(x - a[0]) + abs(y - a[1]) + abs(z - a[2]) > _C_REFRESH_M:
+            self._c = self._geo.velocity_map(x, y, z)
+            self._c_at = (x, y, z)
         return self._c
 
     # -- Estimator protocol ---------------------------------------------------------------------
@@ -213,7 +219,7 @@ class InsEkf:
         f = 0.5 * (prev.accel_body + z.accel_body)
         w = 0.5 * (prev.gyro_body + z.gyro_body)
         decay = math.exp(-dt / self.cfg.gnss_gm_tau_s)
-        c = self.velocity_map()
+        c = self._refresh_c()
         if self._numeric:
             phi = m.transition_numeric(self.nav, f, w, dt, decay, c_pos=c)
         nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity, c)
@@ -239,7 +245,7 @@ class InsEkf:
 
     def fuse_gnss(self, z: GnssFix) -> None:
         lag = self.t - z.t
-        c = self.velocity_map()
+        c = self._c
         h = lambda s: m.h_gnss(s, lag, self._acc_ned, c)  # noqa: E731
         H = m.jacobian_numeric(h, self.nav) if self._numeric else m.H_gnss(self._H_gnss, lag, c)
         self._fuse(np.concatenate((z.pos_ned, z.vel_ned)), h(self.nav), H, self._R_gnss)
@@ -267,7 +273,7 @@ class InsEkf:
         if dt <= 0.0:
             return
         decay = math.exp(-dt / self.cfg.gnss_gm_tau_s)
-        c = self.velocity_map()
+        c = self._refresh_c()
         nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity, c)
         phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay, c)
         self._acc_ned = r @ fh + self._gravity
@@ -292,7 +298,7 @@ class InsEkf:
             tz = type(z)
             if tz is GnssFix:
                 lag = self.t - z.t
-                c = self.velocity_map()
+                c = self._c
                 zs.append(z.pos_ned)
                 zs.append(z.vel_ned)
                 hs.append(m.h_gnss(nav, lag, self._acc_ned, c))
@@ -359,7 +365,7 @@ class InsEkf:
         """Estimate extrapolated from the filter time to ``t`` [s] (constant velocity, moving the
         scenario position along ``C v``)."""
         nav = self.nav
-        pos = nav.p + self.velocity_map() @ nav.v * (t - self.t) if t != self.t else nav.p.copy()
+        pos = nav.p + self._c @ nav.v * (t - self.t) if t != self.t else nav.p.copy()
         lat, lon, alt = self._geo.ned_to_geodetic(*pos)
         if self._dp is not None and self._p_static is not None:
             tas, eas = isa.airspeeds_from_dp(self._dp, self._p_static)
