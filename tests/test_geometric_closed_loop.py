@@ -81,3 +81,53 @@ def assert_clear_and_complete(result, log):
     assert "quad: mission complete" in events
     assert result.status == "completed"
     return cl
+
+
+def first_avoid(log: RunLog) -> dict:
+    evs = [e for e in avoidance_events(log) if e["status"] == "avoid"]
+    assert evs, "the avoider never chose a path"
+    return evs[0]
+
+
+def test_s1_160_solution_in_the_horizontal_plane_wider_for_the_larger_threat(tmp_path):
+    widths = {}
+    for name, radius in (("s1_160_r1", 1.0), ("s1_160_r1p5", 1.5)):
+        _, result, log = fly(tmp_path, name)
+        assert_clear_and_complete(result, log)
+        c = chosen(first_avoid(log))
+        assert c["alpha"] == pytest.approx(0.0, abs=1e-6)          # horizontal plane
+        widths[radius] = abs(c["omega"])
+    assert widths[1.5] > widths[1.0]
+
+
+def test_s2_climbs_over(tmp_path):
+    _, result, log = fly(tmp_path, "s2_climb_over")
+    assert_clear_and_complete(result, log)
+    ev = first_avoid(log)
+    c = chosen(ev)
+    assert ev["main_threat_id"] == "main" and c["theta"] == pytest.approx(90.0)
+    # the vehicle climbs faster than the 20° reference (5 sin 20° = 1.71 m/s) while avoiding
+    st = log.topic("/quad/truth/state")
+    during = (st.t >= ev["t"]) & (st.t <= ev["t"] + 4.0)
+    assert (-chosen(ev)["points"][:, 2]).max() > -chosen(ev)["points"][0, 2] + 3.0   # planned above
+    assert (-st["vel_ned"][during, 2]).max() > 5.0 * np.sin(np.radians(20.0)) + 0.25
+
+
+def test_s3a_static_main_descends_first(tmp_path):
+    _, result, log = fly(tmp_path, "s3a_static_main")
+    assert_clear_and_complete(result, log)
+    ev = first_avoid(log)
+    pts = chosen(ev)["points"]
+    mid = pts[len(pts) // 2]
+    assert -(mid[2] - pts[0][2]) < -1.0                       # below the reference at the peak
+    st = log.topic("/quad/truth/state")
+    h = -(st["pos_ned"][:, 2] - st["pos_ned"][0, 2])
+    during = (st.t >= ev["t"]) & (st.t <= ev["t"] + 4.0)
+    assert h[during].min() < -1.0 and h[during].max() < 0.5
+
+
+@pytest.mark.parametrize("name", ["s1_174_r1p5", "s3b_moving_main", "env1_tuning", "env4_tuning"])
+def test_more_encounters_stay_clear_and_complete(tmp_path, name):
+    _, result, log = fly(tmp_path, name)
+    assert_clear_and_complete(result, log)
+    assert first_avoid(log)["main_threat_id"] == "main"
