@@ -27,6 +27,15 @@ from sim.vehicle_log import NED_FRAME, write_map
 from sim.weather import WeatherService, storms_geojson
 
 
+def seed_streams(seed: int) -> tuple:
+    """The run's independent seed streams: vehicles, surveillance sensing, weather."""
+    return tuple(np.random.SeedSequence(seed).spawn(3))
+
+
+def weather_seed(weather_ss: np.random.SeedSequence) -> int:
+    return int(weather_ss.generate_state(1)[0])
+
+
 class World:
     def __init__(self, scenario: Scenario, log: McapLog):
         self.scenario = scenario
@@ -34,7 +43,7 @@ class World:
         o = scenario.origin
         self.origin = GeoPoint(math.degrees(o.lat), math.degrees(o.lon), o.altitude)
         n = len(scenario.vehicle)
-        vehicle_ss, sensing_ss, weather_ss = np.random.SeedSequence(scenario.seed).spawn(3)
+        vehicle_ss, sensing_ss, weather_ss = seed_streams(scenario.seed)
         vehicle_seeds = vehicle_ss.generate_state(n, dtype=np.uint32)
         self.vehicles = [Vehicle(v, self.origin, log, int(s), scenario.wind)
                          for v, s in zip(scenario.vehicle, vehicle_seeds)]
@@ -46,7 +55,7 @@ class World:
         has_traffic = n > 1 or bool(self.objects)
         self.perception = ({v.name: Perception(scenario.surveillance, np.random.default_rng(ss))
                             for v, ss in zip(self.vehicles, sensing_ss.spawn(n))} if has_traffic else {})
-        self.weather = (WeatherService(scenario.weather, int(weather_ss.generate_state(1)[0]))
+        self.weather = (WeatherService(scenario.weather, weather_seed(weather_ss))
                         if scenario.weather is not None else None)
         self.faults = FaultSchedule(scenario.fault, {v.name: v for v in self.vehicles}, log)
         write_map(log, self.obstacles, self.fences, self.origin)

@@ -27,15 +27,22 @@ class MetricsWorld:
     geofences: tuple = ()
     well_clear_h_m: float = 2000 * FT
     well_clear_v_m: float = 250 * FT
+    weather: object | None = None  # sim.weather.WeatherService: the true storm field
 
     @classmethod
     def from_scenario(cls, scenario) -> "MetricsWorld":
         from sim.environment import geofence, obstacle_prism
 
+        from sim.weather import WeatherService
+        from sim.world import seed_streams, weather_seed
+
         alt0 = scenario.origin.altitude
         m = scenario.metrics
+        weather = (WeatherService(scenario.weather, weather_seed(seed_streams(scenario.seed)[2]))
+                   if scenario.weather is not None else None)
         return cls(tuple(obstacle_prism(o, alt0) for o in scenario.obstacle),
-                   tuple(geofence(g, alt0) for g in scenario.geofence), m.well_clear_horizontal, m.well_clear_vertical)
+                   tuple(geofence(g, alt0) for g in scenario.geofence), m.well_clear_horizontal, m.well_clear_vertical,
+                   weather)
 
 # straight flight counts from this long after the last leg capture / carrot stop [s]
 SETTLE_S = {"fixed_wing": 60.0, "multirotor": 2.0}
@@ -136,6 +143,26 @@ def obstacle_metrics(tr: VehicleTrace, world: MetricsWorld) -> dict:
     return out
 
 
+STORM_CHECK_S = 10.0  # storms are checked against the track this often [s]
+
+
+def storm_metrics(tr: VehicleTrace, world: MetricsWorld) -> dict:
+    """Horizontal distance to the nearest TRUE storm cell at the vehicle's position and time
+    (checked every ``STORM_CHECK_S``; 0 inside a cell), its minimum with time, and the time
+    spent inside cells (storms reach from the ground to above the HAPS)."""
+    if world.weather is None or not len(tr.t):
+        return {}
+    idx = np.unique(np.searchsorted(tr.t, np.arange(tr.t[0], tr.t[-1] + 1e-9, STORM_CHECK_S)).clip(0, len(tr.t) - 1))
+    dist = np.full(len(idx), np.inf)
+    for j, i in enumerate(idx):
+        cells = world.weather.truth(float(tr.t[i])).cells
+        if cells:
+            dist[j] = float(np.min(shapely.distance(shapely.points(tr.pos_ned[i, :2]), np.array(cells, dtype=object))))
+    k = int(np.argmin(dist))
+    return {"min_distance_m": float(dist[k]) if np.isfinite(dist[k]) else None, "t": float(tr.t[idx[k]]),
+            "time_inside_s": float(np.sum(dist == 0.0) * STORM_CHECK_S)}
+
+
 def well_clear_losses(a: VehicleTrace, b: VehicleTrace, world: MetricsWorld) -> list[dict]:
     """Intervals where two vehicles are inside each other's well-clear volume: start, end [s] and
     the smallest 3-D distance in it [m]."""
@@ -184,6 +211,7 @@ def run_metrics(traces: list[VehicleTrace], world: MetricsWorld = MetricsWorld()
             "mission": mission_metrics(tr), "tracking": tracking_metrics(tr),
             "planner_latency": latency_metrics(tr), "clearance": obstacle_metrics(tr, world),
             "control_effort": control_effort(tr), "estimation": estimation_metrics(tr),
+            "storms": storm_metrics(tr, world),
         }
     for a, b in itertools.combinations(traces, 2):
         losses = well_clear_losses(a, b, world)
