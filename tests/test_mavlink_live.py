@@ -85,7 +85,7 @@ def test_gcs_uploads_a_mission_that_the_vehicle_flies(tmp_path):
     port = _free_port()
     data = tomllib.loads((ROOT / "scenarios" / "quad_square_mission.toml").read_text())
     data.update(duration=60.0, stop_when_complete=True,
-                mavlink={"enabled": True, "base_port": port, "rate_hz": 5.0, "pace": 8.0})
+                mavlink={"enabled": True, "base_port": port, "rate_hz": 5.0, "pace": 4.0})
     v = data["vehicle"][0]
     v["mission"]["land"] = False
     v["mission"]["waypoints"] = [{"north": 0, "east": 0, "altitude": 415, "hold": "120 s"}]
