@@ -65,7 +65,7 @@ def test_haps_mission_in_wind_and_turbulence(tmp_path):
     assert result.status == "completed"
     tr = log_metrics(log)["vehicles"]["haps"]["tracking"]
     # turbulence moves the airspeed by a few m/s at once; the autopilot holds it on average
-    assert tr["altitude_error_m"]["max_abs"] <= 50.0 and tr["airspeed_error_mps"]["rms"] <= 1.0
+    assert tr["altitude_error_m"]["max_abs"] <= 50.0 and tr["airspeed_error_mps"]["rms"] <= 1.5
 
 
 def test_multirotor_mission_in_wind(tmp_path):
