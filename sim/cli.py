@@ -1,7 +1,7 @@
 """``cosim``: run scenarios, inspect logs.
 
-Exit codes: 0 success, 1 the run failed (its log is still written), 2 bad input (scenario or
-log file), 130 interrupted.
+Exit codes: 0 success, 1 the run failed (its log is still written), 2 bad input (scenario,
+batch or log file: one line naming the file and the field), 130 interrupted.
 """
 
 from __future__ import annotations
@@ -39,13 +39,9 @@ def _fmt_duration(s: float) -> str:
 
 
 def cmd_run(args) -> int:
-    from sim.scenario import ScenarioError, load_scenario
+    from sim.scenario import load_scenario
 
-    try:
-        scenario, text = load_scenario(args.scenario)
-    except ScenarioError as exc:
-        _error(exc)
-        return EXIT_BAD_INPUT
+    scenario, text = load_scenario(args.scenario)
     from sim.runner import RunFailed, run_scenario
     path = Path(args.output) if args.output else Path("logs") / f"{scenario.name}.mcap"
     duration = args.duration if args.duration is not None else scenario.duration
@@ -88,13 +84,9 @@ def _print_summary(r) -> None:
 
 
 def cmd_info(args) -> int:
-    from sim.mcap_read import LogReadError, read_info
+    from sim.mcap_read import read_info
 
-    try:
-        info = read_info(args.log)
-    except LogReadError as exc:
-        _error(exc)
-        return EXIT_BAD_INPUT
+    info = read_info(args.log)
     run = info.metadata.get("run", {})
     res = info.metadata.get("result", {})
     out.print(f"{info.path}", soft_wrap=True, highlight=False)
@@ -115,24 +107,15 @@ def cmd_info(args) -> int:
 
 
 def cmd_replay(args) -> int:
-    from sim.mcap_read import LogReadError
     from sim.replay.report import write_report
 
     log = Path(args.log)
     out_dir = Path(args.output) if args.output else log.with_name(f"{log.stem}_report")
-    try:
-        report, metrics = write_report(log, out_dir)
-    except LogReadError as exc:
-        _error(exc)
-        return EXIT_BAD_INPUT
+    report, metrics = write_report(log, out_dir)
     if args.rerun_planner:
         from sim.replay.rerun import rerun_planner
 
-        try:
-            rep = rerun_planner(log, args.rerun_planner)
-        except LogReadError as exc:
-            _error(exc)
-            return EXIT_BAD_INPUT
+        rep = rerun_planner(log, args.rerun_planner)
         out.print(f"planner re-run ({rep.vehicle}, {rep.planner}): {rep.same}/{rep.plans} plans identical; "
                   f"max vertex difference {rep.max_position_diff_m:.3g} m / {rep.max_time_diff_s:.3g} s",
                   soft_wrap=True, highlight=False)
@@ -149,14 +132,9 @@ def cmd_replay(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from sim.mcap_read import LogReadError
     from sim.replay.compare import compare_logs
 
-    try:
-        rows = compare_logs(args.a, args.b)
-    except LogReadError as exc:
-        _error(exc)
-        return EXIT_BAD_INPUT
+    rows = compare_logs(args.a, args.b)
     t = Table("metric", "A", "B", "B - A", title=f"A = {args.a}   B = {args.b}", title_justify="left")
     for k, x, y, d in rows:
         if args.changed and x == y:
@@ -171,13 +149,9 @@ def _cell(v) -> str:
 
 
 def cmd_batch(args) -> int:
-    from sim.batch import BatchError, load_batch, run_batch
+    from sim.batch import load_batch, run_batch
 
-    try:
-        name, runs = load_batch(args.batch, args.output)
-    except BatchError as exc:
-        _error(exc)
-        return EXIT_BAD_INPUT
+    name, runs = load_batch(args.batch, args.output)
     out_dir = Path(args.output) if args.output else Path("logs") / "batch" / name
     executor = None
     client = None
@@ -211,13 +185,9 @@ def cmd_batch(args) -> int:
 
 
 def cmd_validate(args) -> int:
-    from sim.scenario import ScenarioError, load_scenario
+    from sim.scenario import load_scenario
 
-    try:
-        scenario, _ = load_scenario(args.scenario)
-    except ScenarioError as exc:
-        _error(exc)
-        return EXIT_BAD_INPUT
+    scenario, _ = load_scenario(args.scenario)
     out.print(f"{args.scenario}: ok ({scenario.name}, {len(scenario.vehicle)} vehicle(s))")
     return EXIT_OK
 
@@ -271,8 +241,15 @@ def main(argv: list[str] | None = None) -> int:
 
         return tune_main(argv[1:])
     args = build_parser().parse_args(argv)
+    from sim.batch import BatchError
+    from sim.mcap_read import LogReadError
+    from sim.scenario import ScenarioError
+
     try:
         return args.fn(args)
+    except (ScenarioError, LogReadError, BatchError) as exc:  # bad input: one line, exit 2
+        _error(exc)
+        return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         err.print("interrupted")
         return EXIT_INTERRUPTED
