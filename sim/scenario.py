@@ -18,6 +18,7 @@ from shapely.geometry import Polygon
 
 from aircraft.registry import get_airframe
 from avoidance.factory import PlannerConfigError, check_planner
+from sim.sensors.lidar import LidarConfig
 from sim.units import Angle, Speed, quantity
 
 SCHEMA_VERSION = 1
@@ -97,6 +98,9 @@ class Vehicle(_Strict):
     gains: Path | None = None
     # "ekf": sensor models + INS/GNSS EKF, the loop closes on estimates; "perfect": ideal sensors
     estimator: Literal["ekf", "perfect"] = "ekf"
+    # a scanning LiDAR for the planners (sim/sensors/lidar.py LidarConfig fields; ~4 ms a
+    # 21,960-ray scan, so opt-in)
+    lidar: LidarConfig | None = None
     initial: Initial
     mission: Mission
     planner: PlannerConfig = PlannerConfig()

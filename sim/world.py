@@ -21,6 +21,8 @@ from sim.mcap_log import McapLog
 from sim.perception import Perception
 from sim.scenario import Scenario
 from sim.scheduler import LockstepScheduler, Stage
+from sim.sensors.lidar import Lidar
+from sim.sensors.truth import TruthSampler
 from sim.traffic import TrafficObject
 from sim.vehicle import Vehicle
 from sim.vehicle_log import NED_FRAME, write_map
@@ -28,8 +30,8 @@ from sim.weather import WeatherService, storms_geojson
 
 
 def seed_streams(seed: int) -> tuple:
-    """The run's independent seed streams: vehicles, surveillance sensing, weather."""
-    return tuple(np.random.SeedSequence(seed).spawn(3))
+    """The run's independent seed streams: vehicles, surveillance sensing, weather, LiDARs."""
+    return tuple(np.random.SeedSequence(seed).spawn(4))
 
 
 def weather_seed(weather_ss: np.random.SeedSequence) -> int:
@@ -43,7 +45,7 @@ class World:
         o = scenario.origin
         self.origin = GeoPoint(math.degrees(o.lat), math.degrees(o.lon), o.altitude)
         n = len(scenario.vehicle)
-        vehicle_ss, sensing_ss, weather_ss = seed_streams(scenario.seed)
+        vehicle_ss, sensing_ss, weather_ss, lidar_ss = seed_streams(scenario.seed)
         vehicle_seeds = vehicle_ss.generate_state(n, dtype=np.uint32)
         self.vehicles = [Vehicle(v, self.origin, log, int(s), scenario.wind)
                          for v, s in zip(scenario.vehicle, vehicle_seeds)]
@@ -58,6 +60,8 @@ class World:
         self.weather = (WeatherService(scenario.weather, weather_seed(weather_ss))
                         if scenario.weather is not None else None)
         self.faults = FaultSchedule(scenario.fault, {v.name: v for v in self.vehicles}, log)
+        self.lidars = {v.name: (Lidar(c.lidar, self.obstacles, np.random.default_rng(ss)), TruthSampler(v.plant))
+                       for v, c, ss in zip(self.vehicles, scenario.vehicle, lidar_ss.spawn(n)) if c.lidar is not None}
         write_map(log, self.obstacles, self.fences, self.origin)
         log.metadata("vehicles", {v.name: v.airframe.kind for v in self.vehicles})
 
@@ -74,6 +78,9 @@ class World:
             sched.add_task("world.sense", log_hz, Stage.SENSE, self.sense)
         for v in self.vehicles:
             v.schedule(sched, log_hz)
+            if v.name in self.lidars:
+                sched.add_task(f"{v.name}.lidar", self.lidars[v.name][0].cfg.rate_hz, Stage.SENSE,
+                               lambda t, v=v: self._scan(v, t))
         if self.objects:
             sched.add_task("world.log", log_hz, Stage.LOG, self._log_objects)
 
@@ -95,6 +102,12 @@ class World:
         for v in self.vehicles:
             traffic = {k: x for k, x in truths.items() if k != v.name} | objects
             v.threats.intruders = self.perception[v.name].update(t, traffic)
+
+    def _scan(self, v: Vehicle, t: float) -> None:
+        """A LiDAR sweep cast from the true pose, handed on placed with the ESTIMATED pose."""
+        lidar, truth = self.lidars[v.name]
+        for ret in lidar.poll(truth.sample(v.plant.truth())):
+            v.threats.lidar = ret.to_scan(v.estimate)
 
     def _lonlat(self, coords) -> list[list[float]]:
         lat, lon, _ = ned_to_geodetic([(n, e, 0.0) for n, e in coords], self.origin)
