@@ -62,7 +62,10 @@ class MultirotorPlanFollower:
         self._leg_au: tuple[np.ndarray, np.ndarray] | None = None
 
     def set_waypoint_attributes(self, hold_s: dict[int, float], yaw_rad: dict[int, float]) -> None:
+        """New waypoint holds and yaws (a new mission); a hold under way ends with the old one."""
         self.hold_s, self.yaw_rad = hold_s, yaw_rad
+        self._hold_until = -math.inf
+        self._arrived = False
 
     def set_plan(self, plan: Plan) -> None:
         """Follow ``plan``, continuing from where the carrot is (projected onto the new plan)."""

@@ -43,6 +43,7 @@ class Gcs(threading.Thread):
         self.positions = []
         self.ack = None
         self.error = None
+        self.hold_off_s = 0.0
 
     def recv(self, kinds, timeout=10.0):
         end = time.monotonic() + timeout
@@ -60,6 +61,7 @@ class Gcs(threading.Thread):
         try:
             self.heartbeat = self.recv({"HEARTBEAT"})
             self.recv({"GLOBAL_POSITION_INT"})
+            time.sleep(self.hold_off_s)
             # garbage first: the run must survive it and still take the mission
             vehicle = next(iter(self.conn.clients))  # the address the vehicle sends from
             self.conn.port.sendto(b"\xfd\x05garbage-not-mavlink", vehicle)
@@ -90,6 +92,7 @@ def test_gcs_uploads_a_mission_that_the_vehicle_flies(tmp_path):
     v["mission"]["land"] = False
     v["mission"]["waypoints"] = [{"north": 0, "east": 0, "altitude": 415, "hold": "120 s"}]
     gcs = Gcs(port)
+    gcs.hold_off_s = 2.0  # upload while the vehicle already holds at its first waypoint (the hold must end)
     gcs.start()
     path = tmp_path / "mav.mcap"
     result = run_scenario(parse_scenario(data, "mavlink test"), path)
@@ -101,7 +104,7 @@ def test_gcs_uploads_a_mission_that_the_vehicle_flies(tmp_path):
     log = RunLog(path)
     events = [text for _, text in log.events()]
     assert "quad: mission uploaded: 3 waypoints, mode AUTO" in events
-    assert [e for e in events if "waypoint" in e and e.endswith("reached")] == [
+    assert [e for e in events if "waypoint" in e and e.endswith("/3 reached")] == [
         f"quad: waypoint {k}/3 reached" for k in (1, 2, 3)]
     assert result.status == "completed"
     assert any("mavlink" in e and "garbage" in e for e in events)
