@@ -116,6 +116,7 @@ class JSBSimPlant:
         self.fdm.set_dt(self.dt)
         pm = self.fdm.get_property_manager()
         self._truth_nodes = [pm.get_node(p, False) for p in _TRUTH_PROPS]
+        self._truth: VehicleState | None = None  # the last truth read, valid while sim time stands
 
     @property
     def warnings(self) -> list[str]:
@@ -161,9 +162,11 @@ class JSBSimPlant:
         if not self._guard(f.run_ic, "run the initial conditions"):
             raise PlantError(self._with_log(f"{self.model}: run_ic failed"))
         f.get_propulsion().init_running(-1)
+        self._truth = None
 
     def trim(self, mode: int = 1) -> None:
         """JSBSim trim (1 = full longitudinal + lateral); raises PlantError with the reason."""
+        self._truth = None
         try:
             self.fdm["simulation/do_simple_trim"] = mode
         except jsbsim.TrimFailureError as exc:
@@ -185,11 +188,14 @@ class JSBSimPlant:
         return self.fdm.get_sim_time()
 
     def truth(self) -> VehicleState:
-        """True state in the scenario frame (SI)."""
+        """True state in the scenario frame (SI); read once per sim time (estimator, sensing and
+        logging of one tick share it; callers must not modify it)."""
+        if self._truth is not None and self._truth.t == self.time:
+            return self._truth
         (lat, lon, h_ft, vn, ve, vd, phi, theta, psi, p, q, r, vt, veas, alpha, beta) = (
             n.get_double_value() for n in self._truth_nodes)
         alt = h_ft * FT
-        return VehicleState(
+        self._truth = VehicleState(
             t=self.time,
             pos_ned=np.array(self._frame.ned(lat, lon, alt)),
             vel_ned=np.array([vn * FT, ve * FT, vd * FT]),
@@ -198,3 +204,4 @@ class JSBSimPlant:
             alt_msl_m=alt, lat_deg=lat, lon_deg=lon,
             tas_mps=vt * FT, eas_mps=veas * FT, alpha_rad=alpha, beta_rad=beta,
         )
+        return self._truth

@@ -8,6 +8,7 @@ Positions are local NED offsets from ``origin`` (north, east [m]) and altitude M
 
 from __future__ import annotations
 
+import math
 import tomllib
 from datetime import datetime, timezone
 from pathlib import Path
@@ -18,6 +19,7 @@ from shapely.geometry import Polygon
 
 from aircraft.registry import get_airframe
 from avoidance.factory import PlannerConfigError, check_planner
+from sim.frames import GeoPoint
 from sim.sensors.lidar import LidarConfig
 from sim.units import Angle, Speed, quantity
 
@@ -368,6 +370,12 @@ class Scenario(_Strict):
         if dup:
             raise ValueError(f"obstacle/geofence ids must be unique, repeated: {', '.join(dup)}")
         return self
+
+    @property
+    def origin_point(self) -> GeoPoint:
+        """The origin as a WGS84 point in degrees (the local NED frame's origin)."""
+        o = self.origin
+        return GeoPoint(math.degrees(o.lat), math.degrees(o.lon), o.altitude)
 
     @property
     def epoch_ns(self) -> int:

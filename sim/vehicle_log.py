@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
 from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.GeoJSON_pb2 import GeoJSON
@@ -31,12 +32,22 @@ _HALF_SQRT2 = math.sqrt(0.5)
 
 
 def state_dict(s: VehicleState) -> dict:
+    """A state as the ``cosim.VehicleState`` log message (plain floats and lists)."""
     return {
         "t": s.t, "pos_ned": s.pos_ned.tolist(), "vel_ned": s.vel_ned.tolist(),
         "euler": s.euler.tolist(), "rates_body": s.rates_body.tolist(),
         "alt_msl_m": s.alt_msl_m, "lat_deg": s.lat_deg, "lon_deg": s.lon_deg,
         "tas_mps": s.tas_mps, "eas_mps": s.eas_mps, "alpha_rad": s.alpha_rad, "beta_rad": s.beta_rad,
     }
+
+
+def state_from_dict(d: dict) -> VehicleState:
+    """A logged ``cosim.VehicleState`` message (plain dict) back into a VehicleState."""
+    vec = {k: np.asarray(d[k], float) for k in ("pos_ned", "vel_ned", "euler", "rates_body")}
+    return VehicleState(t=float(d["t"]), alt_msl_m=float(d["alt_msl_m"]), lat_deg=float(d["lat_deg"]),
+                        lon_deg=float(d["lon_deg"]), tas_mps=float(d.get("tas_mps", 0.0)),
+                        eas_mps=float(d.get("eas_mps", 0.0)), alpha_rad=float(d.get("alpha_rad", 0.0)),
+                        beta_rad=float(d.get("beta_rad", 0.0)), **vec)
 
 
 def threats_dict(t: float, th) -> dict:

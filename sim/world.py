@@ -16,7 +16,7 @@ from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from sim import log_schemas as S
 from sim.environment import geofence, obstacle_prism
 from sim.faults import FaultSchedule
-from sim.frames import GeoPoint, ned_to_geodetic
+from sim.frames import ned_to_geodetic
 from sim.mcap_log import McapLog
 from sim.perception import Perception
 from sim.scenario import Scenario
@@ -42,8 +42,7 @@ class World:
     def __init__(self, scenario: Scenario, log: McapLog):
         self.scenario = scenario
         self.log = log
-        o = scenario.origin
-        self.origin = GeoPoint(math.degrees(o.lat), math.degrees(o.lon), o.altitude)
+        self.origin = scenario.origin_point
         n = len(scenario.vehicle)
         vehicle_ss, sensing_ss, weather_ss, lidar_ss = seed_streams(scenario.seed)
         vehicle_seeds = vehicle_ss.generate_state(n, dtype=np.uint32)

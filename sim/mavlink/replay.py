@@ -36,7 +36,7 @@ from sim.mavlink.mission import Waypoint
 from sim.mavlink.pacing import WallClockPacer
 from sim.mcap_read import LogReadError, iter_messages, read_attached_scenario, read_info
 from sim.scenario import Scenario
-from sim.state import VehicleState
+from sim.vehicle_log import state_from_dict
 
 
 @dataclass
@@ -52,15 +52,6 @@ class ReplayResult:
     complete: bool = True
 
 
-def state_from_dict(d: dict) -> VehicleState:
-    """A logged cosim.VehicleState message (plain dict) back into a VehicleState."""
-    vec = {k: np.asarray(d[k], float) for k in ("pos_ned", "vel_ned", "euler", "rates_body")}
-    return VehicleState(t=float(d["t"]), alt_msl_m=float(d["alt_msl_m"]), lat_deg=float(d["lat_deg"]),
-                        lon_deg=float(d["lon_deg"]), tas_mps=float(d.get("tas_mps", 0.0)),
-                        eas_mps=float(d.get("eas_mps", 0.0)), alpha_rad=float(d.get("alpha_rad", 0.0)),
-                        beta_rad=float(d.get("beta_rad", 0.0)), **vec)
-
-
 def _attached_scenario(path: Path, event: EventFn) -> Scenario | None:
     """The scenario attached to the log, or ``None`` (with a warning) if absent or unreadable."""
     try:
@@ -72,10 +63,6 @@ def _attached_scenario(path: Path, event: EventFn) -> Scenario | None:
     if sc is None:
         event("replay: the log has no scenario.toml attachment; origin taken from the first state", "warning")
     return sc
-
-
-def _scenario_origin(sc: Scenario) -> GeoPoint:
-    return GeoPoint(math.degrees(sc.origin.lat), math.degrees(sc.origin.lon), sc.origin.altitude)
 
 
 def _mission(sc: Scenario, name: str, origin: GeoPoint) -> list[Waypoint]:
@@ -106,7 +93,7 @@ def replay_to_gcs(path: str | Path, *, speed: float | None = 1.0, gcs_host: str 
     if unknown:
         raise ValueError(f"{path}: no vehicle {', '.join(unknown)} in the log (has: {', '.join(all_names)})")
     sc = _attached_scenario(path, event)
-    origin = _scenario_origin(sc) if sc is not None else None
+    origin = sc.origin_point if sc is not None else None
     kinds = {v.name: get_airframe(v.aircraft).kind for v in sc.vehicle} if sc is not None else {}
     result = ReplayResult(states={n: 0 for n in names})
     links: dict[str, VehicleLink] = {}

@@ -19,10 +19,9 @@ from avoidance.factory import make_planner
 from avoidance.planner import Planner, Threats
 from avoidance.threats import IntruderTrack, SphereThreat, StormSnapshot
 from guidance.mission import Mission
-from sim.frames import GeoPoint
 from sim.mcap_read import LogReadError, read_attached_scenario
 from sim.replay.runlog import RunLog
-from sim.state import VehicleState
+from sim.vehicle_log import state_from_dict
 
 PlannerFactory = Callable[[Mission], Planner]
 
@@ -37,12 +36,6 @@ class RerunReport:
     max_time_diff_s: float = 0.0
     first_difference_t: float | None = None
     differences: list[str] = field(default_factory=list)  # a line per differing plan (first 20)
-
-
-def _state(d: dict) -> VehicleState:
-    return VehicleState(d["t"], np.asarray(d["pos_ned"]), np.asarray(d["vel_ned"]), np.asarray(d["euler"]),
-                        np.asarray(d["rates_body"]), d["alt_msl_m"], d["lat_deg"], d["lon_deg"], d["tas_mps"],
-                        d["eas_mps"], d["alpha_rad"], d["beta_rad"])
 
 
 def _threats(d: dict) -> Threats:
@@ -67,9 +60,7 @@ def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> 
     cfg = next((v for v in scenario.vehicle if v.name == vehicle), None)
     if cfg is None:
         raise LogReadError(f"{path}: no vehicle {vehicle!r} in the attached scenario")
-    o = scenario.origin
-    origin = GeoPoint(float(np.degrees(o.lat)), float(np.degrees(o.lon)), o.altitude)
-    mission = mission_from_config(cfg, origin)
+    mission = mission_from_config(cfg, scenario.origin_point)
     kind = get_airframe(cfg.aircraft).kind
     planner = factory(mission) if factory else make_planner(cfg.planner.type, mission, kind, cfg.planner.options)
     est = log.topic(f"/{vehicle}/est/state")
@@ -87,7 +78,7 @@ def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> 
         j = int(np.searchsorted(threats.t, t, side="right")) - 1
         if i < 0 or j < 0:
             raise LogReadError(f"{path}: no estimate or threats logged before the plan at t={t:.2f} s")
-        new = planner.plan(_state(est.messages[i]), _threats(threats.messages[j]), float(t))
+        new = planner.plan(state_from_dict(est.messages[i]), _threats(threats.messages[j]), float(t))
         _compare(report, float(t), rec, new)
     return report
 
