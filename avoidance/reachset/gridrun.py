@@ -17,11 +17,13 @@ from avoidance.reachset.tree import ReachSetTree
 
 @dataclass(slots=True)
 class PathResult:
-    """Chosen node (-1 if none), its target cell (-1 if none) and the error text if none."""
+    """Chosen node (-1 if none), its target cell (-1 if none), the error text if none, and
+    whether the goal was out of reach inside the turn circle (the path flies away from it)."""
 
     node: int
     cell: int
     error: str = ""
+    away: bool = False
 
     @property
     def ok(self) -> bool:
@@ -35,15 +37,45 @@ class GridRun:
     path: PathResult
 
 
-def find_best_path(grid: AvoidanceGrid, tree: ReachSetTree, fused: Fused, goal_lcf: np.ndarray) -> PathResult:
+@dataclass(frozen=True, slots=True)
+class Steering:
+    """What the Movement Automaton can reach near the grid origin: its smallest horizontal and
+    vertical turn radii (R_h, R_v) [m] and the waypoint-reached radius [m] (def. 20)."""
+
+    turn_radii: tuple[float, float]
+    reach_radius: float
+
+    def in_turn_circle(self, goal_lcf: np.ndarray) -> bool:
+        """Whether ``goal_lcf`` lies inside the turn circle on its side: in the plane of the
+        heading X and the goal, centre at radius R towards the goal, R = max(R_h |cos ψ|,
+        R_v |sin ψ|) for the goal's direction ψ around X."""
+        x, y, z = np.asarray(goal_lcf, float)
+        b = float(np.hypot(y, z))
+        if b < 1e-9:
+            return False
+        r = max(self.turn_radii[0] * abs(y) / b, self.turn_radii[1] * abs(z) / b)
+        return x * x + (b - r) ** 2 < r * r
+
+
+def find_best_path(grid: AvoidanceGrid, tree: ReachSetTree, fused: Fused, goal_lcf: np.ndarray,
+                   steering: Steering | None = None) -> PathResult:
     """Alg. 6.6, deterministic form (A-17): the goal cell if reachable, else the best reachable
     cell of its layer; for a goal outside the grid the reachable outer cell closest to it; then
-    the cheapest feasible node ending in that cell (ties: smaller depth, then node order)."""
+    the cheapest feasible node ending in that cell (ties: smaller depth, then node order).
+
+    With ``steering``: a goal inside the turn circle that no feasible movement end comes within
+    the reach radius of cannot be reached without first flying away (steering at the cell nearest
+    to it turns at full rate and orbits it for ever); the path then aims straight ahead beyond
+    the grid, the goal leaves the circle behind the vehicle and turning back reaches it."""
     ok = fused.node_ok
     tip_cells = np.unique(tree.tip_cell[ok])
     candidates = tip_cells[fused.reachable[tip_cells]]
     if len(candidates) == 0:
         return PathResult(-1, -1, "no path: empty reach set")
+    away = (steering is not None and steering.in_turn_circle(goal_lcf)
+            and not (np.linalg.norm(tree.tip[ok] - goal_lcf, axis=1) <= steering.reach_radius).any())
+    if away:
+        goal_lcf = np.array([2.0 * grid.range, 0.0, 0.0])
     dist = np.linalg.norm(grid.centers[candidates] - goal_lcf, axis=1)
     goal_cell = int(grid.cell_index(np.asarray(goal_lcf, float)[None])[0])
     if goal_cell >= 0:
@@ -61,24 +93,24 @@ def find_best_path(grid: AvoidanceGrid, tree: ReachSetTree, fused: Fused, goal_l
         cell = int(candidates[outer][np.argmin(dist[outer])])
     nodes = np.flatnonzero(ok & (tree.tip_cell == cell))
     best = nodes[np.lexsort((nodes, tree.depth[nodes], tree.cost[nodes]))[0]]
-    return PathResult(int(best), cell)
+    return PathResult(int(best), cell, away=away)
 
 
 def grid_run(grid: AvoidanceGrid, tree: ReachSetTree, parts: ThreatParts, goal_lcf: np.ndarray,
-             categories: Categories, threshold: float) -> GridRun:
+             categories: Categories, threshold: float, steering: Steering | None = None) -> GridRun:
     """One assessment (fusion + reachability) and path search for one set of categories."""
     fused = fuse(tree, parts, categories, threshold)
-    return GridRun(categories, fused, find_best_path(grid, tree, fused, goal_lcf))
+    return GridRun(categories, fused, find_best_path(grid, tree, fused, goal_lcf, steering))
 
 
 def emergency_runs(grid: AvoidanceGrid, tree: ReachSetTree, parts: ThreatParts, goal_lcf: np.ndarray,
-                   threshold: float) -> tuple[list[GridRun], int]:
+                   threshold: float, steering: Steering | None = None) -> tuple[list[GridRun], int]:
     """Steps 7-11 in selection priority order (soft, hard, intruder, obstacle paths): the runs
     made and the index of the selected one (-1 if none found). Runs stop at the first path,
     which is the one step 11 selects."""
     runs = []
     for cats in EMERGENCY_ORDER:
-        runs.append(grid_run(grid, tree, parts, goal_lcf, cats, threshold))
+        runs.append(grid_run(grid, tree, parts, goal_lcf, cats, threshold, steering))
         if runs[-1].path.ok:
             return runs, len(runs) - 1
     return runs, -1

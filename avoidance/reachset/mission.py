@@ -28,7 +28,7 @@ from avoidance.reachset.config import AvoidanceConfig
 from avoidance.reachset.frames import GridPose
 from avoidance.reachset.fusion import Categories
 from avoidance.reachset.grid import AvoidanceGrid
-from avoidance.reachset.gridrun import GridRun, emergency_runs, find_best_path, grid_run
+from avoidance.reachset.gridrun import GridRun, Steering, emergency_runs, find_best_path, grid_run
 from avoidance.reachset.movement import KinState, MovementType, SegmentedMovementAutomaton
 from avoidance.reachset.reference import ReferenceTrajectory, reference_trajectory
 from avoidance.reachset.situation import Assessor, situation_events
@@ -154,27 +154,29 @@ class MissionControl:
                      plan.trees[self.mode], reach_radius=radius, threat_events=list(threat_events))
         replan = self.cfg.mission.replan_policy == "every_frame" or bool(threat_events) or not self.buffer or self.mode == Mode.EMERGENCY
         if replan:
-            self._run(d, plan, parts, goal_lcf)
+            self._run(d, plan, parts, goal_lcf, Steering(ma.table.turn_radii, radius))
         d.reference = reference_trajectory(ma, s_now, executing, self.buffer)
         d.buffer = list(self.buffer)
         d.runtime_s = time.perf_counter() - t0
         return d
 
-    def _run(self, d: Decision, plan: SegmentPlanning, parts, goal_lcf: np.ndarray) -> None:
+    def _run(self, d: Decision, plan: SegmentPlanning, parts, goal_lcf: np.ndarray, steering: Steering) -> None:
         """Steps 7-12: grid run(s), path selection, buffer replacement."""
         threshold = self.cfg.fusion.threshold
         tree = plan.trees[self.mode]
         if self.mode == Mode.NAVIGATION:
-            run = grid_run(plan.grid, tree, parts, goal_lcf, Categories(), threshold)
+            run = grid_run(plan.grid, tree, parts, goal_lcf, Categories(), threshold, steering)
             if self.restrict is not None:
                 disabled = self.restrict(d, run)
                 if disabled is not None:
                     run.fused.node_ok &= ~disabled
-                    run.path = find_best_path(plan.grid, tree, run.fused, goal_lcf)
+                    run.path = find_best_path(plan.grid, tree, run.fused, goal_lcf, steering)
             d.runs, d.selected = [run], 0 if run.path.ok else -1
         else:
-            d.runs, d.selected = emergency_runs(plan.grid, tree, parts, goal_lcf, threshold)
+            d.runs, d.selected = emergency_runs(plan.grid, tree, parts, goal_lcf, threshold, steering)
         run = d.run
+        if run.path.away:
+            d.events.append("goal_in_turn_circle")
         if run.path.error == "waypoint not reachable" and self.goal < len(self.waypoints) - 1:
             d.events.append(f"waypoint_unreachable:{self.goal}")
             self.goal += 1

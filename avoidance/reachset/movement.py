@@ -58,6 +58,14 @@ class PrimitiveTable:
         return self.config.period
 
     @property
+    def turn_radii(self) -> tuple[float, float]:
+        """Smallest horizontal and vertical turn radii R = L / Δangle of a full Left/Right and
+        Up/Down movement [m] (inf for a zero increment)."""
+        length = self.config.length
+        return (length / self.config.dyaw if self.config.dyaw > 0 else np.inf,
+                length / self.config.dpitch if self.config.dpitch > 0 else np.inf)
+
+    @property
     def pitching(self) -> np.ndarray:
         """(9,) true for the movements that change pitch (cost factor, A-10)."""
         return self.d_att[:, 1] != 0.0
