@@ -98,7 +98,7 @@ def _fly_haps(seconds: float, seed: int = 3):
 
 @pytest.fixture(scope="module")
 def haps():
-    return _fly_haps(240.0)
+    return _fly_haps(600.0)  # the 10-minute HAPS flight
 
 
 @pytest.mark.closed_loop

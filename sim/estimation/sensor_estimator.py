@@ -134,7 +134,8 @@ class SensorEstimatorConfig(StrictConfig):
 
 
 def _floats(v) -> list[float]:
-    return [float(x) for x in v]
+    """Plain floats of a vector (``tolist`` is ~10x faster than a comprehension)."""
+    return np.asarray(v, dtype=float).tolist()
 
 
 class SensorEstimator:
