@@ -3,7 +3,8 @@ re-running planners on a log).
 
 ``options`` are fields of the planner's own configuration dataclass, in its units (SI):
 geometric ``GeometricConfig``, MPTP ``MptpConfig``; the reach-set planner takes ``period`` (its
-movement period [s]); follow_mission takes none. Unknown options are an error naming them.
+movement period [s]), ``constraint_margin`` (safety-margin ring of constraints [m]) and ``rules`` (a table of ``avoidance.rules.config.RulesConfig``: the
+cooperative UAS' rules of the air); follow_mission takes none. Unknown options are an error naming them.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from guidance.mission import Mission
 _PLANNERS: dict[str, tuple[tuple[str, ...], str | tuple[str, ...]]] = {
     "follow_mission": (("fixed_wing", "multirotor"), ()),
     "geometric": (("multirotor",), "avoidance.geometric.config:GeometricConfig"),
-    "reachset": (("fixed_wing", "multirotor"), ("period",)),
+    "reachset": (("fixed_wing", "multirotor"), ("period", "constraint_margin", "rules")),
     "mptp": (("fixed_wing",), "guidance.mptp.config:MptpConfig"),
 }
 
@@ -47,6 +48,8 @@ def check_planner(kind: str, airframe_kind: str, options: dict) -> None:
     if unknown:
         raise PlannerConfigError(f"{kind} planner: unknown option(s) {', '.join(unknown)}"
                                  + (f" (known: {', '.join(sorted(names))})" if names else " (it takes none)"))
+    if kind == "reachset":
+        _reachset_config(options)
 
 
 def _config(kind: str, options: dict, **fixed):
@@ -54,6 +57,17 @@ def _config(kind: str, options: dict, **fixed):
         return _class(_PLANNERS[kind][1])(**{**fixed, **options})
     except (TypeError, ValueError) as exc:
         raise PlannerConfigError(f"{kind} planner: {exc}") from None
+
+
+def _reachset_config(options: dict):
+    from avoidance.reachset.config import AvoidanceConfig, ConstraintConfig
+
+    if "constraint_margin" not in options:
+        return AvoidanceConfig()
+    margin = options["constraint_margin"]
+    if isinstance(margin, bool) or not isinstance(margin, (int, float)) or margin < 0:
+        raise PlannerConfigError(f"reachset planner: constraint_margin must be a number of metres >= 0 (got {margin!r})")
+    return AvoidanceConfig(constraints=ConstraintConfig(safety_margin=float(margin)))
 
 
 def make_planner(kind: str, mission: Mission, airframe_kind: str = "multirotor", options: dict | None = None,
@@ -76,7 +90,16 @@ def make_planner(kind: str, mission: Mission, airframe_kind: str = "multirotor",
         period = float(options.get("period", 1.0))
         sma = (multirotor_automaton(mission.cruise_speed, period) if airframe_kind == "multirotor"
                else haps_automaton(mission.cruise_speed, period, bank_limit_rad))
-        return ReachSetAvoider(mission, sma)
+        if "rules" not in options:
+            return ReachSetAvoider(mission, sma, _reachset_config(options))
+        from avoidance.rules.config import RulesConfig
+        from avoidance.rules.planner import RulesAvoider
+
+        try:
+            rules = RulesConfig.from_options(dict(options["rules"]))
+        except (TypeError, ValueError) as exc:
+            raise PlannerConfigError(f"reachset planner: {exc}") from None
+        return RulesAvoider(mission, sma, rules)
     from guidance.mptp.planner import MptpPlanner
 
     return MptpPlanner(mission, _config(kind, options, tas_mps=mission.cruise_speed, bank_max=bank_limit_rad))

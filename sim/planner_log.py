@@ -3,7 +3,8 @@
 - geometric: ``/<v>/plan/candidates`` (every candidate path, its cost terms and the choice)
   when a new set of candidates was generated;
 - reach-set: ``/<v>/plan/decision`` (mode, events, cell classes...) and ``/<v>/plan/grid``
-  (foxglove.SceneUpdate: the avoidance grid and chosen path, 3D panel);
+  (foxglove.SceneUpdate: the avoidance grid and chosen path, 3D panel); with rules of the air,
+  ``/<v>/plan/rules`` (collision cases, roundabouts, every rule decision of the frame);
 - MPTP: ``/<v>/plan/map`` (foxglove.GeoJSON: plan, margin polygons, nowcast storms, Map panel).
 """
 
@@ -36,6 +37,9 @@ class PlannerLogger:
             self.log.write_json(f"{self.prefix}/decision", t, decision_record(d),
                                 {**_ANY, "title": "cosim.ReachSetDecision"})
             self.log.write_proto(f"{self.prefix}/grid", t, scene_update(d, self.log.epoch_ns / 1e9 + t))
+            rules = getattr(planner, "rules_record", None)
+            if rules is not None and rules["t"] == t:
+                self.log.write_json(f"{self.prefix}/rules", t, rules, {**_ANY, "title": "cosim.RulesOfAir"})
         elif name == "mptp":
             from guidance.mptp.geojson import plan_geojson
 

@@ -1,0 +1,97 @@
+"""Configuration of one UAS' rules of the air (``[vehicle.planner] options.rules`` of a
+``reachset`` planner): the enabled-rules table, its registration and margins.
+
+Units: margins and bloat in multiples of ``unit`` [m], the scale of the thesis' metre (its
+numbers are for 1 m movements at 1 m/s; every UAS of one scenario must use the same ``unit``
+so that they file the same margins, docs/rules.md); the UTM time margin in grid ranges flown at
+cruise speed; heights [m].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+
+from avoidance.reachset.config import AvoidanceConfig, ExpansionConfig, ReachSetConfig
+from avoidance.utm.collision_case import UtmConfig
+from avoidance.utm.notification import Category, Maneuverability, Margins, Registration
+
+RULE_CODES = ("detect", "resolve", "close", "head_on", "converging", "overtake", "right_plane_heading", "safety_margin")
+
+
+@dataclass(frozen=True, slots=True)
+class RulesConfig:
+    """``enabled``: rule codes (default all of :data:`RULE_CODES`); ``unit`` [m]; margins [unit]
+    ([R] defaults universal 5, head-on 5, converging 8, overtake 5); ``converging_extra`` [unit]
+    added to the give-way UAS' ball ([R]: 4); ``bloat`` [unit] added to every enforced margin
+    (synchronisation bloat 6.180: peer speed × decision frame = 1 thesis metre); ``time_margin`` [grid ranges at cruise]
+    how far ahead a closest approach opens a case; ``airspace`` ``uncontrolled`` (ball, 6.218)
+    or ``controlled`` (well-clear barrel of half height ``barrel_half_height`` [m], 6.219);
+    ``navigation``: the planar separations of the ACAS-like navigation reach set the rules
+    restrict (the [R] cooperative scenarios S9-S13 use ``horizontal``: a right-plane heading
+    then means a turn to the right, not a climb or descent on the plane)."""
+
+    enabled: tuple[str, ...] = RULE_CODES
+    unit: float = 1.0
+    universal: float = 5.0
+    head_on: float = 5.0
+    converging: float = 8.0
+    overtake: float = 5.0
+    converging_extra: float = 4.0
+    bloat: float = 1.0
+    time_margin: float = 2.0
+    airspace: str = "uncontrolled"
+    barrel_half_height: float = 76.2
+    category: str = "uas_autonomous"
+    maneuverability: str = "vtol"
+    close_after: int = 2
+    navigation: tuple[str, ...] = ("horizontal",)
+
+    def __post_init__(self) -> None:
+        unknown = sorted(set(self.enabled) - set(RULE_CODES))
+        if unknown:
+            raise ValueError(f"unknown rule(s) {', '.join(unknown)} (known: {', '.join(RULE_CODES)})")
+        if self.airspace not in ("uncontrolled", "controlled"):
+            raise ValueError(f"airspace must be 'uncontrolled' or 'controlled', not {self.airspace!r}")
+        if self.category.upper() not in Category.__members__:
+            raise ValueError(f"unknown category {self.category!r} (known: {', '.join(m.lower() for m in Category.__members__)})")
+        if self.maneuverability.upper() not in Maneuverability.__members__:
+            raise ValueError(f"unknown maneuverability {self.maneuverability!r} "
+                             f"(known: {', '.join(m.lower() for m in Maneuverability.__members__)})")
+        bad = sorted(set(self.navigation) - {"horizontal", "vertical", "slash", "backslash"})
+        if bad or not self.navigation:
+            raise ValueError(f"navigation: unknown separation(s) {', '.join(bad) or '(none given)'} "
+                             "(known: horizontal, vertical, slash, backslash)")
+        if not self.unit > 0.0:
+            raise ValueError("unit must be > 0")
+        for name in ("universal", "head_on", "converging", "overtake", "converging_extra", "bloat", "time_margin"):
+            if not getattr(self, name) >= 0.0:
+                raise ValueError(f"{name} must be >= 0")
+
+    @staticmethod
+    def from_options(options: dict) -> "RulesConfig":
+        """From a scenario's ``rules`` table (``enabled`` as a list); ValueError naming the field."""
+        known = {f.name for f in fields(RulesConfig)}
+        unknown = sorted(set(options) - known)
+        if unknown:
+            raise ValueError(f"rules: unknown option(s) {', '.join(unknown)} (known: {', '.join(sorted(known))})")
+        opts = dict(options)
+        for name in ("enabled", "navigation"):
+            if name in opts:
+                opts[name] = tuple(opts[name])
+        try:
+            return RulesConfig(**opts)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"rules: {exc}") from None
+
+    def registration(self, uas: str, cruise: float) -> Registration:
+        """The registration filed for ``uas`` (margins in metres)."""
+        return Registration(uas, Category[self.category.upper()], Maneuverability[self.maneuverability.upper()],
+                            Margins(self.universal, self.head_on, self.converging, self.overtake).scaled(self.unit),
+                            min_cruise=0.5 * cruise, max_cruise=cruise)
+
+    def avoidance(self, base: AvoidanceConfig = AvoidanceConfig()) -> AvoidanceConfig:
+        """The reach-set configuration flown under these rules (navigation reach set replaced)."""
+        return replace(base, navigation=ReachSetConfig.single(ExpansionConfig.acas(self.navigation)))
+
+    def utm(self, grid_range: float, cruise: float) -> UtmConfig:
+        return UtmConfig(time_margin=self.time_margin * grid_range / max(cruise, 1e-6), close_after=self.close_after)

@@ -1,0 +1,109 @@
+"""Rule engine (spec §7.6): rules attached to the decision points of the mission-control run,
+configured per UAS by an enabled-rules table.
+
+A rule has a ``code``, an optional decision ``point`` (rules without one are only invoked by
+other rules, e.g. the manoeuvre rules by *resolve*), a ``priority`` (lower first), a
+``condition`` and an ``apply``; both read and write the shared :class:`RuleContext`. Every
+applied rule is recorded (``ctx.decisions``) and turned into events of the decision frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import TYPE_CHECKING, Protocol, Sequence
+
+import numpy as np
+
+from avoidance.utm.cases import CaseBook
+from avoidance.utm.collision_case import CollisionCase
+from avoidance.utm.notification import PositionNotification
+
+if TYPE_CHECKING:
+    from avoidance.reachset.gridrun import GridRun
+    from avoidance.reachset.mission import Decision
+    from avoidance.rules.config import RulesConfig
+
+
+class DecisionPoint(str, Enum):
+    BEFORE_AVOIDANCE_RUN = "before_avoidance_run"  # before step 7: cases in, modes
+    TRAJECTORY_RESTRICTIONS = "trajectory_restrictions"  # navigation run, before path selection
+    AFTER_AVOIDANCE_RUN = "after_avoidance_run"  # after step 11: closing, reports
+
+
+@dataclass(slots=True)
+class RuleContext:
+    """What the rules of one decision frame see and change. Frames: GCF (ENU) [m], sim s."""
+
+    uas: str
+    t: float
+    cfg: "RulesConfig"
+    book: CaseBook
+    notifications: list[PositionNotification]
+    length: float  # movement length at cruise [m]
+    frame: float  # decision frame = movement period [s]
+    resolve: list[CollisionCase] = field(default_factory=list)  # own cases to resolve, by severity
+    emergency: set[str] = field(default_factory=set)  # peers handed to the emergency avoidance
+    events: list[str] = field(default_factory=list)
+    decisions: list[dict] = field(default_factory=list)
+    decision: "Decision | None" = None
+    run: "GridRun | None" = None
+    disabled: np.ndarray | None = None  # nodes disabled so far (navigation reach set)
+    goal_override: np.ndarray | None = None  # GCF waypoint flown instead of the mission goal
+    path_found: bool | None = None  # the restricted navigation run found a path
+    case: CollisionCase | None = None  # the case a manoeuvre / restriction rule works on
+    margin: float = 0.0  # the margin [m] the safety-margin rule enforces for ``case``
+
+    @property
+    def unit(self) -> float:
+        """The scale of the thesis' metre [m] (config)."""
+        return self.cfg.unit
+
+    def record(self, rule: str, case: CollisionCase | None = None, **info) -> None:
+        """One rule decision: an event ``rule:<code>[:<pair>:<encounter>:<role>]`` and a record."""
+        tag = f"rule:{rule}"
+        if case is not None:
+            tag += f":{'-'.join(case.ids)}:{case.encounter.value}:{case.role_of(self.uas).value}"
+        self.events.append(tag)
+        self.decisions.append({"rule": rule, **({"case": case.record()} if case is not None else {}), **info})
+
+    def disable(self, rule: str, mask: np.ndarray, case: CollisionCase) -> None:
+        n = int(mask.sum()) if self.disabled is None else int((mask & ~self.disabled).sum())
+        self.disabled = mask.copy() if self.disabled is None else self.disabled | mask
+        self.record(rule, case, disabled_nodes=n)
+
+
+class Rule(Protocol):
+    code: str
+    point: DecisionPoint | None
+    priority: int
+
+    def condition(self, ctx: RuleContext) -> bool: ...
+
+    def apply(self, ctx: RuleContext, engine: "RuleEngine") -> None: ...
+
+
+class RuleEngine:
+    """Enabled rules by decision point, in priority order; ``enabled(code)`` for rules that
+    other rules invoke."""
+
+    def __init__(self, rules: Sequence[Rule]):
+        self.rules = {r.code: r for r in rules}
+        self.table: dict[DecisionPoint, list[Rule]] = {
+            p: sorted((r for r in rules if r.point == p), key=lambda r: r.priority) for p in DecisionPoint}
+
+    def enabled(self, code: str) -> bool:
+        return code in self.rules
+
+    def call(self, code: str, ctx: RuleContext) -> bool:
+        """Invoke the enabled rule ``code`` if its condition holds; whether it was applied."""
+        rule = self.rules.get(code)
+        if rule is None or not rule.condition(ctx):
+            return False
+        rule.apply(ctx, self)
+        return True
+
+    def invoke(self, point: DecisionPoint, ctx: RuleContext) -> None:
+        for rule in self.table[point]:
+            if rule.condition(ctx):
+                rule.apply(ctx, self)

@@ -1,0 +1,118 @@
+"""``RulesAvoider``: the reach-set avoider with the rules of the air of a cooperative UAS
+(spec §7): a ``reachset`` planner whose options carry a ``rules`` table.
+
+Per decision frame (one per movement period):
+1. notifications: the own UAS from its estimate, every cooperative peer from its surveillance
+   track (the world's latency, dropout and noise) plus its filed registration;
+2. decision point *before avoidance run*: the virtual UTM's case book is updated over all pairs
+   (chaining, roundabouts) and the own cases to resolve are selected;
+3. the mission-control run sees the non-cooperative intruders and the cooperative peers handed to
+   the emergency avoidance (unresolved cases, deadlocks) as intruders; cooperative peers under
+   the rules are not (they are resolved by the rules in navigation mode, spec §6.2 step 5b);
+4. decision point *trajectory restrictions* (``MissionControl(restrict=...)``): the manoeuvre
+   rules disable navigation trajectories; an overtake flies its divergence / convergence waypoint
+   in place of the mission goal for that run;
+5. decision point *after avoidance run*: deadlock -> emergency, resolution report.
+Every case and rule decision is an event ``rule:<code>[:<pair>:<encounter>:<role>]`` of the
+decision (logged in ``/<vehicle>/plan/decision``) and a record in :attr:`rules_record`
+(``/<vehicle>/plan/rules``). Frames: NED at the boundary, GCF (ENU) inside; sim seconds.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+
+from avoidance.planner import Plan, Threats
+from avoidance.reachset.config import AvoidanceConfig
+from avoidance.reachset.gridrun import GridRun
+from avoidance.reachset.mission import Decision
+from avoidance.reachset.movement import KinState, SegmentedMovementAutomaton
+from avoidance.reachset.planner import ReachSetAvoider
+from avoidance.rules.config import RulesConfig
+from avoidance.rules.engine import DecisionPoint, RuleContext, RuleEngine
+from avoidance.rules.rules_of_air import make_rules
+from avoidance.utm.cases import CaseBook
+from avoidance.utm.notification import PositionNotification, from_track
+from guidance.mission import Mission
+from sim.frames import ned_to_enu
+from sim.state import VehicleState
+
+OWN = "self"  # the own UAS' id in its case book (peers are named by their track ids)
+
+
+class RulesAvoider(ReachSetAvoider):
+    def __init__(self, mission: Mission, sma: SegmentedMovementAutomaton, rules: RulesConfig,
+                 cfg: AvoidanceConfig = AvoidanceConfig(), cache_dir: Path | None = None):
+        """``cfg``'s navigation reach set is replaced by the rules' ACAS-like one."""
+        cfg = rules.avoidance(cfg)
+        super().__init__(mission, sma, cfg, cache_dir, restrict=self._restrict)
+        self.rules = rules
+        self.engine = RuleEngine(make_rules(rules.enabled))
+        cruise = sma.automata[sma.active_index(KinState(np.zeros(3), np.zeros(3), 0.0, self.speed))].table.config
+        self.length = cruise.length
+        self.registration = rules.registration(OWN, self.speed)
+        self.frame = cruise.period
+        self.book = CaseBook(rules.utm(cfg.grid.d_range[1] * self.length, self.speed))
+        self.emergency: set[str] = set()
+        self.rules_record: dict | None = None
+        self._ctx: RuleContext | None = None
+        self._mission_waypoints = self.control.waypoints
+
+    def notifications(self, estimate: VehicleState, threats: Threats, t: float) -> list[PositionNotification]:
+        own = PositionNotification(t, self.registration, ned_to_enu(estimate.pos_ned), ned_to_enu(estimate.vel_ned))
+        peers = [from_track(tr, self.rules.registration(tr.id, self.speed)) for tr in threats.intruders if tr.cooperative]
+        return [own] + peers
+
+    def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
+        if not self.frame_due(t):
+            return self._last
+        ctx = RuleContext(OWN, t, self.rules, self.book, self.notifications(estimate, threats, t), self.length,
+                          self.frame, emergency=set(self.emergency))
+        self._ctx = ctx
+        self.engine.invoke(DecisionPoint.BEFORE_AVOIDANCE_RUN, ctx)
+        sensed = dataclasses.replace(threats, intruders=[tr for tr in threats.intruders
+                                                         if not tr.cooperative or tr.id in ctx.emergency])
+        ctl = self.control
+        self._mission_waypoints = ctl.waypoints
+        if ctx.goal_override is not None:  # overtake: this run flies to the rule's waypoint
+            ctl.waypoints = ctl.waypoints.copy()
+            ctl.waypoints[max(ctl.goal, self.mission.next_index)] = ctx.goal_override
+        try:
+            plan = super().plan(estimate, sensed, t)
+        finally:
+            ctl.waypoints = self._mission_waypoints
+        d = self.last_decision
+        ctx.decision = d
+        self.engine.invoke(DecisionPoint.AFTER_AVOIDANCE_RUN, ctx)
+        self.emergency = ctx.emergency
+        d.events.extend(ctx.events)
+        plan.diagnostics["events"] = ";".join(d.events)
+        self.rules_record = {"t": t, "events": list(ctx.events), "decisions": ctx.decisions,
+                             "cases": [c.record() for c in self.book.active(OWN)],
+                             "roundabouts": [{"members": sorted(r.members), "centre_enu": r.centre.tolist(),
+                                              "margin_m": r.margin} for r in self.book.roundabouts()],
+                             "emergency": sorted(ctx.emergency), "mode": d.mode.value}
+        self._ctx = None
+        return plan
+
+    def _vertices(self, d: Decision, estimate: VehicleState):
+        """The plan's vertices labelled against the mission's own waypoints (never against an
+        overtake waypoint flown in their place)."""
+        flown, self.control.waypoints = self.control.waypoints, self._mission_waypoints
+        try:
+            return super()._vertices(d, estimate)
+        finally:
+            self.control.waypoints = flown
+
+    def _restrict(self, d: Decision, run: GridRun) -> np.ndarray | None:
+        """Decision point *trajectory restrictions* on the navigation run."""
+        ctx = self._ctx
+        if ctx is None:
+            return None
+        ctx.decision, ctx.run = d, run
+        self.engine.invoke(DecisionPoint.TRAJECTORY_RESTRICTIONS, ctx)
+        ctx.path_found = None if ctx.disabled is None else bool((run.fused.node_ok & ~ctx.disabled).any())
+        return ctx.disabled

@@ -1,0 +1,60 @@
+"""Trajectory restrictions of the rules (spec §7.7, 6.215-6.219): per-node masks of the
+navigation reach set that a rule disables.
+
+Frames: the tree's samples are LCF of a grid placed at ``pose`` (X+ heading, Y+ left, Z+ up)
+[m]; points given to these functions are GCF (ENU) [m]. A node is disabled when any sample of
+any movement from the root to it violates the restriction, so a disabled node disables its
+subtree (propagated level by level).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from avoidance.reachset.frames import GridPose
+from avoidance.reachset.tree import ReachSetTree
+
+
+def propagate(tree: ReachSetTree, bad: np.ndarray) -> np.ndarray:
+    """Nodes (N,) whose path root -> node contains a node marked ``bad`` (N,)."""
+    out = bad.copy()
+    lp = tree.level_ptr
+    for k in range(1, len(lp) - 1):
+        idx = np.arange(lp[k], lp[k + 1])
+        out[idx] |= out[tree.parent[idx]]
+    return out
+
+
+def right_plane_heading_mask(tree: ReachSetTree, pose: GridPose, collision_point: np.ndarray, tol: float = 1e-6) -> np.ndarray:
+    """(6.215-6.216) Separation plane through the UAS (grid origin), the collision point and
+    the vertical; nodes with any sample strictly left of it (left of the line origin -> collision
+    point) are disabled. Only applies while the collision point is in front (X+ > 0); else
+    nothing is disabled."""
+    cp = pose.to_lcf(np.asarray(collision_point, float))
+    if cp[0] <= 0.0:
+        return np.zeros(tree.n_nodes, bool)
+    u = cp[:2] / max(float(np.hypot(cp[0], cp[1])), 1e-9)
+    s = tree.samples
+    left = u[0] * s[..., 1] - u[1] * s[..., 0]  # z of u x p: > 0 = left
+    return propagate(tree, (left > tol * max(1.0, float(np.hypot(cp[0], cp[1])))).any(axis=1))
+
+
+def safety_margin_mask(tree: ReachSetTree, pose: GridPose, collision_point: np.ndarray, margin: float,
+                       barrel_half_height: float | None = None) -> np.ndarray:
+    """(6.218) ball: disable nodes with a sample closer than ``margin`` [m] to the collision
+    point; (6.219, A-20) well-clear barrel when ``barrel_half_height`` [m] is given: closer than
+    ``margin`` horizontally **and** within the height band. When the grid origin itself is
+    already inside the volume, the radius used is the origin's own distance (a trajectory may
+    not get closer than the UAS already is; the breach is reported by the caller)."""
+    cp = pose.to_lcf(np.asarray(collision_point, float))
+    d = tree.samples - cp
+    if barrel_half_height is None:
+        dist = np.linalg.norm(d, axis=-1)
+        here = float(np.linalg.norm(cp))
+        inside_band = np.ones(dist.shape, bool)
+    else:
+        dist = np.hypot(d[..., 0], d[..., 1])
+        here = float(np.hypot(cp[0], cp[1]))
+        inside_band = np.abs(d[..., 2]) < barrel_half_height
+    radius = min(margin, here)
+    return propagate(tree, ((dist < radius - 1e-9) & inside_band).any(axis=1))

@@ -1,0 +1,233 @@
+"""The rules of the air (spec §7.7): detect, resolve and close collision cases; the manoeuvre
+rules head-on, converging and overtake; the restrictions right-plane heading and enforce safety
+margin. Frames: GCF (ENU) [m] for cases and waypoints; the navigation reach set in the LCF of
+the decision's grid. Margins here are metres (the config's lengths times L).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from avoidance.rules.engine import DecisionPoint, RuleContext, RuleEngine
+from avoidance.rules.restrictions import right_plane_heading_mask, safety_margin_mask
+from avoidance.utm.cases import as_roundabout
+from avoidance.utm.collision_case import CollisionCase, Encounter, Role
+
+SEVERITY = {Encounter.HEAD_ON: 0, Encounter.CONVERGING: 1, Encounter.OVERTAKE: 2, Encounter.PARALLEL: 3}
+RESOLVING = {Role.ROUNDABOUT: "head_on", Role.CONVERGING: "converging", Role.OVERTAKING: "overtake"}
+
+
+def overtake_speed(min_cruise: float, intruder_speeds) -> float:
+    """(6.202) Speed when several overtakes meet: ``max(minCruise, min intruder speed)`` [m/s]."""
+    return max(min_cruise, min(intruder_speeds))
+
+
+def overtake_waypoints(p_uas, v_uas, p_overtaken, v_overtaken, cp, margin: float, frame: float,
+                       reach_margin: float) -> tuple[np.ndarray, np.ndarray]:
+    """Divergence and convergence waypoints (6.207-6.214, 6.209 with its square), GCF [m]:
+    in the overtaken UAS' frame (X+ along its velocity, Y+ left, origin at the collision point)
+    divergence = (0, -(Δv·frame + margin)), convergence = (safeOffset, same), with
+    safeOffset = sqrt(|p_uas - cp|² + margin²) + Δv·frame + reach_margin."""
+    p_uas, cp = np.asarray(p_uas, float), np.asarray(cp, float)
+    dv = float(np.linalg.norm(np.asarray(v_uas, float) - np.asarray(v_overtaken, float)))
+    decision = dv * frame
+    middle = float(np.sqrt(np.sum((p_uas - cp) ** 2) + margin ** 2))
+    safe = middle + decision + reach_margin
+    h = np.asarray(v_overtaken, float)[:2]
+    h = h / max(float(np.linalg.norm(h)), 1e-9)
+    x, y = np.array([h[0], h[1], 0.0]), np.array([-h[1], h[0], 0.0])
+    lateral = -(decision + margin)
+    return cp + lateral * y, cp + safe * x + lateral * y
+
+
+def _severity(case: CollisionCase):
+    return (-case.margin, SEVERITY[case.encounter], float(case.distance))
+
+
+@dataclass(frozen=True)
+class DetectCollisionCases:
+    """(tab. 6.10) Update the case book from this frame's notifications, re-target roundabout
+    members, report unresolved cases (separation below the case margin: handed to the
+    emergency avoidance), select the own cases to resolve (own role gives way) by severity."""
+
+    code: str = "detect"
+    point: DecisionPoint = DecisionPoint.BEFORE_AVOIDANCE_RUN
+    priority: int = 0
+
+    def condition(self, ctx: RuleContext) -> bool:
+        return True
+
+    def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
+        opened, closed = ctx.book.update(ctx.notifications, ctx.t)
+        for c in opened:
+            if ctx.uas in c.ids:
+                ctx.record("case_open", c)
+        for c in closed:
+            if ctx.uas in c.ids:
+                ctx.record("case_close", c)
+                ctx.emergency.discard(c.other(ctx.uas))
+        rbs = {u: rb for rb in ctx.book.roundabouts() for u in rb.members}
+        own = []
+        for c in ctx.book.active(ctx.uas):
+            rb = rbs.get(ctx.uas)
+            own.append(as_roundabout(c, rb) if rb is not None else c)
+        for c in own:
+            peer = c.other(ctx.uas)
+            if c.separation < c.margin and peer not in ctx.emergency:
+                ctx.emergency.add(peer)
+                ctx.record("case_unresolved", c, separation_m=c.separation, margin_m=c.margin)
+        overtakes = [c for c in own if c.role_of(ctx.uas) == Role.OVERTAKING]
+        if len(overtakes) > 1:
+            speeds = [n.speed for n in ctx.notifications if n.id in {c.other(ctx.uas) for c in overtakes}]
+            own_note = next(n for n in ctx.notifications if n.id == ctx.uas)
+            ctx.record("overtake_speed", speed_mps=overtake_speed(own_note.registration.min_cruise, speeds))
+        ctx.resolve = sorted((c for c in own if c.role_of(ctx.uas) in RESOLVING and c.other(ctx.uas) not in ctx.emergency),
+                             key=_severity)
+        for c in ctx.resolve:
+            if c.role_of(ctx.uas) == Role.OVERTAKING and engine.enabled("overtake"):
+                _overtake_goal(ctx, c)
+                break
+
+
+@dataclass(frozen=True)
+class ResolveCollisionCase:
+    """(tab. 6.11) In navigation mode, each own case by role: head-on / roundabout, converging,
+    overtake (each rule only if enabled)."""
+
+    code: str = "resolve"
+    point: DecisionPoint = DecisionPoint.TRAJECTORY_RESTRICTIONS
+    priority: int = 0
+
+    def condition(self, ctx: RuleContext) -> bool:
+        return bool(ctx.resolve) and ctx.run is not None
+
+    def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
+        for case in ctx.resolve:
+            ctx.case = case
+            engine.call(RESOLVING[case.role_of(ctx.uas)], ctx)
+        ctx.case = None
+
+
+@dataclass(frozen=True)
+class Manoeuvre:
+    """Head-on (tab. 6.13) and converging (tab. 6.14): right-plane heading and the safety margin
+    (case margin + bloat; the give-way UAS of a converging case adds ``converging_extra``)."""
+
+    code: str
+    role: Role
+    point: None = None
+    priority: int = 0
+
+    def condition(self, ctx: RuleContext) -> bool:
+        return ctx.case is not None and ctx.case.role_of(ctx.uas) == self.role
+
+    def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
+        extra = ctx.cfg.converging_extra if self.role == Role.CONVERGING else 0.0
+        ctx.margin = ctx.case.margin + (ctx.cfg.bloat + extra) * ctx.unit
+        ctx.record(self.code, ctx.case, margin_m=ctx.margin)
+        engine.call("right_plane_heading", ctx)
+        engine.call("safety_margin", ctx)
+
+
+@dataclass(frozen=True)
+class Overtake:
+    """(tab. 6.15) The faster UAS keeps the safety margin around the overtaken UAS' predicted
+    position; its divergence / convergence waypoints (flown as the run's goal) are set when the
+    case is selected (:func:`_overtake_goal`, before the run)."""
+
+    code: str = "overtake"
+    point: None = None
+    priority: int = 0
+
+    def condition(self, ctx: RuleContext) -> bool:
+        return ctx.case is not None and ctx.case.role_of(ctx.uas) == Role.OVERTAKING
+
+    def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
+        case = ctx.case
+        peer = next(n for n in ctx.notifications if n.id == case.other(ctx.uas)).adjusted(ctx.decision.t_grid)
+        ctx.margin = case.margin + ctx.cfg.bloat * ctx.unit
+        ctx.record(self.code, case, margin_m=ctx.margin)
+        ctx.case = replace(case, collision_point=peer.pos)
+        engine.call("safety_margin", ctx)
+        ctx.case = case
+
+
+def _overtake_goal(ctx: RuleContext, case: CollisionCase) -> None:
+    """The overtake's waypoint for this frame: divergence until abeam of it, then convergence."""
+    own = next(n for n in ctx.notifications if n.id == ctx.uas)
+    peer = next(n for n in ctx.notifications if n.id == case.other(ctx.uas)).adjusted(ctx.t)
+    margin = case.margin + ctx.cfg.bloat * ctx.unit
+    div, conv = overtake_waypoints(own.pos, own.vel, peer.pos, peer.vel, case.collision_point, margin, ctx.frame,
+                                   2.0 * ctx.length)
+    h = peer.vel[:2] / max(float(np.linalg.norm(peer.vel[:2])), 1e-9)
+    past_div = float((own.pos[:2] - div[:2]) @ h) > -ctx.length
+    ctx.goal_override = conv if past_div else div
+    ctx.record("overtake_waypoint", case, divergence_enu=div.tolist(), convergence_enu=conv.tolist(),
+               target="convergence" if past_div else "divergence")
+
+
+@dataclass(frozen=True)
+class RightPlaneHeading:
+    """(tab. 6.16) Disable navigation trajectories with a point left of the separation plane."""
+
+    code: str = "right_plane_heading"
+    point: None = None
+    priority: int = 0
+
+    def condition(self, ctx: RuleContext) -> bool:
+        return ctx.case is not None and ctx.run is not None
+
+    def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
+        d = ctx.decision
+        ctx.disable(self.code, right_plane_heading_mask(d.tree, d.pose, ctx.case.collision_point), ctx.case)
+
+
+@dataclass(frozen=True)
+class EnforceSafetyMargin:
+    """(tab. 6.17) Ball (uncontrolled airspace) or well-clear barrel (controlled) of radius
+    ``ctx.margin`` around the case's collision point."""
+
+    code: str = "safety_margin"
+    point: None = None
+    priority: int = 0
+
+    def condition(self, ctx: RuleContext) -> bool:
+        return ctx.case is not None and ctx.run is not None
+
+    def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
+        d = ctx.decision
+        half = ctx.cfg.barrel_half_height if ctx.cfg.airspace == "controlled" else None
+        ctx.disable(self.code, safety_margin_mask(d.tree, d.pose, ctx.case.collision_point, ctx.margin, half), ctx.case)
+
+
+@dataclass(frozen=True)
+class CloseCollisionCases:
+    """(tab. 6.12) After the run: if the restricted navigation reach set kept no path (soft
+    deadlock), the peers of the cases go to the emergency avoidance (intruders again); report
+    the resolution (mode, planned buffer)."""
+
+    code: str = "close"
+    point: DecisionPoint = DecisionPoint.AFTER_AVOIDANCE_RUN
+    priority: int = 0
+
+    def condition(self, ctx: RuleContext) -> bool:
+        return bool(ctx.resolve) and ctx.decision is not None
+
+    def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
+        d = ctx.decision
+        if ctx.path_found is False:
+            for c in ctx.resolve:
+                ctx.emergency.add(c.other(ctx.uas))
+            ctx.record("deadlock", peers=sorted(c.other(ctx.uas) for c in ctx.resolve))
+        ctx.record("resolution", mode=d.mode.value, buffer=[int(m) for m in d.buffer],
+                   cases=[c.record() for c in ctx.resolve])
+
+
+def make_rules(enabled) -> list:
+    """The rule objects of the enabled codes."""
+    every = {"detect": DetectCollisionCases(), "resolve": ResolveCollisionCase(), "close": CloseCollisionCases(),
+             "head_on": Manoeuvre("head_on", Role.ROUNDABOUT), "converging": Manoeuvre("converging", Role.CONVERGING),
+             "overtake": Overtake(), "right_plane_heading": RightPlaneHeading(), "safety_margin": EnforceSafetyMargin()}
+    return [every[c] for c in enabled]

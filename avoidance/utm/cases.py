@@ -1,0 +1,107 @@
+"""Case chaining and the roundabout merge (spec §7.4, A-32), for every pair of UAS a virtual
+UTM knows (each cooperative UAS runs one over all notifications it receives, so all of them
+derive the same cases from the same traffic picture).
+
+Chaining: the first flagged case of a pair is the *head*; it fixes collision point, encounter,
+roles and margin for the whole manoeuvre, later frames only update distance, time to the
+closest approach and separation. The chain closes (its *tail*) after ``close_after`` frames in
+which the pair is past its closest approach (diverging) or the peer is no longer reported.
+Merge: the active chains that share a UAS form a cluster; a cluster of two or more chains is a
+virtual roundabout with centre = mean of the head collision points (weights 1, 6.195) and margin
+= the largest margin of its cases (6.196); every member then circles it (role roundabout).
+Frames/units: GCF (ENU) [m], sim seconds [s].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from avoidance.utm.collision_case import CollisionCase, Role, UtmConfig, compute_collision_case
+from avoidance.utm.notification import PositionNotification
+
+
+@dataclass(slots=True)
+class Chain:
+    head: CollisionCase
+    last: CollisionCase
+    quiet: int = 0  # consecutive frames past the closest approach / without a report
+
+    @property
+    def case(self) -> CollisionCase:
+        """The current case with the head's point, encounter, roles and margin (chaining)."""
+        h = self.head
+        return replace(self.last, encounter=h.encounter, alpha_deg=h.alpha_deg, roles=h.roles,
+                       collision_point=h.collision_point, margin=max(h.margin, self.last.margin), head=h.t)
+
+
+@dataclass(frozen=True, slots=True)
+class Roundabout:
+    members: frozenset[str]
+    centre: np.ndarray  # GCF [m]
+    margin: float  # [m]
+
+
+@dataclass(slots=True)
+class CaseBook:
+    """Active collision-case chains keyed by the sorted pair of ids."""
+
+    cfg: UtmConfig = field(default_factory=UtmConfig)
+    chains: dict[tuple[str, str], Chain] = field(default_factory=dict)
+
+    def update(self, notifications: list[PositionNotification], t: float) -> tuple[list[CollisionCase], list[CollisionCase]]:
+        """Compute every pair's case at frame time ``t`` [s], chain them; returns the cases
+        opened and closed in this frame."""
+        opened, closed = [], []
+        seen = set()
+        notes = sorted(notifications, key=lambda n: n.id)
+        for i, a in enumerate(notes):
+            for b in notes[i + 1:]:
+                case = compute_collision_case(a, b, t, self.cfg)
+                if case is None:
+                    continue
+                key = case.ids
+                seen.add(key)
+                chain = self.chains.get(key)
+                if chain is None:
+                    if case.flagged:
+                        case.head = t
+                        self.chains[key] = Chain(case, case)
+                        opened.append(case)
+                    continue
+                chain.head.links.append(t)
+                chain.last = case
+                chain.quiet = chain.quiet + 1 if case.t_cpa <= 0.0 else 0
+        for key in [k for k in self.chains if k not in seen]:
+            self.chains[key].quiet += 1
+        for key in [k for k, c in self.chains.items() if c.quiet >= self.cfg.close_after]:
+            closed.append(self.chains.pop(key).case)
+        return opened, closed
+
+    def active(self, uas: str | None = None) -> list[CollisionCase]:
+        """Active cases (of ``uas`` if given), head-chained."""
+        return [c.case for k, c in sorted(self.chains.items()) if uas is None or uas in k]
+
+    def roundabouts(self) -> list[Roundabout]:
+        """Clusters of two or more active cases sharing a UAS, as virtual roundabouts."""
+        cases = self.active()
+        parent: dict[str, str] = {}
+
+        def find(x: str) -> str:
+            while parent.setdefault(x, x) != x:
+                x = parent[x]
+            return x
+
+        for c in cases:
+            parent[find(c.ids[0])] = find(c.ids[1])
+        groups: dict[str, list[CollisionCase]] = {}
+        for c in cases:
+            groups.setdefault(find(c.ids[0]), []).append(c)
+        return [Roundabout(frozenset(u for c in g for u in c.ids), np.mean([c.collision_point for c in g], axis=0),
+                           max(c.margin for c in g)) for _, g in sorted(groups.items()) if len(g) >= 2]
+
+
+def as_roundabout(case: CollisionCase, rb: Roundabout) -> CollisionCase:
+    """A member's case re-targeted at its roundabout: centre, margin, both roles roundabout."""
+    return replace(case, collision_point=rb.centre, margin=rb.margin, roles=(Role.ROUNDABOUT, Role.ROUNDABOUT))

@@ -1,0 +1,192 @@
+"""Collision case of a pair of UAS for one UTM frame (spec §7.4 with the corrections of A-19).
+
+Frames and units: z-up GCF (ENU) [m], velocities [m/s], times sim seconds [s], angles degrees
+(the angle of approach α, as in the thesis' thresholds). Steps: adjust both notifications to the
+frame time; linear closest point of approach (6.184-6.185 corrected); trajectory intersection of
+the movement predictions when both are known (6.187-6.189, midpoint); flag when the predicted
+distance is within the collision margin (6.186) no later than ``time_margin``; then the
+encounter by α (6.190-6.191), the roles and the case's safety margin (6.192-6.194).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+from avoidance.utm.notification import Margins, PositionNotification
+
+HEAD_ON_MIN_DEG = 130.0  # 130° <= α <= 180°: head-on
+CONVERGING_MIN_DEG = 70.0  # 70° <= α < 130°: converging; below: overtake (different speeds)
+
+
+class Encounter(str, Enum):
+    HEAD_ON = "head_on"
+    CONVERGING = "converging"
+    OVERTAKE = "overtake"
+    PARALLEL = "parallel"  # α < 70° at equal speeds: no standard encounter (nobody closes)
+
+
+class Role(str, Enum):
+    ROUNDABOUT = "roundabout"  # head-on: both diverge right, nobody has right of way
+    CONVERGING = "converging"  # gives way (traffic on its right, or lower priority)
+    RIGHT_OF_WAY = "right_of_way"
+    OVERTAKING = "overtaking"
+    OVERTAKEN = "overtaken"  # has right of way
+
+
+@dataclass(frozen=True, slots=True)
+class UtmConfig:
+    """Collision-case parameters: ``time_margin`` [s] (how far ahead a closest approach is
+    flagged; [D] two grid ranges over the speed, see docs/rules.md), ``speed_tolerance`` [m/s]
+    (speeds closer than this are equal: no overtake), ``close_after`` frames without danger
+    before a case closes (A-32 hysteresis)."""
+
+    time_margin: float = 20.0
+    speed_tolerance: float = 0.2
+    close_after: int = 2
+
+
+def closest_approach(p1, v1, p2, v2) -> tuple[float, float, np.ndarray]:
+    """Linear CPA (6.184-6.185 corrected): time t* [s] from now (0 when the relative velocity
+    vanishes; negative = diverging), distance at t* [m] and collision point = midpoint of both
+    positions at t*."""
+    p1, v1, p2, v2 = (np.asarray(x, float) for x in (p1, v1, p2, v2))
+    dp, dv = p1 - p2, v1 - v2
+    vv = float(dv @ dv)
+    t = -float(dp @ dv) / vv if vv > 1e-12 else 0.0
+    d1, d2 = p1 + v1 * t, p2 + v2 * t
+    return t, float(np.linalg.norm(d1 - d2)), 0.5 * (d1 + d2)
+
+
+def trajectory_min_distance(traj1: np.ndarray, traj2: np.ndarray, times: np.ndarray) -> tuple[float, np.ndarray, float]:
+    """Trajectory intersection (6.188-6.189 corrected): both predictions (T, 3) on the same
+    times (T,) [s]; minimum distance [m], collision point = midpoint at the minimising time, and
+    that time."""
+    d = np.linalg.norm(traj1 - traj2, axis=1)
+    k = int(np.argmin(d))
+    return float(d[k]), 0.5 * (traj1[k] + traj2[k]), float(times[k])
+
+
+def angle_of_approach(p1_adj, p2_adj, cp) -> float:
+    """α [deg] in [0, 180] between the directions from the collision point to both UAS
+    (6.190-6.191): 180° = exactly opposite approaches."""
+    n1, n2 = np.asarray(p1_adj, float) - cp, np.asarray(p2_adj, float) - cp
+    return float(np.degrees(abs(np.arctan2(np.linalg.norm(np.cross(n1, n2)), n1 @ n2))))
+
+
+def classify(alpha_deg: float, speed1: float, speed2: float, speed_tolerance: float = 0.2) -> Encounter:
+    """Encounter by the angle of approach (spec §7.2; T-UT-1)."""
+    if alpha_deg >= HEAD_ON_MIN_DEG:
+        return Encounter.HEAD_ON
+    if alpha_deg >= CONVERGING_MIN_DEG:
+        return Encounter.CONVERGING
+    return Encounter.OVERTAKE if abs(speed1 - speed2) > speed_tolerance else Encounter.PARALLEL
+
+
+def collision_margin(m1: Margins, m2: Margins) -> float:
+    """(6.186): the largest sum of both UAS' margins over the situations [m]."""
+    return max(m1.universal + m2.universal, m1.head_on + m2.head_on, m1.converging + m2.converging,
+               m1.overtake + m2.overtake)
+
+
+def case_margin(encounter: Encounter, m1: Margins, m2: Margins, roles: tuple[Role, Role]) -> float:
+    """Safety margin of an active case [m] (6.192-6.194 corrected: the converging branch uses the
+    avoider's converging margin and the right-of-way UAS' universal one)."""
+    if encounter == Encounter.HEAD_ON:
+        return max(m1.universal + m2.universal, m1.head_on + m2.head_on)
+    if encounter == Encounter.CONVERGING:
+        row, avoider = (m1, m2) if roles[0] == Role.RIGHT_OF_WAY else (m2, m1)
+        return max(row.universal, avoider.converging)
+    return max(m1.universal, m2.universal, m1.overtake, m2.overtake)
+
+
+def traffic_on_right(p_own, cp, p_other) -> bool:
+    """Whether ``p_other`` lies right of the own approach line ``p_own -> cp`` (horizontal,
+    z-up: a negative cross product)."""
+    a = np.asarray(cp, float)[:2] - np.asarray(p_own, float)[:2]
+    b = np.asarray(p_other, float)[:2] - np.asarray(p_own, float)[:2]
+    return bool(a[0] * b[1] - a[1] * b[0] < 0.0)
+
+
+def roles(encounter: Encounter, n1: PositionNotification, n2: PositionNotification, cp: np.ndarray) -> tuple[Role, Role]:
+    """Roles of UAS 1 and 2 (§7.4 step 6). A different category or maneuverability gives the
+    higher-priority UAS the right of way in every encounter but head-on; otherwise converging:
+    the UAS with traffic on its right gives way; overtake: the faster one overtakes."""
+    if encounter == Encounter.HEAD_ON:
+        return Role.ROUNDABOUT, Role.ROUNDABOUT
+    r1, r2 = n1.registration.priority(), n2.registration.priority()
+    if encounter == Encounter.OVERTAKE:
+        return (Role.OVERTAKING, Role.OVERTAKEN) if n1.speed > n2.speed else (Role.OVERTAKEN, Role.OVERTAKING)
+    if r1 != r2:
+        return (Role.RIGHT_OF_WAY, Role.CONVERGING) if r1 < r2 else (Role.CONVERGING, Role.RIGHT_OF_WAY)
+    if traffic_on_right(n1.pos, cp, n2.pos):
+        return Role.CONVERGING, Role.RIGHT_OF_WAY
+    return Role.RIGHT_OF_WAY, Role.CONVERGING
+
+
+@dataclass(slots=True)
+class CollisionCase:
+    """One pair's case in one frame (tabs. 6.7/6.8). ``ids`` and ``roles`` are ordered alike;
+    ``collision_point`` GCF [m]; ``distance`` at the closest approach [m], ``t_cpa`` [s] from
+    the frame time; ``margin`` the case's safety margin [m]; ``flagged`` = a danger this frame.
+    ``head`` is the frame time of the chain's head case (which fixes point and roles)."""
+
+    t: float
+    ids: tuple[str, str]
+    encounter: Encounter
+    alpha_deg: float
+    roles: tuple[Role, Role]
+    collision_point: np.ndarray
+    distance: float
+    t_cpa: float
+    margin: float
+    flagged: bool
+    linear: bool = True
+    trajectory: bool = False
+    head: float | None = None
+    separation: float = 0.0  # current distance of the pair [m]
+    links: list[float] = field(default_factory=list)
+
+    def role_of(self, uas: str) -> Role:
+        return self.roles[self.ids.index(uas)]
+
+    def other(self, uas: str) -> str:
+        return self.ids[1 - self.ids.index(uas)]
+
+    def record(self) -> dict:
+        """JSON-ready values (GCF ENU point)."""
+        return {"t": self.t, "ids": list(self.ids), "encounter": self.encounter.value, "alpha_deg": self.alpha_deg,
+                "roles": [r.value for r in self.roles], "collision_point_enu": self.collision_point.tolist(),
+                "distance_m": self.distance, "t_cpa_s": self.t_cpa, "margin_m": self.margin, "flagged": self.flagged,
+                "trajectory": self.trajectory, "head_t": self.head, "separation_m": self.separation}
+
+
+def compute_collision_case(n1: PositionNotification, n2: PositionNotification, t: float,
+                           cfg: UtmConfig = UtmConfig()) -> CollisionCase | None:
+    """The case of the pair at frame time ``t`` [s], or None when they cannot meet (different
+    flight levels). ``flagged`` is set when the closest approach (trajectory intersection when
+    both predictions are known, else linear) lies in [0, time_margin] and within the collision
+    margin (6.186)."""
+    if not n1.shares_level(n2):
+        return None
+    a1, a2 = n1.adjusted(t), n2.adjusted(t)
+    t_cpa, dist, cp = closest_approach(a1.pos, a1.vel, a2.pos, a2.vel)
+    trajectory = False
+    if a1.trajectory is not None and a2.trajectory is not None:
+        times = np.union1d(a1.trajectory_t, a2.trajectory_t)
+        times = times[(times >= t) & (times <= t + cfg.time_margin)]
+        if len(times) > 1:
+            p1 = np.stack([a1.adjusted(s).pos for s in times])
+            p2 = np.stack([a2.adjusted(s).pos for s in times])
+            dist, cp, t_min = trajectory_min_distance(p1, p2, times)
+            t_cpa, trajectory = t_min - t, True
+    m1, m2 = n1.registration.margins, n2.registration.margins
+    flagged = 0.0 <= t_cpa <= cfg.time_margin and dist <= collision_margin(m1, m2)
+    alpha = angle_of_approach(a1.pos, a2.pos, cp)
+    enc = classify(alpha, a1.speed, a2.speed, cfg.speed_tolerance)
+    rl = roles(enc, a1, a2, cp)
+    return CollisionCase(t, (n1.id, n2.id), enc, alpha, rl, cp, dist, t_cpa, case_margin(enc, m1, m2, rl), flagged,
+                         linear=not trajectory, trajectory=trajectory,
+                         separation=float(np.linalg.norm(a1.pos - a2.pos)))

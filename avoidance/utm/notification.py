@@ -1,0 +1,137 @@
+"""Position notification (spec §7.3, tab. 6.6) of one UAS, as its peers and the UTM see it.
+
+Frames and units: z-up GCF = ENU [m] from the scenario origin (the reach-set frame), velocity
+[m/s], times sim seconds [s], margins [m]. The kinematic part of a peer's notification is its
+surveillance track (``avoidance.threats.IntruderTrack``: broadcast with the world's latency,
+dropout and noise, ``sim.perception``); the static part (registration, category,
+maneuverability, margins) is the registration data filed with the UTM before flight
+(:class:`Registration`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from enum import IntEnum
+
+import numpy as np
+
+from avoidance.threats import IntruderTrack
+from sim.frames import FT, ned_to_enu
+
+FLIGHT_LEVEL_STEP_M = 1000 * FT  # flight-level bands used for the level check [m]
+PASSING_BAND_M = 250 * FT  # within this of a level boundary the next level is "passing" (T-UT-5)
+
+
+class Category(IntEnum):
+    """Right-of-way priority (spec §7.3), highest priority first (smaller value wins)."""
+
+    MANNED_IN_DISTRESS = 0
+    BALLOON = 1
+    GLIDER = 2
+    AERIAL_TOWING = 3
+    AIRSHIP = 4
+    MANNED = 5
+    UAS_AUTONOMOUS = 6
+    RPAS = 7
+
+
+class Maneuverability(IntEnum):
+    """Maneuverability classes (spec §7.3), highest priority first (smaller value wins)."""
+
+    IMPAIRED_CONTROL = 0
+    ALTITUDE_CONTROL_ONLY = 1
+    NO_PROPULSION = 2
+    LINEAR_PROPULSION = 3
+    VTOL = 4
+
+
+@dataclass(frozen=True, slots=True)
+class Margins:
+    """Safety margins of one UAS [m] (tab. 6.6); defaults = [R] (universal 5, head-on 5,
+    converging 8, overtake 5) for the thesis' 1 m movements, see :meth:`scaled`."""
+
+    universal: float = 5.0
+    head_on: float = 5.0
+    converging: float = 8.0
+    overtake: float = 5.0
+
+    def scaled(self, unit: float) -> "Margins":
+        """These margins with the thesis' metre scaled to ``unit`` [m]."""
+        return Margins(self.universal * unit, self.head_on * unit, self.converging * unit, self.overtake * unit)
+
+
+@dataclass(frozen=True, slots=True)
+class Registration:
+    """Static part of a notification: who the UAS is and what it can do."""
+
+    id: str
+    category: Category = Category.UAS_AUTONOMOUS
+    maneuverability: Maneuverability = Maneuverability.VTOL
+    margins: Margins = field(default_factory=Margins)
+    min_cruise: float = 0.0  # [m/s]
+    max_cruise: float = np.inf  # [m/s]
+
+    def priority(self) -> tuple[int, int]:
+        """Sort key: smaller = higher right-of-way priority (category, then maneuverability)."""
+        return int(self.category), int(self.maneuverability)
+
+
+def flight_levels(altitude_m: float, climb_rate: float = 0.0, climbing: float = 0.5) -> tuple[int, frozenset[int]]:
+    """Main flight level (index of the 1000 ft band holding ``altitude_m`` [m]) and the passing
+    levels: the neighbour band when within 250 ft of its boundary (T-UT-5) or when climbing /
+    descending faster than ``climbing`` [m/s] towards it."""
+    main = int(np.floor(altitude_m / FLIGHT_LEVEL_STEP_M))
+    lo, hi = main * FLIGHT_LEVEL_STEP_M, (main + 1) * FLIGHT_LEVEL_STEP_M
+    passing = set()
+    if altitude_m - lo <= PASSING_BAND_M or climb_rate < -climbing:
+        passing.add(main - 1)
+    if hi - altitude_m <= PASSING_BAND_M or climb_rate > climbing:
+        passing.add(main + 1)
+    return main, frozenset(passing)
+
+
+@dataclass(frozen=True, slots=True)
+class PositionNotification:
+    """One UAS at time ``t``: position / velocity in GCF (ENU) [m, m/s], flight levels and its
+    registration; ``trajectory`` (T, 3) GCF at ``trajectory_t`` (T,) [s] is the filed movement
+    prediction (6.187) when known (own UAS), else None (peers: linear prediction)."""
+
+    t: float
+    registration: Registration
+    pos: np.ndarray
+    vel: np.ndarray
+    cooperative: bool = True
+    trajectory: np.ndarray | None = None
+    trajectory_t: np.ndarray | None = None
+
+    @property
+    def id(self) -> str:
+        return self.registration.id
+
+    @property
+    def speed(self) -> float:
+        return float(np.linalg.norm(self.vel))
+
+    @property
+    def levels(self) -> tuple[int, frozenset[int]]:
+        return flight_levels(float(self.pos[2]), float(self.vel[2]))
+
+    def shares_level(self, other: "PositionNotification") -> bool:
+        """Overlapping flight levels (main or passing) of the two UAS (§7.4 step 3)."""
+        (m1, p1), (m2, p2) = self.levels, other.levels
+        return bool(({m1} | p1) & ({m2} | p2))
+
+    def adjusted(self, t: float) -> "PositionNotification":
+        """Position moved to time ``t`` (6.182/6.183 corrected): along the movement prediction
+        when known, else linearly ``p + v Δt``."""
+        if self.trajectory is not None and self.trajectory_t is not None and len(self.trajectory_t) > 1:
+            pos = np.array([np.interp(t, self.trajectory_t, self.trajectory[:, k]) for k in range(3)])
+        else:
+            pos = self.pos + self.vel * (t - self.t)
+        return replace(self, t=t, pos=pos)
+
+
+def from_track(track: IntruderTrack, registration: Registration) -> PositionNotification:
+    """A peer's notification: its received track (NED) in GCF plus its filed registration."""
+    return PositionNotification(track.t, registration, ned_to_enu(track.pos_ned), ned_to_enu(track.vel_ned),
+                                track.cooperative)

@@ -1,0 +1,253 @@
+"""UTM collision cases and the rules' restrictions, open loop (spec §7.4/§7.7; unit vectors
+T-UT-1..6 of §9.2) with hypothesis properties of the classification and of symmetric encounters."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from avoidance.reachset.cache import reach_set
+from avoidance.reachset.config import AvoidanceConfig, MovementConfig
+from avoidance.reachset.frames import GridPose
+from avoidance.reachset.fusion import Categories, ThreatParts, fuse
+from avoidance.reachset.grid import AvoidanceGrid
+from avoidance.reachset.gridrun import find_best_path
+from avoidance.reachset.movement import build_primitive_table
+from avoidance.rules.config import RulesConfig
+from avoidance.rules.restrictions import right_plane_heading_mask, safety_margin_mask
+from avoidance.rules.rules_of_air import overtake_speed, overtake_waypoints
+from avoidance.utm.cases import CaseBook
+from avoidance.utm.collision_case import (Encounter, Role, UtmConfig, angle_of_approach, case_margin, classify,
+                                          closest_approach, collision_margin, compute_collision_case,
+                                          trajectory_min_distance)
+from avoidance.utm.notification import Category, Margins, Maneuverability, PositionNotification, Registration, flight_levels
+from sim.frames import FT
+
+CFG = RulesConfig().avoidance(AvoidanceConfig())
+GRID = AvoidanceGrid(CFG.grid)
+NAV = reach_set(GRID, build_primitive_table(MovementConfig()), CFG.navigation)  # thesis ACAS-like horizontal tree
+
+
+def note(uas, pos, vel, t=0.0, **reg) -> PositionNotification:
+    return PositionNotification(t, Registration(uas, **reg), np.asarray(pos, float), np.asarray(vel, float))
+
+
+# -- T-UT-1..6 -------------------------------------------------------------------------------------
+@pytest.mark.parametrize("alpha, speeds, expected", [
+    (180.0, (1, 1), Encounter.HEAD_ON), (130.0, (1, 1), Encounter.HEAD_ON), (129.9, (1, 1), Encounter.CONVERGING),
+    (70.0, (1, 1), Encounter.CONVERGING), (69.9, (2, 1), Encounter.OVERTAKE), (69.9, (1, 1), Encounter.PARALLEL)])
+def test_ut1_classification_thresholds(alpha, speeds, expected):
+    assert classify(alpha, *speeds) == expected
+
+
+def test_ut2_head_on_cpa():
+    t, d, cp = closest_approach((0, 20, 0), (1, 0, 0), (40, 20, 0), (-1, 0, 0))
+    assert t == pytest.approx(20.0) and d == pytest.approx(0.0) and cp == pytest.approx([20, 20, 0])
+    assert angle_of_approach((0, 20, 0), (40, 20, 0), cp) == pytest.approx(180.0)
+    case = compute_collision_case(note("a", (0, 20, 0), (1, 0, 0)), note("b", (40, 20, 0), (-1, 0, 0)), 0.0,
+                                  UtmConfig(time_margin=25.0))
+    assert case.flagged and case.encounter == Encounter.HEAD_ON and case.roles == (Role.ROUNDABOUT, Role.ROUNDABOUT)
+    assert case.margin == pytest.approx(10.0)
+
+
+def test_ut3_converging_cpa_and_right_of_way():
+    t, d, cp = closest_approach((0, 20, 0), (1, 0, 0), (20, 0, 0), (0, 1, 0))
+    assert t == pytest.approx(20.0) and d == pytest.approx(0.0) and cp == pytest.approx([20, 20, 0])
+    assert angle_of_approach((0, 20, 0), (20, 0, 0), cp) == pytest.approx(90.0)
+    case = compute_collision_case(note("uas1", (0, 20, 0), (1, 0, 0)), note("uas2", (20, 0, 0), (0, 1, 0)), 0.0,
+                                  UtmConfig(time_margin=25.0))
+    # UAS1 (east-bound) has UAS2 on its right: it gives way (S9)
+    assert case.encounter == Encounter.CONVERGING and case.roles == (Role.CONVERGING, Role.RIGHT_OF_WAY)
+    assert case.margin == pytest.approx(8.0)
+
+
+def test_ut4_margins_with_reference_defaults():
+    m = Margins()
+    assert case_margin(Encounter.HEAD_ON, m, m, (Role.ROUNDABOUT, Role.ROUNDABOUT)) == 10.0
+    assert case_margin(Encounter.CONVERGING, m, m, (Role.RIGHT_OF_WAY, Role.CONVERGING)) == 8.0
+    assert case_margin(Encounter.OVERTAKE, m, m, (Role.OVERTAKING, Role.OVERTAKEN)) == 5.0
+    assert collision_margin(m, m) == 16.0
+    # the converging branch takes the avoider's converging and the right-of-way UAS' universal margin
+    a, b = Margins(universal=9.0), Margins(converging=3.0)
+    assert case_margin(Encounter.CONVERGING, a, b, (Role.RIGHT_OF_WAY, Role.CONVERGING)) == 9.0
+    assert case_margin(Encounter.CONVERGING, a, b, (Role.CONVERGING, Role.RIGHT_OF_WAY)) == 8.0
+
+
+def test_ut5_passing_flight_level_within_250_ft():
+    step = 1000 * FT
+    main, passing = flight_levels(5 * step + 500 * FT)
+    assert main == 5 and passing == frozenset()
+    assert flight_levels(5 * step + 249 * FT)[1] == {4}
+    assert flight_levels(6 * step - 249 * FT)[1] == {6}
+    assert flight_levels(5 * step + 500 * FT, climb_rate=2.0)[1] == {6}
+    far = note("b", (0, 0, 3 * step), (0, 0, 0))
+    assert not note("a", (0, 0, 500 * FT), (0, 0, 0)).shares_level(far)
+
+
+def test_ut6_speed_reduction():
+    assert overtake_speed(1.0, [3.0, 2.0]) == 2.0
+    assert overtake_speed(2.5, [3.0, 2.0]) == 2.5
+
+
+# -- trajectory intersection, overtake, chaining, roundabout --------------------------------------
+def test_trajectory_intersection_overrides_the_linear_point():
+    t = np.arange(0.0, 21.0)
+    # UAS1 turns away after 5 s; the linear prediction would meet head-on at (20, 20)
+    p1 = np.stack([t, 20 + np.clip(t - 5, 0, None), 0 * t], axis=1)
+    p2 = np.stack([40 - t, 20 + 0 * t, 0 * t], axis=1)
+    d, cp, tm = trajectory_min_distance(p1, p2, t)
+    assert tm == pytest.approx(np.argmin(np.linalg.norm(p1 - p2, axis=1)))
+    assert cp == pytest.approx(0.5 * (p1[int(tm)] + p2[int(tm)]))
+    a = PositionNotification(0.0, Registration("a"), p1[0], np.array([1.0, 0, 0]), trajectory=p1, trajectory_t=t)
+    b = PositionNotification(0.0, Registration("b"), p2[0], np.array([-1.0, 0, 0]), trajectory=p2, trajectory_t=t)
+    case = compute_collision_case(a, b, 0.0, UtmConfig(time_margin=25.0))
+    assert case.trajectory and case.distance == pytest.approx(d) and case.distance > 5.0
+
+
+def test_overtake_roles_and_waypoints_on_the_right():
+    fast, slow = note("a", (-40, 20, 0), (2, 0, 0)), note("b", (-20, 20, 0), (1, 0, 0))
+    case = compute_collision_case(fast, slow, 0.0, UtmConfig(time_margin=25.0))
+    assert case.encounter == Encounter.OVERTAKE and case.roles == (Role.OVERTAKING, Role.OVERTAKEN)
+    div, conv = overtake_waypoints(fast.pos, fast.vel, slow.pos, slow.vel, case.collision_point, 5.0, 1.0, 2.0)
+    # overtaken heads +x: its right is -y; offset = Δv·frame + margin = 6
+    assert div == pytest.approx(case.collision_point + [0, -6, 0])
+    assert conv[0] - div[0] == pytest.approx(np.sqrt(40.0 ** 2 + 25.0) + 1 + 2)  # |p - cp| = 40 (meet at x = 0) and conv[1] == pytest.approx(div[1])
+
+
+def test_lower_priority_gives_way_whatever_the_side():
+    haps = note("haps", (20, 0, 0), (0, 1, 0), maneuverability=Maneuverability.LINEAR_PROPULSION)
+    quad = note("quad", (0, 20, 0), (1, 0, 0))  # would have the HAPS on its right anyway: swap sides
+    case = compute_collision_case(note("quad", (40, 20, 0), (-1, 0, 0)), haps, 0.0, UtmConfig(time_margin=25.0))
+    assert case.encounter == Encounter.CONVERGING and case.roles == (Role.CONVERGING, Role.RIGHT_OF_WAY)
+    case = compute_collision_case(quad, note("balloon", (20, 0, 0), (0, 1, 0), category=Category.BALLOON), 0.0,
+                                  UtmConfig(time_margin=25.0))
+    assert case.roles == (Role.CONVERGING, Role.RIGHT_OF_WAY)
+
+
+def test_head_case_fixes_the_point_and_the_chain_closes_after_passing():
+    book = CaseBook(UtmConfig(time_margin=25.0, close_after=2))
+    opened, _ = book.update([note("a", (0, 20, 0), (1, 0, 0)), note("b", (40, 20, 0), (-1, 0, 0))], 0.0)
+    assert len(opened) == 1 and opened[0].head == 0.0
+    # next frame b has drifted: the chained case keeps the head's point and roles
+    book.update([note("a", (1, 19, 0), (1, 0, 0), 1.0), note("b", (39, 23, 0), (-1, 0, 0), 1.0)], 1.0)
+    (c,) = book.active("a")
+    assert c.collision_point == pytest.approx([20, 20, 0]) and c.head == 0.0 and c.t == 1.0
+    # past each other: closes on the second diverging frame (hysteresis)
+    _, closed = book.update([note("a", (25, 15, 0), (1, 0, 0), 25.0), note("b", (15, 25, 0), (-1, 0, 0), 25.0)], 25.0)
+    assert not closed and book.active("a")
+    _, closed = book.update([note("a", (26, 15, 0), (1, 0, 0), 26.0), note("b", (14, 25, 0), (-1, 0, 0), 26.0)], 26.0)
+    assert len(closed) == 1 and not book.active()
+
+
+def test_four_way_encounter_merges_into_one_roundabout():
+    book = CaseBook(UtmConfig(time_margin=25.0))
+    notes = [note("1", (0, 20, 0), (1, 0, 0)), note("2", (40, 20, 0), (-1, 0, 0)),
+             note("3", (20, 0, 0), (0, 1, 0)), note("4", (20, 40, 0), (0, -1, 0))]
+    book.update(notes, 0.0)
+    assert len(book.active()) == 6
+    (rb,) = book.roundabouts()
+    assert rb.members == {"1", "2", "3", "4"} and rb.centre == pytest.approx([20, 20, 0])
+    assert rb.margin == pytest.approx(10.0)
+
+
+def test_rules_config_errors_name_the_field():
+    with pytest.raises(ValueError, match="unknown rule"):
+        RulesConfig.from_options({"enabled": ["head_on", "fly_left"]})
+    with pytest.raises(ValueError, match="unknown option"):
+        RulesConfig.from_options({"margin": 3})
+    with pytest.raises(ValueError, match="airspace"):
+        RulesConfig.from_options({"airspace": "class g"})
+
+
+# -- restrictions ----------------------------------------------------------------------------------
+def test_restrictions_disable_left_and_inside_the_margin():
+    pose = GridPose(np.zeros(3), 0.0)
+    cp = np.array([8.0, 0.0, 0.0])
+    left = right_plane_heading_mask(NAV, pose, cp)
+    tips = NAV.tip
+    assert left.any() and not left[0]
+    assert (tips[left, 1].max() > 0) and (NAV.samples[~left][..., 1] <= 1e-6).all()
+    ball = safety_margin_mask(NAV, pose, cp, 5.0)
+    dist = np.linalg.norm(NAV.samples[~ball] - cp, axis=-1)
+    assert ball.any() and dist.min() >= 5.0 - 1e-9
+    barrel = safety_margin_mask(NAV, pose, cp + [0, 0, 10.0], 5.0, barrel_half_height=3.0)
+    assert not barrel.any()  # 10 m above the band's half height: nothing disabled
+    # already inside the ball: keep what does not get closer than now
+    inside = safety_margin_mask(NAV, pose, np.array([3.0, 0, 0]), 5.0)
+    assert not inside.all()
+
+
+def _lateral(pose: GridPose, cp: np.ndarray, lcf: np.ndarray) -> np.ndarray:
+    """Signed distance [m] of LCF points left (+) of the line grid origin -> collision point."""
+    c = pose.to_lcf(cp)[:2]
+    u = c / np.linalg.norm(c)
+    return u[0] * lcf[:, 1] - u[1] * lcf[:, 0]
+
+
+def _resolve(pose: GridPose, cp: np.ndarray, goal: np.ndarray, margin: float):
+    parts = ThreatParts.empty(GRID.n_cells)
+    fused = fuse(NAV, parts, Categories(), CFG.fusion.threshold)
+    fused.node_ok &= ~(right_plane_heading_mask(NAV, pose, cp) | safety_margin_mask(NAV, pose, cp, margin))
+    return find_best_path(GRID, NAV, fused, pose.to_lcf(goal))
+
+
+@settings(max_examples=60, deadline=None)
+@given(alpha=st.floats(0.5, 179.5), r=st.floats(12.0, 20.0), k=st.floats(0.5, 2.0), rot=st.floats(-np.pi, np.pi))
+def test_classification_agrees_with_the_angle_thresholds(alpha, r, k, rot):
+    """Both UAS fly straight at a common point, arriving together: the case is flagged there,
+    α equals the geometric angle and the encounter follows the thresholds."""
+    if min(abs(alpha - 130.0), abs(alpha - 70.0)) < 0.05:
+        return
+    cp = np.array([3.0, -2.0, 0.0])
+    d1 = np.array([np.cos(rot), np.sin(rot), 0.0])
+    a = np.radians(alpha)
+    d2 = np.array([np.cos(rot + a), np.sin(rot + a), 0.0])
+    s1, s2 = 1.0, 1.0 * k
+    n1, n2 = note("a", cp + r * d1, -s1 * d1), note("b", cp + k * r * d2, -s2 * d2)
+    case = compute_collision_case(n1, n2, 0.0, UtmConfig(time_margin=25.0))
+    assert case.flagged and case.t_cpa == pytest.approx(r, rel=1e-6)
+    assert case.collision_point == pytest.approx(cp, abs=1e-6)
+    assert case.alpha_deg == pytest.approx(alpha, abs=1e-6)
+    expected = (Encounter.HEAD_ON if alpha >= 130 else Encounter.CONVERGING if alpha >= 70
+                else Encounter.OVERTAKE if abs(s1 - s2) > 0.2 else Encounter.PARALLEL)
+    assert case.encounter == expected
+    if expected == Encounter.CONVERGING:  # exactly one gives way: the one with the other on its right
+        assert sorted(case.roles) == sorted((Role.CONVERGING, Role.RIGHT_OF_WAY))
+        assert (case.roles[0] == Role.CONVERGING) == (np.cross(-d1, d2 - d1)[2] < 0)
+
+
+@settings(max_examples=25, deadline=None)
+@given(alpha=st.floats(130.01, 180.0), r=st.floats(18.0, 25.0), rot=st.floats(-np.pi, np.pi))
+def test_head_on_encounters_both_turn_right(alpha, r, rot):
+    """Head-on (α ≥ 130°, equal speeds): both roundabout and both chosen navigation paths keep the
+    collision point on their left: never left of their approach line, deviating right of it, and
+    outside the margin."""
+    cp = np.array([20.0, 20.0, 0.0])
+    a = np.radians(alpha)
+    dirs = [np.array([np.cos(rot), np.sin(rot), 0.0]), np.array([np.cos(rot + a), np.sin(rot + a), 0.0])]
+    notes = [note(u, cp + r * d, -d) for u, d in zip("ab", dirs)]
+    case = compute_collision_case(*notes, 0.0, UtmConfig(time_margin=25.0))
+    assert case.roles == (Role.ROUNDABOUT, Role.ROUNDABOUT)
+    for n, d in zip(notes, dirs):
+        pose = GridPose(n.pos, float(np.arctan2(-d[1], -d[0])))
+        path = _resolve(pose, case.collision_point, cp - 30.0 * d, case.margin + 1.0)
+        assert path.ok
+        lateral = _lateral(pose, case.collision_point, NAV.path_samples(path.node))
+        assert lateral.max() <= 1e-6 and lateral.min() < -1.0  # right of the line to the point
+        assert np.linalg.norm(NAV.path_samples(path.node) - pose.to_lcf(case.collision_point), axis=1).min() >= case.margin
+
+
+@settings(max_examples=15, deadline=None)
+@given(r=st.floats(18.0, 25.0), rot=st.floats(-np.pi, np.pi), shift=st.floats(-50, 50))
+def test_symmetric_head_on_resolves_symmetrically(r, rot, shift):
+    """Exactly opposite approaches: the two UAS choose the same manoeuvre in their own frames."""
+    cp = np.array([shift, -shift, 0.0])
+    d = np.array([np.cos(rot), np.sin(rot), 0.0])
+    notes = [note("a", cp + r * d, -d), note("b", cp - r * d, d)]
+    case = compute_collision_case(*notes, 0.0, UtmConfig(time_margin=25.0))
+    paths = []
+    for n, sign in zip(notes, (1, -1)):
+        pose = GridPose(n.pos, float(np.arctan2(-sign * d[1], -sign * d[0])))
+        paths.append(_resolve(pose, case.collision_point, cp - sign * 30.0 * d, case.margin + 1.0))
+    assert paths[0].ok and NAV.buffer(paths[0].node) == NAV.buffer(paths[1].node)
+    assert NAV.path_samples(paths[0].node)[:, 1].min() < -1.0  # both deviate right (LCF Y+ = left)
