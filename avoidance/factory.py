@@ -3,7 +3,8 @@ re-running planners on a log).
 
 ``options`` are fields of the planner's own configuration dataclass, in its units (SI):
 geometric ``GeometricConfig``, MPTP ``MptpConfig``; the reach-set planner takes ``period`` (its
-movement period [s]), ``constraint_margin`` (safety-margin ring of constraints [m]) and ``rules`` (a table of ``avoidance.rules.config.RulesConfig``: the
+movement period [s]), ``constraint_margin`` (safety-margin ring of constraints [m]), ``separations``
+(ACAS-like reach sets, e.g. ["horizontal"]) and ``rules`` (a table of ``avoidance.rules.config.RulesConfig``: the
 cooperative UAS' rules of the air); follow_mission takes none. Unknown options are an error naming them.
 """
 
@@ -22,7 +23,7 @@ from guidance.mission import Mission
 _PLANNERS: dict[str, tuple[tuple[str, ...], str | tuple[str, ...]]] = {
     "follow_mission": (("fixed_wing", "multirotor"), ()),
     "geometric": (("multirotor",), "avoidance.geometric.config:GeometricConfig"),
-    "reachset": (("fixed_wing", "multirotor"), ("period", "constraint_margin", "rules")),
+    "reachset": (("fixed_wing", "multirotor"), ("period", "constraint_margin", "separations", "rules")),
     "mptp": (("fixed_wing",), "guidance.mptp.config:MptpConfig"),
 }
 
@@ -60,14 +61,25 @@ def _config(kind: str, options: dict, **fixed):
 
 
 def _reachset_config(options: dict):
-    from avoidance.reachset.config import AvoidanceConfig, ConstraintConfig
+    """``constraint_margin`` [m]; ``separations``: planar separations of ACAS-like reach sets
+    (spec §4.8, e.g. ["horizontal"], the thesis' S1-S4) used in both modes instead of the 3-D
+    harmonic / combined sets."""
+    from avoidance.reachset.config import AvoidanceConfig, ConstraintConfig, ExpansionConfig, ReachSetConfig
+    from avoidance.reachset.expansion import SEPARATIONS
 
-    if "constraint_margin" not in options:
-        return AvoidanceConfig()
-    margin = options["constraint_margin"]
-    if isinstance(margin, bool) or not isinstance(margin, (int, float)) or margin < 0:
-        raise PlannerConfigError(f"reachset planner: constraint_margin must be a number of metres >= 0 (got {margin!r})")
-    return AvoidanceConfig(constraints=ConstraintConfig(safety_margin=float(margin)))
+    cfg = AvoidanceConfig()
+    if "constraint_margin" in options:
+        margin = options["constraint_margin"]
+        if isinstance(margin, bool) or not isinstance(margin, (int, float)) or margin < 0:
+            raise PlannerConfigError(f"reachset planner: constraint_margin must be a number of metres >= 0 (got {margin!r})")
+        cfg = dataclasses.replace(cfg, constraints=ConstraintConfig(safety_margin=float(margin)))
+    if "separations" in options:
+        seps = options["separations"]
+        if not isinstance(seps, list) or not seps or any(s not in SEPARATIONS for s in seps):
+            raise PlannerConfigError(f"reachset planner: separations must be a non-empty list of {', '.join(SEPARATIONS)} (got {seps!r})")
+        acas = ReachSetConfig.single(ExpansionConfig.acas(tuple(seps)))
+        cfg = dataclasses.replace(cfg, navigation=acas, avoidance=acas)
+    return cfg
 
 
 def make_planner(kind: str, mission: Mission, airframe_kind: str = "multirotor", options: dict | None = None,
