@@ -4,8 +4,9 @@ re-running planners on a log).
 ``options`` are fields of the planner's own configuration dataclass, in its units (SI):
 geometric ``GeometricConfig``, MPTP ``MptpConfig``; the reach-set planner takes ``period`` (its
 movement period [s]), ``constraint_margin`` (safety-margin ring of constraints [m]), ``separations``
-(ACAS-like reach sets, e.g. ["horizontal"]) and ``rules`` (a table of ``avoidance.rules.config.RulesConfig``: the
-cooperative UAS' rules of the air); follow_mission takes none. Unknown options are an error naming them.
+(ACAS-like reach sets, e.g. ["horizontal"]), ``rules`` (the enabled rules of
+the air of a cooperative UAS, a list of codes) and ``rules_<field>`` (the other fields of
+``avoidance.rules.config.RulesConfig``); follow_mission takes none. Unknown options are an error naming them.
 """
 
 from __future__ import annotations
@@ -17,13 +18,14 @@ import numpy as np
 
 from avoidance.follow_mission import FollowMissionPlanner
 from avoidance.planner import Planner
+from avoidance.rules.config import RULES_FIELDS
 from guidance.mission import Mission
 
 # planner -> (airframe kinds it flies, its config dataclass "module:Class" or the option names)
 _PLANNERS: dict[str, tuple[tuple[str, ...], str | tuple[str, ...]]] = {
     "follow_mission": (("fixed_wing", "multirotor"), ()),
     "geometric": (("multirotor",), "avoidance.geometric.config:GeometricConfig"),
-    "reachset": (("fixed_wing", "multirotor"), ("period", "constraint_margin", "separations", "rules")),
+    "reachset": (("fixed_wing", "multirotor"), ("period", "constraint_margin", "separations", "rules", *(f"rules_{f}" for f in RULES_FIELDS))),
     "mptp": (("fixed_wing",), "guidance.mptp.config:MptpConfig"),
 }
 
@@ -107,11 +109,12 @@ def make_planner(kind: str, mission: Mission, airframe_kind: str = "multirotor",
         from avoidance.rules.config import RulesConfig
         from avoidance.rules.planner import RulesAvoider
 
+        table = {k.removeprefix("rules_"): v for k, v in options.items() if k.startswith("rules_")}
         try:
-            rules = RulesConfig.from_options(dict(options["rules"]))
+            rules = RulesConfig.from_options({"enabled": options["rules"], **table})
         except (TypeError, ValueError) as exc:
             raise PlannerConfigError(f"reachset planner: {exc}") from None
-        return RulesAvoider(mission, sma, rules)
+        return RulesAvoider(mission, sma, rules, _reachset_config(options))
     from guidance.mptp.planner import MptpPlanner
 
     return MptpPlanner(mission, _config(kind, options, tas_mps=mission.cruise_speed, bank_max=bank_limit_rad))

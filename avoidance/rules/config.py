@@ -1,5 +1,5 @@
-"""Configuration of one UAS' rules of the air (``[vehicle.planner] options.rules`` of a
-``reachset`` planner): the enabled-rules table, its registration and margins.
+"""Configuration of one UAS' rules of the air (options of a ``reachset`` planner: ``rules`` =
+the enabled-rules table, ``rules_<field>`` = the other fields): registration, margins, UTM.
 
 Units: margins and bloat in multiples of ``unit`` [m], the scale of the thesis' metre (its
 numbers are for 1 m movements at 1 m/s; every UAS of one scenario must use the same ``unit``
@@ -23,12 +23,18 @@ class RulesConfig:
     """``enabled``: rule codes (default all of :data:`RULE_CODES`); ``unit`` [m]; margins [unit]
     ([R] defaults universal 5, head-on 5, converging 8, overtake 5); ``converging_extra`` [unit]
     added to the give-way UAS' ball ([R]: 4); ``bloat`` [unit] added to every enforced margin
-    (synchronisation bloat 6.180: peer speed × decision frame = 1 thesis metre); ``time_margin`` [grid ranges at cruise]
+    (synchronisation bloat 6.180: peer speed × decision frame = 1 thesis metre);
+    ``plane_tolerance`` [unit] how far left of the right-plane a trajectory may reach (the plane
+    moves with the estimates: without slack every frame whose heading is a little left of the
+    line to the collision point disables all turns, docs/rules.md); ``time_margin`` [grid ranges at cruise]
     how far ahead a closest approach opens a case; ``airspace`` ``uncontrolled`` (ball, 6.218)
     or ``controlled`` (well-clear barrel of half height ``barrel_half_height`` [m], 6.219);
     ``navigation``: the planar separations of the ACAS-like navigation reach set the rules
     restrict (the [R] cooperative scenarios S9-S13 use ``horizontal``: a right-plane heading
-    then means a turn to the right, not a climb or descent on the plane)."""
+    then means a turn to the right, not a climb or descent on the plane), ``navigation_spread``
+    its spread limit per cell (unlimited keeps so many equal-cost paths that the first movement
+    of the chosen one is mostly Straight: replanned every frame, the turn to a goal far off the
+    heading is postponed for ever; 9 as the harmonic default turns first, docs/rules.md)."""
 
     enabled: tuple[str, ...] = RULE_CODES
     unit: float = 1.0
@@ -37,6 +43,7 @@ class RulesConfig:
     converging: float = 8.0
     overtake: float = 5.0
     converging_extra: float = 4.0
+    plane_tolerance: float = 1.0
     bloat: float = 1.0
     time_margin: float = 2.0
     airspace: str = "uncontrolled"
@@ -45,6 +52,7 @@ class RulesConfig:
     maneuverability: str = "vtol"
     close_after: int = 2
     navigation: tuple[str, ...] = ("horizontal",)
+    navigation_spread: int = 9
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.enabled) - set(RULE_CODES))
@@ -61,15 +69,18 @@ class RulesConfig:
         if bad or not self.navigation:
             raise ValueError(f"navigation: unknown separation(s) {', '.join(bad) or '(none given)'} "
                              "(known: horizontal, vertical, slash, backslash)")
+        if not (isinstance(self.navigation_spread, int) and self.navigation_spread >= 1):
+            raise ValueError("navigation_spread must be an integer >= 1")
         if not self.unit > 0.0:
             raise ValueError("unit must be > 0")
-        for name in ("universal", "head_on", "converging", "overtake", "converging_extra", "bloat", "time_margin"):
+        for name in ("universal", "head_on", "converging", "overtake", "converging_extra", "bloat", "time_margin",
+                     "plane_tolerance"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"{name} must be >= 0")
 
     @staticmethod
     def from_options(options: dict) -> "RulesConfig":
-        """From a scenario's ``rules`` table (``enabled`` as a list); ValueError naming the field."""
+        """From a scenario's options (lists for the tuples); ValueError naming the field."""
         known = {f.name for f in fields(RulesConfig)}
         unknown = sorted(set(options) - known)
         if unknown:
@@ -91,7 +102,10 @@ class RulesConfig:
 
     def avoidance(self, base: AvoidanceConfig = AvoidanceConfig()) -> AvoidanceConfig:
         """The reach-set configuration flown under these rules (navigation reach set replaced)."""
-        return replace(base, navigation=ReachSetConfig.single(ExpansionConfig.acas(self.navigation)))
+        return replace(base, navigation=ReachSetConfig.single(ExpansionConfig.acas(self.navigation, self.navigation_spread)))
 
     def utm(self, grid_range: float, cruise: float) -> UtmConfig:
         return UtmConfig(time_margin=self.time_margin * grid_range / max(cruise, 1e-6), close_after=self.close_after)
+
+
+RULES_FIELDS = tuple(f.name for f in fields(RulesConfig) if f.name != "enabled")

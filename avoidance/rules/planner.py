@@ -28,7 +28,7 @@ import numpy as np
 from avoidance.planner import Plan, Threats
 from avoidance.reachset.config import AvoidanceConfig
 from avoidance.reachset.gridrun import GridRun
-from avoidance.reachset.mission import Decision
+from avoidance.reachset.mission import Decision, Mode
 from avoidance.reachset.movement import KinState, SegmentedMovementAutomaton
 from avoidance.reachset.planner import ReachSetAvoider
 from avoidance.rules.config import RulesConfig
@@ -66,6 +66,12 @@ class RulesAvoider(ReachSetAvoider):
         peers = [from_track(tr, self.rules.registration(tr.id, self.speed)) for tr in threats.intruders if tr.cooperative]
         return [own] + peers
 
+    def frame_due(self, t: float) -> bool:
+        """Whether a call at ``t`` makes a new decision frame in :class:`ReachSetAvoider` (one per
+        movement period, or a waypoint just passed); else its last plan stands."""
+        return self._last is None or self.last_decision is None or t >= self.last_decision.t_grid - 1e-6 \
+            or self.mission.next_index > self._last_goal
+
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         if not self.frame_due(t):
             return self._last
@@ -100,12 +106,18 @@ class RulesAvoider(ReachSetAvoider):
 
     def _vertices(self, d: Decision, estimate: VehicleState):
         """The plan's vertices labelled against the mission's own waypoints (never against an
-        overtake waypoint flown in their place)."""
+        overtake waypoint flown in their place). With a purely horizontal navigation reach set
+        the planned vertices hold the goal's altitude (the set cannot climb or descend, so an
+        altitude error of the estimate at planning time would otherwise never be corrected)."""
         flown, self.control.waypoints = self.control.waypoints, self._mission_waypoints
         try:
-            return super()._vertices(d, estimate)
+            pos, times, labels = super()._vertices(d, estimate)
         finally:
             self.control.waypoints = flown
+        if self.rules.navigation == ("horizontal",) and d.mode == Mode.NAVIGATION and not d.complete:
+            pos = pos.copy()
+            pos[:, 2] = self.mission.waypoints[min(self.control.goal, len(self.mission.waypoints) - 1), 2]
+        return pos, times, labels
 
     def _restrict(self, d: Decision, run: GridRun) -> np.ndarray | None:
         """Decision point *trajectory restrictions* on the navigation run."""

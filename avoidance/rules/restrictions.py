@@ -27,16 +27,17 @@ def propagate(tree: ReachSetTree, bad: np.ndarray) -> np.ndarray:
 
 def right_plane_heading_mask(tree: ReachSetTree, pose: GridPose, collision_point: np.ndarray, tol: float = 1e-6) -> np.ndarray:
     """(6.215-6.216) Separation plane through the UAS (grid origin), the collision point and
-    the vertical; nodes with any sample strictly left of it (left of the line origin -> collision
-    point) are disabled. Only applies while the collision point is in front (X+ > 0); else
-    nothing is disabled."""
+    the vertical; nodes with any sample more than ``tol`` [m] left of it (left of the line
+    origin -> collision point) are disabled. Only applies while the collision point is in front
+    (X+ > 0); else nothing is disabled. (A turn at a bounded rate starts along the heading: with
+    ``tol`` = 0 a heading a fraction of a degree left of the line disables every trajectory.)"""
     cp = pose.to_lcf(np.asarray(collision_point, float))
     if cp[0] <= 0.0:
         return np.zeros(tree.n_nodes, bool)
     u = cp[:2] / max(float(np.hypot(cp[0], cp[1])), 1e-9)
     s = tree.samples
     left = u[0] * s[..., 1] - u[1] * s[..., 0]  # z of u x p: > 0 = left
-    return propagate(tree, (left > tol * max(1.0, float(np.hypot(cp[0], cp[1])))).any(axis=1))
+    return propagate(tree, (left > tol).any(axis=1))
 
 
 def safety_margin_mask(tree: ReachSetTree, pose: GridPose, collision_point: np.ndarray, margin: float,

@@ -170,7 +170,8 @@ def _overtake_goal(ctx: RuleContext, case: CollisionCase) -> None:
 
 @dataclass(frozen=True)
 class RightPlaneHeading:
-    """(tab. 6.16) Disable navigation trajectories with a point left of the separation plane."""
+    """(tab. 6.16) Disable navigation trajectories with a point left of the separation plane
+    (beyond the config's ``plane_tolerance``)."""
 
     code: str = "right_plane_heading"
     point: None = None
@@ -181,7 +182,8 @@ class RightPlaneHeading:
 
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
         d = ctx.decision
-        ctx.disable(self.code, right_plane_heading_mask(d.tree, d.pose, ctx.case.collision_point), ctx.case)
+        mask = right_plane_heading_mask(d.tree, d.pose, ctx.case.collision_point, ctx.cfg.plane_tolerance * ctx.unit)
+        ctx.disable(self.code, mask, ctx.case)
 
 
 @dataclass(frozen=True)
