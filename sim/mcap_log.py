@@ -3,13 +3,22 @@
 Log time of a message = scenario epoch + sim time [ns]; publish time = log time, so that two runs
 of the same scenario and seed write byte-identical messages. Channels whose content is wall-clock
 time (planner latency) carry the channel metadata ``wallclock=true`` and are the only exception.
-The file is finished in ``close()``; the runner calls it in a ``finally``, so an exception or
-Ctrl-C still leaves a readable log holding every message up to the last tick.
+
+Writing: the simulation process only serialises messages (JSON with orjson, protobuf) and hands
+them in batches to a writer process that owns the file and the ``mcap`` writer (record framing,
+indexes, zstd chunks: about half the cost of logging, taken off the simulation's core). The file
+is finished in ``close()``, which the runner calls in a ``finally``; if the simulation process dies
+without it (a crash of the flight model, SIGKILL), the writer process sees the pipe close and
+finishes the file with every message it received, so the log stays readable. Where no child
+process can be started (inside a daemonic worker, e.g. a Dask nanny's) the same records are
+written in-process (``background=False`` forces that).
 """
 
 from __future__ import annotations
 
 import json
+import multiprocessing as mp
+import signal
 from pathlib import Path
 from typing import Any
 
@@ -23,18 +32,115 @@ from sim import __version__
 PROFILE = "cosim"
 LEVELS = {"debug": Log.DEBUG, "info": Log.INFO, "warning": Log.WARNING, "error": Log.ERROR,
           "fatal": Log.FATAL}
+_BATCH = 128  # records per hand-over to the writer process (a few log ticks)
+
+
+class LogWriteError(RuntimeError):
+    """The log could not be written (e.g. disk full); says why."""
+
+
+class _RecordWriter:
+    """Applies log records to an ``mcap`` writer. Records are tuples: ``("schema", id, name,
+    encoding, data)``, ``("channel", id, topic, encoding, schema_id, metadata)``, ``("message",
+    channel_id, time_ns, data, sequence)``, ``("metadata", name, data)``, ``("attachment", time_ns,
+    name, media_type, data)``. Ids are the log's own; mcap's are looked up."""
+
+    def __init__(self, file, chunk_size: int):
+        self.file = file
+        self.writer = Writer(file, chunk_size=chunk_size, compression=CompressionType.ZSTD)
+        self.writer.start(profile=PROFILE, library=f"cosim {__version__}")
+        self.schemas: dict[int, int] = {}
+        self.channels: dict[int, int] = {}
+
+    def apply(self, records: list[tuple]) -> None:
+        w, channels = self.writer, self.channels
+        for r in records:
+            kind = r[0]
+            if kind == "message":
+                w.add_message(channels[r[1]], log_time=r[2], data=r[3], publish_time=r[2], sequence=r[4])
+            elif kind == "channel":
+                channels[r[1]] = w.register_channel(r[2], r[3], self.schemas[r[4]], r[5])
+            elif kind == "schema":
+                self.schemas[r[1]] = w.register_schema(r[2], r[3], r[4])
+            elif kind == "metadata":
+                w.add_metadata(r[1], r[2])
+            elif kind == "attachment":
+                w.add_attachment(create_time=r[1], log_time=r[1], name=r[2], media_type=r[3], data=r[4])
+            else:
+                raise ValueError(f"unknown log record {kind!r}")
+
+    def finish(self) -> None:
+        try:
+            self.writer.finish()
+        finally:
+            self.file.close()
+
+
+def _writer_process(conn, path: str, chunk_size: int) -> None:
+    """Writer process: apply batches until ``None`` (close) or the pipe closes (the simulation
+    process died), then finish the file. Ignores SIGINT: Ctrl-C reaches the whole process group,
+    and the simulation process closes the log itself."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    error = None
+    try:
+        rw = _RecordWriter(open(path, "wb"), chunk_size)
+    except OSError as exc:
+        conn.send(f"cannot open {path}: {exc}")
+        return
+    try:
+        while True:
+            try:
+                batch = conn.recv()
+            except EOFError:
+                break
+            if batch is None:
+                break
+            rw.apply(batch)
+    except Exception as exc:  # reported to the simulation process at its next hand-over or close
+        error = f"{type(exc).__name__}: {exc}"
+    finally:
+        try:
+            rw.finish()
+        except Exception as exc:
+            error = error or f"{type(exc).__name__}: {exc}"
+        try:
+            conn.send(error)
+        except OSError:
+            pass
+
+
+def _start_method() -> str:
+    return "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
 
 
 class McapLog:
     """Writes one run to ``path``. Topics are registered on first write."""
 
-    def __init__(self, path: str | Path, epoch_ns: int, chunk_size: int = 512 * 1024):
+    def __init__(self, path: str | Path, epoch_ns: int, chunk_size: int = 512 * 1024,
+                 background: bool | None = None):
+        """``background``: write in a child process (default: whenever one can be started)."""
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.epoch_ns = int(epoch_ns)
-        self._file = open(self.path, "wb")
-        self._writer = Writer(self._file, chunk_size=chunk_size, compression=CompressionType.ZSTD)
-        self._writer.start(profile=PROFILE, library=f"cosim {__version__}")
+        if background is None:
+            background = not mp.current_process().daemon
+        try:  # open errors surface here, in the caller, not later from the writer process
+            open(self.path, "wb").close()
+        except OSError as exc:
+            raise LogWriteError(f"cannot write the log {self.path}: {exc.strerror or exc}") from None
+        self._pending: list[tuple] = []
+        self._conn = self._proc = self._inline = None
+        if background:
+            ctx = mp.get_context(_start_method())
+            if ctx.get_start_method() == "forkserver":
+                ctx.set_forkserver_preload(["sim.mcap_log"])  # forks start with the writer imported
+            self._conn, child = ctx.Pipe()
+            self._proc = ctx.Process(target=_writer_process, args=(child, str(self.path), chunk_size),
+                                     name=f"mcap-writer {self.path.name}", daemon=False)
+            self._proc.start()
+            child.close()
+        else:
+            self._inline = _RecordWriter(open(self.path, "wb"), chunk_size)
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._seq: dict[int, int] = {}
@@ -44,20 +150,39 @@ class McapLog:
     def _schema(self, name: str, encoding: str, data_fn) -> int:
         sid = self._schemas.get(name)
         if sid is None:
-            sid = self._schemas[name] = self._writer.register_schema(name, encoding, data_fn())
+            sid = self._schemas[name] = len(self._schemas) + 1
+            self._record(("schema", sid, name, encoding, data_fn()))
         return sid
 
     def _channel(self, topic: str, encoding: str, schema_id: int, metadata: dict[str, str]) -> int:
-        cid = self._writer.register_channel(topic, encoding, schema_id, metadata or {})
-        self._channels[topic] = cid
+        cid = self._channels[topic] = len(self._channels) + 1
         self._seq[cid] = 0
+        self._record(("channel", cid, topic, encoding, schema_id, metadata or {}))
         return cid
+
+    def _record(self, rec: tuple) -> None:
+        if self.closed:
+            raise LogWriteError(f"{self.path}: the log is closed")
+        self._pending.append(rec)
+        if len(self._pending) >= _BATCH:
+            self._flush()
+
+    def _flush(self) -> None:
+        batch, self._pending = self._pending, []
+        if self._inline is not None:
+            self._inline.apply(batch)
+            return
+        if self._conn.poll():  # the writer stopped early and said why
+            raise LogWriteError(f"{self.path}: {self._conn.recv() or 'the writer process stopped'}")
+        try:
+            self._conn.send(batch)
+        except OSError as exc:
+            raise LogWriteError(f"{self.path}: the writer process is gone ({exc})") from None
 
     # -- writing -------------------------------------------------------------------------
     def _add(self, cid: int, t: float, data: bytes) -> None:
-        ns = self.epoch_ns + round(t * 1e9)
         seq = self._seq[cid] = self._seq[cid] + 1
-        self._writer.add_message(cid, log_time=ns, data=data, publish_time=ns, sequence=seq)
+        self._record(("message", cid, self.epoch_ns + round(t * 1e9), data, seq))
 
     def write_json(self, topic: str, t: float, obj: dict[str, Any], schema: dict,
                    metadata: dict[str, str] | None = None) -> None:
@@ -89,21 +214,39 @@ class McapLog:
         self.write_proto("/log", t, msg)
 
     def metadata(self, name: str, data: dict[str, str]) -> None:
-        self._writer.add_metadata(name, {k: str(v) for k, v in data.items()})
+        self._record(("metadata", name, {k: str(v) for k, v in data.items()}))
 
     def attach(self, name: str, data: bytes, media_type: str, t: float = 0.0) -> None:
         ns = self.epoch_ns + round(t * 1e9)
-        self._writer.add_attachment(create_time=ns, log_time=ns, name=name, media_type=media_type, data=data)
+        self._record(("attachment", ns, name, media_type, data))
 
     def close(self) -> None:
-        """Finish the file (summary, indexes); safe to call twice."""
+        """Finish the file (summary, indexes) and wait for the writer; safe to call twice.
+        Raises LogWriteError if the writer failed."""
         if self.closed:
             return
         self.closed = True
+        if self._inline is not None:
+            try:
+                self._inline.apply(self._pending)
+            finally:
+                self._inline.finish()
+            return
+        error = None
         try:
-            self._writer.finish()
+            self._conn.send(self._pending)
+            self._conn.send(None)
+        except OSError as exc:
+            error = f"the writer process is gone ({exc})"
+        try:
+            error = self._conn.recv() or error
+        except EOFError:
+            error = error or "the writer process stopped without finishing the file"
         finally:
-            self._file.close()
+            self._conn.close()
+            self._proc.join()
+        if error:
+            raise LogWriteError(f"{self.path}: {error}")
 
     def __enter__(self) -> "McapLog":
         return self

@@ -1,10 +1,16 @@
 """MCAP writer/reader round trip, crash safety and clear errors on bad files."""
 
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
 import pytest
 from foxglove_schemas_protobuf.LocationFix_pb2 import LocationFix
 
 from sim.log_schemas import MISSION_STATUS
-from sim.mcap_log import McapLog
+from sim.mcap_log import LogWriteError, McapLog
 from sim.mcap_read import LogReadError, iter_messages, read_info, read_topic
 
 EPOCH = 1_782_021_600_000_000_000
@@ -77,3 +83,48 @@ def test_truncated_file_is_a_clear_error(tmp_path, keep):
         read_info(cut)
     with pytest.raises(LogReadError):
         read_topic(cut, "/v/mission/status")
+
+
+def test_inline_and_background_writers_write_the_same_bytes(tmp_path):
+    for background in (True, False):
+        with McapLog(tmp_path / f"{background}.mcap", EPOCH, background=background) as log:
+            for k in range(300):  # several hand-overs to the writer process
+                log.write_json("/v/mission/status", k * 0.1, {"t": k * 0.1, "next_waypoint": k, "waypoints": 300,
+                                                               "complete": False}, MISSION_STATUS)
+    assert (tmp_path / "True.mcap").read_bytes() == (tmp_path / "False.mcap").read_bytes()
+
+
+def test_unwritable_path_is_a_clear_error_at_once(tmp_path):
+    with pytest.raises(LogWriteError, match="cannot write the log"):
+        McapLog(tmp_path, EPOCH)  # a directory
+
+
+_KILLED_WRITER = """
+import os, signal, sys
+from sim.log_schemas import MISSION_STATUS
+from sim.mcap_log import LogWriteError, McapLog
+log = McapLog(sys.argv[1], {epoch})
+for k in range(1000):
+    log.write_json("/v/mission/status", k * 0.1, {{"t": k * 0.1, "next_waypoint": k, "waypoints": 1000,
+                                                 "complete": False}}, MISSION_STATUS)
+os.kill(os.getpid(), signal.SIGKILL)  # no close(), no finally: as if the flight model crashed
+"""
+
+
+def test_killed_simulation_process_still_leaves_a_finished_log(tmp_path):
+    """The writer process finishes the file when the simulation process dies without closing it:
+    every handed-over message is readable, and the summary is there."""
+    p = tmp_path / "killed.mcap"
+    run = subprocess.run([sys.executable, "-c", _KILLED_WRITER.format(epoch=EPOCH), str(p)],
+                         cwd=Path(__file__).resolve().parents[1], timeout=60)
+    assert run.returncode == -signal.SIGKILL
+    for _ in range(100):  # the orphaned writer finishes on its own, shortly after
+        try:
+            read_info(p)
+            break
+        except LogReadError:
+            time.sleep(0.1)
+    counts = {t.topic: t.count for t in read_info(p).topics}
+    assert counts["/v/mission/status"] >= 1000 - 128  # all but the last unsent batch
+    status = read_topic(p, "/v/mission/status")
+    assert [m["next_waypoint"] for _, m in status] == list(range(len(status)))
