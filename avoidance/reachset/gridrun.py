@@ -46,22 +46,27 @@ class Steering:
     reach_radius: float
 
     def in_turn_circle(self, goal_lcf: np.ndarray) -> bool:
-        """Whether ``goal_lcf`` lies inside the turn circle on its side: in the plane of the
+        """Whether ``goal_lcf`` lies deep inside the turn circle on its side: in the plane of the
         heading X and the goal, centre at radius R towards the goal, R = max(R_h |cos ψ|,
-        R_v |sin ψ|) for the goal's direction ψ around X."""
+        R_v |sin ψ|) for the goal's direction ψ around X; deep = more than the reach radius
+        inside (a full-rate turn passes within the reach radius of the goals nearer its rim)."""
         x, y, z = np.asarray(goal_lcf, float)
         b = float(np.hypot(y, z))
         if b < 1e-9:
             return False
         r = max(self.turn_radii[0] * abs(y) / b, self.turn_radii[1] * abs(z) / b)
-        return x * x + (b - r) ** 2 < r * r
+        return r > self.reach_radius and x * x + (b - r) ** 2 < (r - self.reach_radius) ** 2
 
 
 def find_best_path(grid: AvoidanceGrid, tree: ReachSetTree, fused: Fused, goal_lcf: np.ndarray,
                    steering: Steering | None = None) -> PathResult:
     """Alg. 6.6, deterministic form (A-17): the goal cell if reachable, else the best reachable
     cell of its layer; for a goal outside the grid the reachable outer cell closest to it; then
-    the cheapest feasible node ending in that cell (ties: smaller depth, then node order).
+    the cheapest feasible node ending in that cell. Ties (equal costs, as in the ACAS-like sets
+    where every horizontal movement costs 1): the path whose first movement ends nearest to the
+    goal, then the tip nearest to it, then smaller depth, then node order. Only the first movement
+    of a path is flown before the next decision; a tie-break by depth alone picks the path that
+    turns last, and replanning every frame then postpones the turn for ever.
 
     With ``steering``: a goal inside the turn circle that no feasible movement end comes within
     the reach radius of cannot be reached without first flying away (steering at the cell nearest
@@ -92,7 +97,12 @@ def find_best_path(grid: AvoidanceGrid, tree: ReachSetTree, fused: Fused, goal_l
             return PathResult(-1, -1, "collision: no reachable outer cell")
         cell = int(candidates[outer][np.argmin(dist[outer])])
     nodes = np.flatnonzero(ok & (tree.tip_cell == cell))
-    best = nodes[np.lexsort((nodes, tree.depth[nodes], tree.cost[nodes]))[0]]
+    first = nodes.copy()
+    while (tree.depth[first] > 1).any():
+        first = np.where(tree.depth[first] > 1, tree.parent[first], first)
+    first_near = np.linalg.norm(tree.tip[first] - goal_lcf, axis=1)
+    near = np.linalg.norm(tree.tip[nodes] - goal_lcf, axis=1)
+    best = nodes[np.lexsort((nodes, tree.depth[nodes], near, first_near, tree.cost[nodes]))[0]]
     return PathResult(int(best), cell, away=away)
 
 
