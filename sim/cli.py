@@ -242,12 +242,13 @@ def main(argv: list[str] | None = None) -> int:
         return tune_main(argv[1:])
     args = build_parser().parse_args(argv)
     from sim.batch import BatchError
+    from sim.mcap_log import LogWriteError
     from sim.mcap_read import LogReadError
     from sim.scenario import ScenarioError
 
     try:
         return args.fn(args)
-    except (ScenarioError, LogReadError, BatchError) as exc:  # bad input: one line, exit 2
+    except (ScenarioError, LogReadError, LogWriteError, BatchError) as exc:  # bad input: one line, exit 2
         _error(exc)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:

@@ -83,6 +83,13 @@ def test_missing_file_is_exit_2(tmp_path):
     assert "cannot read scenario file" in proc.stderr and "Traceback" not in proc.stderr
 
 
+def test_unwritable_log_path_is_exit_2(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "sim.cli", "run", "scenarios/quad_hover_offset.toml",
+                           "-o", str(tmp_path)], capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert proc.returncode == 2
+    assert "cannot write the log" in proc.stderr and "Traceback" not in proc.stderr
+
+
 def test_good_scenario_validates():
     proc = subprocess.run([sys.executable, "-m", "sim.cli", "validate", "scenarios/haps_box_mission.toml"],
                           capture_output=True, text=True, cwd=ROOT, timeout=60)
