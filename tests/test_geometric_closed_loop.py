@@ -126,7 +126,8 @@ def test_s3a_static_main_descends_first(tmp_path):
     assert h[during].min() < -1.0 and h[during].max() < 0.5
 
 
-@pytest.mark.parametrize("name", ["s1_174_r1p5", "s3b_moving_main", "env1_tuning", "env4_tuning"])
+@pytest.mark.parametrize("name", ["s1_174_r1p5", "s3b_moving_main", "env1_tuning", "env2_tuning", "env3_tuning",
+                                  "env4_tuning"])
 def test_more_encounters_stay_clear_and_complete(tmp_path, name):
     _, result, log = fly(tmp_path, name)
     assert_clear_and_complete(result, log)

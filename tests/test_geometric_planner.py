@@ -1,5 +1,8 @@
 """GeometricAvoider behind the shared planner protocol: NED in/out, reference when clear,
-avoidance plan, commitment re-check, NO_SOLUTION hover, candidate log, invalid inputs."""
+avoidance plan, commitment re-check, NO_SOLUTION hover, candidate log, invalid inputs, and the
+closed-loop rules: selection margin (hysteresis), collision point of a static threat beyond the
+detection horizon, progress-based commitment, latency shift at the vehicle's speed, minimum
+re-plan interval, suspended path."""
 
 from __future__ import annotations
 
@@ -9,7 +12,9 @@ import numpy as np
 import pytest
 
 from avoidance.geometric.config import GeometricConfig
+from avoidance.geometric.conflict import find_main_threat
 from avoidance.geometric.planner import GeometricAvoider
+from avoidance.geometric.threats import Threat, ThreatArrays
 from avoidance.planner import Plan, PlanStatus, Planner, Threats
 from avoidance.threats import IntruderTrack, SphereThreat
 from sim.state import VehicleState
@@ -17,8 +22,9 @@ from sim.state import VehicleState
 REF = np.array([[0.0, 0.0, -20.0], [50.0, 0.0, -20.0], [120.0, 0.0, -20.0]])   # north at 20 m
 
 
-def state(t: float, north: float, east: float = 0.0) -> VehicleState:
-    return VehicleState(t, np.array([north, east, -20.0]), np.array([5.0, 0, 0]), np.zeros(3), np.zeros(3), 20.0, 47.0, 8.0)
+def state(t: float, north: float, east: float = 0.0, down: float = -20.0, speed: float = 5.0) -> VehicleState:
+    return VehicleState(t, np.array([north, east, down]), np.array([speed, 0, 0]), np.zeros(3), np.zeros(3), -down,
+                        47.0, 8.0)
 
 
 def sphere(north: float, east: float = 0.0, r: float = 2.0, **kw) -> SphereThreat:
@@ -61,11 +67,11 @@ def test_commitment_kept_while_valid_and_replanned_when_invalid():
     k = first.diagnostics["chosen_index"]
     again = av.plan(state(0.5, 12.5), threats, 0.5)
     assert again.diagnostics["status"] == "committed" and np.array_equal(again.positions, first.positions)
-    assert av.still_valid(threats, 0.5)
+    assert av.still_valid(threats, 0.5, np.array([12.5, 0, -20]))
     # a new sphere right on the committed path's peak
     peak = first.positions[np.argmax(np.hypot(first.positions[:, 1], first.positions[:, 2] + 20))]
     blocked = Threats(spheres=[sphere(25.0), SphereThreat("new", 0.5, peak.copy(), 1.0)])
-    assert not av.still_valid(blocked, 0.5)
+    assert not av.still_valid(blocked, 0.5, np.array([12.5, 0, -20]))
     re = av.plan(state(0.5, 12.5), blocked, 0.5)
     assert re.diagnostics["replan_reason"] == "invalid"
     assert re.status is PlanStatus.NO_SOLUTION or re.diagnostics["chosen_index"] != k
@@ -80,7 +86,7 @@ def test_no_solution_hovers_and_too_close_hovers():
     p = av.plan(state(3.0, 10.0), Threats(spheres=[sphere(25.0)] + ring), 3.0)
     assert p.status is PlanStatus.NO_SOLUTION and p.diagnostics["status"] == "no_solution"
     assert np.allclose(p.positions, [[10, 0, -20]]) and np.allclose(p.velocities, 0) and p.times[0] == 3.0
-    p = av.plan(state(3.0, 10.0), Threats(spheres=[sphere(14.0)]), 3.0)
+    p = av.plan(state(3.5, 10.0), Threats(spheres=[sphere(14.0)]), 3.5)
     assert p.status is PlanStatus.NO_SOLUTION and p.diagnostics["status"] == "too_close"
 
 
@@ -116,3 +122,123 @@ def test_invalid_inputs_raise_clear_errors():
         GeometricAvoider(REF, 5.0, GeometricConfig(k_sigma=2.0)).plan(
             state(0, 10), Threats(spheres=[sphere(30.0, center_cov=-np.eye(3))]), 0.0)
     assert isinstance(av.plan(state(0, 10), Threats(), 0.0), Plan)
+
+
+# -- closed-loop rules ----------------------------------------------------------------------------
+def peak_of(plan: Plan) -> tuple[np.ndarray, np.ndarray]:
+    """The plan vertex farthest from the reference (the north axis at 20 m) and the unit NED
+    direction of its offset."""
+    off = plan.positions - np.array([1.0, 0, 0]) * plan.positions[:, :1] - [0, 0, -20.0]
+    k = int(np.argmax(np.linalg.norm(off, axis=1)))
+    return plan.positions[k].copy(), off[k] / np.linalg.norm(off[k])
+
+
+def test_selection_needs_the_margin_the_committed_recheck_does_not():
+    chosen_clearance = {}
+    for margin in (0.0, 1.0):
+        av = GeometricAvoider(REF, 5.0, GeometricConfig(start_shift_s=0.0, select_margin_m=margin))
+        first = av.plan(state(0.0, 10.0), Threats(spheres=[sphere(25.0)]), 0.0)
+        log = av.candidate_log()
+        assert log["available"] == [c >= av.config.r_uav + margin for c in log["min_clearance_m"]]
+        chosen_clearance[margin] = log["min_clearance_m"][log["chosen"]]
+    r_uav = av.config.r_uav
+    assert r_uav <= chosen_clearance[0.0] < r_uav + 1.0 <= chosen_clearance[1.0]
+    # hysteresis: a sphere whose clearance to the committed path is inside the margin (but
+    # outside r_uav) keeps the path; one inside r_uav drops it
+    peak, out = peak_of(first)
+
+    def near(gap: float) -> Threats:
+        return Threats(spheres=[sphere(25.0), SphereThreat("near", 0.5, peak + out * (1.0 + gap), 1.0)])
+
+    assert av.plan(state(0.5, 12.5), near(r_uav + 0.5), 0.5).diagnostics["status"] == "committed"
+    assert not av.still_valid(near(r_uav - 0.1), 0.5, np.array([12.5, 0, -20]))
+
+
+def test_static_threat_beyond_the_horizon_keeps_its_centre_and_radius():
+    # the sphere's surface is within the 1 s look-ahead, its centre beyond it
+    ta = ThreatArrays.of([Threat("s", np.array([6.5, 0, 0]), np.zeros(3), 2.0)])
+    start, v = np.zeros(3), np.array([5.0, 0, 0])
+    m = find_main_threat(start, v, ta, 1.0, 1.0, 20.0)
+    assert m.t_cpa == pytest.approx(1.3) and np.allclose(m.p_c, [6.5, 0, 0])
+    assert m.radius == pytest.approx(2.0) and m.miss == pytest.approx(0.0)
+    cut = find_main_threat(start, v, ta, 1.0, 1.0)                    # geometry cut at the horizon
+    assert cut.t_cpa == pytest.approx(1.0) and cut.radius == pytest.approx(3.5)
+    # the planner passes the time to the reference end: it plans around the sphere where it is
+    # (with the cut geometry, dx = 5 m < 2.5 · 3.5 m would be "too close")
+    av = GeometricAvoider(REF, 5.0, GeometricConfig(start_shift_s=0.0, conflict_horizon_s=1.0))
+    p = av.plan(state(0.0, 10.0), Threats(spheres=[sphere(16.5)]), 0.0)
+    assert p.diagnostics["status"] == "avoid" and p.diagnostics["t_cpa_s"] == pytest.approx(1.3)
+
+
+def test_commitment_lasts_until_the_vehicle_passes_the_rejoin_point_not_the_schedule():
+    av = GeometricAvoider(REF, 5.0, GeometricConfig(start_shift_s=0.0))
+    threats = Threats(spheres=[sphere(25.0)])
+    first = av.plan(state(0.0, 10.0), threats, 0.0)
+    end = int(np.flatnonzero(first.labels == -1)[-1])                   # the rejoin point
+    peak, _ = peak_of(first)
+    late = float(first.times[end]) + 2.0                                # schedule over, vehicle at the peak
+    lagging = av.plan(state(late, peak[0], peak[1], peak[2]), threats, late)
+    assert lagging.diagnostics["status"] == "committed" and np.array_equal(lagging.positions, first.positions)
+    past = av.plan(state(late + 0.1, first.positions[end, 0] + 0.2), threats, late + 0.1)
+    assert past.diagnostics["status"] == "no_conflict"
+
+
+def test_committed_recheck_is_retimed_to_the_vehicles_lag():
+    av = GeometricAvoider(REF, 5.0, GeometricConfig(start_shift_s=0.0))
+    first = av.plan(state(0.0, 10.0), Threats(spheres=[sphere(25.0)]), 0.0)
+    path, times = first.positions[first.labels == -1], first.times[first.labels == -1]
+    q = peak_of(first)[0]
+    tq = float(times[np.flatnonzero(np.all(path == q, axis=1))[0]])
+    v = np.array([0.0, 0.0, 5.0])                                       # descending through q at tq + 2 s
+
+    def check(t: float, t_sched: float) -> bool:
+        pos = np.array([np.interp(t_sched, times, path[:, i]) for i in range(3)])
+        track = IntruderTrack("ac", t, q + v * (t - tq - 2.0), v, 1.0)
+        return av.still_valid(Threats(spheres=[sphere(25.0)], intruders=[track]), t, pos)
+
+    assert tq > 1.0
+    assert check(1.0, 1.0)              # on schedule: at q 2 s before the intruder
+    assert not check(3.0, 1.0)          # 2 s behind: at q with it
+
+
+def test_hovering_vehicle_plans_from_where_it_is():
+    threats = Threats(spheres=[sphere(25.0)])
+    p = GeometricAvoider(REF, 5.0).plan(state(0.0, 19.5, speed=0.0), threats, 0.0)   # 0.75 s latency shift
+    assert p.diagnostics["status"] == "avoid"
+    assert np.allclose(p.positions[0], [19.5, 0, -20]) and p.times[0] == pytest.approx(0.75)
+    # at cruise speed the evading point is 3.75 m ahead, 1.75 m from the centre
+    moving = GeometricAvoider(REF, 5.0).plan(state(0.0, 19.5), threats, 0.0)
+    assert moving.diagnostics["status"] == "too_close"
+
+
+def test_replans_are_rate_limited_and_an_unsafe_commitment_hovers_meanwhile():
+    threats = Threats(spheres=[sphere(25.0)])
+    av = GeometricAvoider(REF, 5.0, GeometricConfig(start_shift_s=0.0))
+    assert av.config.min_replan_interval_s == 0.5
+    first = av.plan(state(0.0, 10.0), threats, 0.0)
+    blocked = Threats(spheres=[sphere(25.0), SphereThreat("new", 0.2, peak_of(first)[0], 1.0)])
+    p = av.plan(state(0.2, 11.0), blocked, 0.2)
+    d = p.diagnostics
+    assert p.status is PlanStatus.NO_SOLUTION and d["status"] == "rate_limited" and d["replan_reason"] == "invalid"
+    assert np.allclose(p.positions, [[11, 0, -20]]) and np.allclose(p.velocities, 0) and "n_candidates" not in d
+    assert av.plan(state(0.4, 11.5), blocked, 0.4).diagnostics["status"] == "rate_limited"
+    assert av.plan(state(0.5, 11.6), blocked, 0.5).diagnostics["n_candidates"] == 32
+    # without an interval the unsafe commitment is re-planned at once
+    av0 = GeometricAvoider(REF, 5.0, GeometricConfig(start_shift_s=0.0, min_replan_interval_s=0.0))
+    av0.plan(state(0.0, 10.0), threats, 0.0)
+    again = av0.plan(state(0.2, 11.0), blocked, 0.2).diagnostics
+    assert again["replan_reason"] == "invalid" and again["n_candidates"] == 32
+
+
+def test_unsafe_commitment_far_off_the_reference_is_suspended_and_resumed():
+    threats = Threats(spheres=[sphere(25.0)])
+    av = GeometricAvoider(REF, 5.0, GeometricConfig(start_shift_s=0.0, select_margin_m=1.0))
+    first = av.plan(state(0.0, 10.0), threats, 0.0)
+    peak, out = peak_of(first)
+    here = peak - np.array([2.0, 0, 0]) - out * 0.5                        # before the peak, ~5.9 m off
+    blocked = Threats(spheres=[sphere(25.0), SphereThreat("new", 2.0, peak, 1.0)])
+    p = av.plan(state(2.0, *here), blocked, 2.0)
+    assert p.status is PlanStatus.NO_SOLUTION and p.diagnostics["status"] == "suspended"
+    assert np.allclose(p.positions, [here]) and p.diagnostics["cross_track_m"] > av.config.replan_max_offset_m
+    resumed = av.plan(state(2.1, *here), threats, 2.1)
+    assert resumed.diagnostics["status"] == "committed" and np.array_equal(resumed.positions, first.positions)

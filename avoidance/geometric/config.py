@@ -93,6 +93,11 @@ class GeometricConfig:
     - ``log_limits``: ln-space clip limits of (S, S_rp, M).
     - ``max_cost``: optional threshold above which the result is NO_SOLUTION.
     - ``conflict_horizon_s`` [s]: look-ahead of the constant-velocity conflict monitor.
+    - ``min_replan_interval_s`` [s]: least time between two candidate generations in the closed
+      loop (spec §9.6); a conflict inside it gets the hover plan.
+    - ``replan_max_offset_m`` [m]: a committed path found unsafe is dropped for a re-plan only
+      while the vehicle is within this distance of the reference; farther off, it hovers and
+      resumes the path when it is clear again.
     """
 
     l: int = 4
@@ -121,6 +126,8 @@ class GeometricConfig:
     start_shift_s: float = 0.75
     max_cost: float | None = None
     conflict_horizon_s: float = 10.0
+    min_replan_interval_s: float = 0.5
+    replan_max_offset_m: float = 2.0
     rho: float = 1.225
     g: float = 9.81
     hover_literal_ki: bool = False
@@ -139,7 +146,8 @@ class GeometricConfig:
         for name in ("min_sep_factor", "collision_radius", "rho", "g", "cmo_min_distance"):
             _positive(name, getattr(self, name))
         for name in ("rejoin_check_s", "select_margin_m", "main_threat_extension_s", "k_sigma", "k_p", "start_shift_s",
-                     "k1", "k2"):
+                     "k1", "k2", "min_replan_interval_s",
+                     "replan_max_offset_m"):
             v = getattr(self, name)
             _require(math.isfinite(v) and v >= 0, f"{name} must be finite and >= 0, got {v!r}")
         _positive("conflict_horizon_s", self.conflict_horizon_s)

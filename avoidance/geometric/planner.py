@@ -4,12 +4,19 @@ planner protocol ``avoidance.planner.Planner``.
 Boundary: estimates, threats and plans are local NED [m, m/s], sim time [s]; the core works in
 local ENU z-up and τ from the evading instant (converted here and in ``reference``).
 
-Per call: while a committed avoidance path is being flown it is re-checked (``still_valid``)
-and kept if still clear; otherwise the conflict monitor (CPA along the reference) looks for a
-main threat. No conflict -> the reference. Conflict -> candidates around it from the evading
-point (the vehicle's along-track position shifted ahead by ``start_shift_s``), the chosen path
+Per call: until the vehicle has passed the committed avoidance path's rejoin point (judged by
+its along-track position, not the clock: the follower may lag the schedule) the path is
+re-checked (``still_valid``, re-timed from the vehicle's progress) and kept if still clear;
+otherwise the conflict monitor (CPA along the reference) looks for a main threat. No conflict ->
+the reference. Conflict -> candidates around it from the evading point (the vehicle's
+along-track position moved ahead by its along-track speed × ``start_shift_s``), the chosen path
 then the rest of the reference. No collision-free candidate (or too close) -> NO_SOLUTION with
-a hover plan at the current position.
+a hover plan at the current position. Candidates are generated at most once per
+``min_replan_interval_s``; a conflict inside that interval (including a committed path found
+unsafe) gets the hover plan (``status = rate_limited``). A committed path found unsafe while the
+vehicle is more than ``replan_max_offset_m`` off the reference is not dropped (the candidates
+would start on the reference, out of reach): the vehicle hovers (``status = suspended``) and
+resumes the path once its re-check is clear again.
 """
 
 from __future__ import annotations
@@ -31,14 +38,28 @@ from sim.state import VehicleState
 
 @dataclass(frozen=True, slots=True)
 class _Commitment:
-    """The avoidance path being flown: ENU points, absolute times [s], the plan handed out, the
-    main threat's id and the absolute time it reaches the collision point."""
+    """The avoidance path being flown: ENU points [m] from the plan's start to the rejoin point,
+    their along-track distances on the reference [m] (increasing: every candidate advances along
+    x̂), the absolute times they were scheduled for [s], the plan handed out, the main threat's id
+    and the absolute time it reaches the collision point [s]."""
 
     points_enu: np.ndarray
+    along: np.ndarray
     times: np.ndarray
     plan: Plan
     main_id: str
     t_cpa: float
+
+    def remaining(self, s_now: float) -> tuple[np.ndarray, np.ndarray]:
+        """The rest of the path from along-track distance ``s_now`` [m] (its point there first) and
+        its schedule re-timed to the vehicle's progress [s, τ = 0 now]: a vehicle behind (or
+        ahead of) the schedule shifts every later time by its lag. A vehicle still short of the
+        path's first point is taken as there."""
+        s_now = max(s_now, float(self.along[0]))
+        here = np.array([np.interp(s_now, self.along, self.points_enu[:, i]) for i in range(3)])
+        later = self.along > s_now
+        t_here = np.interp(s_now, self.along, self.times)
+        return np.vstack([here, self.points_enu[later]]), np.concatenate([[0.0], self.times[later] - t_here])
 
 
 def sensed_threats(threats: Threats, t0: float, k_sigma: float) -> tuple[list[Threat], int]:
@@ -88,6 +109,7 @@ class GeometricAvoider:
         self.vehicle = vehicle or VehicleParams()
         self.reference: ReferenceLine | None = None
         self._commit: _Commitment | None = None
+        self._t_planned = -np.inf                   # time of the last candidate generation [s]
         self._last: tuple[float, AvoidanceResult, list[Threat]] | None = None
         if reference_ned is not None:
             if speed is None:
@@ -101,26 +123,30 @@ class GeometricAvoider:
 
     def reset(self) -> None:
         self._commit = None
+        self._t_planned = -np.inf
         self._last = None
 
     # -- protocol -------------------------------------------------------------------------------
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         t_start = time.perf_counter()
         ref = self._require_reference()
-        pos = ned_to_enu(estimate.pos_ned)
-        if not (np.isfinite(t) and np.all(np.isfinite(pos))):
-            raise ValueError("estimate position and time must be finite")
-        if self._commit is not None and t < self._commit.times[-1]:
-            if self.still_valid(threats, t):
-                return self._with_diagnostics(self._commit.plan, {"status": "committed"}, t_start)
-            replan = "invalid"
-        else:
-            replan = ""
-        self._commit = None
+        pos, vel = ned_to_enu(estimate.pos_ned), ned_to_enu(estimate.vel_ned)
+        if not (np.isfinite(t) and np.all(np.isfinite(pos)) and np.all(np.isfinite(vel))):
+            raise ValueError("estimate position, velocity and time must be finite")
         cfg = self.config
         s_now, cross = ref.project(pos)
-        s_e = min(s_now + ref.speed * cfg.start_shift_s, ref.length)
-        t_e = t + (s_e - s_now) / ref.speed
+        replan = ""
+        if self._commit is not None and s_now < self._commit.along[-1]:
+            if self.still_valid(threats, t, estimate.pos_ned):
+                return self._with_diagnostics(self._commit.plan, {"status": "committed"}, t_start)
+            replan = "invalid"
+            if cross > cfg.replan_max_offset_m:      # candidates start on the reference: wait it out
+                return self._with_diagnostics(self._hover_plan(t, estimate.pos_ned),
+                                              {"status": "suspended", "cross_track_m": cross}, t_start)
+        self._commit = None
+        v_along = min(max(float(vel @ ref.x_hat), 0.0), ref.speed)
+        s_e = min(s_now + v_along * cfg.start_shift_s, ref.length)
+        t_e = t + cfg.start_shift_s
         core, ignored = sensed_threats(threats, t_e, cfg.k_sigma)
         base = {"cross_track_m": cross, "ignored_threats": ignored, "replan_reason": replan}
         start = ref.point(s_e)
@@ -130,37 +156,43 @@ class GeometricAvoider:
         main = find_main_threat(start, ref.velocity, ta, cfg.r_uav + cfg.select_margin_m, horizon, to_end) if horizon > 0 else None
         if main is None:
             return self._with_diagnostics(self._reference_plan(t, s_now), {**base, "status": "no_conflict"}, t_start)
+        diag = {**base, "main_threat_id": core[main.index].id, "t_cpa_s": main.t_cpa}
+        if t - self._t_planned < cfg.min_replan_interval_s:
+            return self._with_diagnostics(self._hover_plan(t, estimate.pos_ned), {**diag, "status": "rate_limited"},
+                                          t_start)
+        self._t_planned = t
         res = plan_avoidance(start, ref.x_hat, ref.speed, ta, main, cfg, self.vehicle)
         self._last = (t, res, core)
-        diag = {**base, "status": res.status.value, "main_threat_id": core[main.index].id,
-                "t_cpa_s": main.t_cpa, "n_candidates": 0 if res.candidates is None else len(res.candidates),
-                "n_available": 0 if res.available is None else int(res.available.sum()),
-                **{f"t_{k}_s": v for k, v in res.timings.items()}}
+        diag |= {"status": res.status.value,
+                 "n_candidates": 0 if res.candidates is None else len(res.candidates),
+                 "n_available": 0 if res.available is None else int(res.available.sum()),
+                 **{f"t_{k}_s": v for k, v in res.timings.items()}}
         if res.status is not Status.AVOID:
             return self._with_diagnostics(self._hover_plan(t, estimate.pos_ned), diag, t_start)
         diag |= {"chosen_index": res.chosen, "cost": res.cost}
-        plan = self._avoid_plan(t, s_now, t_e, res)
-        k = res.chosen
-        n = res.candidates.n_pts[k]
-        self._commit = _Commitment(res.candidates.points[k, :n], t_e + res.kinematics.tau[k, :n], plan,
+        plan = self._avoid_plan(t, s_now, s_e, t_e, res)
+        m = res.candidates.n_pts[res.chosen] + (s_e > s_now)        # [lead point +] the chosen path
+        pts = ned_to_enu(plan.positions[:m])
+        self._commit = _Commitment(pts, (pts - ref.origin) @ ref.x_hat, plan.times[:m], plan,
                                    core[main.index].id, t_e + main.t_cpa)
         return self._with_diagnostics(plan, diag, t_start)
 
-    def still_valid(self, threats: Threats, t: float) -> bool:
-        """Whether the rest of the committed avoidance path (from time ``t`` [s]) is still clear of
-        the sensed threats, with the rules used to choose it. False when nothing is committed."""
-        c = self._commit
-        if c is None or t >= c.times[-1]:
+    def still_valid(self, threats: Threats, t: float, pos_ned: np.ndarray) -> bool:
+        """Whether the rest of the committed avoidance path, from the along-track position of the
+        vehicle at ``pos_ned`` (NED [m]) at time ``t`` [s] and re-timed to its progress, is still
+        clear of the sensed threats with the rules used to choose it (the vehicle radius without
+        ``select_margin_m``). False when nothing is committed or the rejoin point is passed."""
+        c, ref = self._commit, self.reference
+        if c is None:
             return False
+        s_now, _ = ref.project(ned_to_enu(pos_ned))
+        if s_now >= c.along[-1]:
+            return False
+        pts, times = c.remaining(s_now)
         core, _ = sensed_threats(threats, t, self.config.k_sigma)
-        later = c.times > t
-        here = np.array([np.interp(t, c.times, c.points_enu[:, i]) for i in range(3)])
-        pts = np.vstack([here, c.points_enu[later]])
-        times = np.concatenate([[0.0], c.times[later] - t])
         ids = [th.id for th in core]
         main_index = ids.index(c.main_id) if c.main_id in ids else None
-        return path_is_clear(pts, times, ThreatArrays.of(core), main_index, c.t_cpa - t,
-                             self.reference.velocity, self.config)
+        return path_is_clear(pts, times, ThreatArrays.of(core), main_index, c.t_cpa - t, ref.velocity, self.config)
 
     def candidate_log(self) -> dict | None:
         """The last planning event's candidates as plain lists/dicts (NED points K×N×3, n_pts,
@@ -203,8 +235,8 @@ class GeometricAvoider:
         return Plan(t, np.asarray(pos_ned, float)[None].copy(), np.array([t]), np.array([-1]),
                     PlanStatus.NO_SOLUTION, np.zeros((1, 3)), self.name)
 
-    def _avoid_plan(self, t: float, s_now: float, t_e: float, res: AvoidanceResult) -> Plan:
-        """[along-track point now (if the start was shifted)] + chosen path + rest of the reference."""
+    def _avoid_plan(self, t: float, s_now: float, s_e: float, t_e: float, res: AvoidanceResult) -> Plan:
+        """[along-track point now (if the start was moved ahead)] + chosen path + rest of the reference."""
         ref, k = self.reference, res.chosen
         n = res.candidates.n_pts[k]
         pts = res.candidates.points[k, :n]
@@ -212,7 +244,7 @@ class GeometricAvoider:
         times = t_e + res.kinematics.tau[k, :n]
         s_end, _ = ref.project(pts[-1])
         tail_pos, tail_t, tail_idx, tail_vel = ref.onward(s_end, times[-1])
-        lead = t_e > t
+        lead = s_e > s_now
         pos = [enu_to_ned(ref.point(s_now))[None]] * lead + [enu_to_ned(pts), tail_pos]
         vels = [enu_to_ned(ref.velocity)[None]] * lead + [enu_to_ned(vel), tail_vel]
         return Plan(t, np.vstack(pos), np.concatenate([[t]] * lead + [times, tail_t]),

