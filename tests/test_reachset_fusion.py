@@ -37,6 +37,19 @@ def hits_at(d: float, rays: np.ndarray) -> np.ndarray:
     return np.column_stack([np.full(len(rays), d), rays])
 
 
+def test_cells_beyond_the_sensor_range_are_not_visible():
+    """A ray that ends at the sensor's range without a return has not seen the cells beyond it:
+    with half the row's rays ending at 4.5 m and the other half at 7.5 m, layers 1-5 are seen by
+    all, 6-8 by half, 9-10 by none (before: all visible, so (6.158) erased the map there)."""
+    rays = row_rays(20)
+    reach = np.r_[np.full(10, 4.5), np.full(10, 7.5)]
+    _, vis = lidar_ratings_polar(GRID, rays, np.zeros((0, 3)), LidarConfig(), reach)
+    np.testing.assert_allclose(middle_row(vis), np.r_[np.ones(5), np.full(3, 0.5), np.zeros(2)], atol=1e-12)
+    scans = hits_at(2.5, rays[:5])  # returns hinder as before, on top
+    _, vis = lidar_ratings_polar(GRID, rays, scans, LidarConfig(), np.where(np.arange(20) < 5, np.inf, reach))
+    np.testing.assert_allclose(middle_row(vis), np.r_[np.ones(3), np.full(2, 0.75), np.full(3, 0.5), np.zeros(2)], atol=1e-12)
+
+
 def test_visibility_worked_example():
     rays = row_rays(20)
     scans = [hits_at(2.5, rays[:5]), hits_at(4.5, rays[5:8]), hits_at(6.5, rays[8:12])]  # 0.25, 0.15, 0.20
