@@ -113,21 +113,30 @@ def test_s2_climbs_over(tmp_path):
     assert (-st["vel_ned"][during, 2]).max() > 5.0 * np.sin(np.radians(20.0)) + 0.25
 
 
-def test_s3a_static_main_descends_first(tmp_path):
+def test_s3_static_descends_first_moving_goes_left_and_costs_more(tmp_path):
     _, result, log = fly(tmp_path, "s3a_static_main")
     assert_clear_and_complete(result, log)
     ev = first_avoid(log)
-    pts = chosen(ev)["points"]
+    static = chosen(ev)
+    pts = static["points"]
     mid = pts[len(pts) // 2]
     assert -(mid[2] - pts[0][2]) < -1.0                       # below the reference at the peak
     st = log.topic("/quad/truth/state")
     h = -(st["pos_ned"][:, 2] - st["pos_ned"][0, 2])
     during = (st.t >= ev["t"]) & (st.t <= ev["t"] + 4.0)
     assert h[during].min() < -1.0 and h[during].max() < 0.5
+    # moving main threat: a level path to the left (west of the northbound reference), costlier
+    _, result, log = fly(tmp_path, "s3b_moving_main")
+    assert_clear_and_complete(result, log)
+    ev = first_avoid(log)
+    moving = chosen(ev)
+    assert ev["main_threat_id"] == "main" and moving["alpha"] == pytest.approx(0.0, abs=1e-6)
+    off = moving["points"] - moving["points"][0]
+    assert np.abs(off[:, 2]).max() < 1e-6 and off[:, 1].min() < -3.0 and off[:, 1].max() < 1e-6
+    assert moving["cost"] > static["cost"]
 
 
-@pytest.mark.parametrize("name", ["s1_174_r1p5", "s3b_moving_main", "env1_tuning", "env2_tuning", "env3_tuning",
-                                  "env4_tuning"])
+@pytest.mark.parametrize("name", ["s1_174_r1p5", "env1_tuning", "env2_tuning", "env3_tuning", "env4_tuning"])
 def test_more_encounters_stay_clear_and_complete(tmp_path, name):
     _, result, log = fly(tmp_path, name)
     assert_clear_and_complete(result, log)

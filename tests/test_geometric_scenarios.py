@@ -68,3 +68,21 @@ def test_scenario3_static_descends_moving_goes_lateral_and_costs_more(cfg):
     # ties to 1e-12, so which side wins is decided by rounding, not by the scenario
     left = np.flatnonzero((cb.kind == cb.kind[kb]) & (cb.theta == 0) & np.isclose(cb.omega, -cb.omega[kb]))[0]
     assert b.available[left] and b.costs.total[left] == pytest.approx(b.cost, abs=1e-12)
+
+
+@pytest.mark.parametrize("cfg", [THESIS, GeometricConfig(start_shift_s=0.0)], ids=["swept", "timed"])
+def test_scenario3_moving_goes_to_the_side_away_from_the_diagonal_threats(cfg):
+    """With the diagonal threats shifted sideways the tie is broken by the scene: the moving case
+    takes the level path on the far side (left for a shift to the right, as in the thesis), still
+    costlier than the static case, and its mirror is strictly costlier."""
+    for shift, side in ((-1.0, 1.0), (1.0, -1.0)):
+        a = scenario3(False, shift).plan(cfg)
+        b = scenario3(True, shift).plan(cfg)
+        assert a.status is b.status is Status.AVOID
+        _, _, pa = _chosen(a)
+        assert pa[len(pa) // 2, 2] < -2.0 and np.all(pa[:, 2] <= 1e-9)       # static: descends first
+        cb, kb, pb = _chosen(b)
+        assert np.allclose(pb[:, 2], 0.0, atol=1e-9) and np.sign(pb[len(pb) // 2, 1]) == side
+        assert b.cost > a.cost
+        mirror = np.flatnonzero((cb.kind == cb.kind[kb]) & (cb.theta == 0) & np.isclose(cb.omega, -cb.omega[kb]))[0]
+        assert not b.available[mirror] or b.costs.total[mirror] > b.cost + 1e-4

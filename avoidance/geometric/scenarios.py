@@ -60,12 +60,19 @@ def scenario2() -> Encounter:
     return Encounter(np.zeros(3), d, (main,) + side)
 
 
-def scenario3(moving_main: bool) -> Encounter:
+def scenario3(moving_main: bool, diagonal_shift_m: float = 0.0) -> Encounter:
     """Main threat R = 2 at p_c = (10, 0, 0) (static, or climbing at 3 m/s to reach p_c at τ = 2 s)
-    and two R = 1 threats moving diagonally above the collision point."""
+    and two R = 1 threats moving diagonally above the collision point, both moved sideways by
+    ``diagonal_shift_m`` [m] (+y, left).
+
+    With no shift (the spec's reconstruction) the scene is symmetric under the half turn about
+    the vertical through p_c: a left path and its right mirror have equal time-free cost terms, so
+    the side of a lateral path is a tie (decided by rounding). The thesis reports "left" but gives
+    no coordinates; with the diagonal threats shifted right (< 0) left is the cheaper side."""
     p_c = np.array([10.0, 0.0, 0.0])
     main = _on_course("main", p_c, np.array([0.0, 0.0, 3.0]), 2.0, 2.0) if moving_main else Threat("main", p_c, np.zeros(3), 2.0)
+    shift = np.array([0.0, diagonal_shift_m, 0.0])
     return Encounter(np.zeros(3), np.array([1.0, 0.0, 0.0]), (
         main,
-        Threat("diag_a", np.array([6.0, -6.0, 4.0]), np.array([1.5, 1.5, 0.0]), 1.0),
-        Threat("diag_b", np.array([14.0, 6.0, 4.0]), np.array([-1.5, -1.5, 0.0]), 1.0)))
+        Threat("diag_a", np.array([6.0, -6.0, 4.0]) + shift, np.array([1.5, 1.5, 0.0]), 1.0),
+        Threat("diag_b", np.array([14.0, 6.0, 4.0]) + shift, np.array([-1.5, -1.5, 0.0]), 1.0)))
