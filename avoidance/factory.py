@@ -84,6 +84,24 @@ def _reachset_config(options: dict):
     return cfg
 
 
+def _reachset_automaton(airframe_kind: str, cruise: float, options: dict, bank_limit_rad: float = np.radians(20.0)):
+    from avoidance.reachset.movement import haps_automaton, multirotor_automaton
+
+    period = float(options.get("period", 1.0))
+    return (multirotor_automaton(cruise, period) if airframe_kind == "multirotor"
+            else haps_automaton(cruise, period, bank_limit_rad))
+
+
+def reachset_grid_range(airframe_kind: str, cruise: float, options: dict) -> float:
+    """Range [m] of the reach-set avoidance grid flown at ``cruise`` [m/s]: layers x the movement
+    length of the active segment (a sensor that must see the grid needs at least this)."""
+    from avoidance.reachset.movement import KinState
+
+    sma = _reachset_automaton(airframe_kind, cruise, options)
+    length = sma.active(KinState(np.zeros(3), np.zeros(3), 0.0, cruise)).table.config.length
+    return float(_reachset_config(options).grid.scaled(length).d_range[1])
+
+
 def make_planner(kind: str, mission: Mission, airframe_kind: str = "multirotor", options: dict | None = None,
                  bank_limit_rad: float = np.radians(20.0)) -> Planner:
     """The planner called ``kind`` for ``mission`` flown by an ``airframe_kind`` vehicle."""
@@ -98,12 +116,9 @@ def make_planner(kind: str, mission: Mission, airframe_kind: str = "multirotor",
         return GeometricAvoider(np.vstack([start, mission.waypoints]), mission.cruise_speed,
                                 _config(kind, options), first_label=-1)
     if kind == "reachset":
-        from avoidance.reachset.movement import haps_automaton, multirotor_automaton
         from avoidance.reachset.planner import ReachSetAvoider
 
-        period = float(options.get("period", 1.0))
-        sma = (multirotor_automaton(mission.cruise_speed, period) if airframe_kind == "multirotor"
-               else haps_automaton(mission.cruise_speed, period, bank_limit_rad))
+        sma = _reachset_automaton(airframe_kind, mission.cruise_speed, options, bank_limit_rad)
         if "rules" not in options:
             return ReachSetAvoider(mission, sma, _reachset_config(options))
         from avoidance.rules.config import RulesConfig

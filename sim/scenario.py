@@ -18,7 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from shapely.geometry import Polygon
 
 from aircraft.registry import get_airframe
-from avoidance.factory import PlannerConfigError, check_planner
+from avoidance.factory import PlannerConfigError, check_planner, reachset_grid_range
 from sim.frames import GeoPoint
 from sim.sensors.lidar import LidarConfig
 from sim.units import Angle, Speed, quantity
@@ -123,6 +123,12 @@ class Vehicle(_Strict):
             check_planner(self.planner.type, kind, self.planner.options)
         except PlannerConfigError as exc:
             raise ValueError(f"planner: {exc}") from None
+        if self.lidar is not None and self.planner.type == "reachset":
+            need = reachset_grid_range(kind, self.mission.cruise_speed, self.planner.options)
+            if self.lidar.max_range_m < need:
+                raise ValueError(f"lidar.max_range_m: {self.lidar.max_range_m:g} m does not cover the reach-set grid "
+                                 f"({need:g} m at this cruise speed and period); cells beyond the range are Uncertain "
+                                 "and block every path")
         if kind == "multirotor":
             if self.initial.trim:
                 raise ValueError("initial.trim: JSBSim cannot trim a multirotor; it starts in hover "

@@ -151,3 +151,20 @@ def test_goal_inside_the_turn_circle_is_flown_away_from_not_orbited():
     assert set(TREE.buffer(steered.path.node)) == {M.STRAIGHT}
     ahead = grid_run(GRID, TREE, parts, GOAL, Categories(), CFG.fusion.threshold, steering)
     assert not ahead.path.away
+
+
+def test_lidar_shorter_than_the_grid_is_a_scenario_error():
+    """A LiDAR whose range ends inside the reach-set grid leaves its far cells Uncertain, which
+    blocks every path: the scenario is refused with one line naming the field."""
+    import tomllib
+    from pathlib import Path
+
+    import pytest
+
+    from sim.scenario import ScenarioError, parse_scenario
+
+    data = tomllib.loads((Path(__file__).resolve().parents[1] / "scenarios/reachset/building_lidar.toml").read_text())
+    parse_scenario(data)  # 60 m covers the 50 m grid of 5 m movements
+    data["vehicle"][0]["lidar"] = {"max_range_m": 10.0}
+    with pytest.raises(ScenarioError, match=r"vehicle\[0\]: lidar.max_range_m: 10 m does not cover the reach-set grid \(50 m"):
+        parse_scenario(data, "x.toml")
