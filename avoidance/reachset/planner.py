@@ -5,10 +5,13 @@ Boundary of frames (converted here, once): the estimate and the threats are NED 
 scenario origin; mission control works in the z-up GCF (ENU). The plan returned is NED: the end
 points of the executing movement and of every planned movement, due at their movement times.
 
-The kinematic state of a decision comes from the estimate (never truth): position; heading and
-flight-path angle from the estimated ground velocity when it is at least ``heading_from_velocity``
-of the planning speed (else the yaw, level); speed = the planning speed (the MA keeps speed
-constant, so the segment is chosen by the commanded speed, decision D-6).
+The kinematic state of a decision comes from the estimate (never truth): position; heading from
+the estimated ground velocity when it is at least ``heading_from_velocity`` of the planning speed
+(else the yaw); level (pitch 0: the measured flight-path angle, carried into the executing
+movement's prediction, made every sink or climb of the vehicle its own next plan, and with
+horizontal reach sets nothing pulled it back: the vehicle sank to the ground); speed = the
+planning speed (the MA keeps speed constant, so the segment is chosen by the commanded speed,
+decision D-7).
 """
 
 from __future__ import annotations
@@ -46,11 +49,8 @@ class ReachSetAvoider:
     def kin_state(self, est: VehicleState, t: float) -> KinState:
         vel = ned_to_enu(est.vel_ned)
         ground = float(np.hypot(vel[0], vel[1]))
-        if ground >= self.heading_from_velocity * self.speed:
-            psi, pitch = float(np.arctan2(vel[1], vel[0])), float(np.arctan2(-vel[2], ground))
-        else:
-            psi, pitch = heading_from_yaw_ned(est.yaw), 0.0
-        return KinState(ned_to_enu(est.pos_ned), np.array([0.0, pitch, psi]), t, self.speed)
+        psi = float(np.arctan2(vel[1], vel[0])) if ground >= self.heading_from_velocity * self.speed else heading_from_yaw_ned(est.yaw)
+        return KinState(ned_to_enu(est.pos_ned), np.array([0.0, 0.0, psi]), t, self.speed)
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         """One decision frame per movement period; called more often, the last plan is returned
