@@ -31,7 +31,7 @@ ALT0 = 420.0                  # start altitude MSL [m] (origin at 400 m)
 SPEED = 5.0
 # The plan follower waits at every plan vertex until the estimate is within this radius [m].
 # An avoidance path has 16-21 vertices; with 1 m the vehicle overshot the turns and backed up to
-# them, falling 2-3 s behind the path's schedule (docs/geometric.md, "Closed loop").
+# them, passing the rejoin point ~5 s after its schedule (2 m: 0.5-2 s; docs/geometric.md).
 ACCEPTANCE_M = 2.0
 
 SURVEILLANCE = """[surveillance]
