@@ -242,3 +242,19 @@ def test_unsafe_commitment_far_off_the_reference_is_suspended_and_resumed():
     assert np.allclose(p.positions, [here]) and p.diagnostics["cross_track_m"] > av.config.replan_max_offset_m
     resumed = av.plan(state(2.1, *here), threats, 2.1)
     assert resumed.diagnostics["status"] == "committed" and np.array_equal(resumed.positions, first.positions)
+
+
+def test_unsafe_commitment_far_off_the_reference_flies_on_when_holding_is_worse():
+    av = GeometricAvoider(REF, 5.0, GeometricConfig(start_shift_s=0.0, select_margin_m=1.0))
+    first = av.plan(state(0.0, 10.0), Threats(spheres=[sphere(25.0)]), 0.0)
+    peak, out = peak_of(first)
+    here = peak - np.array([2.0, 0, 0]) - out * 0.5
+    grazing = SphereThreat("new", 2.0, peak + out * 1.5, 1.0)                # 0.5 m from the path's peak
+    from_above = IntruderTrack("ac", 2.0, here + [0, 0, -5.0], np.array([0, 0, 5.0]), 1.0)   # at `here` in 1 s
+    p = av.plan(state(2.0, *here), Threats(spheres=[sphere(25.0), grazing], intruders=[from_above]), 2.0)
+    d = p.diagnostics
+    assert d["status"] == "committed_unsafe" and np.array_equal(p.positions, first.positions)
+    assert d["clearance_hold_m"] < d["clearance_go_m"] < av.config.r_uav
+    # the same path without the intruder: holding is clear, the vehicle hovers
+    p = av.plan(state(2.1, *here), Threats(spheres=[sphere(25.0), grazing]), 2.1)
+    assert p.diagnostics["status"] == "suspended" and p.diagnostics["clearance_hold_m"] >= av.config.r_uav

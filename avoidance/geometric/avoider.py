@@ -160,17 +160,19 @@ def plan_avoidance(start: np.ndarray, x_dir: np.ndarray, ref_speed: float, threa
         {"generation": t1 - t0, "kinematics": t2 - t1, "collision": t3 - t2, "cost": t4 - t3, "selection": t5 - t4})
 
 
-def path_is_clear(points: np.ndarray, times: np.ndarray, threats: ThreatArrays, main_index: int | None,
-                  main_t_cpa: float, tail_vel: np.ndarray, cfg: GeometricConfig) -> bool:
-    """Re-check of a committed path (N, 3) [m] with its schedule ``times`` (N,) [s, τ = 0 now,
-    increasing] against the current threats, with the rules used to choose it."""
+def path_clearance(points: np.ndarray, times: np.ndarray, threats: ThreatArrays, main_index: int | None,
+                   main_t_cpa: float, tail_vel: np.ndarray, cfg: GeometricConfig) -> float:
+    """Smallest clearance [m] (distance minus threat radius) of a path (N, 3) [m] flown on the
+    schedule ``times`` (N,) [s, τ = 0 now, increasing] and then at ``tail_vel`` (3,) [m/s], with
+    the rules used to choose a candidate (the path is clear if it is >= r_uav); inf without
+    threats."""
     pts = np.asarray(points, float)[None]
     dt = np.diff(np.asarray(times, float))[None]
     if np.any(dt <= 0):
-        raise ValueError("committed path times must be strictly increasing")
+        raise ValueError("path times must be strictly increasing")
     vel = np.diff(pts, axis=1) / dt[..., None]
     tau = np.concatenate([[0.0], np.cumsum(dt[0])])[None]
     durations = sweep_durations(threats, main_index, main_t_cpa, float(tau[0, -1]), cfg)
     clearance = candidate_clearance(pts, vel, tau, dt, threats, cfg.dynamic_mode, durations, tail_vel,
                                     float(tau[0, -1]) + cfg.rejoin_check_s)
-    return bool(np.all(clearance >= cfg.r_uav))
+    return float(clearance.min(initial=np.inf))

@@ -16,7 +16,8 @@ a hover plan at the current position. Candidates are generated at most once per
 unsafe) gets the hover plan (``status = rate_limited``). A committed path found unsafe while the
 vehicle is more than ``replan_max_offset_m`` off the reference is not dropped (the candidates
 would start on the reference, out of reach): the vehicle hovers (``status = suspended``) and
-resumes the path once its re-check is clear again.
+resumes the path once its re-check is clear again, unless holding position is predicted to come
+closer to a threat than flying on, then it flies on (``status = committed_unsafe``).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from avoidance.geometric.avoider import AvoidanceResult, Status, path_is_clear, plan_avoidance
+from avoidance.geometric.avoider import AvoidanceResult, Status, path_clearance, plan_avoidance
 from avoidance.geometric.config import PATH_TYPES, GeometricConfig, VehicleParams
 from avoidance.geometric.conflict import find_main_threat
 from avoidance.geometric.reference import ReferenceLine
@@ -137,12 +138,16 @@ class GeometricAvoider:
         s_now, cross = ref.project(pos)
         replan = ""
         if self._commit is not None and s_now < self._commit.along[-1]:
-            if self.still_valid(threats, t, estimate.pos_ned):
+            go, hold = self._commit_clearances(threats, t, estimate.pos_ned)
+            if go >= cfg.r_uav:
                 return self._with_diagnostics(self._commit.plan, {"status": "committed"}, t_start)
             replan = "invalid"
-            if cross > cfg.replan_max_offset_m:      # candidates start on the reference: wait it out
-                return self._with_diagnostics(self._hover_plan(t, estimate.pos_ned),
-                                              {"status": "suspended", "cross_track_m": cross}, t_start)
+            if cross > cfg.replan_max_offset_m:      # candidates start on the reference, out of reach
+                diag = {"cross_track_m": cross, "clearance_go_m": go, "clearance_hold_m": hold}
+                if hold >= go:
+                    return self._with_diagnostics(self._hover_plan(t, estimate.pos_ned),
+                                                  {**diag, "status": "suspended"}, t_start)
+                return self._with_diagnostics(self._commit.plan, {**diag, "status": "committed_unsafe"}, t_start)
         self._commit = None
         v_along = min(max(float(vel @ ref.x_hat), 0.0), ref.speed)
         s_e = min(s_now + v_along * cfg.start_shift_s, ref.length)
@@ -182,17 +187,25 @@ class GeometricAvoider:
         vehicle at ``pos_ned`` (NED [m]) at time ``t`` [s] and re-timed to its progress, is still
         clear of the sensed threats with the rules used to choose it (the vehicle radius without
         ``select_margin_m``). False when nothing is committed or the rejoin point is passed."""
-        c, ref = self._commit, self.reference
-        if c is None:
+        c = self._commit
+        if c is None or self.reference.project(ned_to_enu(pos_ned))[0] >= c.along[-1]:
             return False
-        s_now, _ = ref.project(ned_to_enu(pos_ned))
-        if s_now >= c.along[-1]:
-            return False
-        pts, times = c.remaining(s_now)
-        core, _ = sensed_threats(threats, t, self.config.k_sigma)
+        return self._commit_clearances(threats, t, pos_ned)[0] >= self.config.r_uav
+
+    def _commit_clearances(self, threats: Threats, t: float, pos_ned: np.ndarray) -> tuple[float, float]:
+        """Smallest predicted clearances [m] to the sensed threats of (flying the rest of the
+        committed path re-timed to the vehicle's progress, holding position at ``pos_ned`` (NED
+        [m]) over the same time), from time ``t`` [s]."""
+        c, ref, cfg = self._commit, self.reference, self.config
+        here = ned_to_enu(pos_ned)
+        pts, times = c.remaining(ref.project(here)[0])
+        core, _ = sensed_threats(threats, t, cfg.k_sigma)
         ids = [th.id for th in core]
         main_index = ids.index(c.main_id) if c.main_id in ids else None
-        return path_is_clear(pts, times, ThreatArrays.of(core), main_index, c.t_cpa - t, ref.velocity, self.config)
+        ta = ThreatArrays.of(core)
+        go = path_clearance(pts, times, ta, main_index, c.t_cpa - t, ref.velocity, cfg)
+        hold = path_clearance(np.vstack([here, here]), times[[0, -1]], ta, main_index, c.t_cpa - t, np.zeros(3), cfg)
+        return go, hold
 
     def candidate_log(self) -> dict | None:
         """The last planning event's candidates as plain lists/dicts (NED points K×N×3, n_pts,
