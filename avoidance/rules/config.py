@@ -22,9 +22,12 @@ RULE_CODES = ("detect", "resolve", "close", "head_on", "converging", "overtake",
 class RulesConfig:
     """``enabled``: rule codes (default all of :data:`RULE_CODES`); ``unit`` [m]; margins [unit]
     ([R] defaults universal 5, head-on 5, converging 8, overtake 5); ``converging_extra`` [unit]
-    added to the give-way UAS' ball ([R]: 4); ``bloat`` [unit] added to every enforced margin
+    added to the give-way UAS' ball ([R] adds 4; default 0: the ball around the right-of-way
+    UAS' own predicted track does that job, and with 4 more the give-way UAS detected at 20
+    units from the point has no trajectory left, docs/rules.md); ``bloat`` [unit] added to every enforced margin
     (synchronisation bloat 6.180: peer speed × decision frame = 1 thesis metre);
-    ``plane_tolerance`` [unit] how far left of the right-plane a trajectory may reach (the plane
+    ``deadlock_frames`` frames in a row without a restricted navigation path before the peers go
+    to the emergency avoidance; ``plane_tolerance`` [unit] how far left of the right-plane a trajectory may reach (the plane
     moves with the estimates: without slack every frame whose heading is a little left of the
     line to the collision point disables all turns, docs/rules.md); ``time_margin`` [grid ranges at cruise]
     how far ahead a closest approach opens a case; ``airspace`` ``uncontrolled`` (ball, 6.218)
@@ -42,7 +45,7 @@ class RulesConfig:
     head_on: float = 5.0
     converging: float = 8.0
     overtake: float = 5.0
-    converging_extra: float = 4.0
+    converging_extra: float = 0.0
     plane_tolerance: float = 1.0
     bloat: float = 1.0
     time_margin: float = 2.0
@@ -51,6 +54,7 @@ class RulesConfig:
     category: str = "uas_autonomous"
     maneuverability: str = "vtol"
     close_after: int = 2
+    deadlock_frames: int = 3
     navigation: tuple[str, ...] = ("horizontal",)
     navigation_spread: int = 9
 
@@ -105,7 +109,8 @@ class RulesConfig:
         return replace(base, navigation=ReachSetConfig.single(ExpansionConfig.acas(self.navigation, self.navigation_spread)))
 
     def utm(self, grid_range: float, cruise: float) -> UtmConfig:
-        return UtmConfig(time_margin=self.time_margin * grid_range / max(cruise, 1e-6), close_after=self.close_after)
+        return UtmConfig(time_margin=self.time_margin * grid_range / max(cruise, 1e-6), close_after=self.close_after,
+                         min_speed=0.5 * cruise)
 
 
 RULES_FIELDS = tuple(f.name for f in fields(RulesConfig) if f.name != "enabled")

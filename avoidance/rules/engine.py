@@ -44,6 +44,7 @@ class RuleContext:
     frame: float  # decision frame = movement period [s]
     resolve: list[CollisionCase] = field(default_factory=list)  # own cases to resolve, by severity
     emergency: set[str] = field(default_factory=set)  # peers handed to the emergency avoidance
+    managed: set[str] = field(default_factory=set)  # peers whose pair with the own UAS was assessed
     events: list[str] = field(default_factory=list)
     decisions: list[dict] = field(default_factory=list)
     decision: "Decision | None" = None
@@ -51,6 +52,7 @@ class RuleContext:
     disabled: np.ndarray | None = None  # nodes disabled so far (navigation reach set)
     goal_override: np.ndarray | None = None  # GCF waypoint flown instead of the mission goal
     path_found: bool | None = None  # the restricted navigation run found a path
+    deadlock_frames: int = 0  # consecutive frames without a restricted path (carried over)
     case: CollisionCase | None = None  # the case a manoeuvre / restriction rule works on
     margin: float = 0.0  # the margin [m] the safety-margin rule enforces for ``case``
 

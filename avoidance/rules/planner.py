@@ -6,9 +6,10 @@ Per decision frame (one per movement period):
    track (the world's latency, dropout and noise) plus its filed registration;
 2. decision point *before avoidance run*: the virtual UTM's case book is updated over all pairs
    (chaining, roundabouts) and the own cases to resolve are selected;
-3. the mission-control run sees the non-cooperative intruders and the cooperative peers handed to
-   the emergency avoidance (unresolved cases, deadlocks) as intruders; cooperative peers under
-   the rules are not (they are resolved by the rules in navigation mode, spec §6.2 step 5b);
+3. the mission-control run sees as intruders the non-cooperative traffic, cooperative peers the
+   rules cannot assess (hovering, no common flight level) and peers handed to the emergency
+   avoidance (unresolved cases, deadlocks); the other cooperative peers are not (they are
+   resolved by the rules in navigation mode, spec §6.2 step 5b);
 4. decision point *trajectory restrictions* (``MissionControl(restrict=...)``): the manoeuvre
    rules disable navigation trajectories; an overtake flies its divergence / convergence waypoint
    in place of the mission goal for that run;
@@ -28,7 +29,7 @@ import numpy as np
 from avoidance.planner import Plan, Threats
 from avoidance.reachset.config import AvoidanceConfig
 from avoidance.reachset.gridrun import GridRun
-from avoidance.reachset.mission import Decision, Mode
+from avoidance.reachset.mission import Decision
 from avoidance.reachset.movement import KinState, SegmentedMovementAutomaton
 from avoidance.reachset.planner import ReachSetAvoider
 from avoidance.rules.config import RulesConfig
@@ -60,6 +61,7 @@ class RulesAvoider(ReachSetAvoider):
         self.rules_record: dict | None = None
         self._ctx: RuleContext | None = None
         self._mission_waypoints = self.control.waypoints
+        self._deadlock_frames = 0
 
     def notifications(self, estimate: VehicleState, threats: Threats, t: float) -> list[PositionNotification]:
         own = PositionNotification(t, self.registration, ned_to_enu(estimate.pos_ned), ned_to_enu(estimate.vel_ned))
@@ -76,11 +78,11 @@ class RulesAvoider(ReachSetAvoider):
         if not self.frame_due(t):
             return self._last
         ctx = RuleContext(OWN, t, self.rules, self.book, self.notifications(estimate, threats, t), self.length,
-                          self.frame, emergency=set(self.emergency))
+                          self.frame, emergency=set(self.emergency), deadlock_frames=self._deadlock_frames)
         self._ctx = ctx
         self.engine.invoke(DecisionPoint.BEFORE_AVOIDANCE_RUN, ctx)
         sensed = dataclasses.replace(threats, intruders=[tr for tr in threats.intruders
-                                                         if not tr.cooperative or tr.id in ctx.emergency])
+                                                         if tr.id not in ctx.managed or tr.id in ctx.emergency])
         ctl = self.control
         self._mission_waypoints = ctl.waypoints
         if ctx.goal_override is not None:  # overtake: this run flies to the rule's waypoint
@@ -93,7 +95,7 @@ class RulesAvoider(ReachSetAvoider):
         d = self.last_decision
         ctx.decision = d
         self.engine.invoke(DecisionPoint.AFTER_AVOIDANCE_RUN, ctx)
-        self.emergency = ctx.emergency
+        self.emergency, self._deadlock_frames = ctx.emergency, ctx.deadlock_frames
         d.events.extend(ctx.events)
         plan.diagnostics["events"] = ";".join(d.events)
         self.rules_record = {"t": t, "events": list(ctx.events), "decisions": ctx.decisions,
@@ -104,20 +106,14 @@ class RulesAvoider(ReachSetAvoider):
         self._ctx = None
         return plan
 
-    def _vertices(self, d: Decision, estimate: VehicleState):
+    def _vertices(self, d: Decision, estimate: VehicleState, *rest):
         """The plan's vertices labelled against the mission's own waypoints (never against an
-        overtake waypoint flown in their place). With a purely horizontal navigation reach set
-        the planned vertices hold the goal's altitude (the set cannot climb or descend, so an
-        altitude error of the estimate at planning time would otherwise never be corrected)."""
+        overtake waypoint flown in their place)."""
         flown, self.control.waypoints = self.control.waypoints, self._mission_waypoints
         try:
-            pos, times, labels = super()._vertices(d, estimate)
+            return super()._vertices(d, estimate, *rest)
         finally:
             self.control.waypoints = flown
-        if self.rules.navigation == ("horizontal",) and d.mode == Mode.NAVIGATION and not d.complete:
-            pos = pos.copy()
-            pos[:, 2] = self.mission.waypoints[min(self.control.goal, len(self.mission.waypoints) - 1), 2]
-        return pos, times, labels
 
     def _restrict(self, d: Decision, run: GridRun) -> np.ndarray | None:
         """Decision point *trajectory restrictions* on the navigation run."""

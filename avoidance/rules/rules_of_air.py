@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from avoidance.rules.engine import DecisionPoint, RuleContext, RuleEngine
-from avoidance.rules.restrictions import right_plane_heading_mask, safety_margin_mask
+from avoidance.rules.restrictions import moving_margin_mask, right_plane_heading_mask, safety_margin_mask
 from avoidance.utm.cases import as_roundabout
 from avoidance.utm.collision_case import CollisionCase, Encounter, Role
 
@@ -48,7 +48,8 @@ def _severity(case: CollisionCase):
 
 @dataclass(frozen=True)
 class DetectCollisionCases:
-    """(tab. 6.10) Update the case book from this frame's notifications, re-target roundabout
+    """(tab. 6.10) Update the case book from this frame's notifications (the peers whose pair
+    could be assessed are managed by the rules, the rest stay intruders), re-target roundabout
     members, report unresolved cases (separation below the case margin: handed to the
     emergency avoidance), select the own cases to resolve (own role gives way) by severity."""
 
@@ -61,6 +62,7 @@ class DetectCollisionCases:
 
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
         opened, closed = ctx.book.update(ctx.notifications, ctx.t)
+        ctx.managed = {a if b == ctx.uas else b for a, b in ctx.book.assessed if ctx.uas in (a, b)}
         for c in opened:
             if ctx.uas in c.ids:
                 ctx.record("case_open", c)
@@ -189,7 +191,9 @@ class RightPlaneHeading:
 @dataclass(frozen=True)
 class EnforceSafetyMargin:
     """(tab. 6.17) Ball (uncontrolled airspace) or well-clear barrel (controlled) of radius
-    ``ctx.margin`` around the case's collision point."""
+    ``ctx.margin`` around the case's collision point, and a ball of the case margin + bloat
+    around the peer's linear prediction at every sample time (the point alone does not keep
+    the give-way UAS clear of a right-of-way UAS flying through it)."""
 
     code: str = "safety_margin"
     point: None = None
@@ -199,16 +203,23 @@ class EnforceSafetyMargin:
         return ctx.case is not None and ctx.run is not None
 
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
-        d = ctx.decision
+        d, case = ctx.decision, ctx.case
         half = ctx.cfg.barrel_half_height if ctx.cfg.airspace == "controlled" else None
-        ctx.disable(self.code, safety_margin_mask(d.tree, d.pose, ctx.case.collision_point, ctx.margin, half), ctx.case)
+        tol = ctx.cfg.plane_tolerance * ctx.unit
+        mask = safety_margin_mask(d.tree, d.pose, case.collision_point, ctx.margin, half, tol)
+        peer = next((n for n in ctx.notifications if n.id == case.other(ctx.uas)), None)
+        if peer is not None:  # and around the peer flying on (its separation, not only the point's)
+            p = peer.adjusted(d.t_grid)
+            mask |= moving_margin_mask(d.tree, d.pose, p.pos, p.vel, case.margin + ctx.cfg.bloat * ctx.unit, tol)
+        ctx.disable(self.code, mask, case)
 
 
 @dataclass(frozen=True)
 class CloseCollisionCases:
     """(tab. 6.12) After the run: if the restricted navigation reach set kept no path (soft
-    deadlock), the peers of the cases go to the emergency avoidance (intruders again); report
-    the resolution (mode, planned buffer)."""
+    deadlock) the previous plan is flown on (mission control keeps its buffer); after
+    ``deadlock_frames`` such frames in a row the peers of the cases go to the emergency
+    avoidance (intruders again). Reports the resolution (mode, planned buffer)."""
 
     code: str = "close"
     point: DecisionPoint = DecisionPoint.AFTER_AVOIDANCE_RUN
@@ -219,10 +230,14 @@ class CloseCollisionCases:
 
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
         d = ctx.decision
+        ctx.deadlock_frames = ctx.deadlock_frames + 1 if ctx.path_found is False else 0
         if ctx.path_found is False:
-            for c in ctx.resolve:
-                ctx.emergency.add(c.other(ctx.uas))
-            ctx.record("deadlock", peers=sorted(c.other(ctx.uas) for c in ctx.resolve))
+            handover = ctx.deadlock_frames >= ctx.cfg.deadlock_frames
+            if handover:
+                for c in ctx.resolve:
+                    ctx.emergency.add(c.other(ctx.uas))
+            ctx.record("deadlock", peers=sorted(c.other(ctx.uas) for c in ctx.resolve), frames=ctx.deadlock_frames,
+                       handover=handover)
         ctx.record("resolution", mode=d.mode.value, buffer=[int(m) for m in d.buffer],
                    cases=[c.record() for c in ctx.resolve])
 

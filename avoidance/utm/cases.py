@@ -50,11 +50,13 @@ class CaseBook:
     cfg: UtmConfig = field(default_factory=UtmConfig)
     chains: dict[tuple[str, str], Chain] = field(default_factory=dict)
 
+    assessed: set[tuple[str, str]] = field(default_factory=set)  # pairs with a case computed this frame
+
     def update(self, notifications: list[PositionNotification], t: float) -> tuple[list[CollisionCase], list[CollisionCase]]:
         """Compute every pair's case at frame time ``t`` [s], chain them; returns the cases
-        opened and closed in this frame."""
+        opened and closed in this frame (:attr:`assessed` holds the pairs computed)."""
         opened, closed = [], []
-        seen = set()
+        seen = self.assessed = set()
         notes = sorted(notifications, key=lambda n: n.id)
         for i, a in enumerate(notes):
             for b in notes[i + 1:]:

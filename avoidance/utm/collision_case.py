@@ -41,11 +41,13 @@ class UtmConfig:
     """Collision-case parameters: ``time_margin`` [s] (how far ahead a closest approach is
     flagged; [D] two grid ranges over the speed, see docs/rules.md), ``speed_tolerance`` [m/s]
     (speeds closer than this are equal: no overtake), ``close_after`` frames without danger
-    before a case closes (A-32 hysteresis)."""
+    before a case closes (A-32 hysteresis), ``min_speed`` [m/s] below which a UAS has no
+    approach direction (hovering): no case is computed for it (it stays an intruder)."""
 
     time_margin: float = 20.0
     speed_tolerance: float = 0.2
     close_after: int = 2
+    min_speed: float = 0.0
 
 
 def closest_approach(p1, v1, p2, v2) -> tuple[float, float, np.ndarray]:
@@ -166,10 +168,10 @@ class CollisionCase:
 def compute_collision_case(n1: PositionNotification, n2: PositionNotification, t: float,
                            cfg: UtmConfig = UtmConfig()) -> CollisionCase | None:
     """The case of the pair at frame time ``t`` [s], or None when they cannot meet (different
-    flight levels). ``flagged`` is set when the closest approach (trajectory intersection when
+    flight levels) or one of them hovers (below ``min_speed``). ``flagged`` is set when the closest approach (trajectory intersection when
     both predictions are known, else linear) lies in [0, time_margin] and within the collision
     margin (6.186)."""
-    if not n1.shares_level(n2):
+    if not n1.shares_level(n2) or min(n1.speed, n2.speed) < cfg.min_speed:
         return None
     a1, a2 = n1.adjusted(t), n2.adjusted(t)
     t_cpa, dist, cp = closest_approach(a1.pos, a1.vel, a2.pos, a2.vel)
