@@ -133,7 +133,8 @@ class IntruderModelConfig:
     """Intruder space/time models (spec §5.4). Flags select line/body/spread (cone) models and
     the time-intersection rate; ``theta_i``/``phi_i`` are the manoeuvre-uncertainty half angles
     [rad]; ``spacing`` the line/body sample spacing [m]; ``time_error`` widens the UAS window [s];
-    ``cone_steps`` lattice points per ellipse axis; ``density`` ``mean`` (6.133) or ``product``."""
+    ``cone_steps`` lattice points per ellipse axis; ``density`` ``mean`` (6.133) or ``product``;
+    ``body_margin`` [m] is added to every intruder's body radius (safety-margin bloat, §8.2)."""
 
     line: bool = True
     body: bool = True
@@ -145,6 +146,7 @@ class IntruderModelConfig:
     time_error: float = 1.0
     cone_steps: int = 7
     density: str = "mean"
+    body_margin: float = 0.0
 
     @staticmethod
     def cooperative(**kw) -> "IntruderModelConfig":

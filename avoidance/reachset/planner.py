@@ -22,8 +22,8 @@ import numpy as np
 
 from avoidance.planner import Plan, PlanStatus, Threats
 from avoidance.reachset.config import AvoidanceConfig
-from avoidance.reachset.frames import heading_from_yaw_ned
-from avoidance.reachset.fusion import SpaceClass
+from avoidance.reachset.frames import GridPose, heading_from_yaw_ned
+from avoidance.reachset.fusion import SpaceClass, fuse_cells
 from avoidance.reachset.mission import Decision, MissionControl, Mode, Restriction
 from avoidance.reachset.movement import KinState, SegmentedMovementAutomaton
 from guidance.mission import Mission
@@ -62,7 +62,7 @@ class ReachSetAvoider:
         ctl.goal = max(ctl.goal, self.mission.next_index)  # progress marked by the plan follower
         d = ctl.step(self.kin_state(estimate, t), threats)
         self.last_decision = d
-        pos, times, labels = self._vertices(d, estimate)
+        pos, times, labels = self._vertices(d, estimate, threats)
         vel = np.vstack([np.diff(pos, axis=0) / np.diff(times)[:, None], np.zeros((1, 3))]) if len(pos) > 1 else np.zeros((1, 3))
         run = d.run
         diag: dict[str, float | int | str] = {
@@ -74,16 +74,18 @@ class ReachSetAvoider:
         self._last_goal = self.mission.next_index
         return self._last
 
-    def _vertices(self, d: Decision, estimate: VehicleState) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _vertices(self, d: Decision, estimate: VehicleState, threats: Threats) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """NED vertices, times and labels of decision ``d``.
 
         The movements end on a 1-movement-length lattice, so the mission's waypoint (acceptance
         radius of the follower, usually below a movement length) is added exactly:
         - complete: hold at the last waypoint (labelled);
-        - final approach (navigation mode, no threat in the grid, the estimate within the reach
-          radius of the goal): a direct leg from the estimate to the goal;
-        - otherwise the path up to its first movement end within the reach radius of the goal,
-          then the goal itself, if that last leg only crosses Free cells of the assessed grid.
+        - final approach (the estimate within the reach radius of the goal, and no threat in the
+          grid or the leg clear in a grid placed at the estimate facing the goal): a direct leg
+          from the estimate to the goal;
+        - otherwise the path up to its first movement end (from the executing movement's end on)
+          within the reach radius of the goal, then the goal itself, if that last leg only crosses
+          Free cells of the assessed grid.
         The goal vertex carries the goal's mission index; every other vertex -1."""
         ctl = self.control
         speed = max(self.speed, 1e-6)
@@ -93,14 +95,16 @@ class ReachSetAvoider:
         goal = ctl.waypoints[ctl.goal]
         here = ned_to_enu(estimate.pos_ned)
         dist = float(np.linalg.norm(goal - here))
-        if d.mode == Mode.NAVIGATION and not d.threat_events and dist <= d.reach_radius:
+        if dist <= d.reach_radius and (not d.threat_events or self._approach_free(d, here, goal, threats)):
             return (enu_to_ned(np.vstack([here, goal])), np.array([d.t, d.t + max(dist / speed, 1e-3)]),
                     np.array([-1, ctl.goal]))
         ref = d.reference
         ends = np.flatnonzero(ref.movement_end)
         gcf, times = ref.positions[ends], ref.times[ends]
         labels = np.full(len(gcf), -1)
-        near = np.flatnonzero(np.linalg.norm(gcf - goal, axis=1) <= d.reach_radius)
+        # from the executing movement's end on (= the grid origin): the current position lies
+        # behind the assessed grid, so a leg from it could never be checked free
+        near = np.flatnonzero(np.linalg.norm(gcf[1:] - goal, axis=1) <= d.reach_radius) + 1
         if len(near) and self._leg_free(d, gcf[near[0]], goal):
             k = int(near[0])
             gap = float(np.linalg.norm(goal - gcf[k]))
@@ -108,6 +112,21 @@ class ReachSetAvoider:
             times = np.append(times[:k + 1], times[k] + max(gap / speed, 1e-3))
             labels = np.append(labels[:k + 1], ctl.goal)
         return enu_to_ned(gcf), times, labels
+
+    def _approach_free(self, d: Decision, here: np.ndarray, goal: np.ndarray, threats: Threats) -> bool:
+        """Whether the direct leg here -> goal (GCF) crosses only Free cells, assessed (with the
+        categories of the decision's run) in a grid placed at ``here`` facing the goal: the
+        decision's own grid starts one movement ahead, behind it nothing is assessed."""
+        if d.run is None:
+            return False
+        ctl = self.control
+        seg = ctl.segment(ctl.sma.active_index(KinState(here, np.zeros(3), d.t, self.speed)))
+        pose = GridPose(here, float(np.arctan2(goal[1] - here[1], goal[0] - here[0])))
+        parts = seg.assessors[d.mode].assess(pose, d.t, threats)
+        cls = fuse_cells(parts, d.run.categories, ctl.cfg.fusion.threshold)[-1]
+        n = max(int(np.ceil(np.linalg.norm(goal - here) / 0.2)), 1)
+        cells = seg.grid.cell_index(pose.to_lcf(here + np.linspace(0.0, 1.0, n + 1)[1:, None] * (goal - here)))
+        return bool((cells >= 0).all() and (cls[cells] == SpaceClass.FREE).all())
 
     @staticmethod
     def _leg_free(d: Decision, a: np.ndarray, b: np.ndarray, spacing: float = 0.2) -> bool:

@@ -141,5 +141,6 @@ def intruder_ratings(grid: AvoidanceGrid, pose: GridPose, t_grid: float, tracks:
     out = np.zeros((len(tracks), grid.n_cells))
     for n, tr in enumerate(tracks):
         pos = np.asarray(tr.pos_ned, float) + np.asarray(tr.vel_ned, float) * (t_grid - tr.t)
-        out[n] = model.rating(pose.ned_to_lcf(pos), pose.vec_to_lcf(ned_to_enu(tr.vel_ned)), tr.radius_m)
+        out[n] = model.rating(pose.ned_to_lcf(pos), pose.vec_to_lcf(ned_to_enu(tr.vel_ned)),
+                              tr.radius_m + model.cfg.body_margin)
     return out
