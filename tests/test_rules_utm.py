@@ -14,7 +14,7 @@ from avoidance.reachset.grid import AvoidanceGrid
 from avoidance.reachset.gridrun import find_best_path
 from avoidance.reachset.movement import build_primitive_table
 from avoidance.rules.config import RulesConfig
-from avoidance.rules.restrictions import right_plane_heading_mask, safety_margin_mask
+from avoidance.rules.restrictions import moving_margin_mask, right_plane_heading_mask, safety_margin_mask, sample_times
 from avoidance.rules.rules_of_air import overtake_speed, overtake_waypoints
 from avoidance.utm.cases import CaseBook
 from avoidance.utm.collision_case import (Encounter, Role, UtmConfig, angle_of_approach, case_margin, classify,
@@ -252,3 +252,16 @@ def test_symmetric_head_on_resolves_symmetrically(r, rot, shift):
         paths.append(_resolve(pose, case.collision_point, cp - sign * 30.0 * d, case.margin + 1.0))
     assert paths[0].ok and NAV.buffer(paths[0].node) == NAV.buffer(paths[1].node)
     assert NAV.path_samples(paths[0].node)[:, 1].min() < -1.0  # both deviate right (LCF Y+ = left)
+
+
+def test_moving_margin_follows_the_peer_in_time():
+    pose = GridPose(np.zeros(3), 0.0)
+    # a peer crossing 6 m ahead from the right at 1 m/s: where it is when the samples get there
+    mask = moving_margin_mask(NAV, pose, np.array([6.0, -6.0, 0.0]), np.array([0.0, 1.0, 0.0]), 3.0)
+    times = sample_times(NAV)
+    peer = np.array([6.0, -6.0, 0.0]) + times[..., None] * np.array([0.0, 1.0, 0.0])
+    dist = np.linalg.norm(NAV.samples - peer, axis=-1)
+    assert mask.any() and (dist[~mask] >= 3.0 - 1e-9).all()
+    # the same peer standing still at its start blocks other trajectories
+    static = moving_margin_mask(NAV, pose, np.array([6.0, -6.0, 0.0]), np.zeros(3), 3.0)
+    assert (mask != static).any()

@@ -15,9 +15,6 @@ from avoidance.reachset.frames import GridPose
 from avoidance.reachset.tree import ReachSetTree
 
 
-HEADING_MISS = False
-
-
 def propagate(tree: ReachSetTree, bad: np.ndarray) -> np.ndarray:
     """Nodes (N,) whose path root -> node contains a node marked ``bad`` (N,)."""
     out = bad.copy()
@@ -51,9 +48,7 @@ def safety_margin_mask(tree: ReachSetTree, pose: GridPose, collision_point: np.n
     already inside the volume (or within ``tol`` [m] of its surface), the radius used is the
     origin's own distance less ``tol`` (a trajectory may not get more than ``tol`` closer than
     the UAS already is: a turn at a bounded rate starts along the heading; the breach is
-    reported by the caller). A node whose
-    straight continuation enters the volume is disabled too (not its subtree:
-    :func:`heading_miss_distance`)."""
+    reported by the caller)."""
     cp = pose.to_lcf(np.asarray(collision_point, float))
     d = tree.samples - cp
     if barrel_half_height is None:
@@ -65,24 +60,7 @@ def safety_margin_mask(tree: ReachSetTree, pose: GridPose, collision_point: np.n
         here = float(np.hypot(cp[0], cp[1]))
         inside_band = np.abs(d[..., 2]) < barrel_half_height
     radius = min(margin, here - tol)
-    bad = propagate(tree, ((dist < radius - 1e-9) & inside_band).any(axis=1))
-    return bad | (HEADING_MISS and heading_miss_distance(tree, cp, barrel_half_height is not None) < radius - 1e-9)
-
-
-def heading_miss_distance(tree: ReachSetTree, point_lcf: np.ndarray, horizontal: bool = False) -> np.ndarray:
-    """(N,) distance [m] by which the straight continuation of every node's end (its tip along
-    its tip heading, the linear projection of 6.217) misses ``point_lcf``; horizontal only if
-    ``horizontal``. A path may only end heading past the volume: ending inside the margin's
-    shadow, the next frame would have to turn harder than the movements can (the grid sees
-    only 10 movements ahead of a volume that may be larger)."""
-    pitch, yaw = tree.tip_att[:, 1], tree.tip_att[:, 2]
-    u = np.stack([np.cos(pitch) * np.cos(yaw), np.cos(pitch) * np.sin(yaw), -np.sin(pitch)], axis=1)
-    r = point_lcf - tree.tip
-    if horizontal:
-        u[:, 2], r = 0.0, r * np.array([1.0, 1.0, 0.0])
-        u /= np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12)
-    ahead = np.maximum(np.einsum("ij,ij->i", r, u), 0.0)
-    return np.linalg.norm(r - ahead[:, None] * u, axis=1)
+    return propagate(tree, ((dist < radius - 1e-9) & inside_band).any(axis=1))
 
 
 def sample_times(tree: ReachSetTree) -> np.ndarray:
