@@ -7,7 +7,8 @@ movement period [s]), ``constraint_margin`` (safety-margin ring of constraints [
 intruders' body radius [m]), ``separations``
 (ACAS-like reach sets, e.g. ["horizontal"]), ``rules`` (the enabled rules of
 the air of a cooperative UAS, a list of codes) and ``rules_<field>`` (the other fields of
-``avoidance.rules.config.RulesConfig``); follow_mission takes none. Unknown options are an error naming them.
+``avoidance.rules.config.RulesConfig``); pursuit takes ``target`` (the pursued vehicle, S14);
+follow_mission takes none. Unknown options are an error naming them.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ _PLANNERS: dict[str, tuple[tuple[str, ...], str | tuple[str, ...]]] = {
     "geometric": (("multirotor",), "avoidance.geometric.config:GeometricConfig"),
     "reachset": (("fixed_wing", "multirotor"), ("period", "constraint_margin", "intruder_margin", "separations", "rules", *(f"rules_{f}" for f in RULES_FIELDS))),
     "mptp": (("fixed_wing",), "guidance.mptp.config:MptpConfig"),
+    "pursuit": (("multirotor",), ("target",)),
 }
 
 
@@ -116,6 +118,12 @@ def make_planner(kind: str, mission: Mission, airframe_kind: str = "multirotor",
     check_planner(kind, airframe_kind, options)
     if kind == "follow_mission":
         return FollowMissionPlanner(mission)
+    if kind == "pursuit":
+        from avoidance.pursuit import PursuitPlanner
+
+        if not isinstance(options.get("target"), str):
+            raise PlannerConfigError("pursuit planner: option target (the pursued vehicle's name) is required")
+        return PursuitPlanner(mission, options["target"])
     if kind == "geometric":
         from avoidance.geometric.planner import GeometricAvoider
 

@@ -86,10 +86,11 @@ class Initial(_Strict):
 
 class PlannerConfig(_Strict):
     """``type``: follow_mission (no avoidance), geometric (candidate paths, multirotor),
-    reachset (avoidance grid), mptp (weather, fixed wing). ``options``: fields of the planner's
+    reachset (avoidance grid), mptp (weather, fixed wing), pursuit (flies at another vehicle, the
+    rules-of-the-air negative test). ``options``: fields of the planner's
     own configuration, in its units (SI)."""
 
-    type: Literal["follow_mission", "geometric", "reachset", "mptp"] = "follow_mission"
+    type: Literal["follow_mission", "geometric", "reachset", "mptp", "pursuit"] = "follow_mission"
     rate_hz: Annotated[float, Field(gt=0.0, le=100.0)] = 1.0
     options: dict[str, float | int | str | bool | list] = {}
 

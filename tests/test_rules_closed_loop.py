@@ -76,3 +76,22 @@ def test_s11_four_uas_circle_one_roundabout(tmp_path):
         assert any(len(r["members"]) == 4 for r in rbs)
         centre = np.mean([r["centre_enu"] for r in rbs if len(r["members"]) == 4], axis=0)
         assert np.hypot(centre[0] - 100.0, centre[1] - 100.0) < 2 * UNIT  # the crossing point
+
+
+def test_s14_adversarial_pursuer_is_reported_unresolved(tmp_path):
+    """Negative test: a UAS that broadcasts like a cooperative one but flies at uas1 breaks the
+    head-on margin; uas1 reports the case as unresolved (not hidden) at a time the logged truth
+    confirms the breach, while the cooperative pair uas1-uas2 keeps its margin."""
+    m, log = fly("s14_pursuer", tmp_path)
+    assert m["vehicles"]["uas1"]["mission"]["complete"] and m["vehicles"]["uas2"]["mission"]["complete"]
+    assert separation(m, "uas1", "uas2") >= HEAD_ON_MARGIN
+    assert separation(m, "uas1", "uas3") < HEAD_ON_MARGIN  # the pursuer got through
+    dec = log.topic("/uas1/plan/decision")
+    reported = [t for t, msg in zip(dec.t, dec.messages)
+                if any(e.startswith("rule:case_unresolved:self-uas3:") for e in msg["events"])]
+    assert reported
+    assert not any(e.startswith("rule:case_unresolved:self-uas2:") for e in events(log, "uas1"))
+    p1, p3 = log.topic("/uas1/truth/state"), log.topic("/uas3/truth/state")
+    k1, k3 = np.searchsorted(p1.t, reported[0]), np.searchsorted(p3.t, reported[0])
+    true_sep = np.linalg.norm(p1["pos_ned"][k1] - p3["pos_ned"][k3])
+    assert true_sep < HEAD_ON_MARGIN + 2 * UNIT  # reported when it happened (track noise, one frame)

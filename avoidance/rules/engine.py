@@ -45,6 +45,7 @@ class RuleContext:
     resolve: list[CollisionCase] = field(default_factory=list)  # own cases to resolve, by severity
     emergency: set[str] = field(default_factory=set)  # peers handed to the emergency avoidance
     managed: set[str] = field(default_factory=set)  # peers whose pair with the own UAS was assessed
+    unresolved: set = field(default_factory=set)  # (ids, head time) of chains reported unresolved (carried over)
     events: list[str] = field(default_factory=list)
     decisions: list[dict] = field(default_factory=list)
     decision: "Decision | None" = None

@@ -62,6 +62,7 @@ class RulesAvoider(ReachSetAvoider):
         self._ctx: RuleContext | None = None
         self._mission_waypoints = self.control.waypoints
         self._deadlock_frames = 0
+        self._unresolved: set = set()
 
     def notifications(self, estimate: VehicleState, threats: Threats, t: float) -> list[PositionNotification]:
         own = PositionNotification(t, self.registration, ned_to_enu(estimate.pos_ned), ned_to_enu(estimate.vel_ned))
@@ -78,7 +79,8 @@ class RulesAvoider(ReachSetAvoider):
         if not self.frame_due(t):
             return self._last
         ctx = RuleContext(OWN, t, self.rules, self.book, self.notifications(estimate, threats, t), self.length,
-                          self.frame, emergency=set(self.emergency), deadlock_frames=self._deadlock_frames)
+                          self.frame, emergency=set(self.emergency), deadlock_frames=self._deadlock_frames,
+                          unresolved=self._unresolved)
         self._ctx = ctx
         self.engine.invoke(DecisionPoint.BEFORE_AVOIDANCE_RUN, ctx)
         sensed = dataclasses.replace(threats, intruders=[tr for tr in threats.intruders

@@ -76,9 +76,9 @@ class DetectCollisionCases:
             rb = rbs.get(ctx.uas)
             own.append(as_roundabout(c, rb) if rb is not None else c)
         for c in own:
-            peer = c.other(ctx.uas)
-            if c.separation < c.margin and peer not in ctx.emergency:
-                ctx.emergency.add(peer)
+            if c.separation < c.margin and (c.ids, c.head) not in ctx.unresolved:  # once per chain
+                ctx.unresolved.add((c.ids, c.head))
+                ctx.emergency.add(c.other(ctx.uas))
                 ctx.record("case_unresolved", c, separation_m=c.separation, margin_m=c.margin)
         overtakes = [c for c in own if c.role_of(ctx.uas) == Role.OVERTAKING]
         if len(overtakes) > 1:
