@@ -122,5 +122,22 @@ def emergency_runs(grid: AvoidanceGrid, tree: ReachSetTree, parts: ThreatParts, 
     for cats in EMERGENCY_ORDER:
         runs.append(grid_run(grid, tree, parts, goal_lcf, cats, threshold, steering))
         if runs[-1].path.ok:
+            if not cats.intruders and len(parts.intruders):
+                runs[-1].path = least_threat_path(tree, runs[-1].fused, runs[-2].fused, goal_lcf)
             return runs, len(runs) - 1
     return runs, -1
+
+
+def least_threat_path(tree: ReachSetTree, fused: Fused, with_intruders: Fused, goal_lcf: np.ndarray) -> PathResult:
+    """The last resort when every path crosses intruder space (the obstacle path of step 7):
+    of the full-length trajectories feasible in ``fused``, the one most likely to stay clear of
+    the intruders (greatest reachability (6.162) in ``with_intruders``), ties to the tip nearest
+    the goal. Steering at the goal alone would fly straight through the intruder."""
+    leaves = tree.leaves()
+    cand = leaves[fused.node_ok[leaves]]
+    if len(cand) == 0:
+        return PathResult(-1, -1, "no path: empty reach set")
+    reach = with_intruders.node_reach[cand]
+    near = np.linalg.norm(tree.tip[cand] - goal_lcf, axis=1)
+    best = int(cand[np.lexsort((cand, near, -reach))[0]])
+    return PathResult(best, int(tree.tip_cell[best]))

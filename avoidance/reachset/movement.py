@@ -201,7 +201,7 @@ def speed_band_automaton(bands: Sequence[tuple[float, float, float]], period: fl
     return SegmentedMovementAutomaton(segs)
 
 
-def multirotor_automaton(cruise: float = 3.0, period: float = 1.0, lateral_accel: float = 1.0,
+def multirotor_automaton(cruise: float = 3.0, period: float = 1.0, lateral_accel: float = 2.0,
                          climb_rate: float = 1.0) -> SegmentedMovementAutomaton:
     """Multirotor (spec §2.7): a slow segment (1 m/s, the thesis set) below 2 m/s and a cruise
     segment; the turn increment is limited by a lateral acceleration [m/s²] (ω = a / v), at most

@@ -134,10 +134,13 @@ Thesis: minimum ~1.6 m (8 m here) at ~20 s, ~39 s. Pass: minimum separation abov
 both complete."""
 
 
+INTRUDER_MARGIN = 1.0 * SCALE - 0.45  # the thesis' 1 m intruder body x5, less the quadrotor's own 0.45 m
+
+
 def encounter(name: str, doc: str, uas: list[tuple], duration: float, options: dict) -> str:
     lines = header(name, doc, 7, duration) + [SURVEILLANCE]
     for vname, start, yaw, goal in uas:
-        lines += vehicle(vname, start, yaw, [goal], {"period": 1.0, **options})
+        lines += vehicle(vname, start, yaw, [goal], {"period": 1.0, "intruder_margin": INTRUDER_MARGIN, **options})
     return "\n".join(lines)
 
 
