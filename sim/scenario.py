@@ -260,7 +260,9 @@ class Weather(_Strict):
     """Synthetic convective weather (seeded from the scenario): ``cells`` storm cells over a
     box of ``size`` x ``size`` [m] south-west-cornered at the origin, drifting at
     (``drift_north``, ``drift_east``) [m/s] +- ``drift_spread``, mean radius ``radius``; a nowcast of the next ``horizon`` in
-    ``step`` slices is issued every ``nowcast_period`` (what the vehicles see)."""
+    ``step`` slices is issued every ``nowcast_period`` (what the vehicles see). ``seed``: the
+    field's own seed (default: drawn from the scenario seed); ``pop_up``: cells may be born after
+    the start (unforeseen by earlier nowcasts); false = every cell is alive at the start."""
 
     cells: Annotated[int, Field(ge=0, le=500)] = 12
     size: quantity("length", 1000.0, 2e6) = 250_000.0
@@ -274,6 +276,8 @@ class Weather(_Strict):
     horizon: quantity("time", 60.0, 86400.0) = 3600.0
     step: quantity("time", 10.0, 86400.0) = 300.0
     centres: list[tuple[float, float]] | None = None  # [[north, east], ...] [m] to place the cells
+    seed: Annotated[int, Field(ge=0)] | None = None
+    pop_up: bool = True
 
 
 class _Fault(_Strict):

@@ -19,7 +19,8 @@ class WeatherService:
     def __init__(self, cfg: sc.Weather, seed: int):
         self.cfg = cfg
         self.field = StormField(
-            seed=seed, n_cells=cfg.cells, size_m=(cfg.size, cfg.size),
+            seed=seed if cfg.seed is None else cfg.seed, births_after_t0=cfg.pop_up,
+            n_cells=cfg.cells, size_m=(cfg.size, cfg.size),
             mean_velocity=(cfg.drift_north, cfg.drift_east), speed_spread=cfg.drift_spread,
             mean_radius_m=cfg.radius, split_prob=cfg.split_probability, life_s=cfg.life,
             centres=None if cfg.centres is None else [list(c) for c in cfg.centres])

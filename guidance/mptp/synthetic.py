@@ -6,8 +6,10 @@ A cell is a jagged blob (an ellipse with random radial harmonics and per-vertex 
 the jagged Rad-TRAM polygons) whose centre drifts with a constant velocity and whose size
 follows a life cycle: growth from 40 % to full size in the first third of its life, mature,
 decay to 40 % in the last third, then it dies. A cell may split once: at its split time it is
-replaced by two children of half its area drifting apart sideways. Cells that overlap at a
-time are merged (union) in the snapshot, with the area-weighted mean velocity.
+replaced by two children of half its area drifting apart sideways at 20-50 % of the mean drift
+speed each (2-5 m/s for a 10 m/s field; proportional, so that a field scaled in space and time
+keeps its shapes). Cells that overlap at a time are merged (union) in the snapshot, with the
+area-weighted mean velocity.
 
 ``truth(t)`` is the storm field at any time. ``nowcast(t_issue)`` is what a Rad-TRAM-like
 nowcaster issues at t_issue: the cells observed then, extrapolated with their velocities every
@@ -115,11 +117,12 @@ class StormField:
         k = 1 / math.sqrt(2)
         scale = c.scale(t)
         life = 1.5 * (c.life - (t - c.born))  # born mature: a third of the life has passed at t
+        drift = float(np.hypot(*self.mean_velocity))
         return [Cell(centre=centre + sgn * side * c.axes[1] * 0.5 * scale - (c.velocity + sgn * side * dv) * life / 3,
                      velocity=c.velocity + sgn * side * dv, axes=(c.axes[0] * k * scale, c.axes[1] * k * scale),
                      heading=c.heading, harmonics=c.harmonics, noise=rng.normal(0, 0.03, self.n_vertices),
                      born=t - life / 3, life=life)
-                for sgn, dv in ((1.0, rng.uniform(2, 5)), (-1.0, rng.uniform(2, 5)))]
+                for sgn, dv in ((1.0, rng.uniform(0.2, 0.5) * drift), (-1.0, rng.uniform(0.2, 0.5) * drift))]
 
     def cell_shapes(self, t: float) -> tuple[list[Polygon], np.ndarray]:
         """Live cells at time t (before merging) and their velocities (N, 2)."""
