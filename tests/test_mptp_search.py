@@ -19,6 +19,7 @@ from guidance.mptp.astar import astar
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.geojson import plan_geojson
 from guidance.mptp.goal import GoalTrack
+from guidance.mptp.heuristics import GoalAvailability, edh
 from guidance.mptp.nowcast import (
     NowcastError,
     dump_nowcast,
@@ -28,7 +29,10 @@ from guidance.mptp.nowcast import (
 )
 from guidance.mptp.openloop import vehicle_state
 from guidance.mptp.planner import MptpPlanner
+from guidance.mptp.search import default_workspace, plan_trajectory
+from guidance.mptp.statespace import free_space
 from guidance.mptp.synthetic import StormField
+from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.turning import flyby_path, wrap
 from guidance.mptp.visibility import (
     blocked,
@@ -74,6 +78,29 @@ def test_astar_is_optimal_against_brute_force(g, heuristic):
 def test_astar_reports_the_expansion_limit():
     res = astar(0, lambda v: [(v + 1, 1.0, 0.0)], lambda v: v == 100, lambda v: v, 10)
     assert res.status == "limit" and res.expanded == 10
+
+
+def test_astar_returns_the_best_partial_path_at_the_limit():
+    """Two branches from 0: the even one gets closer to the goal (smaller h); at the limit the
+    partial path ends at the expanded node with the smallest h that partial_ok accepts."""
+    def expand(v):
+        return [(v + 2, 1.0, 50.0 - v), (v + 1, 1.0, 100.0)] if v % 2 == 0 else []
+
+    res = astar(0, expand, lambda v: v == 1000, lambda v: v, 5, partial_ok=lambda v: v <= 6)
+    assert res.status == "limit" and res.partial == [0, 2, 4, 6]
+
+
+def test_goal_availability_waits_for_the_goal_to_uncover():
+    """A cell on the goal until it dissipates at 600 s: an arrival before then cannot happen, so
+    the wait-aware EDH is the time to 600 s; after, the plain straight-line time."""
+    cfg = MptpConfig(safety_single_m=(500.0,) * 3, safety_line_m=(500.0,) * 3, sigma_front_mps=0.0,
+                     sigma_back_mps=0.0, simplify_tol_m=50.0)
+    snaps = [StormSnapshot(300.0 * k, (box(-1000, -1000, 1000, 1000),) if k < 2 else (),
+                           np.zeros((1 if k < 2 else 0, 2))) for k in range(13)]
+    av = GoalAvailability(ObstacleTimeline(snaps, cfg, 7200.0), GoalTrack.fixed([0.0, 0.0]))
+    np.testing.assert_allclose(av.earliest(np.array([0.0, 100.0, 590.0, 900.0])), [600.0, 600.0, 600.0, 900.0])
+    h = edh(np.array([[26_000.0, 0.0], [2_600.0, 0.0]]), np.zeros(2), GoalTrack.fixed([0.0, 0.0]), 26.0, av)
+    np.testing.assert_allclose(h, [1000.0, 600.0])
 
 
 def _square_world():
@@ -179,3 +206,24 @@ def test_goal_covered_for_the_whole_horizon_gives_a_holding_orbit():
     assert plan.status == PlanStatus.DEGRADED and plan.diagnostics["reason"] == "goal covered"
     assert plan.times[-1] >= cfg.replan_period_s and np.all(np.diff(plan.times) > 0)
     assert np.linalg.norm(plan.positions[:, :2] - plan.positions[0, :2], axis=1).max() < 3 * cfg.leg_m
+
+
+def test_no_leg_from_a_boundary_vertex_into_the_obstacle():
+    """A state on a corner of EX_obs, its course pointing into the obstacle: the auxiliary state
+    straight ahead lies inside, and no edge crossing shows it (the leg starts on the boundary).
+    The plan must go around, every leg outside the margins at its time."""
+    cfg = MptpConfig(safety_single_m=(1000.0,) * 3, safety_line_m=(1000.0,) * 3, sigma_front_mps=0.0,
+                     sigma_back_mps=0.0, simplify_tol_m=50.0, heuristic="edh")
+    storm = box(10_000, -5_000, 20_000, 5_000)
+    tl = ObstacleTimeline([StormSnapshot(0.0, (storm,), np.zeros((1, 2)))], cfg, 7200.0)
+    goal = GoalTrack.fixed([30_000.0, 5_000.0])
+    fs = free_space(tl, np.zeros(2), 0.0, default_workspace(np.zeros(2), goal.at(0.0), cfg), cfg.tas_mps, cfg.ring_segments)
+    corner = fs.boundary.verts[np.argmin(np.linalg.norm(fs.boundary.verts - [9_000.0, -6_000.0], axis=1))]
+    ahead = math.atan2(0.0 - corner[1], 15_000.0 - corner[0])  # towards the storm's centre
+    traj = plan_trajectory(tl, corner, 0.0, ahead - cfg.course_change_max, goal, cfg)
+    assert traj.status == "ok"
+    margin = tl.shape_at(0.0).buffer(-1.0)  # legs along its edges graze it
+    for p, q in zip(traj.positions[:-1], traj.positions[1:]):
+        s = np.linspace(0.0, 1.0, 50)[:, None]
+        pts = p + s * (q - p)
+        assert not shapely.contains_xy(margin, pts[:, 0], pts[:, 1]).any(), f"leg {p} -> {q} enters the margins"

@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass, replace
 from typing import Literal
 
+import numpy as np
 from shapely.geometry import Polygon
 
 G0 = 9.80665  # standard gravity [m/s^2]
@@ -40,8 +41,13 @@ class MptpConfig:
     than it (3.1.4); ``simplify_tol_m`` is the Douglas-Peucker tolerance, added to the margins
     first so that smoothing never undercuts them (Fig. 4.3).
 
-    ``mission_area``: where the aircraft may fly, (north, east) [m]; None = unrestricted (the
-    workspace is then the disc reachable within the horizon, as in thesis ch. 6).
+    ``mission_area``: where the aircraft may fly, (north, east) [m], a Polygon or its exterior
+    vertices [[north, east], ...] (scenario files); None = unrestricted (the workspace is then the
+    start-goal box padded by half the horizon's range).
+
+    ``goal_track``: a predicted track of a moving goal that replaces the mission waypoint as the
+    target, rows [t [s], north [m], east [m]] with increasing t (the thesis's 6.4); None = the
+    mission waypoint.
     """
 
     tas_mps: float = 26.0
@@ -52,7 +58,7 @@ class MptpConfig:
     replan_period_s: float = 300.0
     heuristic: Heuristic = "ssph"
     turning: Turning = "both"
-    max_expansions: int = 400
+    max_expansions: int = 120
     probability: float = 0.9
     sigma_front_mps: float = 1.5
     sigma_back_mps: float = 0.75
@@ -64,6 +70,7 @@ class MptpConfig:
     simplify_tol_m: float = 200.0
     ring_segments: int = 72
     mission_area: Polygon | None = None
+    goal_track: tuple[tuple[float, float, float], ...] | None = None
     g: float = G0
 
     def __post_init__(self) -> None:
@@ -75,6 +82,19 @@ class MptpConfig:
             raise ValueError("probability must be in [0, 1)")
         if self.heuristic not in ("dijkstra", "edh", "ssph") or self.turning not in ("both", "right", "left"):
             raise ValueError(f"unknown heuristic {self.heuristic!r} or turning {self.turning!r}")
+        for name in ("safety_single_m", "safety_line_m"):  # lists from scenario files
+            object.__setattr__(self, name, tuple(float(x) for x in getattr(self, name)))
+        if self.mission_area is not None and not isinstance(self.mission_area, Polygon):
+            area = Polygon(self.mission_area) if len(self.mission_area) >= 3 else Polygon()
+            if not area.is_valid or area.area <= 0:
+                raise ValueError("mission_area: expected >= 3 vertices [[north, east], ...] [m] of a simple polygon")
+            object.__setattr__(self, "mission_area", area)
+        if self.goal_track is not None:
+            rows = np.asarray(self.goal_track, float)
+            if rows.ndim != 2 or rows.shape[1] != 3 or not len(rows) or not np.isfinite(rows).all() \
+                    or np.any(np.diff(rows[:, 0]) <= 0):
+                raise ValueError("goal_track: expected rows [t, north, east] [s, m, m] with increasing t")
+            object.__setattr__(self, "goal_track", tuple(map(tuple, rows.tolist())))
 
     @property
     def turn_radius_m(self) -> float:
@@ -94,7 +114,7 @@ class MptpConfig:
         """The thesis's chapter-6 aircraft: 80 m/s, bank <= 25 deg, dt 100 s, |dchi| 45 deg,
         margins 10 km at issue growing to 35 km after one hour, eps 0.022 deg (~2.4 km)."""
         base = cls(tas_mps=80.0, bank_max=math.radians(25.0), course_change_max=math.radians(45.0),
-                   dt_s=100.0, horizon_s=3600.0, replan_period_s=300.0, max_expansions=400,
+                   dt_s=100.0, horizon_s=3600.0, replan_period_s=300.0, max_expansions=120,
                    probability=0.9, sigma_front_mps=25_000.0 / (math.sqrt(-2 * math.log(0.1)) * 3600.0),
                    sigma_back_mps=12_500.0 / (math.sqrt(-2 * math.log(0.1)) * 3600.0),
                    prob_margin_max_m=25_000.0, safety_single_m=(10_000.0,) * 3, safety_line_m=(10_000.0,) * 3,

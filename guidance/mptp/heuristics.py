@@ -1,7 +1,12 @@
 """Cost-to-go estimates H [s] for the time-dependent A* (seed 002, 4.3).
 
 - Dijkstra: H = 0.
-- EDH: the time to fly straight to the goal (to the interception point of a moving goal).
+- EDH: the time to fly straight to the goal (to the interception point of a moving goal), or
+  longer, to the first planning interval at or after that arrival in which the goal is not
+  covered by the obstacle envelope (:class:`GoalAvailability`): an arrival inside a covered
+  interval ends inside EX_obs, so it cannot happen and the bound stays admissible. Without this
+  wait term a covered goal makes A* expand every state that is closer than the wait (the
+  holding and opening-corridor cases hit the expansion cap).
 - SSPH: the shortest static path to the goal in the current free estimated state space
   EX_free(x_in), over its reduced visibility graph (a Dijkstra from the goal, run once per
   expansion), divided by V. Where the goal is not connected to a state in that static view (the
@@ -12,16 +17,58 @@
 from __future__ import annotations
 
 import numpy as np
+import shapely
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from guidance.mptp.goal import GoalTrack
 from guidance.mptp.statespace import FreeSpace
+from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.visibility import blocked, reduced_graph, visible_vertices
 
 
-def edh(points: np.ndarray, times: np.ndarray, goal: GoalTrack, speed: float) -> np.ndarray:
-    return goal.intercept(points, times, speed) - times
+class GoalAvailability:
+    """Whether the goal can be reached in each planning interval of ``tl``: not when it lies
+    inside the interval's obstacle envelope (a fixed goal: its point; a moving goal: its track
+    over the interval). Intervals are tested lazily and cached."""
+
+    def __init__(self, tl: ObstacleTimeline, goal: GoalTrack):
+        self.tl, self.goal = tl, goal
+        self._covered: dict[int, bool] = {}
+
+    def covered(self, j: int) -> bool:
+        if j not in self._covered:
+            t0, t1 = self.tl.level_time(j), self.tl.level_time(j + 1)
+            knots = self.goal.times[(self.goal.times > t0) & (self.goal.times < t1)]
+            pts = self.goal.at(np.concatenate([[t0], knots, [t1]]))
+            track = shapely.points(pts[0]) if not self.goal.moving else shapely.linestrings(pts)
+            self._covered[j] = bool(shapely.contains(self.tl.envelope(j), track))
+        return self._covered[j]
+
+    def earliest(self, t: np.ndarray) -> np.ndarray:
+        """Earliest time(s) >= t [s] in an interval where the goal is not covered (inf when it
+        stays covered to the end of the timeline, whose last level is held)."""
+        t = np.asarray(t, float)
+        out = t.copy()
+        n = self.tl.n_levels
+        for i, j in enumerate(self.tl.interval(t)):
+            if not np.isfinite(t[i]):
+                continue
+            k = int(j)
+            while k < n and self.covered(k):
+                k += 1
+            out[i] = t[i] if k == j else (self.tl.level_time(k) if k < n else np.inf)
+        return out
+
+
+def edh(points: np.ndarray, times: np.ndarray, goal: GoalTrack, speed: float,
+        availability: GoalAvailability | None = None) -> np.ndarray:
+    """Time [s] to the goal in a straight line; with ``availability``, at least until the goal
+    is first reachable after that arrival."""
+    arrival = goal.intercept(points, times, speed)
+    if availability is not None:
+        arrival = availability.earliest(arrival)
+    return arrival - times
 
 
 class StaticPaths:

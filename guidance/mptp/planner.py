@@ -10,7 +10,10 @@ between it returns the same plan. A replan (Algorithm 2 of seed 002):
 3. else the time-dependent A* from the estimated state (position, course) to the goal, with
    one-way auxiliary states while the goal is covered at the direct arrival time (5.4);
    a plan that circles (holding) is DEGRADED;
-4. if the search fails: straight flight inside the estimated safe area (NO_SOLUTION).
+4. if the search fails (expansion cap, or exhausted): the partial trajectory to the expanded
+   state with the best heuristic that lasts until the next replan (DEGRADED; every leg is
+   conflict free like any other), else straight flight inside the estimated safe area
+   (NO_SOLUTION).
 
 The plan's vertices are the trajectory states; labels are -1 except the goal (its waypoint
 index); the altitude goes linearly (constant climb angle) from the estimate's to the goal's.
@@ -49,13 +52,17 @@ class MptpPlanner:
     """Weather-avoiding planner for a fixed-wing aircraft flying ``mission``.
 
     ``goal_track``: a predicted track of a moving goal (replaces the mission waypoint as the
-    target of the current leg); ``config``: aircraft, search and margin parameters."""
+    target of the current leg; default ``config.goal_track``); ``config``: aircraft, search and
+    margin parameters."""
 
     name = "mptp"
 
     def __init__(self, mission: Mission, config: MptpConfig | None = None, goal_track: GoalTrack | None = None):
         self.mission = mission
         self.cfg = config or MptpConfig()
+        if goal_track is None and self.cfg.goal_track is not None:
+            rows = np.array(self.cfg.goal_track)
+            goal_track = GoalTrack(rows[:, 0], rows[:, 1:])
         self.goal_track = goal_track
         self.plan_: Plan | None = None
         self.trajectory: Trajectory | None = None
@@ -104,7 +111,9 @@ class MptpPlanner:
                 return self._to_plan(t, est, pts, times, np.full(len(pts), -1), PlanStatus.DEGRADED, diag)
         arrival = t + np.linalg.norm(goal.at(t) - p0) / cfg.tas_mps
         turning = _one_way(cfg.turning) if goal_covered(tl, goal, np.array([arrival]))[0] else cfg.turning
-        traj = plan_trajectory(tl, p0, t, course, goal, cfg, turning=turning)
+        # a partial trajectory must last until the next replan (the follower flies straight on
+        # past a plan's end)
+        traj = plan_trajectory(tl, p0, t, course, goal, cfg, turning=turning, min_partial_s=cfg.replan_period_s)
         self.trajectory = traj
         diag.update(expanded=traj.expanded, trst=max(len(traj.positions) - 1, 0), runtime_s=traj.runtime_s,
                     turning=turning, search=traj.status)
@@ -118,6 +127,10 @@ class MptpPlanner:
                         holding_turns=traj.holding_turn / (2 * math.pi))
             status = PlanStatus.DEGRADED if holding else PlanStatus.OK
             return self._to_plan(t, est, traj.positions, traj.times, labels, status, diag)
+        if len(traj.positions) >= 2:  # the search's best progress towards the goal
+            diag.update(reason="search " + traj.status + ": partial plan", eta_s=float(traj.times[-1] - t))
+            return self._to_plan(t, est, traj.positions, traj.times, np.full(len(traj.positions), -1),
+                                 PlanStatus.DEGRADED, diag)
         fs = traj.start_space or free_space(tl, p0, t, default_workspace(p0, goal.at(t), cfg), cfg.tas_mps,
                                             cfg.ring_segments)
         end, _ = safe_area_leg(fs, course, cfg, cfg.tas_mps * cfg.replan_period_s * 2)

@@ -23,7 +23,7 @@ from shapely.geometry import Polygon
 from guidance.mptp.astar import astar
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
-from guidance.mptp.heuristics import StaticPaths, edh
+from guidance.mptp.heuristics import GoalAvailability, StaticPaths, edh
 from guidance.mptp.statespace import FreeSpace, free_space
 from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.turning import admissible, aux_states, min_leg_m
@@ -43,7 +43,9 @@ class State:
 @dataclass(frozen=True, slots=True)
 class Trajectory:
     """Planned states: positions (N, 2) [m], times (N,) [s], courses at arrival (N,) [rad] and
-    kinds (start / vertex / aux / goal); ``status`` "ok", "limit" or "exhausted"; ``expanded``
+    kinds (start / vertex / aux / goal); ``status`` "ok", "limit" or "exhausted"; when not "ok"
+    the states are the partial trajectory to the expanded state closest to the goal (by the
+    heuristic) that lasts at least ``min_partial_s`` and has successors, or empty; ``expanded``
     EXST; ``start_space`` EX_free of the start state (for diagnostics and fall-backs)."""
 
     positions: np.ndarray
@@ -85,6 +87,8 @@ class _Expander:
         self.tl, self.goal, self.cfg, self.w, self.turning = tl, goal, cfg, workspace, turning
         self.start_space: FreeSpace | None = None
         self.escape_m = 2.0 * float(min_leg_m(cfg.course_change_max, cfg))
+        self.availability = GoalAvailability(tl, goal)
+        self.static: StaticPaths | None = None  # SSPH graph of the start state (fixed goal)
 
     def __call__(self, s: State):
         cfg, v = self.cfg, self.cfg.tas_mps
@@ -112,16 +116,28 @@ class _Expander:
     def _heuristic(self, fs: FreeSpace, g_pt, pts, times, kinds) -> np.ndarray:
         if self.cfg.heuristic == "dijkstra" or not len(pts):
             return np.zeros(len(pts))
-        euclid = edh(pts, times, self.goal, self.cfg.tas_mps)
+        euclid = edh(pts, times, self.goal, self.cfg.tas_mps, self.availability)
         if self.cfg.heuristic == "edh":
             return euclid
-        static = StaticPaths(fs, g_pt).from_points(pts) / self.cfg.tas_mps
-        return np.where(np.isfinite(static), static, euclid)
+        static = self._static_paths(fs, g_pt).from_points(pts) / self.cfg.tas_mps
+        return np.where(np.isfinite(static), np.maximum(static, euclid), euclid)
+
+    def _static_paths(self, fs: FreeSpace, g_pt: np.ndarray) -> StaticPaths:
+        """SSPH graph: of the start state's free space for the whole search when the goal is
+        fixed (one reduced visibility graph per replan instead of one per expansion), of the
+        expanded state's own when it moves (the goal point is then each state's interception)."""
+        if self.goal.moving:
+            return StaticPaths(fs, g_pt)
+        if self.static is None:
+            self.static = StaticPaths(fs, g_pt)
+        return self.static
 
 
 def plan_trajectory(tl: ObstacleTimeline, p0: np.ndarray, t0: float, course0: float, goal: GoalTrack,
-                    cfg: MptpConfig, workspace: Polygon | None = None, turning: str | None = None) -> Trajectory:
-    """Near-time-optimal, time-monotone, flyable trajectory from (p0, t0, course0) to the goal."""
+                    cfg: MptpConfig, workspace: Polygon | None = None, turning: str | None = None,
+                    min_partial_s: float = math.inf) -> Trajectory:
+    """Near-time-optimal, time-monotone, flyable trajectory from (p0, t0, course0) to the goal
+    (or a partial one, see Trajectory, lasting at least ``min_partial_s`` [s])."""
     wall = time.perf_counter()
     p0 = np.asarray(p0, float)
     w = workspace if workspace is not None else default_workspace(p0, goal.at(t0), cfg)
@@ -132,8 +148,9 @@ def plan_trajectory(tl: ObstacleTimeline, p0: np.ndarray, t0: float, course0: fl
         return round(s.p[0] / q_p), round(s.p[1] / q_p), round(s.t / q_t), round(s.course / q_c) % 360, s.kind == GOAL
 
     start = State((float(p0[0]), float(p0[1])), float(t0), float(course0), START)
-    res = astar(start, exp, lambda s: s.kind == GOAL, key, cfg.max_expansions)
-    path = res.path
+    res = astar(start, exp, lambda s: s.kind == GOAL, key, cfg.max_expansions,
+                partial_ok=lambda s: s.t >= t0 + min_partial_s)
+    path = res.path if res.status == "ok" else res.partial
     return Trajectory(np.array([s.p for s in path]).reshape(-1, 2), np.array([s.t for s in path]),
                       np.array([s.course for s in path]), np.array([s.kind for s in path]), res.status,
                       res.expanded, time.perf_counter() - wall, exp.start_space)

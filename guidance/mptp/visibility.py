@@ -11,8 +11,10 @@ or the outside of the workspace (the thesis's reversed mission-area ring).
   path; reflex vertices are dropped (4.1.2).
 - Visibility: a candidate segment is visible when no boundary edge crosses it away from its two
   end points (crossings through an edge's end point count, so passing exactly through a vertex
-  is conservatively blocked). With tangency at the ends this decides visibility by counting
-  intersections, as the thesis does, without perturbation.
+  is conservatively blocked) and its midpoint lies in the free space (on its boundary counts).
+  A segment that crosses no edge lies wholly on one side, so the midpoint decides the cases
+  that counting intersections misses: a chord between two corners of the same convex obstacle
+  (tangent at both ends) and a leg from a boundary point straight into the obstacle.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ class Boundary:
     ea: np.ndarray  # (E, 2) edge starts
     eb: np.ndarray  # (E, 2) edge ends
     tree: shapely.STRtree  # of the edges, for bounding-box pre-selection
+    free: BaseGeometry  # the free space (prepared), for the midpoint test
 
     @property
     def n_edges(self) -> int:
@@ -58,7 +61,8 @@ def boundary_of(free: BaseGeometry) -> Boundary:
     turn = _cross(pts - prv, nxt - pts)
     convex = turn > 0
     tree = shapely.STRtree(shapely.linestrings(np.stack([pts, nxt], 1)))
-    return Boundary(pts[convex], prv[convex], nxt[convex], pts, nxt, tree)
+    shapely.prepare(free)
+    return Boundary(pts[convex], prv[convex], nxt[convex], pts, nxt, tree, free)
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -74,8 +78,11 @@ def tangent(src: np.ndarray, b: Boundary) -> np.ndarray:
 
 
 def blocked(p: np.ndarray, q: np.ndarray, b: Boundary) -> np.ndarray:
-    """(C,) bool: segment p_i -> q_i is crossed by a boundary edge away from its end points."""
-    return first_hit(p, q, b) < np.inf
+    """(C,) bool: segment p_i -> q_i is crossed by a boundary edge away from its end points, or
+    its midpoint is outside the free space (by more than END_TOL_M: the midpoint of a segment
+    along a boundary edge is a rounding error off it)."""
+    mid = 0.5 * (p + q)
+    return (first_hit(p, q, b) < np.inf) | ~shapely.dwithin(b.free, shapely.points(mid), END_TOL_M)
 
 
 def first_hit(p: np.ndarray, q: np.ndarray, b: Boundary) -> np.ndarray:
