@@ -78,6 +78,25 @@ def test_head_on_intruder_picks_an_avoiding_trajectory():
     assert np.linalg.norm(straight - (intruder.pos_ned + np.outer(t_s, intruder.vel_ned)), axis=1).min() < intruder.radius_m
 
 
+def test_last_resort_path_keeps_away_from_an_intruder_that_blocks_every_path():
+    """A head-on intruder whose body (8 m) covers every trajectory: no intruder-free path; the
+    obstacle path (step 7) is the full trajectory that stays clear longest, not the straight one
+    to the goal through it: its closest approach to the intruder's centre is larger."""
+    intruder = IntruderTrack("i1", 0.0, np.array([10.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]), radius_m=8.0)
+    parts = Assessor(GRID, TREE, CFG).assess(POSE, 0.0, Threats(intruders=[intruder]))
+    runs, sel = emergency_runs(GRID, TREE, parts, GOAL, CFG.fusion.threshold)
+    assert sel == 3 and not runs[2].path.ok  # only the obstacle path exists
+
+    def closest(node: int) -> float:
+        p = POSE.lcf_to_ned(TREE.path_samples(node))
+        t = np.linspace(0.0, TREE.depth[node] * TREE.period, len(p))
+        return float(np.linalg.norm(p - (intruder.pos_ned + np.outer(t, intruder.vel_ned)), axis=1).min())
+
+    node = runs[sel].path.node
+    assert node in TREE.leaves() and node != straight_node()
+    assert closest(node) > closest(straight_node()) + 1.0
+
+
 def kin(n: float, e: float = 0.0, t: float = 0.0) -> KinState:
     return KinState(np.array([e, n, 0.0]), np.array([0.0, 0.0, np.pi / 2]), t, 1.0)  # GCF, heading north
 

@@ -130,14 +130,26 @@ def emergency_runs(grid: AvoidanceGrid, tree: ReachSetTree, parts: ThreatParts, 
 
 def least_threat_path(tree: ReachSetTree, fused: Fused, with_intruders: Fused, goal_lcf: np.ndarray) -> PathResult:
     """The last resort when every path crosses intruder space (the obstacle path of step 7):
-    of the full-length trajectories feasible in ``fused``, the one most likely to stay clear of
-    the intruders (greatest reachability (6.162) in ``with_intruders``), ties to the tip nearest
-    the goal. Steering at the goal alone would fly straight through the intruder."""
+    of the full-length trajectories feasible in ``fused``, the one least exposed to the
+    intruders (smallest sum of the intruder ratings of its footprint cells in ``with_intruders``),
+    then the one clear of them for the most movements (time to re-plan), then the tip nearest
+    the goal. Steering at the goal alone flew straight through the intruder."""
     leaves = tree.leaves()
     cand = leaves[fused.node_ok[leaves]]
     if len(cand) == 0:
         return PathResult(-1, -1, "no path: empty reach set")
-    reach = with_intruders.node_reach[cand]
+    entry = np.where(tree.cell_new, with_intruders.intruder[tree.cells], 0.0)
+    exposure = np.zeros(tree.n_nodes)
+    counts = np.diff(tree.cells_ptr)
+    nz = counts > 0
+    if len(tree.cells):
+        exposure[nz] = np.add.reduceat(entry, tree.cells_ptr[:-1][nz])
+    clear = with_intruders.node_ok.astype(np.int64)  # feasibility is prefix-closed: count the clear movements
+    lp = tree.level_ptr
+    for k in range(1, len(lp) - 1):
+        sl = slice(lp[k], lp[k + 1])
+        exposure[sl] += exposure[tree.parent[sl]]
+        clear[sl] += clear[tree.parent[sl]]
     near = np.linalg.norm(tree.tip[cand] - goal_lcf, axis=1)
-    best = int(cand[np.lexsort((cand, near, -reach))[0]])
+    best = int(cand[np.lexsort((cand, near, -clear[cand], np.round(exposure[cand], 9)))[0]])
     return PathResult(best, int(tree.tip_cell[best]))
