@@ -33,6 +33,7 @@ from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.visibility import Boundary, boundary_of
 
 TOUCH_M = 1.0  # parts of the free space closer than this to p_in count as touching it [m]
+MAX_RINGS = 40  # annuli per EX_obs (beyond, an annulus spans several planning intervals)
 
 
 @dataclass(frozen=True, slots=True)
@@ -60,15 +61,24 @@ def annuli(p: np.ndarray, radii: np.ndarray, segments: int) -> np.ndarray:
 
 def obstacle_region(tl: ObstacleTimeline, p_in: np.ndarray, t_in: float, reach_m: float, speed: float,
                     segments: int) -> BaseGeometry:
-    """EX_obs(x_in) out to range ``reach_m`` [m] (beyond the last level the last envelope)."""
+    """EX_obs(x_in) out to range ``reach_m`` [m] (beyond the last level the last envelope).
+
+    At most about MAX_RINGS annuli: when more planning intervals lie within reach (small dt),
+    an annulus spans k consecutive intervals (groups aligned to multiples of k, so their
+    envelopes are shared between expansions) with the envelope over the whole span, a superset
+    of the per-interval pieces (conservative)."""
     j0 = int(tl.interval(t_in))
-    j_last = min(tl.n_levels - 1, j0 + int(math.ceil(reach_m / (speed * tl.dt))) + 1)
-    bounds = np.array([tl.level_time(j) for j in range(j0 + 1, j_last + 1)])
-    radii = np.concatenate([[0.0], speed * (bounds - t_in)])
+    n = int(math.ceil(reach_m / (speed * tl.dt))) + 1
+    k = max(1, int(math.ceil(n / MAX_RINGS)))
+    j_last = min(tl.n_levels - 1, j0 + n)
+    first = (j0 // k + 1) * k
+    ends = np.arange(first, max(first, j_last) + k, k)  # outer levels of the annuli
+    radii = np.concatenate([[0.0], speed * (tl.level_time(ends) - t_in)])
     radii = radii[np.r_[True, radii[1:] < reach_m]]
     radii = np.append(radii, max(reach_m, radii[-1]) * 1.05 + 1.0)
     rings = annuli(p_in, radii, segments)
-    env = tl.envelopes(j0, j0 + len(rings))
+    starts = np.r_[j0, ends][:len(rings)]
+    env = tl.envelopes(starts, np.r_[ends, ends[-1] + k][:len(rings)])
     hit = shapely.intersects(rings, env)
     if not hit.any():
         return Polygon()

@@ -88,7 +88,7 @@ class ObstacleTimeline:
         self._pairs = [self._interval_pairs(snaps[k], snaps[k + 1], hulls[k], hulls[k + 1])
                        for k in range(len(snaps) - 1)] or [self._held_pairs(hulls[0])]
         self.n_levels = int(math.ceil((max(t_end, self.times[-1]) - self.t_issue) / self.dt)) + 1
-        self.envelope = lru_cache(maxsize=None)(self._envelope)
+        self.envelope_span = lru_cache(maxsize=None)(self._envelope_span)
 
     # --- construction -----------------------------------------------------------------------
     def _interval_pairs(self, a: StormSnapshot, b: StormSnapshot, ha: np.ndarray, hb: np.ndarray):
@@ -121,8 +121,14 @@ class ObstacleTimeline:
         ps = self._pairset(t)
         return merge(ps.polygons(ps.s(t)), self.cfg)
 
-    def _envelope(self, j: int) -> BaseGeometry:
-        t0, t1 = self.level_time(j), self.level_time(j + 1)
+    def envelope(self, j: int) -> BaseGeometry:
+        """Envelope of planning interval j (cached)."""
+        return self.envelope_span(j, 1)
+
+    def _envelope_span(self, j: int, k: int) -> BaseGeometry:
+        """Envelope over the k planning intervals from level j, [t_j, t_j+k] (beyond the
+        nowcast's last step its shapes are held)."""
+        t0, t1 = self.level_time(j), self.level_time(j + k)
         cuts = np.unique(np.clip(np.concatenate([[t0, t1], self.times[(self.times > t0) & (self.times < t1)]]),
                                  self.times[0], self.times[-1]))
         hulls = []
@@ -135,9 +141,12 @@ class ObstacleTimeline:
         k = int(np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self._pairs) - 1))
         return self._pairs[k]
 
-    def envelopes(self, j0: int, j1: int) -> np.ndarray:
-        """Envelopes of intervals j0..j1-1 (object array; intervals past the end are held)."""
-        return np.array([self.envelope(int(min(j, self.n_levels - 1))) for j in range(j0, j1)], object)
+    def envelopes(self, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+        """Envelopes over the level spans [starts[i], ends[i]] (object array; levels past the
+        end are held)."""
+        last = self.n_levels - 1
+        return np.array([self.envelope_span(int(min(a, last)), int(max(1, min(b, last + 1) - min(a, last))))
+                         for a, b in zip(starts, ends)], object)
 
     def contains(self, points: np.ndarray, times: np.ndarray) -> np.ndarray:
         """True where point (north, east) [m] is strictly inside the margin region at its time."""
