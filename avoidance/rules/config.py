@@ -26,6 +26,9 @@ class RulesConfig:
     UAS' own predicted track does that job, and with 4 more the give-way UAS detected at 20
     units from the point has no trajectory left, docs/rules.md); ``bloat`` [unit] added to every enforced margin
     (synchronisation bloat 6.180: peer speed × decision frame = 1 thesis metre);
+    ``established_speed`` share of the cruise speed and ``settle`` [s] after its first decision
+    from which the own UAS takes part in cases (start transients of the estimator and the
+    controller make early headings meaningless, and the head case fixes the roles);
     ``deadlock_frames`` frames in a row without a restricted navigation path before the peers go
     to the emergency avoidance; ``plane_tolerance`` [unit] how far left of the right-plane a trajectory may reach (the plane
     moves with the estimates: without slack every frame whose heading is a little left of the
@@ -54,6 +57,8 @@ class RulesConfig:
     category: str = "uas_autonomous"
     maneuverability: str = "vtol"
     close_after: int = 2
+    established_speed: float = 0.8
+    settle: float = 0.0
     deadlock_frames: int = 3
     navigation: tuple[str, ...] = ("horizontal",)
     navigation_spread: int = 9
@@ -78,7 +83,7 @@ class RulesConfig:
         if not self.unit > 0.0:
             raise ValueError("unit must be > 0")
         for name in ("universal", "head_on", "converging", "overtake", "converging_extra", "bloat", "time_margin",
-                     "plane_tolerance"):
+                     "plane_tolerance", "established_speed", "settle"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"{name} must be >= 0")
 
@@ -110,7 +115,7 @@ class RulesConfig:
 
     def utm(self, grid_range: float, cruise: float) -> UtmConfig:
         return UtmConfig(time_margin=self.time_margin * grid_range / max(cruise, 1e-6), close_after=self.close_after,
-                         min_speed=0.5 * cruise)
+                         min_speed=0.2 * cruise)
 
 
 RULES_FIELDS = tuple(f.name for f in fields(RulesConfig) if f.name != "enabled")

@@ -42,6 +42,7 @@ class RuleContext:
     notifications: list[PositionNotification]
     length: float  # movement length at cruise [m]
     frame: float  # decision frame = movement period [s]
+    start: float = 0.0  # time of the UAS' first decision [s]
     resolve: list[CollisionCase] = field(default_factory=list)  # own cases to resolve, by severity
     emergency: set[str] = field(default_factory=set)  # peers handed to the emergency avoidance
     managed: set[str] = field(default_factory=set)  # peers whose pair with the own UAS was assessed

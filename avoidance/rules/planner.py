@@ -63,6 +63,7 @@ class RulesAvoider(ReachSetAvoider):
         self._mission_waypoints = self.control.waypoints
         self._deadlock_frames = 0
         self._unresolved: set = set()
+        self._start: float | None = None
 
     def notifications(self, estimate: VehicleState, threats: Threats, t: float) -> list[PositionNotification]:
         own = PositionNotification(t, self.registration, ned_to_enu(estimate.pos_ned), ned_to_enu(estimate.vel_ned))
@@ -80,8 +81,9 @@ class RulesAvoider(ReachSetAvoider):
             return self._last
         ctx = RuleContext(OWN, t, self.rules, self.book, self.notifications(estimate, threats, t), self.length,
                           self.frame, emergency=set(self.emergency), deadlock_frames=self._deadlock_frames,
-                          unresolved=self._unresolved)
+                          unresolved=self._unresolved, start=self._start if self._start is not None else t)
         self._ctx = ctx
+        self._start = ctx.start
         self.engine.invoke(DecisionPoint.BEFORE_AVOIDANCE_RUN, ctx)
         sensed = dataclasses.replace(threats, intruders=[tr for tr in threats.intruders
                                                          if tr.id not in ctx.managed or tr.id in ctx.emergency])

@@ -48,7 +48,9 @@ def _severity(case: CollisionCase):
 
 @dataclass(frozen=True)
 class DetectCollisionCases:
-    """(tab. 6.10) Update the case book from this frame's notifications (the peers whose pair
+    """(tab. 6.10) Once the own UAS has flown ``settle`` seconds and reached
+    ``established_speed`` of its cruise speed (before, at the start, headings say nothing), update the case book from this frame's
+    notifications (the peers whose pair
     could be assessed are managed by the rules, the rest stay intruders), re-target roundabout
     members, report unresolved cases (separation below the case margin: handed to the
     emergency avoidance), select the own cases to resolve (own role gives way) by severity."""
@@ -61,6 +63,10 @@ class DetectCollisionCases:
         return True
 
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
+        own_note = next(n for n in ctx.notifications if n.id == ctx.uas)
+        starting = ctx.t < ctx.start + ctx.cfg.settle or own_note.speed < ctx.cfg.established_speed * own_note.registration.max_cruise
+        if starting and not ctx.book.chains:
+            return  # start transient: no approach direction to classify yet, peers stay intruders
         opened, closed = ctx.book.update(ctx.notifications, ctx.t)
         ctx.managed = {a if b == ctx.uas else b for a, b in ctx.book.assessed if ctx.uas in (a, b)}
         for c in opened:
@@ -83,7 +89,6 @@ class DetectCollisionCases:
         overtakes = [c for c in own if c.role_of(ctx.uas) == Role.OVERTAKING]
         if len(overtakes) > 1:
             speeds = [n.speed for n in ctx.notifications if n.id in {c.other(ctx.uas) for c in overtakes}]
-            own_note = next(n for n in ctx.notifications if n.id == ctx.uas)
             ctx.record("overtake_speed", speed_mps=overtake_speed(own_note.registration.min_cruise, speeds))
         ctx.resolve = sorted((c for c in own if c.role_of(ctx.uas) in RESOLVING and c.other(ctx.uas) not in ctx.emergency),
                              key=_severity)

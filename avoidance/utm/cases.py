@@ -2,8 +2,10 @@
 UTM knows (each cooperative UAS runs one over all notifications it receives, so all of them
 derive the same cases from the same traffic picture).
 
-Chaining: the first flagged case of a pair is the *head*; it fixes collision point, encounter,
-roles and margin for the whole manoeuvre, later frames only update distance, time to the
+Chaining: a pair flagged with the same encounter in two consecutive frames opens a chain whose
+*head* is the second of them (one frame of confirmation: a single flag from a fresh or noisy
+track does not fix the roles); the head fixes collision point, encounter, roles and margin for
+the whole manoeuvre, later frames only update distance, time to the
 closest approach and separation. The chain closes (its *tail*) after ``close_after`` frames in
 which the pair is past its closest approach (diverging) or the peer is no longer reported.
 Merge: the active chains that share a UAS form a cluster; a cluster of two or more chains is a
@@ -33,7 +35,7 @@ class Chain:
         """The current case with the head's point, encounter, roles and margin (chaining)."""
         h = self.head
         return replace(self.last, encounter=h.encounter, alpha_deg=h.alpha_deg, roles=h.roles,
-                       collision_point=h.collision_point, margin=max(h.margin, self.last.margin), head=h.t)
+                       collision_point=h.collision_point, margin=h.margin, head=h.t)
 
 
 @dataclass(frozen=True, slots=True)
@@ -51,12 +53,14 @@ class CaseBook:
     chains: dict[tuple[str, str], Chain] = field(default_factory=dict)
 
     assessed: set[tuple[str, str]] = field(default_factory=set)  # pairs with a case computed this frame
+    pending: dict[tuple[str, str], CollisionCase] = field(default_factory=dict)  # flagged once, not yet opened
 
     def update(self, notifications: list[PositionNotification], t: float) -> tuple[list[CollisionCase], list[CollisionCase]]:
         """Compute every pair's case at frame time ``t`` [s], chain them; returns the cases
         opened and closed in this frame (:attr:`assessed` holds the pairs computed)."""
         opened, closed = [], []
         seen = self.assessed = set()
+        last_pending, self.pending = self.pending, {}
         notes = sorted(notifications, key=lambda n: n.id)
         for i, a in enumerate(notes):
             for b in notes[i + 1:]:
@@ -67,10 +71,13 @@ class CaseBook:
                 seen.add(key)
                 chain = self.chains.get(key)
                 if chain is None:
-                    if case.flagged:
+                    seen_before = last_pending.get(key)
+                    if case.flagged and seen_before is not None and seen_before.encounter == case.encounter:
                         case.head = t
                         self.chains[key] = Chain(case, case)
                         opened.append(case)
+                    if case.flagged and key not in self.chains:
+                        self.pending[key] = case
                     continue
                 chain.head.links.append(t)
                 chain.last = case
