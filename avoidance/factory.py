@@ -20,7 +20,7 @@ import numpy as np
 
 from avoidance.follow_mission import FollowMissionPlanner
 from avoidance.planner import Planner
-from avoidance.rules.config import RULES_FIELDS
+from avoidance.rules.config import RULES_FIELDS, RulesConfig
 from guidance.mission import Mission
 
 # planner -> (airframe kinds it flies, its config dataclass "module:Class" or the option names)
@@ -56,6 +56,10 @@ def check_planner(kind: str, airframe_kind: str, options: dict) -> None:
                                  + (f" (known: {', '.join(sorted(names))})" if names else " (it takes none)"))
     if kind == "reachset":
         _reachset_config(options)
+        if "rules" in options:
+            _rules_config(options)
+    if kind == "pursuit" and not isinstance(options.get("target"), str):
+        raise PlannerConfigError("pursuit planner: option target (the pursued vehicle's name) is required")
 
 
 def _config(kind: str, options: dict, **fixed):
@@ -111,6 +115,15 @@ def reachset_grid_range(airframe_kind: str, cruise: float, options: dict) -> flo
     return float(_reachset_config(options).grid.scaled(length).d_range[1])
 
 
+def _rules_config(options: dict):
+    """The rules of the air of a reach-set planner: ``rules`` (enabled codes) + ``rules_<field>``."""
+    table = {k.removeprefix("rules_"): v for k, v in options.items() if k.startswith("rules_")}
+    try:
+        return RulesConfig.from_options({"enabled": options["rules"], **table})
+    except (TypeError, ValueError) as exc:
+        raise PlannerConfigError(f"reachset planner: {exc}") from None
+
+
 def make_planner(kind: str, mission: Mission, airframe_kind: str = "multirotor", options: dict | None = None,
                  bank_limit_rad: float = np.radians(20.0)) -> Planner:
     """The planner called ``kind`` for ``mission`` flown by an ``airframe_kind`` vehicle."""
@@ -121,8 +134,6 @@ def make_planner(kind: str, mission: Mission, airframe_kind: str = "multirotor",
     if kind == "pursuit":
         from avoidance.pursuit import PursuitPlanner
 
-        if not isinstance(options.get("target"), str):
-            raise PlannerConfigError("pursuit planner: option target (the pursued vehicle's name) is required")
         return PursuitPlanner(mission, options["target"])
     if kind == "geometric":
         from avoidance.geometric.planner import GeometricAvoider
@@ -136,15 +147,9 @@ def make_planner(kind: str, mission: Mission, airframe_kind: str = "multirotor",
         sma = _reachset_automaton(airframe_kind, mission.cruise_speed, options, bank_limit_rad)
         if "rules" not in options:
             return ReachSetAvoider(mission, sma, _reachset_config(options))
-        from avoidance.rules.config import RulesConfig
         from avoidance.rules.planner import RulesAvoider
 
-        table = {k.removeprefix("rules_"): v for k, v in options.items() if k.startswith("rules_")}
-        try:
-            rules = RulesConfig.from_options({"enabled": options["rules"], **table})
-        except (TypeError, ValueError) as exc:
-            raise PlannerConfigError(f"reachset planner: {exc}") from None
-        return RulesAvoider(mission, sma, rules, _reachset_config(options))
+        return RulesAvoider(mission, sma, _rules_config(options), _reachset_config(options))
     from guidance.mptp.planner import MptpPlanner
 
     return MptpPlanner(mission, _config(kind, options, tas_mps=mission.cruise_speed, bank_max=bank_limit_rad))

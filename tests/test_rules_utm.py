@@ -2,6 +2,8 @@
 T-UT-1..6 of §9.2) with hypothesis properties of the classification and of symmetric encounters."""
 
 import dataclasses
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,6 +26,7 @@ from avoidance.utm.collision_case import (Encounter, Role, UtmConfig, angle_of_a
                                           trajectory_min_distance)
 from avoidance.utm.notification import Category, Margins, Maneuverability, PositionNotification, Registration, flight_levels
 from sim.frames import FT
+from sim.scenario import ScenarioError, load_scenario
 
 CFG = RulesConfig().avoidance(AvoidanceConfig())
 GRID = AvoidanceGrid(CFG.grid)
@@ -271,3 +274,17 @@ def test_moving_margin_follows_the_peer_in_time():
     # the same peer standing still at its start blocks other trajectories
     static = moving_margin_mask(NAV, pose, np.array([6.0, -6.0, 0.0]), np.zeros(3), 3.0)
     assert (mask != static).any()
+
+
+@pytest.mark.parametrize("old, new, message", [
+    ('"head_on", "converging"', '"head_on", "converge"', "unknown rule(s) converge"),
+    ("rules_settle = 10.0", "rules_settle = -1", "settle must be >= 0"),
+    ("rules_unit = 5.0", "rules_units = 5.0", "unknown option(s) rules_units"),
+])
+def test_bad_rules_options_are_one_line_scenario_errors(old, new, message, tmp_path):
+    path = Path(__file__).resolve().parents[1] / "scenarios" / "rules" / "s9_converging.toml"
+    bad = tmp_path / "bad.toml"
+    bad.write_text(path.read_text().replace(old, new, 1))
+    with pytest.raises(ScenarioError, match=re.escape(message)) as err:
+        load_scenario(bad)
+    assert "\n" not in str(err.value)
