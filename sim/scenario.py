@@ -256,13 +256,29 @@ class Surveillance(_Strict):
     velocity_noise: Speed = 0.5
 
 
+class StormCell(_Strict):
+    """A scripted storm cell (not drawn by the generator): polygon ``points`` [[north, east], ...]
+    [m] at t = 0, drifting at constant (``drift_north``, ``drift_east``) [m/s]; from the ground
+    up, like the synthetic cells."""
+
+    points: list[tuple[float, float]]
+    drift_north: Speed = 0.0
+    drift_east: Speed = 0.0
+
+    @field_validator("points")
+    @classmethod
+    def _simple(cls, v):
+        return _simple_polygon(v)
+
+
 class Weather(_Strict):
     """Synthetic convective weather (seeded from the scenario): ``cells`` storm cells over a
     box of ``size`` x ``size`` [m] south-west-cornered at the origin, drifting at
     (``drift_north``, ``drift_east``) [m/s] +- ``drift_spread``, mean radius ``radius``; a nowcast of the next ``horizon`` in
     ``step`` slices is issued every ``nowcast_period`` (what the vehicles see). ``seed``: the
     field's own seed (default: drawn from the scenario seed); ``pop_up``: cells may be born after
-    the start (unforeseen by earlier nowcasts); false = every cell is alive at the start."""
+    the start (unforeseen by earlier nowcasts); false = every cell is alive at the start.
+    ``storm``: scripted cells added to the generated ones (``[[weather.storm]]``)."""
 
     cells: Annotated[int, Field(ge=0, le=500)] = 12
     size: quantity("length", 1000.0, 2e6) = 250_000.0
@@ -278,6 +294,7 @@ class Weather(_Strict):
     centres: list[tuple[float, float]] | None = None  # [[north, east], ...] [m] to place the cells
     seed: Annotated[int, Field(ge=0)] | None = None
     pop_up: bool = True
+    storm: list[StormCell] = []
 
 
 class _Fault(_Strict):

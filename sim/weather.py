@@ -1,7 +1,8 @@
 """Synthetic convective weather: the true storm field and the nowcasts issued to the vehicles.
 
 The field is MPTP's seeded storm generator (``guidance.mptp.synthetic.StormField``: cells that
-drift, grow, decay, split and merge) in the local (north, east) plane [m]. Every
+drift, grow, decay, split and merge) in the local (north, east) plane [m], plus the scenario's
+scripted cells (fixed polygons drifting at constant velocity). Every
 ``nowcast_period`` a nowcast of the next ``horizon`` is issued: what planners see
 (``Threats.storms``); the truth is for logging and metrics only.
 """
@@ -9,16 +10,35 @@ drift, grow, decay, split and merge) in the local (north, east) plane [m]. Every
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from shapely.geometry import Polygon
 
 from guidance.mptp.synthetic import StormField
 from avoidance.threats import StormSnapshot
 from sim import scenario as sc
 
 
+@dataclass
+class ScriptedStormField(StormField):
+    """A storm field with extra ``scripted`` cells: (polygon (north, east) [m] at t = 0,
+    velocity (2,) [m/s]) pairs that neither grow, decay nor split."""
+
+    scripted: tuple = ()
+
+    def cell_shapes(self, t: float) -> tuple[list[Polygon], np.ndarray]:
+        shapes, vel = super().cell_shapes(t)
+        shapes = shapes + [shapely.affinity.translate(p, *(v * t)) for p, v in self.scripted]
+        return shapes, np.vstack([vel.reshape(-1, 2)] + [v for _, v in self.scripted]).reshape(-1, 2)
+
+
 class WeatherService:
     def __init__(self, cfg: sc.Weather, seed: int):
         self.cfg = cfg
-        self.field = StormField(
+        self.field = ScriptedStormField(
+            scripted=tuple((Polygon(c.points), np.array([c.drift_north, c.drift_east])) for c in cfg.storm),
             seed=seed if cfg.seed is None else cfg.seed, births_after_t0=cfg.pop_up,
             n_cells=cfg.cells, size_m=(cfg.size, cfg.size),
             mean_velocity=(cfg.drift_north, cfg.drift_east), speed_spread=cfg.drift_spread,

@@ -143,24 +143,28 @@ def obstacle_metrics(tr: VehicleTrace, world: MetricsWorld) -> dict:
     return out
 
 
-STORM_CHECK_S = 10.0  # storms are checked against the track this often [s]
+STORM_CHECK_S = 10.0  # storms are checked against the track this often [s] ...
+STORM_CHECKS_MIN = 200  # ... or more often, so that a short run is checked this many times
 
 
 def storm_metrics(tr: VehicleTrace, world: MetricsWorld) -> dict:
     """Horizontal distance to the nearest TRUE storm cell at the vehicle's position and time
-    (checked every ``STORM_CHECK_S``; 0 inside a cell), its minimum with time, and the time
-    spent inside cells (storms reach from the ground to above the HAPS)."""
+    (checked every ``STORM_CHECK_S``, at least ``STORM_CHECKS_MIN`` times per run; 0 inside a
+    cell), its minimum with time, and the time spent inside cells (storms reach from the ground
+    to above the HAPS)."""
     if world.weather is None or not len(tr.t):
         return {}
-    idx = np.unique(np.searchsorted(tr.t, np.arange(tr.t[0], tr.t[-1] + 1e-9, STORM_CHECK_S)).clip(0, len(tr.t) - 1))
+    step = min(STORM_CHECK_S, max(float(tr.t[-1] - tr.t[0]), 1e-9) / STORM_CHECKS_MIN)
+    idx = np.unique(np.searchsorted(tr.t, np.arange(tr.t[0], tr.t[-1] + 1e-9, step)).clip(0, len(tr.t) - 1))
     dist = np.full(len(idx), np.inf)
     for j, i in enumerate(idx):
         cells = world.weather.truth(float(tr.t[i])).cells
         if cells:
             dist[j] = float(np.min(shapely.distance(shapely.points(tr.pos_ned[i, :2]), np.array(cells, dtype=object))))
     k = int(np.argmin(dist))
+    spacing = float(np.mean(np.diff(tr.t[idx]))) if len(idx) > 1 else step  # per check [s]
     return {"min_distance_m": float(dist[k]) if np.isfinite(dist[k]) else None, "t": float(tr.t[idx[k]]),
-            "time_inside_s": float(np.sum(dist == 0.0) * STORM_CHECK_S)}
+            "time_inside_s": float(np.sum(dist == 0.0) * spacing)}
 
 
 def well_clear_losses(a: VehicleTrace, b: VehicleTrace, world: MetricsWorld) -> list[dict]:
