@@ -1,13 +1,14 @@
 """Open-loop decisions (spec §6): grid runs against an obstacle ahead and a head-on intruder,
 mission control (modes, waypoints, buffer replacement), the planner adapter and the scene."""
 
+import dataclasses
 import json
 
 import numpy as np
 
 from avoidance.planner import PlanStatus, Threats
 from avoidance.reachset.cache import reach_set
-from avoidance.reachset.config import AvoidanceConfig, MovementConfig
+from avoidance.reachset.config import AvoidanceConfig, ExpansionConfig, MovementConfig, ReachSetConfig
 from avoidance.reachset.frames import GridPose
 from avoidance.reachset.fusion import Categories, SpaceClass
 from avoidance.reachset.grid import AvoidanceGrid
@@ -187,3 +188,20 @@ def test_lidar_shorter_than_the_grid_is_a_scenario_error():
     data["vehicle"][0]["lidar"] = {"max_range_m": 10.0}
     with pytest.raises(ScenarioError, match=r"vehicle\[0\]: lidar.max_range_m: 10 m does not cover the reach-set grid \(50 m"):
         parse_scenario(data, "x.toml")
+
+
+def test_emergency_path_keeps_its_course_while_feasible():
+    """Frame 2 of a head-on encounter (ACAS-like horizontal sets, where a path's remaining
+    movements are mostly a path of the set again): the first path's remaining movements are still
+    feasible, so they stay the start of the new path (re-choosing freely flipped between sides)."""
+    acas = ReachSetConfig.single(ExpansionConfig.acas(("horizontal",)))
+    wps = np.array([[0.0, 40.0, 0.0]])  # GCF (east, north, up): straight ahead
+    mc = MissionControl(wps, thesis_automaton(), dataclasses.replace(CFG, navigation=acas, avoidance=acas))
+    threats = Threats(intruders=[IntruderTrack("i1", 0.0, np.array([12.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]), radius_m=1.0)])
+    s1 = kin(0.0)
+    d1 = mc.step(s1, threats)
+    assert d1.mode == Mode.EMERGENCY and len(d1.buffer) > 2
+    s2 = mc.sma.automata[0].apply(s1, d1.executing)
+    d2 = mc.step(KinState(s2.pos, np.array([0.0, 0.0, s2.att[2]]), 1.0, 1.0), threats)
+    assert d2.executing == d1.buffer[0]
+    assert "keep_course" in d2.events and d2.buffer[:len(d1.buffer) - 1] == d1.buffer[1:]

@@ -122,7 +122,7 @@ def emergency_runs(grid: AvoidanceGrid, tree: ReachSetTree, parts: ThreatParts, 
     for cats in EMERGENCY_ORDER:
         runs.append(grid_run(grid, tree, parts, goal_lcf, cats, threshold, steering))
         if runs[-1].path.ok:
-            if not cats.intruders and len(parts.intruders):
+            if len(runs) > 1:
                 runs[-1].path = least_threat_path(tree, runs[-1].fused, runs[-2].fused, goal_lcf)
             return runs, len(runs) - 1
     return runs, -1
@@ -138,7 +138,7 @@ def least_threat_path(tree: ReachSetTree, fused: Fused, with_intruders: Fused, g
     cand = leaves[fused.node_ok[leaves]]
     if len(cand) == 0:
         return PathResult(-1, -1, "no path: empty reach set")
-    entry = np.where(tree.cell_new, with_intruders.intruder[tree.cells], 0.0)
+    entry = np.where(tree.cell_new, with_intruders.threat[tree.cells], 0.0)
     exposure = np.zeros(tree.n_nodes)
     counts = np.diff(tree.cells_ptr)
     nz = counts > 0

@@ -14,6 +14,7 @@ navigation run's context before path selection and may disable nodes (decision p
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from enum import Enum
@@ -47,6 +48,7 @@ class SegmentPlanning:
     grid: AvoidanceGrid
     trees: dict[Mode, ReachSetTree]
     assessors: dict[Mode, Assessor]
+    nodes: dict[Mode, dict[tuple[int, ...], int]]  # node of every buffer
 
 
 @dataclass(slots=True)
@@ -106,7 +108,8 @@ class MissionControl:
             grid = AvoidanceGrid(self.cfg.grid.scaled(table.config.length))
             trees = {Mode.NAVIGATION: reach_set(grid, table, self.cfg.navigation, self.cache_dir),
                      Mode.EMERGENCY: reach_set(grid, table, self.cfg.avoidance, self.cache_dir)}
-            self._segments[index] = SegmentPlanning(grid, trees, {m: Assessor(grid, t, self.cfg) for m, t in trees.items()})
+            self._segments[index] = SegmentPlanning(grid, trees, {m: Assessor(grid, t, self.cfg) for m, t in trees.items()},
+                                                    {m: {b: n for n, b in enumerate(t.buffers())} for m, t in trees.items()})
         return self._segments[index]
 
     @property
@@ -160,6 +163,23 @@ class MissionControl:
         d.runtime_s = time.perf_counter() - t0
         return d
 
+    def _keep_course(self, d: Decision, plan: SegmentPlanning, goal_lcf: np.ndarray, steering: Steering) -> None:
+        """In an emergency, the previous path's future movements stay the start of the new path
+        while they respect every threat category (its best continuation is chosen by alg. 6.6
+        among their descendants): re-choosing freely every frame flipped between two equally good
+        sides of a threat ahead, and the vehicle flew straight at it. A relaxed run (a category
+        dropped) chooses freely."""
+        run = d.run
+        node = plan.nodes[self.mode].get(tuple(self.buffer), -1) if self.buffer and d.selected >= 0 else -1
+        if node <= 0 or not run.fused.node_ok[node]:
+            return
+        tree = plan.trees[self.mode]
+        kept = dataclasses.replace(run.fused, node_ok=run.fused.node_ok & tree.subtree(node))
+        path = find_best_path(plan.grid, tree, kept, goal_lcf, steering)
+        if path.ok:
+            run.path = path
+            d.events.append("keep_course")
+
     def _run(self, d: Decision, plan: SegmentPlanning, parts, goal_lcf: np.ndarray, steering: Steering) -> None:
         """Steps 7-12: grid run(s), path selection, buffer replacement."""
         threshold = self.cfg.fusion.threshold
@@ -174,6 +194,7 @@ class MissionControl:
             d.runs, d.selected = [run], 0 if run.path.ok else -1
         else:
             d.runs, d.selected = emergency_runs(plan.grid, tree, parts, goal_lcf, threshold, steering)
+            self._keep_course(d, plan, goal_lcf, steering)
         run = d.run
         if run.path.away:
             d.events.append("goal_in_turn_circle")

@@ -66,6 +66,14 @@ class ReachSetTree:
             node = int(self.parent[node])
         return out[::-1]
 
+    def subtree(self, node: int) -> np.ndarray:
+        """(N,) mask of ``node`` and its descendants."""
+        anc = np.arange(self.n_nodes)
+        target = self.depth[node]
+        while (self.depth[anc] > target).any():
+            anc = np.where(self.depth[anc] > target, self.parent[anc], anc)
+        return anc == node
+
     def buffers(self) -> list[tuple[int, ...]]:
         """Every node's buffer as a tuple (root: ())."""
         keys: list[tuple[int, ...]] = [()] * self.n_nodes

@@ -122,6 +122,25 @@ buildings (keep-out geofences, radius 25 m, Square 35 m, margin 12.5 m, seeded r
 facing east. Thesis: mission ~103 s, envelope touched several times, never inside a body. Pass:
 as S2, mission time within ±15 % of 103 s."""
 
+S4_DOC = """Spec §9.3 S4 (storm avoidance, [R] NS019-024) at L = 5 m (lengths and speeds x5): a moving
+constraint (Poly5 storm cell, radius 50 m, rotated -45°, centre 250 m north of the start at t = 0,
+drifting south at 2.5 m/s towards the UAS, 25 m margin) between the quadrotor and its waypoint
+300 m north. The reach-set avoider sees it through the weather nowcasts (every 10 s, the newest
+snapshot moved with its velocity = a moving constraint, D-5). Thesis: ~70 s, minimum ~15 m from
+the centre (= body 10 + margin 5). Pass: completes; distance to the true storm polygon >= margin
+- 0.5 m x5 = 22.5 m at all times."""
+
+
+def storm(name: str, doc: str, duration: float) -> str:
+    lines = header(name, doc, 4, duration)
+    pts = ", ".join(f"[{_fmt(n)}, {_fmt(e)}]" for n, e in (ne(p) for p in polygon(5, 10.0, -np.pi / 4, (0.0, 50.0))))
+    lines += ["[weather]", "cells = 0  # only the scripted cell", 'nowcast_period = "10 s"', 'horizon = "60 s"',
+              'step = "10 s"', "[[weather.storm]]", f"points = [{pts}]", f"drift_north = {_fmt(-0.5 * SCALE)}", ""]
+    lines += vehicle("quad", (0.0, 0.0), 90.0, [(0.0, 60.0)], {"period": 1.0, "constraint_margin": 5.0 * SCALE,
+                                                               "separations": ["horizontal"]})
+    return "\n".join(lines)
+
+
 S6_DOC = """Spec §9.3 S6 (emergency converging, non-cooperative, [R] NS025-031) at L = 5 m: two JSBSim
 quadrotors with the reach-set avoider (ACAS-like horizontal reach sets, as the thesis), each sensing the other only through the surveillance
 model (ADS-B reports -> Kalman track -> intruder line + body + time model), no UTM. Thesis: initial
@@ -150,6 +169,7 @@ def main() -> None:
                                                               "4030301", "0000000", "0151010"], 90.0, 2, 200.0),
         "s3_maze.toml": maze("reachset_s3_maze", S3_DOC, ["12341", "26004", "12301", "10001", "10411", "30004",
                                                           "31103", "25004", "12422"], 0.0, 3, 200.0),
+        "s4_storm.toml": storm("reachset_s4_storm", S4_DOC, 120.0),
         "s6_converging.toml": encounter("reachset_s6_converging", S6_DOC, [
             ("uas1", (0, 20), 0.0, (40, 20)), ("uas2", (20, 0), 90.0, (20, 40))], 90.0, {"separations": ["horizontal"]}),
         "s7_head_on.toml": encounter("reachset_s7_head_on", S7_DOC, [
