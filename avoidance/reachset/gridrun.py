@@ -117,7 +117,8 @@ def emergency_runs(grid: AvoidanceGrid, tree: ReachSetTree, parts: ThreatParts, 
                    threshold: float, steering: Steering | None = None) -> tuple[list[GridRun], int]:
     """Steps 7-11 in selection priority order (soft, hard, intruder, obstacle paths): the runs
     made and the index of the selected one (-1 if none found). Runs stop at the first path,
-    which is the one step 11 selects."""
+    which is the one step 11 selects; a relaxed run's path is the least exposed one
+    (:func:`least_threat_path`)."""
     runs = []
     for cats in EMERGENCY_ORDER:
         runs.append(grid_run(grid, tree, parts, goal_lcf, cats, threshold, steering))
@@ -128,23 +129,24 @@ def emergency_runs(grid: AvoidanceGrid, tree: ReachSetTree, parts: ThreatParts, 
     return runs, -1
 
 
-def least_threat_path(tree: ReachSetTree, fused: Fused, with_intruders: Fused, goal_lcf: np.ndarray) -> PathResult:
-    """The last resort when every path crosses intruder space (the obstacle path of step 7):
-    of the full-length trajectories feasible in ``fused``, the one least exposed to the
-    intruders (smallest sum of the intruder ratings of its footprint cells in ``with_intruders``),
-    then the one clear of them for the most movements (time to re-plan), then the tip nearest
-    the goal. Steering at the goal alone flew straight through the intruder."""
+def least_threat_path(tree: ReachSetTree, fused: Fused, stricter: Fused, goal_lcf: np.ndarray) -> PathResult:
+    """The path of a relaxed run (a threat category dropped because no path respects it, spec
+    §6.2 step 11): of the full-length trajectories feasible in ``fused``, the one least exposed to
+    the dropped threats (smallest sum of the threat ratings of its footprint cells in the
+    ``stricter`` run), then the one feasible there for the most movements (time to re-plan), then
+    the tip nearest the goal. Steering at the goal alone flew straight through the intruder,
+    building margin or storm that made the stricter run fail."""
     leaves = tree.leaves()
     cand = leaves[fused.node_ok[leaves]]
     if len(cand) == 0:
         return PathResult(-1, -1, "no path: empty reach set")
-    entry = np.where(tree.cell_new, with_intruders.threat[tree.cells], 0.0)
+    entry = np.where(tree.cell_new, stricter.threat[tree.cells], 0.0)
     exposure = np.zeros(tree.n_nodes)
     counts = np.diff(tree.cells_ptr)
     nz = counts > 0
     if len(tree.cells):
         exposure[nz] = np.add.reduceat(entry, tree.cells_ptr[:-1][nz])
-    clear = with_intruders.node_ok.astype(np.int64)  # feasibility is prefix-closed: count the clear movements
+    clear = stricter.node_ok.astype(np.int64)  # feasibility is prefix-closed: count the clear movements
     lp = tree.level_ptr
     for k in range(1, len(lp) - 1):
         sl = slice(lp[k], lp[k + 1])
