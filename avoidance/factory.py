@@ -54,6 +54,8 @@ def check_planner(kind: str, airframe_kind: str, options: dict) -> None:
     if unknown:
         raise PlannerConfigError(f"{kind} planner: unknown option(s) {', '.join(unknown)}"
                                  + (f" (known: {', '.join(sorted(names))})" if names else " (it takes none)"))
+    if isinstance(conf, str):  # values too (the config dataclass validates them)
+        _config(kind, options)
     if kind == "reachset":
         _reachset_config(options)
         if "rules" in options:

@@ -3,6 +3,7 @@ nowcasts and never enters a true storm cell; the same flight without MPTP does. 
 scenarios (two continuous avoidances, holding, moving goal) are flown at the scale that keeps the
 turn radius relative to the storms (CI) and at full size (``-m slow``, ~2 h of flight each)."""
 
+import re
 import tomllib
 from pathlib import Path
 
@@ -15,7 +16,7 @@ from guidance.mptp.haps_scenarios import matched_scale, scenario_data
 from sim.replay.report import log_metrics
 from sim.replay.runlog import RunLog
 from sim.runner import run_scenario
-from sim.scenario import parse_scenario
+from sim.scenario import ScenarioError, parse_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "scenarios" / "mptp" / "storm_crossing.toml"
@@ -50,6 +51,20 @@ def test_without_mptp_the_same_flight_enters_a_storm(tmp_path):
     result, log = _fly(tmp_path, "follow_mission", "perfect")  # the geometry alone decides this one
     assert result.status == "completed"
     assert log_metrics(log)["vehicles"]["haps"]["storms"]["time_inside_s"] > 0.0
+
+
+@pytest.mark.parametrize("options, message", [
+    ({"goal_track": [[0, 1, 2], [0, 3, 4]]}, "goal_track: expected rows [t, north, east]"),
+    ({"goal_track": "x"}, "goal_track: expected rows [t, north, east]"),
+    ({"mission_area": [[0, 0], [1, 1]]}, "mission_area: expected >= 3 vertices"),
+    ({"heuristic": "astar"}, "unknown heuristic 'astar'"),
+])
+def test_bad_mptp_options_are_one_line_scenario_errors(options, message):
+    data = tomllib.loads(SCENARIO.read_text())
+    data["vehicle"][0]["planner"]["options"] = options
+    with pytest.raises(ScenarioError, match=re.escape(message)) as err:
+        parse_scenario(data, str(SCENARIO))
+    assert "\n" not in str(err.value)
 
 
 THESIS = [S.scenario_1, S.scenario_2, S.holding_scenario, S.moving_goal_scenario]

@@ -85,16 +85,9 @@ class MptpConfig:
         for name in ("safety_single_m", "safety_line_m"):  # lists from scenario files
             object.__setattr__(self, name, tuple(float(x) for x in getattr(self, name)))
         if self.mission_area is not None and not isinstance(self.mission_area, Polygon):
-            area = Polygon(self.mission_area) if len(self.mission_area) >= 3 else Polygon()
-            if not area.is_valid or area.area <= 0:
-                raise ValueError("mission_area: expected >= 3 vertices [[north, east], ...] [m] of a simple polygon")
-            object.__setattr__(self, "mission_area", area)
+            object.__setattr__(self, "mission_area", _area(self.mission_area))
         if self.goal_track is not None:
-            rows = np.asarray(self.goal_track, float)
-            if rows.ndim != 2 or rows.shape[1] != 3 or not len(rows) or not np.isfinite(rows).all() \
-                    or np.any(np.diff(rows[:, 0]) <= 0):
-                raise ValueError("goal_track: expected rows [t, north, east] [s, m, m] with increasing t")
-            object.__setattr__(self, "goal_track", tuple(map(tuple, rows.tolist())))
+            object.__setattr__(self, "goal_track", _track(self.goal_track))
 
     @property
     def turn_radius_m(self) -> float:
@@ -120,3 +113,27 @@ class MptpConfig:
                    prob_margin_max_m=25_000.0, safety_single_m=(10_000.0,) * 3, safety_line_m=(10_000.0,) * 3,
                    simplify_tol_m=0.022 * math.pi / 180 * 6_371_000.0)
         return replace(base, **changes)
+
+
+def _area(vertices) -> Polygon:
+    """A mission area from its exterior vertices [[north, east], ...] [m]."""
+    try:
+        pts = np.asarray(vertices, float)
+        area = Polygon(pts) if pts.ndim == 2 and pts.shape[1] == 2 and len(pts) >= 3 else Polygon()
+    except (TypeError, ValueError):
+        area = Polygon()
+    if area.is_empty or not area.is_valid or area.area <= 0:
+        raise ValueError("mission_area: expected >= 3 vertices [[north, east], ...] [m] of a simple polygon")
+    return area
+
+
+def _track(rows) -> tuple[tuple[float, float, float], ...]:
+    """A goal track from rows [t, north, east] [s, m, m] with increasing t."""
+    try:
+        arr = np.asarray(rows, float)
+    except (TypeError, ValueError):
+        arr = np.empty((0, 0))
+    if arr.ndim != 2 or arr.shape[1] != 3 or not len(arr) or not np.isfinite(arr).all() \
+            or np.any(np.diff(arr[:, 0]) <= 0):
+        raise ValueError("goal_track: expected rows [t, north, east] [s, m, m] with increasing t")
+    return tuple(map(tuple, arr.tolist()))
