@@ -24,7 +24,7 @@ from avoidance.planner import Plan, PlanStatus, Threats
 from avoidance.reachset.config import AvoidanceConfig
 from avoidance.reachset.frames import GridPose, heading_from_yaw_ned
 from avoidance.reachset.fusion import SpaceClass, fuse_cells
-from avoidance.reachset.mission import Decision, MissionControl, Mode, Restriction
+from avoidance.reachset.mission import Decision, MissionControl, Restriction
 from avoidance.reachset.movement import KinState, SegmentedMovementAutomaton
 from guidance.mission import Mission
 from sim.frames import enu_to_ned, ned_to_enu
