@@ -45,10 +45,8 @@ def safety_margin_mask(tree: ReachSetTree, pose: GridPose, collision_point: np.n
     """(6.218) ball: disable nodes with a sample closer than ``margin`` [m] to the collision
     point; (6.219, A-20) well-clear barrel when ``barrel_half_height`` [m] is given: closer than
     ``margin`` horizontally **and** within the height band. When the grid origin itself is
-    already inside the volume (or within ``tol`` [m] of its surface), the radius used is the
-    origin's own distance less ``tol`` (a trajectory may not get more than ``tol`` closer than
-    the UAS already is: a turn at a bounded rate starts along the heading; the breach is
-    reported by the caller)."""
+    already inside the volume, the radius used is the origin's own distance (the breach is
+    reported by the caller); the first movement may come ``tol`` [m] closer (:func:`_radius`)."""
     cp = pose.to_lcf(np.asarray(collision_point, float))
     d = tree.samples - cp
     if barrel_half_height is None:
@@ -59,8 +57,7 @@ def safety_margin_mask(tree: ReachSetTree, pose: GridPose, collision_point: np.n
         dist = np.hypot(d[..., 0], d[..., 1])
         here = float(np.hypot(cp[0], cp[1]))
         inside_band = np.abs(d[..., 2]) < barrel_half_height
-    radius = min(margin, here - tol)
-    return propagate(tree, ((dist < radius - 1e-9) & inside_band).any(axis=1))
+    return propagate(tree, ((dist < _radius(tree, margin, here, tol) - 1e-9) & inside_band).any(axis=1))
 
 
 def sample_times(tree: ReachSetTree) -> np.ndarray:
@@ -74,11 +71,17 @@ def moving_margin_mask(tree: ReachSetTree, pose: GridPose, peer_pos: np.ndarray,
                        margin: float, tol: float = 0.0) -> np.ndarray:
     """Safety margin around a peer flying on at constant velocity: disable nodes with a sample
     closer than ``margin`` [m] to where the peer is at that sample's time. ``peer_pos`` GCF [m]
-    at the grid's time, ``peer_vel`` GCF [m/s]. As for the ball, when the peer is already closer
-    than ``margin`` + ``tol`` the radius is its current distance less ``tol``."""
+    at the grid's time, ``peer_vel`` GCF [m/s]. Radius as for the ball (:func:`_radius`)."""
     p0 = pose.to_lcf(np.asarray(peer_pos, float))
     v = pose.vec_to_lcf(np.asarray(peer_vel, float))
     peer = p0 + sample_times(tree)[..., None] * v
     dist = np.linalg.norm(tree.samples - peer, axis=-1)
-    radius = min(margin, float(np.linalg.norm(p0)) - tol)
-    return propagate(tree, (dist < radius - 1e-9).any(axis=1))
+    return propagate(tree, (dist < _radius(tree, margin, float(np.linalg.norm(p0)), tol) - 1e-9).any(axis=1))
+
+
+def _radius(tree: ReachSetTree, margin: float, here: float, tol: float) -> np.ndarray:
+    """(N, 1) radius a node's samples must keep [m]: ``margin``, or the current distance
+    ``here`` when already closer; the first movement may come ``tol`` closer than that (a turn
+    at a bounded rate starts along the heading), later ones not (no creeping in frame by frame)."""
+    keep = min(margin, here)
+    return np.where(tree.depth <= 1, keep - tol, keep)[:, None]
