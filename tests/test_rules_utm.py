@@ -288,3 +288,40 @@ def test_bad_rules_options_are_one_line_scenario_errors(old, new, message, tmp_p
     with pytest.raises(ScenarioError, match=re.escape(message)) as err:
         load_scenario(bad)
     assert "\n" not in str(err.value)
+
+
+def _avoider_with_traffic(cooperative: bool, ahead: float):
+    """A thesis-scale RulesAvoider flying north at 1 m/s with one head-on peer ``ahead`` [m];
+    its decisions at t = 0, 1, 2 s."""
+    from avoidance.planner import Threats
+    from avoidance.reachset.movement import thesis_automaton
+    from avoidance.rules.planner import RulesAvoider
+    from avoidance.threats import IntruderTrack
+    from guidance.mission import Mission
+    from sim.state import VehicleState
+
+    mission = Mission(np.array([[60.0, 0.0, -5.0]]), cruise_speed=1.0, acceptance_radius=2.0)
+    av = RulesAvoider(mission, thesis_automaton(), RulesConfig())
+    peer = lambda t: IntruderTrack("peer", t, np.array([ahead - t, 0.0, -5.0]), np.array([-1.0, 0, 0]),  # noqa: E731
+                                   cooperative=cooperative)
+    decisions = []
+    for t in (0.0, 1.0, 2.0):
+        est = VehicleState(t, np.array([t, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0)
+        av.plan(est, Threats(intruders=[peer(t)]), t)
+        decisions.append(av.last_decision)
+    return av, decisions
+
+
+def test_cooperative_peer_is_resolved_by_the_rules_in_navigation_mode():
+    av, decisions = _avoider_with_traffic(cooperative=True, ahead=40.0)
+    d = decisions[1]  # the case opens on the second (confirming) frame
+    assert d.mode.value == "navigation" and "intruder" not in d.events and d.status == "ok"
+    assert "rule:case_open:self-peer:head_on:roundabout" in d.events and "rule:head_on:self-peer:head_on:roundabout" in d.events
+    assert d.reference.positions[-1][0] > 1.0  # turned right: the UAS flies north (ENU +y), right is east (+x)
+    assert av.rules_record["cases"][0]["encounter"] == "head_on"
+
+
+def test_non_cooperative_intruder_falls_back_to_the_emergency_avoidance():
+    av, decisions = _avoider_with_traffic(cooperative=False, ahead=15.0)
+    assert decisions[-1].mode.value == "emergency" and "intruder" in decisions[-1].events
+    assert not any(e.startswith("rule:") for d in decisions for e in d.events)

@@ -64,10 +64,11 @@ class RuleContext:
         return self.cfg.unit
 
     def record(self, rule: str, case: CollisionCase | None = None, **info) -> None:
-        """One rule decision: an event ``rule:<code>[:<pair>:<encounter>:<role>]`` and a record."""
+        """One rule decision: an event ``rule:<code>[:<own>-<peer>:<encounter>:<own role>]`` and a
+        record."""
         tag = f"rule:{rule}"
         if case is not None:
-            tag += f":{'-'.join(case.ids)}:{case.encounter.value}:{case.role_of(self.uas).value}"
+            tag += f":{self.uas}-{case.other(self.uas)}:{case.encounter.value}:{case.role_of(self.uas).value}"
         self.events.append(tag)
         self.decisions.append({"rule": rule, **({"case": case.record()} if case is not None else {}), **info})
 
