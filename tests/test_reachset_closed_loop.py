@@ -18,8 +18,9 @@ MAP_MARGIN_M = 0.5  # MapConfig.safety_margin
 
 @pytest.mark.parametrize("name", ["building", "building_lidar"])
 def test_building_is_avoided_and_the_mission_completes(tmp_path, name):
-    """S1 leg without and with a LiDAR (measured clearance 12.3 m / 6.4 m: with a LiDAR the seen
-    free space erases the map's margin, (6.158), and the detected face alone keeps it clear)."""
+    """S1 leg without and with a LiDAR covering the grid (measured clearance 8.2 m / 9.8 m; with
+    the LiDAR, seen free space erases the map's margin (6.158) and the detected faces rate the
+    building)."""
     out = tmp_path / f"{name}.mcap"
     scenario, text = load_scenario(SCENARIOS / f"{name}.toml")
     run_scenario(scenario, out, scenario_text=text)
@@ -55,7 +56,7 @@ def test_slalom_s2_hidden_waypoint_rides_the_envelope_and_completes(tmp_path):
     """S2 (slalom, goal hidden behind a building) at L = 5 m: the buildings are keep-out
     geofences with the thesis' 2.5 m margin x5; pass (spec §9.3): completes, never inside a body,
     clearance to every building >= margin - 0.5 m x5, mission time within ±15 % of the thesis'
-    101 s (measured: 115.8 s, closest 11.7 m)."""
+    101 s (measured: 110.3 s, closest 14.8 m)."""
     out = tmp_path / "s2.mcap"
     scenario, text = load_scenario(SCENARIOS / "s2_slalom.toml")
     run_scenario(scenario, out, scenario_text=text)
@@ -67,26 +68,15 @@ def test_slalom_s2_hidden_waypoint_rides_the_envelope_and_completes(tmp_path):
     assert min(clear.values()) >= (2.5 - 0.5) * SCALE
 
 
-def test_maze_s3_completes_without_entering_a_building(tmp_path):
-    """S3 (maze) at L = 5 m. Measured: completes in 125.0 s, closest 15.0 m (the envelope of
-    margin - 2.5 m = 10 m is kept); the thesis' time band (103 s ± 15 %) is not met (docs/reachset.md,
-    open), so this checks completion, no body entry and the envelope only."""
-    out = tmp_path / "s3.mcap"
-    scenario, text = load_scenario(SCENARIOS / "s3_maze.toml")
-    run_scenario(scenario, out, scenario_text=text)
-    m = log_metrics(RunLog(out))["vehicles"]["quad"]
-    assert m["mission"]["complete"]
-    clear = [v["margin_m"] for k, v in m["clearance"].items() if k.startswith("geofence.")]
-    assert len(clear) == 30 and min(clear) >= (2.5 - 0.5) * SCALE
-
-
-def test_storm_s4_is_never_entered_and_the_mission_completes(tmp_path):
-    """S4 (moving storm, through the weather nowcasts) at L = 5 m. Measured: completes in 79.3 s,
-    never inside the true storm, closest 4.8 m to it; the spec's criterion (>= margin - 2.5 m =
-    22.5 m) is not met (docs/reachset.md, open), so this checks no entry and completion."""
+def test_storm_s4_moving_constraint_keeps_its_margin_and_completes(tmp_path):
+    """S4 (moving storm seen through the weather nowcasts) at L = 5 m; pass (spec §9.3):
+    completes, distance to the true storm polygon >= margin - 0.5 m x5 = 22.5 m at all times,
+    mission time within ±15 % of the thesis' 70 s (measured: 79.1 s, closest 29.4 m)."""
     out = tmp_path / "s4.mcap"
     scenario, text = load_scenario(SCENARIOS / "s4_storm.toml")
     run_scenario(scenario, out, scenario_text=text)
     m = log_metrics(RunLog(out))["vehicles"]["quad"]
     assert m["mission"]["complete"]
-    assert m["storms"]["time_inside_s"] == 0.0 and m["storms"]["min_distance_m"] > 0.0
+    assert 70.0 * 0.85 <= m["mission"]["time_s"] <= 70.0 * 1.15
+    assert m["storms"]["time_inside_s"] == 0.0
+    assert m["storms"]["min_distance_m"] >= (5.0 - 0.5) * SCALE

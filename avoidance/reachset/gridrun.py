@@ -124,7 +124,8 @@ def emergency_runs(grid: AvoidanceGrid, tree: ReachSetTree, parts: ThreatParts, 
         runs.append(grid_run(grid, tree, parts, goal_lcf, cats, threshold, steering))
         if runs[-1].path.ok:
             if len(runs) > 1:
-                runs[-1].path = least_threat_path(tree, runs[-1].fused, runs[-2].fused, goal_lcf)
+                least = least_threat_path(tree, runs[-1].fused, runs[-2].fused, goal_lcf)
+                runs[-1].path = least if least.ok else runs[-1].path
             return runs, len(runs) - 1
     return runs, -1
 
@@ -139,7 +140,7 @@ def least_threat_path(tree: ReachSetTree, fused: Fused, stricter: Fused, goal_lc
     leaves = tree.leaves()
     cand = leaves[fused.node_ok[leaves]]
     if len(cand) == 0:
-        return PathResult(-1, -1, "no path: empty reach set")
+        return PathResult(-1, -1, "no full-length path")
     entry = np.where(tree.cell_new, stricter.threat[tree.cells], 0.0)
     exposure = np.zeros(tree.n_nodes)
     counts = np.diff(tree.cells_ptr)

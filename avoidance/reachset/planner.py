@@ -50,7 +50,17 @@ class ReachSetAvoider:
         vel = ned_to_enu(est.vel_ned)
         ground = float(np.hypot(vel[0], vel[1]))
         psi = float(np.arctan2(vel[1], vel[0])) if ground >= self.heading_from_velocity * self.speed else heading_from_yaw_ned(est.yaw)
-        return KinState(ned_to_enu(est.pos_ned), np.array([0.0, 0.0, psi]), t, self.speed)
+        pos = ned_to_enu(est.pos_ned)
+        d = self.last_decision
+        if d is not None and not d.complete and abs(t - d.t_grid) < 1e-6:
+            # the heading the last decision planned for now, while the vehicle keeps within one
+            # movement's yaw increment of it: re-measuring it every frame made the ±15° movements
+            # chatter left/right around a straight course (S4 flew straight into the storm)
+            dyaw = self.control.sma.active(KinState(pos, np.zeros(3), t, self.speed)).table.config.dyaw
+            planned = d.pose.psi
+            if abs(np.angle(np.exp(1j * (psi - planned)))) < dyaw:
+                psi = planned
+        return KinState(pos, np.array([0.0, 0.0, psi]), t, self.speed)
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         """One decision frame per movement period; called more often, the last plan is returned
