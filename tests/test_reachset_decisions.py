@@ -3,8 +3,11 @@ mission control (modes, waypoints, buffer replacement), the planner adapter and 
 
 import dataclasses
 import json
+import tomllib
+from pathlib import Path
 
 import numpy as np
+import pytest
 
 from avoidance.planner import PlanStatus, Threats
 from avoidance.reachset.cache import reach_set
@@ -20,6 +23,7 @@ from avoidance.reachset.record import decision_record, scene_update
 from avoidance.reachset.situation import Assessor
 from avoidance.threats import IntruderTrack, LidarScan
 from guidance.mission import Mission
+from sim.scenario import ScenarioError, parse_scenario
 from sim.state import VehicleState
 
 CFG = AvoidanceConfig()
@@ -176,13 +180,6 @@ def test_goal_inside_the_turn_circle_is_flown_away_from_not_orbited():
 def test_lidar_shorter_than_the_grid_is_a_scenario_error():
     """A LiDAR whose range ends inside the reach-set grid leaves its far cells Uncertain, which
     blocks every path: the scenario is refused with one line naming the field."""
-    import tomllib
-    from pathlib import Path
-
-    import pytest
-
-    from sim.scenario import ScenarioError, parse_scenario
-
     data = tomllib.loads((Path(__file__).resolve().parents[1] / "scenarios/reachset/building_lidar.toml").read_text())
     parse_scenario(data)  # 60 m covers the 50 m grid of 5 m movements
     data["vehicle"][0]["lidar"] = {"max_range_m": 10.0}
@@ -205,3 +202,22 @@ def test_emergency_path_keeps_its_course_while_feasible():
     d2 = mc.step(KinState(s2.pos, np.array([0.0, 0.0, s2.att[2]]), 1.0, 1.0), threats)
     assert d2.executing == d1.buffer[0]
     assert "keep_course" in d2.events and d2.buffer[:len(d1.buffer) - 1] == d1.buffer[1:]
+
+
+def test_planning_heading_is_the_planned_one_within_a_yaw_increment():
+    """At the next frame the adapter plans from the heading its last decision planned for now
+    while the measured course is within one movement's yaw increment (15°) of it, else from
+    the measured course (velocity)."""
+    mission = Mission(np.array([[40.0, 0.0, -5.0]]), cruise_speed=1.0, acceptance_radius=2.0)
+    av = ReachSetAvoider(mission, thesis_automaton())
+    est = VehicleState(0.0, np.array([0.0, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0)
+    av.plan(est, Threats(), 0.0)
+    planned = av.last_decision.pose.psi  # heading at t = 1 s (GCF)
+
+    def course(deg: float) -> VehicleState:
+        v = np.array([np.cos(np.radians(deg)), np.sin(np.radians(deg)), 0.0])  # NED, from north
+        return VehicleState(1.0, np.array([1.0, 0.0, -5.0]), v, np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0)
+
+    assert av.kin_state(course(10.0), 1.0).att[2] == pytest.approx(planned)
+    assert av.kin_state(course(30.0), 1.0).att[2] == pytest.approx(np.pi / 2 - np.radians(30.0))
+    assert av.kin_state(course(10.0), 1.5).att[2] == pytest.approx(np.pi / 2 - np.radians(10.0))  # not a frame time
