@@ -7,7 +7,9 @@ Chaining: a pair flagged with the same encounter in two consecutive frames opens
 track does not fix the roles); the head fixes collision point, encounter, roles and margin for
 the whole manoeuvre, later frames only update distance, time to the
 closest approach and separation. The chain closes (its *tail*) after ``close_after`` frames in
-which the pair is past its closest approach (diverging) or the peer is no longer reported.
+which the pair is past its closest approach, at least the head's margin apart and both heading
+away from the head's collision point (spec §7.2), or the peer is no longer reported. (Closing
+as soon as the pair diverged let a 4-UAS roundabout cut back across its centre and meet again.)
 Merge: the active chains that share a UAS form a cluster; a cluster of two or more chains is a
 virtual roundabout with centre = mean of the head collision points (weights 1, 6.195) and margin
 = the largest margin of its cases (6.196); every member then circles it (role roundabout).
@@ -81,7 +83,10 @@ class CaseBook:
                     continue
                 chain.head.links.append(t)
                 chain.last = case
-                chain.quiet = chain.quiet + 1 if case.t_cpa <= 0.0 else 0
+                cp = chain.head.collision_point
+                away = all(float((n.pos + n.vel * (t - n.t) - cp) @ n.vel) > 0.0 for n in (a, b))
+                clear = case.t_cpa <= 0.0 and case.separation >= chain.head.margin and away
+                chain.quiet = chain.quiet + 1 if clear else 0
         for key in [k for k in self.chains if k not in seen]:
             self.chains[key].quiet += 1
         for key in [k for k, c in self.chains.items() if c.quiet >= self.cfg.close_after]:
