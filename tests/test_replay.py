@@ -71,6 +71,27 @@ def test_min_separation_matches_analytic_crossing():
     assert sep["t"] == pytest.approx(30.0)
 
 
+def test_object_clearance_matches_analytic_crossing():
+    """A vehicle flies east at 10 m/s; a scripted sphere (radius 5 m, appearing at 10 s) flies
+    north along east = 300 m, 50 m higher: closest centre distance 50 m at t = 30 s, so 45 m to
+    its surface; before it appears it is not counted."""
+    from sim import scenario as sc
+    from sim.frames import GeoPoint
+    from sim.replay.metrics import MetricsWorld, object_metrics
+    from sim.traffic import TrafficObject
+
+    origin = GeoPoint(47.0, 8.0, 400.0)
+    obj = TrafficObject(sc.TrafficObject(id="ball", radius=5.0, north=-200.0, east=300.0, altitude=450.0,
+                                         velocity=sc.Velocity(north=10.0), appear=10.0), origin)
+    t = np.arange(0.0, 60.0, 0.1)
+    a = np.stack([np.zeros_like(t), 10 * t, np.zeros_like(t)], axis=1)
+    m = object_metrics(_trace("a", t, a), MetricsWorld(objects=(obj,)))["object.ball"]
+    assert m["distance_m"] == pytest.approx(45.0, abs=1e-6)
+    assert m["t"] == pytest.approx(30.0)
+    early = object_metrics(_trace("a", t[:50], a[:50]), MetricsWorld(objects=(obj,)))["object.ball"]
+    assert early["distance_m"] is None
+
+
 def test_straight_flight_mask_waits_after_turns():
     t = np.arange(0, 200.0, 1.0)
     turning = (t >= 50) & (t < 60)

@@ -20,11 +20,13 @@ FT = 0.3048
 @dataclass(frozen=True, slots=True)
 class MetricsWorld:
     """What metrics measure against besides the vehicles: map obstacles and geofences
-    (``avoidance.threats`` types) and the well-clear volume (horizontal radius, vertical half
-    height [m]; default ASTM F3442 small-UAS well clear, 2000 ft / 250 ft)."""
+    (``avoidance.threats`` types), scripted traffic objects (``sim.traffic.TrafficObject``) and
+    the well-clear volume (horizontal radius, vertical half height [m]; default ASTM F3442
+    small-UAS well clear, 2000 ft / 250 ft)."""
 
     obstacles: tuple = ()
     geofences: tuple = ()
+    objects: tuple = ()
     well_clear_h_m: float = 2000 * FT
     well_clear_v_m: float = 250 * FT
     weather: object | None = None  # sim.weather.WeatherService: the true storm field
@@ -33,6 +35,7 @@ class MetricsWorld:
     def from_scenario(cls, scenario) -> "MetricsWorld":
         from sim.environment import geofence, obstacle_prism
 
+        from sim.traffic import TrafficObject
         from sim.weather import WeatherService
         from sim.world import seed_streams, weather_seed
 
@@ -41,8 +44,9 @@ class MetricsWorld:
         weather = (WeatherService(scenario.weather, weather_seed(seed_streams(scenario.seed)[2]))
                    if scenario.weather is not None else None)
         return cls(tuple(obstacle_prism(o, alt0) for o in scenario.obstacle),
-                   tuple(geofence(g, alt0) for g in scenario.geofence), m.well_clear_horizontal, m.well_clear_vertical,
-                   weather)
+                   tuple(geofence(g, alt0) for g in scenario.geofence),
+                   tuple(TrafficObject(o, scenario.origin_point) for o in scenario.object),
+                   m.well_clear_horizontal, m.well_clear_vertical, weather)
 
 # straight flight counts from this long after the last leg capture / carrot stop [s]
 SETTLE_S = {"fixed_wing": 60.0, "multirotor": 2.0}
@@ -143,6 +147,17 @@ def obstacle_metrics(tr: VehicleTrace, world: MetricsWorld) -> dict:
     return out
 
 
+def object_metrics(tr: VehicleTrace, world: MetricsWorld) -> dict:
+    """Closest approach to every scripted traffic object while it exists: 3-D distance from the
+    vehicle to the object's sphere surface [m] (negative inside) and when."""
+    out = {}
+    for o in world.objects:
+        live = tr.t >= o.appear
+        d = np.linalg.norm(tr.pos_ned[live] - o.position(tr.t[live]), axis=1) - o.radius_m
+        out[f"object.{o.id}"] = _min_at(tr.t[live], d)
+    return out
+
+
 STORM_CHECK_S = 10.0  # storms are checked against the track this often [s] ...
 STORM_CHECKS_MIN = 200  # ... or more often, so that a short run is checked this many times
 
@@ -213,7 +228,7 @@ def run_metrics(traces: list[VehicleTrace], world: MetricsWorld = MetricsWorld()
     for tr in traces:
         out["vehicles"][tr.name] = {
             "mission": mission_metrics(tr), "tracking": tracking_metrics(tr),
-            "planner_latency": latency_metrics(tr), "clearance": obstacle_metrics(tr, world),
+            "planner_latency": latency_metrics(tr), "clearance": obstacle_metrics(tr, world) | object_metrics(tr, world),
             "control_effort": control_effort(tr), "estimation": estimation_metrics(tr),
             "storms": storm_metrics(tr, world),
         }
