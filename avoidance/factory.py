@@ -3,7 +3,8 @@ re-running planners on a log).
 
 ``options`` are fields of the planner's own configuration dataclass, in its units (SI):
 geometric ``GeometricConfig``, MPTP ``MptpConfig``; the reach-set planner takes ``period`` (its
-movement period [s]), ``constraint_margin`` (safety-margin ring of constraints [m]), ``intruder_margin`` (added to
+movement period [s]), ``constraint_margin`` (safety-margin ring of constraints [m]), ``constraint_mode``
+(polygon / circle), ``intruder_margin`` (added to
 intruders' body radius [m]), ``separations``
 (ACAS-like reach sets, e.g. ["horizontal"]), ``rules`` (the enabled rules of
 the air of a cooperative UAS, a list of codes) and ``rules_<field>`` (the other fields of
@@ -27,7 +28,7 @@ from guidance.mission import Mission
 _PLANNERS: dict[str, tuple[tuple[str, ...], str | tuple[str, ...]]] = {
     "follow_mission": (("fixed_wing", "multirotor"), ()),
     "geometric": (("multirotor",), "avoidance.geometric.config:GeometricConfig"),
-    "reachset": (("fixed_wing", "multirotor"), ("period", "constraint_margin", "intruder_margin", "separations", "rules", *(f"rules_{f}" for f in RULES_FIELDS))),
+    "reachset": (("fixed_wing", "multirotor"), ("period", "constraint_margin", "constraint_mode", "intruder_margin", "separations", "rules", *(f"rules_{f}" for f in RULES_FIELDS))),
     "mptp": (("fixed_wing",), "guidance.mptp.config:MptpConfig"),
     "pursuit": (("multirotor",), ("target",)),
 }
@@ -72,7 +73,8 @@ def _config(kind: str, options: dict, **fixed):
 
 
 def _reachset_config(options: dict):
-    """``constraint_margin`` [m]; ``intruder_margin`` [m] added to every intruder's body radius;
+    """``constraint_margin`` [m]; ``constraint_mode`` (``polygon`` exact, ``circle`` the thesis'
+    Welzl barrel); ``intruder_margin`` [m] added to every intruder's body radius;
     ``separations``: planar separations of ACAS-like reach sets
     (spec §4.8, e.g. ["horizontal"], the thesis' S1-S4) used in both modes instead of the 3-D
     harmonic / combined sets."""
@@ -85,6 +87,11 @@ def _reachset_config(options: dict):
         if isinstance(margin, bool) or not isinstance(margin, (int, float)) or margin < 0:
             raise PlannerConfigError(f"reachset planner: constraint_margin must be a number of metres >= 0 (got {margin!r})")
         cfg = dataclasses.replace(cfg, constraints=ConstraintConfig(safety_margin=float(margin)))
+    if "constraint_mode" in options:
+        mode = options["constraint_mode"]
+        if mode not in ("polygon", "circle"):
+            raise PlannerConfigError(f"reachset planner: constraint_mode must be polygon or circle (got {mode!r})")
+        cfg = dataclasses.replace(cfg, constraints=dataclasses.replace(cfg.constraints, mode=mode))
     if "intruder_margin" in options:
         margin = options["intruder_margin"]
         if isinstance(margin, bool) or not isinstance(margin, (int, float)) or margin < 0:
