@@ -53,6 +53,29 @@ def test_without_mptp_the_same_flight_enters_a_storm(tmp_path):
     assert log_metrics(log)["vehicles"]["haps"]["storms"]["time_inside_s"] > 0.0
 
 
+def test_an_opening_corridor_is_waited_for_in_closed_loop(tmp_path):
+    """Resolution completeness in closed loop: the gap between two storm walls is plugged by a
+    cell drifting out of it; the HAPS reaches the goal through the gap after it opened (it
+    would reach the walls 6 min after the start), is never inside a cell and is never told
+    there is no solution."""
+    path = ROOT / "scenarios" / "mptp" / "opening_corridor.toml"
+    scenario = parse_scenario(tomllib.loads(path.read_text()), str(path))
+    result = run_scenario(scenario, tmp_path / "corridor.mcap", scenario_text=path.read_text())
+    assert result.status == "completed"
+    log = RunLog(tmp_path / "corridor.mcap")
+    assert log_metrics(log)["vehicles"]["haps"]["storms"]["time_inside_s"] == 0.0
+    assert all(m["status"] != "no_solution" for m in log.topic("/haps/plan").messages)
+    wall, plug = np.array(scenario.weather.storm[0].points), scenario.weather.storm[2]
+    margin = scenario.vehicle[0].planner.options["safety_single_m"][0]
+    # the plug's margin leaves the walls' margin band (the corridor opens) at
+    opens_s = (np.max(np.array(plug.points)[:, 0]) + margin - (wall[:, 0].min() - margin)) / abs(plug.drift_north)
+    truth = log.topic("/haps/truth/state")
+    k = int(np.argmax(truth["pos_ned"][:, 0] >= wall[:, 0].mean()))
+    assert truth["pos_ned"][k, 0] >= wall[:, 0].mean(), "never crossed the walls"
+    assert abs(truth["pos_ned"][k, 1]) < np.min(np.abs(np.array(scenario.weather.storm[1].points)[:, 1]))  # the gap
+    assert truth.t[k] > opens_s
+
+
 @pytest.mark.parametrize("options, message", [
     ({"goal_track": [[0, 1, 2], [0, 3, 4]]}, "goal_track: expected rows [t, north, east]"),
     ({"goal_track": "x"}, "goal_track: expected rows [t, north, east]"),
