@@ -25,13 +25,13 @@ import math
 import time
 
 import numpy as np
-import shapely
 
 from avoidance.planner import Plan, PlanStatus, Threats
 from avoidance.threats import StormSnapshot
 from guidance.mission import Mission
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
+from guidance.mptp.heuristics import GoalAvailability
 from guidance.mptp.holding import holding_orbit, safe_area_leg
 from guidance.mptp.search import Trajectory, default_workspace, plan_trajectory
 from guidance.mptp.statespace import free_space
@@ -39,13 +39,6 @@ from guidance.mptp.timeline import ObstacleTimeline
 from sim.state import VehicleState
 
 MIN_GROUND_SPEED = 1.0  # below this the course is taken from the yaw [m/s]
-
-
-def goal_covered(tl: ObstacleTimeline, goal: GoalTrack, times: np.ndarray) -> np.ndarray:
-    """Whether the goal is inside the obstacle envelope at each of ``times`` [s]."""
-    pts = goal.at(times)
-    return np.array([shapely.contains_xy(tl.envelope(int(j)), p[0], p[1]) for j, p in zip(tl.interval(times), pts)],
-                    bool).reshape(len(times))
 
 
 class MptpPlanner:
@@ -101,16 +94,16 @@ class MptpPlanner:
         course = est.course_rad if est.ground_speed_mps >= MIN_GROUND_SPEED else est.yaw
         diag: dict[str, float | int | str] = {"heuristic": cfg.heuristic, "weather_s": weather_s}
         wall = time.perf_counter()
-        levels = t + np.arange(0.0, cfg.horizon_s + cfg.dt_s, cfg.dt_s)
-        covered = goal_covered(tl, goal, levels)
-        if covered.all():
+        availability = GoalAvailability(tl, goal)
+        levels = tl.interval(t + np.arange(0.0, cfg.horizon_s + cfg.dt_s, cfg.dt_s))
+        if all(availability.covered(int(j)) for j in levels):
             orbit = holding_orbit(tl, p0, t, course, t + cfg.replan_period_s, cfg, _one_way(cfg.turning))
             if orbit is not None:
                 pts, times, _ = orbit
                 diag.update(runtime_s=time.perf_counter() - wall, holding_s=float(times[-1] - t), reason="goal covered")
                 return self._to_plan(t, est, pts, times, np.full(len(pts), -1), PlanStatus.DEGRADED, diag)
         arrival = t + np.linalg.norm(goal.at(t) - p0) / cfg.tas_mps
-        turning = _one_way(cfg.turning) if goal_covered(tl, goal, np.array([arrival]))[0] else cfg.turning
+        turning = _one_way(cfg.turning) if availability.covered(int(tl.interval(arrival))) else cfg.turning
         # a partial trajectory must last until the next replan (the follower flies straight on
         # past a plan's end)
         traj = plan_trajectory(tl, p0, t, course, goal, cfg, turning=turning, min_partial_s=cfg.replan_period_s)
