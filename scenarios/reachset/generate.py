@@ -156,10 +156,18 @@ both complete."""
 INTRUDER_MARGIN = 1.0 * SCALE - 0.45  # the thesis' 1 m intruder body x5, less the quadrotor's own 0.45 m
 
 
+S8_DOC = """Spec §9.3 S8 (emergency head-on, four UAS, non-cooperative, [R] NS039-047) at L = 5 m: four
+JSBSim quadrotors meeting in the middle, each sensing the others only through the surveillance
+model, each with the ACAS-like set of the thesis (UAS1 and UAS4 horizontal, UAS2 vertical, UAS3
+slash). Thesis: pairwise minima 1.5-5.5 m (7.5-27.5 m here), ~44 s. Pass: every pair above the
+1.2 m line x5 = 6 m; all complete."""
+
+
 def encounter(name: str, doc: str, uas: list[tuple], duration: float, options: dict) -> str:
     lines = header(name, doc, 7, duration) + [SURVEILLANCE]
-    for vname, start, yaw, goal in uas:
-        lines += vehicle(vname, start, yaw, [goal], {"period": 1.0, "intruder_margin": INTRUDER_MARGIN, **options})
+    for vname, start, yaw, goal, *own in uas:
+        lines += vehicle(vname, start, yaw, [goal], {"period": 1.0, "intruder_margin": INTRUDER_MARGIN, **options,
+                                                     **(own[0] if own else {})})
     return "\n".join(lines)
 
 
@@ -174,6 +182,11 @@ def main() -> None:
             ("uas1", (0, 20), 0.0, (40, 20)), ("uas2", (20, 0), 90.0, (20, 40))], 90.0, {"separations": ["horizontal"]}),
         "s7_head_on.toml": encounter("reachset_s7_head_on", S7_DOC, [
             ("uas1", (0, 20), 0.0, (40, 20)), ("uas2", (40, 20), 180.0, (0, 20))], 90.0, {}),
+        "s8_head_on_four.toml": encounter("reachset_s8_head_on_four", S8_DOC, [
+            ("uas1", (0, 20), 0.0, (45, 20), {"separations": ["horizontal"]}),
+            ("uas2", (40, 20), 180.0, (-5, 20), {"separations": ["vertical"]}),
+            ("uas3", (20, 0), 90.0, (20, 45), {"separations": ["slash"]}),
+            ("uas4", (20, 40), -90.0, (20, -5), {"separations": ["horizontal"]})], 100.0, {}),
     }
     for fname, text in files.items():
         (HERE / fname).write_text(text)
