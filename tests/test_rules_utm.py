@@ -18,7 +18,8 @@ from avoidance.reachset.grid import AvoidanceGrid
 from avoidance.reachset.gridrun import find_best_path
 from avoidance.reachset.movement import build_primitive_table
 from avoidance.rules.config import RulesConfig
-from avoidance.rules.restrictions import moving_margin_mask, right_plane_heading_mask, safety_margin_mask, sample_times
+from avoidance.rules.restrictions import (moving_margin_mask, path_clearance, right_plane_heading_mask, safety_margin_mask,
+                                          sample_times, widest_per_cell)
 from avoidance.rules.rules_of_air import overtake_speed, overtake_waypoints
 from avoidance.utm.cases import CaseBook
 from avoidance.utm.collision_case import (Encounter, Role, UtmConfig, angle_of_approach, case_margin, classify,
@@ -325,3 +326,19 @@ def test_non_cooperative_intruder_falls_back_to_the_emergency_avoidance():
     av, decisions = _avoider_with_traffic(cooperative=False, ahead=15.0)
     assert decisions[-1].mode.value == "emergency" and "intruder" in decisions[-1].events
     assert not any(e.startswith("rule:") for d in decisions for e in d.events)
+
+
+def test_widest_keeps_one_trajectory_per_cell_the_farthest_from_the_point():
+    pose = GridPose(np.zeros(3), 0.0)
+    cp = np.array([20.0, 0.0, 0.0])
+    clearance = path_clearance(NAV, pose, cp[None])
+    samples_min = np.array([np.linalg.norm(NAV.path_samples(n) - cp, axis=1).min() for n in range(NAV.n_nodes)])
+    np.testing.assert_allclose(clearance, samples_min, atol=1e-9)
+    feasible = np.ones(NAV.n_nodes, bool)
+    kept = feasible & ~widest_per_cell(NAV, feasible, clearance)
+    cells = NAV.tip_cell[kept & (NAV.tip_cell >= 0)]
+    assert len(cells) == len(np.unique(cells)) == len(np.unique(NAV.tip_cell[NAV.tip_cell >= 0]))
+    for c in np.unique(cells)[:20]:
+        in_cell = np.flatnonzero(NAV.tip_cell == c)
+        assert clearance[kept & (NAV.tip_cell == c)][0] == clearance[in_cell].max()
+    assert not widest_per_cell(NAV, np.zeros(NAV.n_nodes, bool), clearance).any()

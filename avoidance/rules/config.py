@@ -50,6 +50,7 @@ class RulesConfig:
     overtake: float = 5.0
     converging_extra: float = 0.0
     plane_tolerance: float = 1.0
+    widest: bool = True
     bloat: float = 1.0
     time_margin: float = 2.0
     airspace: str = "uncontrolled"

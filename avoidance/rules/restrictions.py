@@ -85,3 +85,32 @@ def _radius(tree: ReachSetTree, margin: float, here: float, tol: float) -> np.nd
     at a bounded rate starts along the heading), later ones not (no creeping in frame by frame)."""
     keep = min(margin, here)
     return np.where(tree.depth <= 1, keep - tol, keep)[:, None]
+
+
+def path_clearance(tree: ReachSetTree, pose: GridPose, points: np.ndarray) -> np.ndarray:
+    """(N,) smallest distance [m] of any sample on the path root -> node to any of ``points``
+    (K, 3) GCF."""
+    p = pose.to_lcf(np.asarray(points, float).reshape(-1, 3))
+    own = np.linalg.norm(tree.samples[:, :, None, :] - p[None, None], axis=-1).min(axis=(1, 2))
+    out = own.copy()
+    lp = tree.level_ptr
+    for k in range(1, len(lp) - 1):
+        idx = np.arange(lp[k], lp[k + 1])
+        out[idx] = np.minimum(out[idx], out[tree.parent[idx]])
+    return out
+
+
+def widest_per_cell(tree: ReachSetTree, feasible: np.ndarray, clearance: np.ndarray) -> np.ndarray:
+    """Nodes to disable so that of the feasible nodes ending in one cell only the one with the
+    largest ``clearance`` stays (ties: cheaper, then shallower): whichever cell the path search
+    picks, it gets the trajectory keeping farthest from the collision points, which turns away
+    first instead of postponing the turn to a later frame."""
+    out = np.zeros(tree.n_nodes, bool)
+    nodes = np.flatnonzero(feasible & (tree.tip_cell >= 0))
+    if len(nodes) == 0:
+        return out
+    order = np.lexsort((tree.depth[nodes], tree.cost[nodes], -clearance[nodes], tree.tip_cell[nodes]))
+    ranked = nodes[order]
+    first = np.r_[True, tree.tip_cell[ranked][1:] != tree.tip_cell[ranked][:-1]]
+    out[ranked[~first]] = True
+    return out

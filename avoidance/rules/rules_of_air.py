@@ -11,7 +11,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from avoidance.rules.engine import DecisionPoint, RuleContext, RuleEngine
-from avoidance.rules.restrictions import moving_margin_mask, right_plane_heading_mask, safety_margin_mask
+from avoidance.rules.restrictions import (moving_margin_mask, path_clearance, right_plane_heading_mask,
+                                          safety_margin_mask, widest_per_cell)
 from avoidance.utm.cases import as_roundabout
 from avoidance.utm.collision_case import CollisionCase, Encounter, Role
 
@@ -101,7 +102,9 @@ class DetectCollisionCases:
 @dataclass(frozen=True)
 class ResolveCollisionCase:
     """(tab. 6.11) In navigation mode, each own case by role: head-on / roundabout, converging,
-    overtake (each rule only if enabled)."""
+    overtake (each rule only if enabled); then, with ``widest``, of the trajectories left only
+    the one keeping farthest from the head-on / converging collision points stays in each cell
+    (an overtake flies to its waypoints instead)."""
 
     code: str = "resolve"
     point: DecisionPoint = DecisionPoint.TRAJECTORY_RESTRICTIONS
@@ -115,6 +118,12 @@ class ResolveCollisionCase:
             ctx.case = case
             engine.call(RESOLVING[case.role_of(ctx.uas)], ctx)
         ctx.case = None
+        points = [c.collision_point for c in ctx.resolve if c.encounter != Encounter.OVERTAKE]
+        if ctx.disabled is not None and ctx.cfg.widest and points:  # of what is left, the widest berth per cell
+            d = ctx.decision
+            feasible = ctx.run.fused.node_ok & ~ctx.disabled
+            ctx.disable("widest", widest_per_cell(d.tree, feasible, path_clearance(d.tree, d.pose, np.array(points))),
+                        ctx.resolve[0])
 
 
 @dataclass(frozen=True)
