@@ -89,9 +89,10 @@ class RulesAvoider(ReachSetAvoider):
                                                          if tr.id not in ctx.managed or tr.id in ctx.emergency])
         ctl = self.control
         self._mission_waypoints = ctl.waypoints
-        if ctx.goal_override is not None:  # overtake: this run flies to the rule's waypoint
+        goal = max(ctl.goal, self.mission.next_index)
+        if ctx.goal_override is not None and goal < len(ctl.waypoints):  # overtake: fly to the rule's waypoint
             ctl.waypoints = ctl.waypoints.copy()
-            ctl.waypoints[max(ctl.goal, self.mission.next_index)] = ctx.goal_override
+            ctl.waypoints[goal] = ctx.goal_override
         try:
             plan = super().plan(estimate, sensed, t)
         finally:
