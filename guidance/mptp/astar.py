@@ -12,7 +12,7 @@ from __future__ import annotations
 import heapq
 import itertools
 from collections.abc import Callable, Hashable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Generic, TypeVar
 
 N = TypeVar("N")
@@ -30,7 +30,7 @@ class SearchResult(Generic[N]):
     cost: float
     expanded: int
     status: str
-    partial: list[N] = ()
+    partial: list[N] = field(default_factory=list)
 
 
 def astar(start: N, expand: Callable[[N], Iterable[tuple[N, float, float]]], is_goal: Callable[[N], bool],

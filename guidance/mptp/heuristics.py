@@ -5,13 +5,13 @@
   longer, to the first planning interval at or after that arrival in which the goal is not
   covered by the obstacle envelope (:class:`GoalAvailability`): an arrival inside a covered
   interval ends inside EX_obs, so it cannot happen and the bound stays admissible. Without this
-  wait term a covered goal makes A* expand every state that is closer than the wait (the
-  holding and opening-corridor cases hit the expansion cap).
-- SSPH: the shortest static path to the goal in the current free estimated state space
-  EX_free(x_in), over its reduced visibility graph (a Dijkstra from the goal, run once per
-  expansion), divided by V. Where the goal is not connected to a state in that static view (the
-  goal is covered now but uncovers later, 5.4) the thesis notes SSPH has no value; we then fall
-  back to EDH for that state instead of penalising edges.
+  wait term a covered goal makes A* expand every state that is closer than the wait.
+- SSPH (:class:`StaticPaths`): the shortest static path to the goal in a free estimated state
+  space, over its reduced visibility graph (a Dijkstra from the goal), divided by V; the search
+  (search.py) builds it on the start state's EX_free once per replan for a fixed goal (the
+  thesis: on EX_free(x_in) per expansion). Where the goal is not connected to a state in that
+  static view (the goal is covered now but uncovers later, 5.4) the thesis notes SSPH has no
+  value; we then fall back to EDH for that state instead of penalising edges.
 """
 
 from __future__ import annotations
