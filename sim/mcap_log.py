@@ -9,16 +9,20 @@ them in batches to a writer process that owns the file and the ``mcap`` writer (
 indexes, zstd chunks: about half the cost of logging, taken off the simulation's core). The file
 is finished in ``close()``, which the runner calls in a ``finally``; if the simulation process dies
 without it (a crash of the flight model, SIGKILL), the writer process sees the pipe close and
-finishes the file with every message it received, so the log stays readable. Where no child
-process can be started (inside a daemonic worker, e.g. a Dask nanny's) the same records are
-written in-process (``background=False`` forces that).
+finishes the file with every message it received, so the log stays readable. The writer is a
+fresh interpreter (``python -m sim.mcap_log``) fed pickled batches on its stdin, so it also starts
+inside daemonic workers (a Dask nanny's) and never re-runs the caller's script;
+``background=False`` writes the same records in-process.
 """
 
 from __future__ import annotations
 
 import json
-import multiprocessing as mp
+import os
+import pickle
 import signal
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -76,21 +80,23 @@ class _RecordWriter:
             self.file.close()
 
 
-def _writer_process(conn, path: str, chunk_size: int) -> None:
-    """Writer process: apply batches until ``None`` (close) or the pipe closes (the simulation
-    process died), then finish the file. Ignores SIGINT: Ctrl-C reaches the whole process group,
-    and the simulation process closes the log itself."""
+def _writer_main(path: str, chunk_size: int) -> int:
+    """Writer process (``python -m sim.mcap_log PATH CHUNK_SIZE``): applies the pickled batches
+    read from stdin until ``None`` (close) or end of file (the simulation process died), finishes
+    the file and prints an error line on stdout if anything failed. Ignores SIGINT: Ctrl-C
+    reaches the whole process group, and the simulation process closes the log itself."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    src = sys.stdin.buffer
     error = None
     try:
         rw = _RecordWriter(open(path, "wb"), chunk_size)
     except OSError as exc:
-        conn.send(f"cannot open {path}: {exc}")
-        return
+        print(f"cannot open {path}: {exc}", flush=True)
+        return 1
     try:
         while True:
             try:
-                batch = conn.recv()
+                batch = pickle.load(src)
             except EOFError:
                 break
             if batch is None:
@@ -103,42 +109,32 @@ def _writer_process(conn, path: str, chunk_size: int) -> None:
             rw.finish()
         except Exception as exc:
             error = error or f"{type(exc).__name__}: {exc}"
-        try:
-            conn.send(error)
-        except OSError:
-            pass
-
-
-def _start_method() -> str:
-    return "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
+    if error:
+        print(error, flush=True)
+        return 1
+    return 0
 
 
 class McapLog:
     """Writes one run to ``path``. Topics are registered on first write."""
 
     def __init__(self, path: str | Path, epoch_ns: int, chunk_size: int = 512 * 1024,
-                 background: bool | None = None):
-        """``background``: write in a child process (default: whenever one can be started)."""
+                 background: bool = True):
+        """``background``: write in a child process (else in this one, e.g. to debug the writer)."""
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.epoch_ns = int(epoch_ns)
-        if background is None:
-            background = not mp.current_process().daemon
         try:  # open errors surface here, in the caller, not later from the writer process
             open(self.path, "wb").close()
         except OSError as exc:
             raise LogWriteError(f"cannot write the log {self.path}: {exc.strerror or exc}") from None
         self._pending: list[tuple] = []
-        self._conn = self._proc = self._inline = None
-        if background:
-            ctx = mp.get_context(_start_method())
-            if ctx.get_start_method() == "forkserver":
-                ctx.set_forkserver_preload(["sim.mcap_log"])  # forks start with the writer imported
-            self._conn, child = ctx.Pipe()
-            self._proc = ctx.Process(target=_writer_process, args=(child, str(self.path), chunk_size),
-                                     name=f"mcap-writer {self.path.name}", daemon=False)
-            self._proc.start()
-            child.close()
+        self._proc = self._inline = None
+        if background:  # a fresh interpreter: nothing of the caller's __main__ is re-run
+            root = str(Path(__file__).resolve().parents[1])
+            env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])))
+            self._proc = subprocess.Popen([sys.executable, "-m", "sim.mcap_log", str(self.path), str(chunk_size)],
+                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
         else:
             self._inline = _RecordWriter(open(self.path, "wb"), chunk_size)
         self._schemas: dict[str, int] = {}
@@ -172,12 +168,21 @@ class McapLog:
         if self._inline is not None:
             self._inline.apply(batch)
             return
-        if self._conn.poll():  # the writer stopped early and said why
-            raise LogWriteError(f"{self.path}: {self._conn.recv() or 'the writer process stopped'}")
         try:
-            self._conn.send(batch)
-        except OSError as exc:
-            raise LogWriteError(f"{self.path}: the writer process is gone ({exc})") from None
+            pickle.dump(batch, self._proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+            self._proc.stdin.flush()  # handed over now: a crash after this loses none of it
+        except OSError:
+            raise LogWriteError(f"{self.path}: {self._writer_error()}") from None
+
+    def _writer_error(self) -> str:
+        """Why the writer process stopped (its stdout line), after waiting for it."""
+        try:
+            self._proc.stdin.close()
+        except OSError:
+            pass
+        out = self._proc.stdout.read().decode(errors="replace").strip()
+        code = self._proc.wait()
+        return out or (f"the writer process stopped (exit code {code})" if code else "")
 
     # -- writing -------------------------------------------------------------------------
     def _add(self, cid: int, t: float, data: bytes) -> None:
@@ -232,19 +237,14 @@ class McapLog:
             finally:
                 self._inline.finish()
             return
-        error = None
         try:
-            self._conn.send(self._pending)
-            self._conn.send(None)
-        except OSError as exc:
-            error = f"the writer process is gone ({exc})"
-        try:
-            error = self._conn.recv() or error
-        except EOFError:
-            error = error or "the writer process stopped without finishing the file"
-        finally:
-            self._conn.close()
-            self._proc.join()
+            pickle.dump(self._pending, self._proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+            pickle.dump(None, self._proc.stdin)
+            self._proc.stdin.flush()
+        except OSError:
+            pass  # the writer is gone: its error line says why
+        self._pending = []
+        error = self._writer_error()
         if error:
             raise LogWriteError(f"{self.path}: {error}")
 
@@ -253,3 +253,7 @@ class McapLog:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+if __name__ == "__main__":
+    sys.exit(_writer_main(sys.argv[1], int(sys.argv[2])))

@@ -128,3 +128,17 @@ def test_killed_simulation_process_still_leaves_a_finished_log(tmp_path):
     assert counts["/v/mission/status"] >= 1000 - 128  # all but the last unsent batch
     status = read_topic(p, "/v/mission/status")
     assert [m["next_waypoint"] for _, m in status] == list(range(len(status)))
+
+
+def test_a_script_without_main_guard_runs_once(tmp_path):
+    """The writer process must not re-run the caller's script (a multiprocessing child would)."""
+    script = tmp_path / "user_script.py"
+    marker = tmp_path / "runs.txt"
+    script.write_text(
+        "from sim.mcap_log import McapLog\n"
+        f"open({str(marker)!r}, 'a').write('x')\n"
+        f"with McapLog({str(tmp_path / 'u.mcap')!r}, {EPOCH}) as log:\n"
+        "    log.event(0.0, 'hello')\n")
+    subprocess.run([sys.executable, str(script)], cwd=Path(__file__).resolve().parents[1], timeout=60, check=True)
+    assert marker.read_text() == "x"
+    assert [m for _, m in read_topic(tmp_path / "u.mcap", "/log")][0].message == "hello"
