@@ -149,3 +149,15 @@ def test_clearance_geofence_and_well_clear_metrics_on_a_known_geometry(tmp_path)
     event = sep["well_clear_loss_events"][0]
     assert event["start"] == 0.0 and event["end"] == pytest.approx(5.0)
     assert "ap/thrust-cmd-norm" in m["vehicles"]["a"]["control_effort"]
+
+
+def test_vehicles_of_different_plant_rates_share_their_log_times():
+    """A 120 Hz and a 240 Hz plant log the same tick with times that differ in the last bit."""
+    from types import SimpleNamespace
+
+    from sim.replay.metrics import common_times
+    t240 = np.cumsum(np.full(2400, 1 / 240))[23::24]  # 0.1, 0.2, ... as accumulated 240 Hz steps
+    t120 = np.cumsum(np.full(1200, 1 / 120))[11::12]
+    assert np.intersect1d(t240, t120).size < t240.size  # the bits differ
+    t, ia, ib = common_times(SimpleNamespace(t=t240), SimpleNamespace(t=t120))
+    assert t.size == t240.size and (ia == np.arange(100)).all() and (ib == np.arange(100)).all()

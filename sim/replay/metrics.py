@@ -102,9 +102,18 @@ def latency_metrics(tr: VehicleTrace) -> dict:
             "p95_ms": float(np.percentile(x, 95) * 1e3), "max_ms": float(np.max(x) * 1e3)}
 
 
+def common_times(a: VehicleTrace, b: VehicleTrace) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Log times [s] two vehicles share and their indices in each. Matched to the microsecond:
+    a state's time is its plant's accumulated step, so a 120 Hz and a 240 Hz plant log the same
+    tick as e.g. 0.1 and 0.09999999999999999."""
+    _, ia, ib = np.intersect1d(np.round(a.t * 1e6).astype(np.int64), np.round(b.t * 1e6).astype(np.int64),
+                               assume_unique=True, return_indices=True)
+    return a.t[ia], ia, ib
+
+
 def min_separation(a: VehicleTrace, b: VehicleTrace) -> dict:
     """Smallest 3-D distance between two vehicles at their common log times [m], and when."""
-    common, ia, ib = np.intersect1d(a.t, b.t, assume_unique=True, return_indices=True)
+    common, ia, ib = common_times(a, b)
     if common.size == 0:
         return {"distance_m": None, "t": None}
     d = np.linalg.norm(a.pos_ned[ia] - b.pos_ned[ib], axis=1)
@@ -185,7 +194,7 @@ def storm_metrics(tr: VehicleTrace, world: MetricsWorld) -> dict:
 def well_clear_losses(a: VehicleTrace, b: VehicleTrace, world: MetricsWorld) -> list[dict]:
     """Intervals where two vehicles are inside each other's well-clear volume: start, end [s] and
     the smallest 3-D distance in it [m]."""
-    common, ia, ib = np.intersect1d(a.t, b.t, assume_unique=True, return_indices=True)
+    common, ia, ib = common_times(a, b)
     d = a.pos_ned[ia] - b.pos_ned[ib]
     inside = (np.hypot(d[:, 0], d[:, 1]) < world.well_clear_h_m) & (np.abs(d[:, 2]) < world.well_clear_v_m)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], inside.astype(int), [0]])))

@@ -16,7 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from sim.mcap_read import read_attached_scenario  # noqa: E402
-from sim.replay.metrics import MetricsWorld, flatten, run_metrics  # noqa: E402
+from sim.replay.metrics import MetricsWorld, common_times, flatten, run_metrics  # noqa: E402
 from sim.replay.runlog import RunLog  # noqa: E402
 from sim.replay.trace import VehicleTrace  # noqa: E402
 
@@ -89,7 +89,7 @@ def _separation_plot(traces: list[VehicleTrace], path: Path) -> bool:
         return False
     fig, ax = plt.subplots(figsize=(9, 3.5))
     for a, b in pairs:
-        common, ia, ib = np.intersect1d(a.t, b.t, assume_unique=True, return_indices=True)
+        common, ia, ib = common_times(a, b)
         ax.plot(common / 60.0, np.linalg.norm(a.pos_ned[ia] - b.pos_ned[ib], axis=1), label=f"{a.name}-{b.name}")
     ax.set_yscale("log")
     ax.set_xlabel("sim time [min]")
