@@ -92,7 +92,7 @@ class PlannerConfig(_Strict):
 
     type: Literal["follow_mission", "geometric", "reachset", "mptp", "pursuit"] = "follow_mission"
     rate_hz: Annotated[float, Field(gt=0.0, le=100.0)] = 1.0
-    options: dict[str, float | int | str | bool | list] = {}
+    options: dict[str, float | int | str | bool | list | dict] = {}
 
 
 class Vehicle(_Strict):

@@ -112,3 +112,16 @@ def test_s14_adversarial_pursuer_is_reported_unresolved(tmp_path):
     k1, k3 = np.searchsorted(p1.t, reported[0]), np.searchsorted(p3.t, reported[0])
     true_sep = np.linalg.norm(p1["pos_ned"][k1] - p3["pos_ned"][k3])
     assert true_sep < HEAD_ON_MARGIN + 2 * UNIT  # reported when it happened (track noise, one frame)
+
+
+def test_mixed_haps_and_multirotor_swarm_the_quadrotors_give_way(tmp_path):
+    """The HAPS (filed as linear-propulsion, above VTOL) crosses three quadrotors in one altitude
+    band: each quadrotor takes the give-way role against it and keeps the converging margin."""
+    m, log = fly("mixed_haps_swarm", tmp_path)
+    assert_complete(m)
+    for q in ("quad1", "quad2", "quad3"):
+        assert separation(m, "haps", q) >= CONVERGING_MARGIN, q
+        assert "rule:case_open:self-haps:converging:converging" in events(log, q), q  # gives way
+    haps = log.topic("/haps/truth/state")
+    leg = np.asarray(haps.t) <= m["vehicles"]["haps"]["mission"]["time_s"]
+    assert np.abs(haps["pos_ned"][leg, 0]).max() < 10.0  # the HAPS held its course (its leg is north = 0)

@@ -160,6 +160,15 @@ def test_four_way_encounter_merges_into_one_roundabout():
     assert rb.margin == pytest.approx(10.0)
 
 
+def test_filed_registration_of_a_peer_ranks_it():
+    cfg = RulesConfig(filed={"haps": {"maneuverability": "linear_propulsion"}})
+    assert cfg.registration("haps", 5.0).priority() < cfg.registration("uas2", 5.0).priority()
+    with pytest.raises(ValueError, match="unknown maneuverability 'jet'"):
+        RulesConfig(filed={"haps": {"maneuverability": "jet"}})
+    with pytest.raises(ValueError, match="filed.haps: a table"):
+        RulesConfig(filed={"haps": "glider"})
+
+
 def test_rules_config_errors_name_the_field():
     with pytest.raises(ValueError, match="unknown rule"):
         RulesConfig.from_options({"enabled": ["head_on", "fly_left"]})

@@ -9,7 +9,7 @@ cruise speed; heights [m].
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 
 from avoidance.reachset.config import AvoidanceConfig, ExpansionConfig, ReachSetConfig
 from avoidance.utm.collision_case import UtmConfig
@@ -40,7 +40,10 @@ class RulesConfig:
     then means a turn to the right, not a climb or descent on the plane), ``navigation_spread``
     its spread limit per cell (unlimited keeps so many equal-cost paths that the first movement
     of the chosen one is mostly Straight: replanned every frame, the turn to a goal far off the
-    heading is postponed for ever; 9 as the harmonic default turns first, docs/rules.md)."""
+    heading is postponed for ever; 9 as the harmonic default turns first, docs/rules.md);
+    ``filed``: registrations the UTM holds for peers that differ from the own one, peer id ->
+    ``{"category": ..., "maneuverability": ...}`` (e.g. a HAPS, ``linear_propulsion``, among
+    multirotors: it gets the right of way); a peer not listed files the own registration."""
 
     enabled: tuple[str, ...] = RULE_CODES
     unit: float = 1.0
@@ -63,6 +66,7 @@ class RulesConfig:
     deadlock_frames: int = 3
     navigation: tuple[str, ...] = ("horizontal",)
     navigation_spread: int = 9
+    filed: dict[str, dict[str, str]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.enabled) - set(RULE_CODES))
@@ -70,11 +74,11 @@ class RulesConfig:
             raise ValueError(f"unknown rule(s) {', '.join(unknown)} (known: {', '.join(RULE_CODES)})")
         if self.airspace not in ("uncontrolled", "controlled"):
             raise ValueError(f"airspace must be 'uncontrolled' or 'controlled', not {self.airspace!r}")
-        if self.category.upper() not in Category.__members__:
-            raise ValueError(f"unknown category {self.category!r} (known: {', '.join(m.lower() for m in Category.__members__)})")
-        if self.maneuverability.upper() not in Maneuverability.__members__:
-            raise ValueError(f"unknown maneuverability {self.maneuverability!r} "
-                             f"(known: {', '.join(m.lower() for m in Maneuverability.__members__)})")
+        _check_class(self.category, self.maneuverability)
+        for peer, reg in self.filed.items():
+            if not isinstance(reg, dict) or set(reg) - {"category", "maneuverability"}:
+                raise ValueError(f"filed.{peer}: a table of category and/or maneuverability, not {reg!r}")
+            _check_class(reg.get("category", self.category), reg.get("maneuverability", self.maneuverability))
         bad = sorted(set(self.navigation) - {"horizontal", "vertical", "slash", "backslash"})
         if bad or not self.navigation:
             raise ValueError(f"navigation: unknown separation(s) {', '.join(bad) or '(none given)'} "
@@ -106,7 +110,9 @@ class RulesConfig:
 
     def registration(self, uas: str, cruise: float) -> Registration:
         """The registration filed for ``uas`` (margins in metres)."""
-        return Registration(uas, Category[self.category.upper()], Maneuverability[self.maneuverability.upper()],
+        reg = self.filed.get(uas, {})
+        category, maneuverability = reg.get("category", self.category), reg.get("maneuverability", self.maneuverability)
+        return Registration(uas, Category[category.upper()], Maneuverability[maneuverability.upper()],
                             Margins(self.universal, self.head_on, self.converging, self.overtake).scaled(self.unit),
                             min_cruise=0.5 * cruise, max_cruise=cruise)
 
@@ -117,6 +123,14 @@ class RulesConfig:
     def utm(self, grid_range: float, cruise: float) -> UtmConfig:
         return UtmConfig(time_margin=self.time_margin * grid_range / max(cruise, 1e-6), close_after=self.close_after,
                          min_speed=0.2 * cruise)
+
+
+def _check_class(category: str, maneuverability: str) -> None:
+    if category.upper() not in Category.__members__:
+        raise ValueError(f"unknown category {category!r} (known: {', '.join(m.lower() for m in Category.__members__)})")
+    if maneuverability.upper() not in Maneuverability.__members__:
+        raise ValueError(f"unknown maneuverability {maneuverability!r} "
+                         f"(known: {', '.join(m.lower() for m in Maneuverability.__members__)})")
 
 
 RULES_FIELDS = tuple(f.name for f in fields(RulesConfig) if f.name != "enabled")
