@@ -7,6 +7,7 @@ A trajectory "in a cell" is a feasible node whose tip lies in the cell; goal and
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -58,8 +59,16 @@ class Steering:
         return r > self.reach_radius and x * x + (b - r) ** 2 < (r - self.reach_radius) ** 2
 
 
+GoalCost = Callable[[np.ndarray], np.ndarray]  # LCF points (n, 3) -> distance to the goal [m]
+
+
+def straight_distance(goal_lcf: np.ndarray) -> GoalCost:
+    """Alg. 6.6's own measure: the straight distance [m] of LCF points to ``goal_lcf``."""
+    return lambda p: np.linalg.norm(np.asarray(p, float) - goal_lcf, axis=-1)
+
+
 def find_best_path(grid: AvoidanceGrid, tree: ReachSetTree, fused: Fused, goal_lcf: np.ndarray,
-                   steering: Steering | None = None) -> PathResult:
+                   steering: Steering | None = None, goal_cost: GoalCost | None = None) -> PathResult:
     """Alg. 6.6, deterministic form (A-17): the goal cell if reachable, else the best reachable
     cell of its layer; for a goal outside the grid the reachable outer cell closest to it; then
     the cheapest feasible node ending in that cell. Ties (equal costs, as in the ACAS-like sets
@@ -71,7 +80,11 @@ def find_best_path(grid: AvoidanceGrid, tree: ReachSetTree, fused: Fused, goal_l
     With ``steering``: a goal inside the turn circle that no feasible movement end comes within
     the reach radius of cannot be reached without first flying away (steering at the cell nearest
     to it turns at full rate and orbits it for ever); the path then aims straight ahead beyond
-    the grid, the goal leaves the circle behind the vehicle and turning back reaches it."""
+    the grid, the goal leaves the circle behind the vehicle and turning back reaches it.
+
+    ``goal_cost`` replaces the straight distance to the goal in every ranking (cells, ties) by a
+    cost-to-go around known obstacles (:mod:`avoidance.reachset.costtogo`, D-17); not used while
+    aiming straight ahead."""
     ok = fused.node_ok
     tip_cells = np.unique(tree.tip_cell[ok])
     candidates = tip_cells[fused.reachable[tip_cells]]
@@ -81,7 +94,9 @@ def find_best_path(grid: AvoidanceGrid, tree: ReachSetTree, fused: Fused, goal_l
             and not (np.linalg.norm(tree.tip[ok] - goal_lcf, axis=1) <= steering.reach_radius).any())
     if away:
         goal_lcf = np.array([2.0 * grid.range, 0.0, 0.0])
-    dist = np.linalg.norm(grid.centers[candidates] - goal_lcf, axis=1)
+    if away or goal_cost is None:
+        goal_cost = straight_distance(goal_lcf)
+    dist = goal_cost(grid.centers[candidates])
     goal_cell = int(grid.cell_index(np.asarray(goal_lcf, float)[None])[0])
     if goal_cell >= 0:
         if goal_cell in candidates:
@@ -100,28 +115,30 @@ def find_best_path(grid: AvoidanceGrid, tree: ReachSetTree, fused: Fused, goal_l
     first = nodes.copy()
     while (tree.depth[first] > 1).any():
         first = np.where(tree.depth[first] > 1, tree.parent[first], first)
-    first_near = np.linalg.norm(tree.tip[first] - goal_lcf, axis=1)
-    near = np.linalg.norm(tree.tip[nodes] - goal_lcf, axis=1)
+    first_near = goal_cost(tree.tip[first])
+    near = goal_cost(tree.tip[nodes])
     best = nodes[np.lexsort((nodes, tree.depth[nodes], near, first_near, tree.cost[nodes]))[0]]
     return PathResult(int(best), cell, away=away)
 
 
 def grid_run(grid: AvoidanceGrid, tree: ReachSetTree, parts: ThreatParts, goal_lcf: np.ndarray,
-             categories: Categories, threshold: float, steering: Steering | None = None) -> GridRun:
+             categories: Categories, threshold: float, steering: Steering | None = None,
+             goal_cost: GoalCost | None = None) -> GridRun:
     """One assessment (fusion + reachability) and path search for one set of categories."""
     fused = fuse(tree, parts, categories, threshold)
-    return GridRun(categories, fused, find_best_path(grid, tree, fused, goal_lcf, steering))
+    return GridRun(categories, fused, find_best_path(grid, tree, fused, goal_lcf, steering, goal_cost))
 
 
 def emergency_runs(grid: AvoidanceGrid, tree: ReachSetTree, parts: ThreatParts, goal_lcf: np.ndarray,
-                   threshold: float, steering: Steering | None = None) -> tuple[list[GridRun], int]:
+                   threshold: float, steering: Steering | None = None,
+                   goal_cost: GoalCost | None = None) -> tuple[list[GridRun], int]:
     """Steps 7-11 in selection priority order (soft, hard, intruder, obstacle paths): the runs
     made and the index of the selected one (-1 if none found). Runs stop at the first path,
     which is the one step 11 selects; a relaxed run's path is the least exposed one
     (:func:`least_threat_path`)."""
     runs = []
     for cats in EMERGENCY_ORDER:
-        runs.append(grid_run(grid, tree, parts, goal_lcf, cats, threshold, steering))
+        runs.append(grid_run(grid, tree, parts, goal_lcf, cats, threshold, steering, goal_cost))
         if runs[-1].path.ok:
             if len(runs) > 1:
                 least = least_threat_path(tree, runs[-1].fused, runs[-2].fused, goal_lcf)

@@ -26,13 +26,15 @@ import numpy as np
 from avoidance.planner import Threats
 from avoidance.reachset.cache import reach_set
 from avoidance.reachset.config import AvoidanceConfig
+from avoidance.reachset.costtogo import CostToGo
 from avoidance.reachset.frames import GridPose
 from avoidance.reachset.fusion import Categories
 from avoidance.reachset.grid import AvoidanceGrid
-from avoidance.reachset.gridrun import GridRun, Steering, emergency_runs, find_best_path, grid_run
+from avoidance.reachset.gridrun import GoalCost, GridRun, Steering, emergency_runs, find_best_path, grid_run
 from avoidance.reachset.movement import KinState, MovementType, SegmentedMovementAutomaton
 from avoidance.reachset.reference import ReferenceTrajectory, reference_trajectory
 from avoidance.reachset.situation import Assessor, situation_events
+from avoidance.reachset.threats.constraints import from_geofence
 from avoidance.reachset.tree import ReachSetTree
 
 
@@ -100,6 +102,7 @@ class MissionControl:
         self.mode = Mode.NAVIGATION
         self.buffer: list[int] = []
         self._segments: dict[int, SegmentPlanning] = {}
+        self._cost_to_go: tuple[int, CostToGo] | None = None
 
     def segment(self, index: int) -> SegmentPlanning:
         """Grid and reach sets of MA segment ``index`` (grid scaled to its movement length)."""
@@ -157,13 +160,29 @@ class MissionControl:
                      plan.trees[self.mode], reach_radius=radius, threat_events=list(threat_events))
         replan = self.cfg.mission.replan_policy == "every_frame" or bool(threat_events) or not self.buffer or self.mode == Mode.EMERGENCY
         if replan:
-            self._run(d, plan, parts, goal_lcf, Steering(ma.table.turn_radii, radius))
+            self._run(d, plan, parts, goal_lcf, Steering(ma.table.turn_radii, radius), self._goal_cost(pose, s_now, threats, length))
         d.reference = reference_trajectory(ma, s_now, executing, self.buffer)
         d.buffer = list(self.buffer)
         d.runtime_s = time.perf_counter() - t0
         return d
 
-    def _keep_course(self, d: Decision, plan: SegmentPlanning, goal_lcf: np.ndarray, steering: Steering) -> None:
+    def _goal_cost(self, pose: GridPose, s_now: KinState, threats: Threats, length: float) -> GoalCost | None:
+        """Cost-to-go of LCF points to the goal around the keep-out geofences known now (D-17),
+        raster L/2, built once per goal; None without such geofences (straight distance)."""
+        if self._cost_to_go is None or self._cost_to_go[0] != self.goal:
+            goal = self.waypoints[self.goal]
+            margin = self.cfg.constraints.safety_margin
+            bodies = [c.body.buffer(margin) for c in (from_geofence(g, margin) for g in threats.geofences)
+                      if not c.keep_in and c.z_band[0] <= goal[2] <= c.z_band[1]]
+            if not bodies:
+                return None
+            self._cost_to_go = (self.goal, CostToGo(goal, bodies, 0.5 * length, self.cfg.grid.scaled(length).d_range[1] + margin,
+                                                    s_now.pos[:2]))
+        ctg = self._cost_to_go[1]
+        return lambda p_lcf: ctg(pose.to_gcf(p_lcf))
+
+    def _keep_course(self, d: Decision, plan: SegmentPlanning, goal_lcf: np.ndarray, steering: Steering,
+                     goal_cost: GoalCost | None) -> None:
         """In an emergency, the previous path's future movements stay the start of the new path
         while they respect every threat category (its best continuation is chosen by alg. 6.6
         among their descendants): re-choosing freely every frame flipped between two equally good
@@ -175,26 +194,27 @@ class MissionControl:
             return
         tree = plan.trees[self.mode]
         kept = dataclasses.replace(run.fused, node_ok=run.fused.node_ok & tree.subtree(node))
-        path = find_best_path(plan.grid, tree, kept, goal_lcf, steering)
+        path = find_best_path(plan.grid, tree, kept, goal_lcf, steering, goal_cost)
         if path.ok:
             run.path = path
             d.events.append("keep_course")
 
-    def _run(self, d: Decision, plan: SegmentPlanning, parts, goal_lcf: np.ndarray, steering: Steering) -> None:
+    def _run(self, d: Decision, plan: SegmentPlanning, parts, goal_lcf: np.ndarray, steering: Steering,
+             goal_cost: GoalCost | None) -> None:
         """Steps 7-12: grid run(s), path selection, buffer replacement."""
         threshold = self.cfg.fusion.threshold
         tree = plan.trees[self.mode]
         if self.mode == Mode.NAVIGATION:
-            run = grid_run(plan.grid, tree, parts, goal_lcf, Categories(), threshold, steering)
+            run = grid_run(plan.grid, tree, parts, goal_lcf, Categories(), threshold, steering, goal_cost)
             if self.restrict is not None:
                 disabled = self.restrict(d, run)
                 if disabled is not None:
                     run.fused.node_ok &= ~disabled
-                    run.path = find_best_path(plan.grid, tree, run.fused, goal_lcf, steering)
+                    run.path = find_best_path(plan.grid, tree, run.fused, goal_lcf, steering, goal_cost)
             d.runs, d.selected = [run], 0 if run.path.ok else -1
         else:
-            d.runs, d.selected = emergency_runs(plan.grid, tree, parts, goal_lcf, threshold, steering)
-            self._keep_course(d, plan, goal_lcf, steering)
+            d.runs, d.selected = emergency_runs(plan.grid, tree, parts, goal_lcf, threshold, steering, goal_cost)
+            self._keep_course(d, plan, goal_lcf, steering, goal_cost)
         run = d.run
         if run.path.away:
             d.events.append("goal_in_turn_circle")

@@ -1,5 +1,5 @@
 """Writes the closed-loop scenario files of the reach-set avoider for spec §9.3: S2 slalom, S3 maze,
-S4 moving storm, S6 emergency converging, S7 emergency head-on.
+S4 moving storm, S5 trap, S6 emergency converging, S7 emergency head-on.
 
 Run from the repository root: ``python scenarios/reachset/generate.py``.
 
@@ -141,6 +141,20 @@ def storm(name: str, doc: str, duration: float) -> str:
     return "\n".join(lines)
 
 
+S5_DOC = """Spec §9.3 S5 (trap, undocumented in the thesis) at L = 5 m (lengths x5): a PentaTrap of
+scale 20 (100 m here, rotation 0: its pocket opens south, towards the start) centred 150 m north of
+the start, a keep-out geofence with a 25 m margin (the thesis' 5 m of S1's Poly5 x5); the
+waypoint 300 m north lies behind it, the start faces north straight into the pocket. Regression
+(spec): must not end in the trap pocket; here also: completes, never inside the body."""
+
+
+def trap(name: str, doc: str, duration: float) -> str:
+    lines = header(name, doc, 5, duration) + building("trap", polygon(2, 20.0, 0.0, (0.0, 30.0)))
+    lines += vehicle("quad", (0.0, 0.0), 90.0, [(0.0, 60.0)], {"period": 1.0, "constraint_margin": 5.0 * SCALE,
+                                                               "separations": ["horizontal"]})
+    return "\n".join(lines)
+
+
 S6_DOC = """Spec §9.3 S6 (emergency converging, non-cooperative, [R] NS025-031) at L = 5 m: two JSBSim
 quadrotors with the reach-set avoider (ACAS-like horizontal reach sets, as the thesis), each sensing the other only through the surveillance
 model (ADS-B reports -> Kalman track -> intruder line + body + time model), no UTM. Thesis: initial
@@ -178,6 +192,7 @@ def main() -> None:
         "s3_maze.toml": maze("reachset_s3_maze", S3_DOC, ["12341", "26004", "12301", "10001", "10411", "30004",
                                                           "31103", "25004", "12422"], 0.0, 3, 200.0),
         "s4_storm.toml": storm("reachset_s4_storm", S4_DOC, 120.0),
+        "s5_trap.toml": trap("reachset_s5_trap", S5_DOC, 150.0),
         "s6_converging.toml": encounter("reachset_s6_converging", S6_DOC, [
             ("uas1", (0, 20), 0.0, (40, 20)), ("uas2", (20, 0), 90.0, (20, 40))], 90.0, {"separations": ["horizontal"]}),
         "s7_head_on.toml": encounter("reachset_s7_head_on", S7_DOC, [
