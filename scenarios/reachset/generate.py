@@ -201,7 +201,7 @@ def main() -> None:
             ("uas1", (0, 20), 0.0, (45, 20), {"separations": ["horizontal"]}),
             ("uas2", (40, 20), 180.0, (-5, 20), {"separations": ["vertical"]}),
             ("uas3", (20, 0), 90.0, (20, 45), {"separations": ["slash"]}),
-            ("uas4", (20, 40), -90.0, (20, -5), {"separations": ["horizontal"]})], 100.0, {}),
+            ("uas4", (20, 40), -90.0, (20, -5), {"separations": ["horizontal"]})], 160.0, {}),
     }
     for fname, text in files.items():
         (HERE / fname).write_text(text)
