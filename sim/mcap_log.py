@@ -10,9 +10,9 @@ indexes, zstd chunks: about half the cost of logging, taken off the simulation's
 is finished in ``close()``, which the runner calls in a ``finally``; if the simulation process dies
 without it (a crash of the flight model, SIGKILL), the writer process sees the pipe close and
 finishes the file with every message it received, so the log stays readable. The writer is a
-fresh interpreter (``python -m sim.mcap_log``) fed pickled batches on its stdin, so it also starts
-inside daemonic workers (a Dask nanny's) and never re-runs the caller's script;
-``background=False`` writes the same records in-process.
+fresh interpreter (``python -m sim.mcap_writer``, which imports only ``mcap``) fed pickled
+batches on its stdin, so it also starts inside daemonic workers (a Dask nanny's) and never re-runs
+the caller's script; ``background=False`` writes the same records in-process.
 """
 
 from __future__ import annotations
@@ -20,7 +20,6 @@ from __future__ import annotations
 import json
 import os
 import pickle
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -28,12 +27,10 @@ from typing import Any
 
 import orjson
 from foxglove_schemas_protobuf.Log_pb2 import Log
-from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
-from sim import __version__
+from sim.mcap_writer import RecordWriter
 
-PROFILE = "cosim"
 LEVELS = {"debug": Log.DEBUG, "info": Log.INFO, "warning": Log.WARNING, "error": Log.ERROR,
           "fatal": Log.FATAL}
 _BATCH = 128  # records per hand-over to the writer process (a few log ticks)
@@ -41,78 +38,6 @@ _BATCH = 128  # records per hand-over to the writer process (a few log ticks)
 
 class LogWriteError(RuntimeError):
     """The log could not be written (e.g. disk full); says why."""
-
-
-class _RecordWriter:
-    """Applies log records to an ``mcap`` writer. Records are tuples: ``("schema", id, name,
-    encoding, data)``, ``("channel", id, topic, encoding, schema_id, metadata)``, ``("message",
-    channel_id, time_ns, data, sequence)``, ``("metadata", name, data)``, ``("attachment", time_ns,
-    name, media_type, data)``. Ids are the log's own; mcap's are looked up."""
-
-    def __init__(self, file, chunk_size: int):
-        self.file = file
-        self.writer = Writer(file, chunk_size=chunk_size, compression=CompressionType.ZSTD)
-        self.writer.start(profile=PROFILE, library=f"cosim {__version__}")
-        self.schemas: dict[int, int] = {}
-        self.channels: dict[int, int] = {}
-
-    def apply(self, records: list[tuple]) -> None:
-        w, channels = self.writer, self.channels
-        for r in records:
-            kind = r[0]
-            if kind == "message":
-                w.add_message(channels[r[1]], log_time=r[2], data=r[3], publish_time=r[2], sequence=r[4])
-            elif kind == "channel":
-                channels[r[1]] = w.register_channel(r[2], r[3], self.schemas[r[4]], r[5])
-            elif kind == "schema":
-                self.schemas[r[1]] = w.register_schema(r[2], r[3], r[4])
-            elif kind == "metadata":
-                w.add_metadata(r[1], r[2])
-            elif kind == "attachment":
-                w.add_attachment(create_time=r[1], log_time=r[1], name=r[2], media_type=r[3], data=r[4])
-            else:
-                raise ValueError(f"unknown log record {kind!r}")
-
-    def finish(self) -> None:
-        try:
-            self.writer.finish()
-        finally:
-            self.file.close()
-
-
-def _writer_main(path: str, chunk_size: int) -> int:
-    """Writer process (``python -m sim.mcap_log PATH CHUNK_SIZE``): applies the pickled batches
-    read from stdin until ``None`` (close) or end of file (the simulation process died), finishes
-    the file and prints an error line on stdout if anything failed. Ignores SIGINT: Ctrl-C
-    reaches the whole process group, and the simulation process closes the log itself."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    src = sys.stdin.buffer
-    error = None
-    try:
-        rw = _RecordWriter(open(path, "wb"), chunk_size)
-    except OSError as exc:
-        print(f"cannot open {path}: {exc}", flush=True)
-        return 1
-    try:
-        while True:
-            try:
-                batch = pickle.load(src)
-            except EOFError:
-                break
-            if batch is None:
-                break
-            rw.apply(batch)
-    except Exception as exc:  # reported to the simulation process at its next hand-over or close
-        error = f"{type(exc).__name__}: {exc}"
-    finally:
-        try:
-            rw.finish()
-        except Exception as exc:
-            error = error or f"{type(exc).__name__}: {exc}"
-    if error:
-        print(error, flush=True)
-        return 1
-    return 0
 
 
 class McapLog:
@@ -133,10 +58,10 @@ class McapLog:
         if background:  # a fresh interpreter: nothing of the caller's __main__ is re-run
             root = str(Path(__file__).resolve().parents[1])
             env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])))
-            self._proc = subprocess.Popen([sys.executable, "-m", "sim.mcap_log", str(self.path), str(chunk_size)],
+            self._proc = subprocess.Popen([sys.executable, "-m", "sim.mcap_writer", str(self.path), str(chunk_size)],
                                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
         else:
-            self._inline = _RecordWriter(open(self.path, "wb"), chunk_size)
+            self._inline = RecordWriter(open(self.path, "wb"), chunk_size)
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._seq: dict[int, int] = {}
@@ -253,7 +178,3 @@ class McapLog:
 
     def __exit__(self, *exc) -> None:
         self.close()
-
-
-if __name__ == "__main__":
-    sys.exit(_writer_main(sys.argv[1], int(sys.argv[2])))

@@ -281,7 +281,7 @@ class InsEkf:
         qd = np.multiply(self._q_rates, dt, out=self._qd)
         qd[16:19] = self._gm_var * (1.0 - decay * decay)
         P = phi @ self.kf.P @ phi.T
-        P[self._diag] += qd
+        P.flat[::m.N + 1] += qd  # the diagonal, without fancy indexing
         self.kf.P = P
         self.nav = nav
         self.t = t_end
@@ -330,14 +330,14 @@ class InsEkf:
         P = self.kf.P
         PHt = P @ H.T
         S = H @ PHt
-        S[np.diag_indices(len(y))] += np.concatenate(rs)
+        S.flat[::len(y) + 1] += np.concatenate(rs)
         K = PHt @ np.linalg.inv(S)
         P = P - K @ PHt.T
         self.kf.P = 0.5 * (P + P.T)
         dx = K @ y
         nav.p += dx[0:3]  # inject the error in place (the fast path owns its arrays)
         nav.v += dx[3:6]
-        nav.q = quat_normalize(quat_mul(nav.q, quat_exp(dx[6], dx[7], dx[8])))
+        nav.q = quat_normalize(quat_mul(nav.q, quat_exp(*dx[6:9].tolist())))
         nav.ba += dx[9:12]
         nav.bg += dx[12:15]
         nav.bb += float(dx[15])

@@ -1,0 +1,91 @@
+"""The MCAP writing half of :mod:`sim.mcap_log`: applies log records to an ``mcap`` writer, in
+the simulation process or as the writer process (``python -m sim.mcap_writer PATH CHUNK_SIZE``,
+fed pickled batches on stdin). Imports only ``mcap``, so the writer process starts quickly."""
+
+from __future__ import annotations
+
+import pickle
+import signal
+import sys
+
+from mcap.writer import CompressionType, Writer
+
+from sim import __version__
+
+PROFILE = "cosim"
+
+
+class RecordWriter:
+    """Applies log records to an ``mcap`` writer. Records are tuples: ``("schema", id, name,
+    encoding, data)``, ``("channel", id, topic, encoding, schema_id, metadata)``, ``("message",
+    channel_id, time_ns, data, sequence)``, ``("metadata", name, data)``, ``("attachment", time_ns,
+    name, media_type, data)``. Ids are the log's own; mcap's are looked up."""
+
+    def __init__(self, file, chunk_size: int):
+        self.file = file
+        self.writer = Writer(file, chunk_size=chunk_size, compression=CompressionType.ZSTD)
+        self.writer.start(profile=PROFILE, library=f"cosim {__version__}")
+        self.schemas: dict[int, int] = {}
+        self.channels: dict[int, int] = {}
+
+    def apply(self, records: list[tuple]) -> None:
+        w, channels = self.writer, self.channels
+        for r in records:
+            kind = r[0]
+            if kind == "message":
+                w.add_message(channels[r[1]], log_time=r[2], data=r[3], publish_time=r[2], sequence=r[4])
+            elif kind == "channel":
+                channels[r[1]] = w.register_channel(r[2], r[3], self.schemas[r[4]], r[5])
+            elif kind == "schema":
+                self.schemas[r[1]] = w.register_schema(r[2], r[3], r[4])
+            elif kind == "metadata":
+                w.add_metadata(r[1], r[2])
+            elif kind == "attachment":
+                w.add_attachment(create_time=r[1], log_time=r[1], name=r[2], media_type=r[3], data=r[4])
+            else:
+                raise ValueError(f"unknown log record {kind!r}")
+
+    def finish(self) -> None:
+        try:
+            self.writer.finish()
+        finally:
+            self.file.close()
+
+
+def writer_main(path: str, chunk_size: int) -> int:
+    """Writer process (``python -m sim.mcap_log PATH CHUNK_SIZE``): applies the pickled batches
+    read from stdin until ``None`` (close) or end of file (the simulation process died), finishes
+    the file and prints an error line on stdout if anything failed. Ignores SIGINT: Ctrl-C
+    reaches the whole process group, and the simulation process closes the log itself."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    src = sys.stdin.buffer
+    error = None
+    try:
+        rw = RecordWriter(open(path, "wb"), chunk_size)
+    except OSError as exc:
+        print(f"cannot open {path}: {exc}", flush=True)
+        return 1
+    try:
+        while True:
+            try:
+                batch = pickle.load(src)
+            except EOFError:
+                break
+            if batch is None:
+                break
+            rw.apply(batch)
+    except Exception as exc:  # reported to the simulation process at its next hand-over or close
+        error = f"{type(exc).__name__}: {exc}"
+    finally:
+        try:
+            rw.finish()
+        except Exception as exc:
+            error = error or f"{type(exc).__name__}: {exc}"
+    if error:
+        print(error, flush=True)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(writer_main(sys.argv[1], int(sys.argv[2])))
