@@ -102,6 +102,29 @@ def test_last_resort_path_keeps_away_from_an_intruder_that_blocks_every_path():
     assert closest(node) > closest(straight_node()) + 1.0
 
 
+def test_last_resort_path_maximises_the_predicted_closest_approach():
+    """D-18: with the intruders dropped (no intruder-free path), the obstacle run's path is the
+    full-length one whose closest approach to the intruders' linear predictions (body surface,
+    brute force over every path sample at its time) is the largest; two intruders, one ahead
+    and one from the right."""
+    tracks = [IntruderTrack("i1", 0.0, np.array([10.0, 0.5, 0.0]), np.array([-1.0, 0.0, 0.0]), radius_m=8.0),
+              IntruderTrack("i2", 0.0, np.array([6.0, 9.0, 1.0]), np.array([0.0, -1.0, 0.0]), radius_m=2.0)]
+    parts = Assessor(GRID, TREE, CFG).assess(POSE, 0.0, Threats(intruders=tracks))
+    runs, sel = emergency_runs(GRID, TREE, parts, GOAL, CFG.fusion.threshold)
+    assert sel == 3 and not runs[2].path.ok
+
+    def closest(node: int) -> float:
+        p = POSE.lcf_to_ned(TREE.path_samples(node))
+        t = np.linspace(0.0, TREE.depth[node] * TREE.period, len(p))
+        return min(float((np.linalg.norm(p - (tr.pos_ned + np.outer(t, tr.vel_ned)), axis=1) - tr.radius_m).min())
+                   for tr in tracks)
+
+    leaves = TREE.leaves()
+    best = max(closest(n) for n in leaves[runs[sel].fused.node_ok[leaves]])
+    assert closest(runs[sel].path.node) >= best - 0.01
+    assert closest(runs[sel].path.node) > closest(straight_node()) + 1.0
+
+
 def kin(n: float, e: float = 0.0, t: float = 0.0) -> KinState:
     return KinState(np.array([e, n, 0.0]), np.array([0.0, 0.0, np.pi / 2]), t, 1.0)  # GCF, heading north
 

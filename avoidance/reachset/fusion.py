@@ -10,7 +10,7 @@ last movement passes the cell.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import IntEnum
 
 import numpy as np
@@ -33,7 +33,9 @@ class ThreatParts:
     """Per-source ratings of one decision, per cell (n_cells,): ``visibility`` per sensor
     (rows; none = no visibility sensor: the map is taken at full weight and no cell is
     Uncertain, decision D-4), ``obstacle`` per sensor, ``map``, ``intruders`` (one row per
-    intruder), ``hard`` / ``soft`` constraint masks."""
+    intruder), ``hard`` / ``soft`` constraint masks, and the intruders' linear predictions
+    ``intruder_motion`` (one row per intruder: LCF position [m] at the grid time, LCF velocity
+    [m/s], body radius [m]; the last resort of a relaxed run, D-18)."""
 
     visibility: np.ndarray  # (n_sensors, n_cells)
     obstacle: np.ndarray  # (n_sensors, n_cells)
@@ -41,6 +43,7 @@ class ThreatParts:
     intruders: np.ndarray  # (n_intruders, n_cells)
     hard: np.ndarray
     soft: np.ndarray
+    intruder_motion: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))  # (n_intruders, 7)
 
     @staticmethod
     def empty(n_cells: int) -> "ThreatParts":

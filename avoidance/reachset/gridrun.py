@@ -141,19 +141,47 @@ def emergency_runs(grid: AvoidanceGrid, tree: ReachSetTree, parts: ThreatParts, 
         runs.append(grid_run(grid, tree, parts, goal_lcf, cats, threshold, steering, goal_cost))
         if runs[-1].path.ok:
             if len(runs) > 1:
-                least = least_threat_path(tree, runs[-1].fused, runs[-2].fused, goal_lcf)
+                dropped = runs[-2].categories.intruders and not cats.intruders
+                least = least_threat_path(tree, runs[-1].fused, runs[-2].fused, goal_lcf,
+                                          parts.intruder_motion if dropped else None)
                 runs[-1].path = least if least.ok else runs[-1].path
             return runs, len(runs) - 1
     return runs, -1
 
 
-def least_threat_path(tree: ReachSetTree, fused: Fused, stricter: Fused, goal_lcf: np.ndarray) -> PathResult:
+def closest_approach(tree: ReachSetTree, motion: np.ndarray) -> np.ndarray:
+    """Per node (N,): the smallest predicted clearance [m] between the path root -> node and the
+    intruders' bodies on their linear predictions ``motion`` (rows: LCF position at the grid time
+    [m], velocity [m/s], body radius [m]; :func:`avoidance.reachset.threats.intruders.intruder_motion`),
+    over every sample of the path at its own time (the root: +inf)."""
+    n_sub = tree.samples.shape[1] - 1
+    t = (np.maximum(tree.depth, 1)[:, None] - 1 + np.arange(n_sub + 1) / n_sub) * tree.period  # (N, S) [s]
+    other = motion[:, None, None, :3] + t[None, :, :, None] * motion[:, None, None, 3:6]  # (I, N, S, 3)
+    gap = np.linalg.norm(tree.samples[None] - other, axis=-1) - motion[:, 6, None, None]
+    closest = gap.min(axis=(0, 2))
+    closest[tree.depth == 0] = np.inf
+    lp = tree.level_ptr
+    for k in range(1, len(lp) - 1):
+        sl = slice(lp[k], lp[k + 1])
+        closest[sl] = np.minimum(closest[sl], closest[tree.parent[sl]])
+    return closest
+
+
+def least_threat_path(tree: ReachSetTree, fused: Fused, stricter: Fused, goal_lcf: np.ndarray,
+                      intruder_motion: np.ndarray | None = None) -> PathResult:
     """The path of a relaxed run (a threat category dropped because no path respects it, spec
     §6.2 step 11): of the full-length trajectories feasible in ``fused``, the one least exposed to
     the dropped threats (smallest sum of the threat ratings of its footprint cells in the
     ``stricter`` run), then the one feasible there for the most movements (time to re-plan), then
     the tip nearest the goal. Steering at the goal alone flew straight through the intruder,
-    building margin or storm that made the stricter run fail."""
+    building margin or storm that made the stricter run fail.
+
+    With ``intruder_motion`` (the intruders were dropped, rows as in :func:`closest_approach`):
+    first the path with the largest predicted clearance to the intruders' bodies, rounded to
+    1 cm (D-18). The exposure to the intruder space (line, body, time window) does not say which
+    side is farther from the aircraft: two vehicles in each other's space chose independently and
+    flew side by side (S8); maximising the closest approach to the other's linear prediction
+    makes each turn away from where the other goes."""
     leaves = tree.leaves()
     cand = leaves[fused.node_ok[leaves]]
     if len(cand) == 0:
@@ -171,5 +199,8 @@ def least_threat_path(tree: ReachSetTree, fused: Fused, stricter: Fused, goal_lc
         exposure[sl] += exposure[tree.parent[sl]]
         clear[sl] += clear[tree.parent[sl]]
     near = np.linalg.norm(tree.tip[cand] - goal_lcf, axis=1)
-    best = int(cand[np.lexsort((cand, near, -clear[cand], np.round(exposure[cand], 9)))[0]])
+    keys = [cand, near, -clear[cand], np.round(exposure[cand], 9)]
+    if intruder_motion is not None and len(intruder_motion):
+        keys.append(-np.round(closest_approach(tree, intruder_motion)[cand], 2))
+    best = int(cand[np.lexsort(keys)[0]])
     return PathResult(best, int(tree.tip_cell[best]))

@@ -30,7 +30,7 @@ from avoidance.reachset.costtogo import CostToGo
 from avoidance.reachset.frames import GridPose
 from avoidance.reachset.fusion import Categories
 from avoidance.reachset.grid import AvoidanceGrid
-from avoidance.reachset.gridrun import GoalCost, GridRun, Steering, emergency_runs, find_best_path, grid_run
+from avoidance.reachset.gridrun import GoalCost, GridRun, Steering, emergency_runs, find_best_path, grid_run, least_threat_path
 from avoidance.reachset.movement import KinState, MovementType, SegmentedMovementAutomaton
 from avoidance.reachset.reference import ReferenceTrajectory, reference_trajectory
 from avoidance.reachset.situation import Assessor, situation_events
@@ -182,19 +182,23 @@ class MissionControl:
         return lambda p_lcf: ctg(pose.to_gcf(p_lcf))
 
     def _keep_course(self, d: Decision, plan: SegmentPlanning, goal_lcf: np.ndarray, steering: Steering,
-                     goal_cost: GoalCost | None) -> None:
+                     goal_cost: GoalCost | None, intruder_motion: np.ndarray) -> None:
         """In an emergency, the previous path's future movements stay the start of the new path
-        while they respect every threat category (its best continuation is chosen by alg. 6.6
+        while they are feasible in the selected run (its best continuation is chosen by alg. 6.6
         among their descendants): re-choosing freely every frame flipped between two equally good
-        sides of a threat ahead, and the vehicle flew straight at it. A relaxed run (a category
-        dropped) chooses freely."""
+        sides of a threat ahead, and the vehicle flew straight at it. In a run that dropped the
+        intruders the continuation is the one with the largest predicted closest approach to them
+        (D-18, :func:`least_threat_path`); alg. 6.6 there flew the kept course on towards them."""
         run = d.run
         node = plan.nodes[self.mode].get(tuple(self.buffer), -1) if self.buffer and d.selected >= 0 else -1
         if node <= 0 or not run.fused.node_ok[node]:
             return
         tree = plan.trees[self.mode]
         kept = dataclasses.replace(run.fused, node_ok=run.fused.node_ok & tree.subtree(node))
-        path = find_best_path(plan.grid, tree, kept, goal_lcf, steering, goal_cost)
+        if d.selected > 0 and not run.categories.intruders:
+            path = least_threat_path(tree, kept, d.runs[d.selected - 1].fused, goal_lcf, intruder_motion)
+        else:
+            path = find_best_path(plan.grid, tree, kept, goal_lcf, steering, goal_cost)
         if path.ok:
             run.path = path
             d.events.append("keep_course")
@@ -214,7 +218,7 @@ class MissionControl:
             d.runs, d.selected = [run], 0 if run.path.ok else -1
         else:
             d.runs, d.selected = emergency_runs(plan.grid, tree, parts, goal_lcf, threshold, steering, goal_cost)
-            self._keep_course(d, plan, goal_lcf, steering, goal_cost)
+            self._keep_course(d, plan, goal_lcf, steering, goal_cost, parts.intruder_motion)
         run = d.run
         if run.path.away:
             d.events.append("goal_in_turn_circle")

@@ -135,12 +135,20 @@ class IntruderModel:
         return self._rate(np.minimum(mass / n_samples, 1.0), i_e, i_l, speed)
 
 
-def intruder_ratings(grid: AvoidanceGrid, pose: GridPose, t_grid: float, tracks: list[IntruderTrack],
-                     model: IntruderModel) -> np.ndarray:
-    """(n_intruders, n_cells) P_OI of the tracks (NED) propagated to the grid time ``t_grid`` [s]."""
-    out = np.zeros((len(tracks), grid.n_cells))
+def intruder_motion(pose: GridPose, t_grid: float, tracks: list[IntruderTrack], body_margin: float) -> np.ndarray:
+    """(n_intruders, 7) linear predictions of the tracks (NED) at the grid time ``t_grid`` [s]:
+    LCF position [m], LCF velocity [m/s], body radius + ``body_margin`` [m]."""
+    out = np.zeros((len(tracks), 7))
     for n, tr in enumerate(tracks):
         pos = np.asarray(tr.pos_ned, float) + np.asarray(tr.vel_ned, float) * (t_grid - tr.t)
-        out[n] = model.rating(pose.ned_to_lcf(pos), pose.vec_to_lcf(ned_to_enu(tr.vel_ned)),
-                              tr.radius_m + model.cfg.body_margin)
+        out[n] = [*pose.ned_to_lcf(pos), *pose.vec_to_lcf(ned_to_enu(tr.vel_ned)), tr.radius_m + body_margin]
+    return out
+
+
+def intruder_ratings(grid: AvoidanceGrid, motion: np.ndarray, model: IntruderModel) -> np.ndarray:
+    """(n_intruders, n_cells) P_OI of the intruders' linear predictions ``motion``
+    (:func:`intruder_motion`)."""
+    out = np.zeros((len(motion), grid.n_cells))
+    for n, m in enumerate(motion):
+        out[n] = model.rating(m[:3], m[3:6], float(m[6]))
     return out
