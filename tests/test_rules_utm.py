@@ -19,7 +19,7 @@ from avoidance.reachset.gridrun import find_best_path
 from avoidance.reachset.movement import build_primitive_table
 from avoidance.rules.config import RulesConfig
 from avoidance.rules.restrictions import (moving_margin_mask, path_clearance, right_plane_heading_mask, safety_margin_mask,
-                                          sample_times, widest_per_cell)
+                                          widest_per_cell)
 from avoidance.rules.rules_of_air import overtake_speed, overtake_waypoints
 from avoidance.utm.cases import CaseBook
 from avoidance.utm.collision_case import (Encounter, Role, UtmConfig, angle_of_approach, case_margin, classify,
@@ -277,7 +277,7 @@ def test_moving_margin_follows_the_peer_in_time():
     pose = GridPose(np.zeros(3), 0.0)
     # a peer crossing 6 m ahead from the right at 1 m/s: where it is when the samples get there
     mask = moving_margin_mask(NAV, pose, np.array([6.0, -6.0, 0.0]), np.array([0.0, 1.0, 0.0]), 3.0)
-    times = sample_times(NAV)
+    times = NAV.sample_times()
     peer = np.array([6.0, -6.0, 0.0]) + times[..., None] * np.array([0.0, 1.0, 0.0])
     dist = np.linalg.norm(NAV.samples - peer, axis=-1)
     assert mask.any() and (dist[~mask] >= 3.0 - 1e-9).all()

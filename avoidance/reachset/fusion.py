@@ -121,10 +121,7 @@ def reachability(tree: ReachSetTree, threat: np.ndarray, free: np.ndarray, thres
     if len(tree.cells):
         sums = np.add.reduceat(np.column_stack([entry_log, entry_bad]), tree.cells_ptr[:-1][nz], axis=0)
         per_node[nz] = sums
-    lp = tree.level_ptr
-    for k in range(1, len(lp) - 1):
-        sl = slice(lp[k], lp[k + 1])
-        per_node[sl] += per_node[tree.parent[sl]]
+    tree.along_paths(per_node, np.add)
     node_reach = np.exp(per_node[:, 0])
     node_ok = (node_reach >= 1.0 - threshold) & (per_node[:, 1] == 0)
     node_ok[0] = False  # the empty buffer is no trajectory

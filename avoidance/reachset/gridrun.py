@@ -154,17 +154,12 @@ def closest_approach(tree: ReachSetTree, motion: np.ndarray) -> np.ndarray:
     intruders' bodies on their linear predictions ``motion`` (rows: LCF position at the grid time
     [m], velocity [m/s], body radius [m]; :func:`avoidance.reachset.threats.intruders.intruder_motion`),
     over every sample of the path at its own time (the root: +inf)."""
-    n_sub = tree.samples.shape[1] - 1
-    t = (np.maximum(tree.depth, 1)[:, None] - 1 + np.arange(n_sub + 1) / n_sub) * tree.period  # (N, S) [s]
+    t = tree.sample_times()  # (N, S) [s]
     other = motion[:, None, None, :3] + t[None, :, :, None] * motion[:, None, None, 3:6]  # (I, N, S, 3)
     gap = np.linalg.norm(tree.samples[None] - other, axis=-1) - motion[:, 6, None, None]
     closest = gap.min(axis=(0, 2))
     closest[tree.depth == 0] = np.inf
-    lp = tree.level_ptr
-    for k in range(1, len(lp) - 1):
-        sl = slice(lp[k], lp[k + 1])
-        closest[sl] = np.minimum(closest[sl], closest[tree.parent[sl]])
-    return closest
+    return tree.along_paths(closest, np.minimum)
 
 
 def least_threat_path(tree: ReachSetTree, fused: Fused, stricter: Fused, goal_lcf: np.ndarray,
@@ -192,12 +187,8 @@ def least_threat_path(tree: ReachSetTree, fused: Fused, stricter: Fused, goal_lc
     nz = counts > 0
     if len(tree.cells):
         exposure[nz] = np.add.reduceat(entry, tree.cells_ptr[:-1][nz])
-    clear = stricter.node_ok.astype(np.int64)  # feasibility is prefix-closed: count the clear movements
-    lp = tree.level_ptr
-    for k in range(1, len(lp) - 1):
-        sl = slice(lp[k], lp[k + 1])
-        exposure[sl] += exposure[tree.parent[sl]]
-        clear[sl] += clear[tree.parent[sl]]
+    tree.along_paths(exposure, np.add)
+    clear = tree.along_paths(stricter.node_ok.astype(np.int64), np.add)  # feasibility is prefix-closed: clear movements
     near = np.linalg.norm(tree.tip[cand] - goal_lcf, axis=1)
     keys = [cand, near, -clear[cand], np.round(exposure[cand], 9)]
     if intruder_motion is not None and len(intruder_motion):

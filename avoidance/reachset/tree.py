@@ -53,6 +53,22 @@ class ReachSetTree:
         """(E,) node of every CSR entry."""
         return np.repeat(np.arange(self.n_nodes), np.diff(self.cells_ptr))
 
+    def along_paths(self, values: np.ndarray, combine: np.ufunc) -> np.ndarray:
+        """``values`` (N, ...) per node combined along every path root -> node, in place and
+        returned: ``values[n] = combine(values[n], values[parent[n]])``, one tree level at a time
+        (e.g. ``np.add``: path sums, ``np.minimum``: path minima, ``np.logical_or``: any on the path)."""
+        lp = self.level_ptr
+        for k in range(1, len(lp) - 1):
+            sl = slice(lp[k], lp[k + 1])
+            values[sl] = combine(values[sl], values[self.parent[sl]])
+        return values
+
+    def sample_times(self) -> np.ndarray:
+        """(N, n_sub+1) time of every sample [s] from the grid's time (sample 0 = the parent tip)."""
+        n_sub = self.samples.shape[1] - 1
+        start = np.maximum(self.depth - 1, 0)[:, None] * self.period
+        return start + self.period * np.arange(n_sub + 1)[None, :] / n_sub
+
     def leaves(self) -> np.ndarray:
         has_child = np.zeros(self.n_nodes, bool)
         has_child[self.parent[self.parent >= 0]] = True

@@ -4,7 +4,7 @@ navigation reach set that a rule disables.
 Frames: the tree's samples are LCF of a grid placed at ``pose`` (X+ heading, Y+ left, Z+ up)
 [m]; points given to these functions are GCF (ENU) [m]. A node is disabled when any sample of
 any movement from the root to it violates the restriction, so a disabled node disables its
-subtree (propagated level by level).
+subtree (``ReachSetTree.along_paths`` with ``np.logical_or``).
 """
 
 from __future__ import annotations
@@ -13,16 +13,6 @@ import numpy as np
 
 from avoidance.reachset.frames import GridPose
 from avoidance.reachset.tree import ReachSetTree
-
-
-def propagate(tree: ReachSetTree, bad: np.ndarray) -> np.ndarray:
-    """Nodes (N,) whose path root -> node contains a node marked ``bad`` (N,)."""
-    out = bad.copy()
-    lp = tree.level_ptr
-    for k in range(1, len(lp) - 1):
-        idx = np.arange(lp[k], lp[k + 1])
-        out[idx] |= out[tree.parent[idx]]
-    return out
 
 
 def right_plane_heading_mask(tree: ReachSetTree, pose: GridPose, collision_point: np.ndarray, tol: float = 1e-6) -> np.ndarray:
@@ -37,7 +27,7 @@ def right_plane_heading_mask(tree: ReachSetTree, pose: GridPose, collision_point
     u = cp[:2] / max(float(np.hypot(cp[0], cp[1])), 1e-9)
     s = tree.samples
     left = u[0] * s[..., 1] - u[1] * s[..., 0]  # z of u x p: > 0 = left
-    return propagate(tree, (left > tol).any(axis=1))
+    return tree.along_paths((left > tol).any(axis=1), np.logical_or)
 
 
 def safety_margin_mask(tree: ReachSetTree, pose: GridPose, collision_point: np.ndarray, margin: float,
@@ -57,14 +47,7 @@ def safety_margin_mask(tree: ReachSetTree, pose: GridPose, collision_point: np.n
         dist = np.hypot(d[..., 0], d[..., 1])
         here = float(np.hypot(cp[0], cp[1]))
         inside_band = np.abs(d[..., 2]) < barrel_half_height
-    return propagate(tree, ((dist < _radius(tree, margin, here, tol) - 1e-9) & inside_band).any(axis=1))
-
-
-def sample_times(tree: ReachSetTree) -> np.ndarray:
-    """(N, n_sub+1) time of every sample [s] from the grid's time (sample 0 = the parent tip)."""
-    n_sub = tree.samples.shape[1] - 1
-    start = np.maximum(tree.depth - 1, 0)[:, None] * tree.period
-    return start + tree.period * np.arange(n_sub + 1)[None, :] / n_sub
+    return tree.along_paths(((dist < _radius(tree, margin, here, tol) - 1e-9) & inside_band).any(axis=1), np.logical_or)
 
 
 def moving_margin_mask(tree: ReachSetTree, pose: GridPose, peer_pos: np.ndarray, peer_vel: np.ndarray,
@@ -74,9 +57,9 @@ def moving_margin_mask(tree: ReachSetTree, pose: GridPose, peer_pos: np.ndarray,
     at the grid's time, ``peer_vel`` GCF [m/s]. Radius as for the ball (:func:`_radius`)."""
     p0 = pose.to_lcf(np.asarray(peer_pos, float))
     v = pose.vec_to_lcf(np.asarray(peer_vel, float))
-    peer = p0 + sample_times(tree)[..., None] * v
+    peer = p0 + tree.sample_times()[..., None] * v
     dist = np.linalg.norm(tree.samples - peer, axis=-1)
-    return propagate(tree, (dist < _radius(tree, margin, float(np.linalg.norm(p0)), tol) - 1e-9).any(axis=1))
+    return tree.along_paths((dist < _radius(tree, margin, float(np.linalg.norm(p0)), tol) - 1e-9).any(axis=1), np.logical_or)
 
 
 def _radius(tree: ReachSetTree, margin: float, here: float, tol: float) -> np.ndarray:
@@ -92,12 +75,7 @@ def path_clearance(tree: ReachSetTree, pose: GridPose, points: np.ndarray) -> np
     (K, 3) GCF."""
     p = pose.to_lcf(np.asarray(points, float).reshape(-1, 3))
     own = np.linalg.norm(tree.samples[:, :, None, :] - p[None, None], axis=-1).min(axis=(1, 2))
-    out = own.copy()
-    lp = tree.level_ptr
-    for k in range(1, len(lp) - 1):
-        idx = np.arange(lp[k], lp[k + 1])
-        out[idx] = np.minimum(out[idx], out[tree.parent[idx]])
-    return out
+    return tree.along_paths(own, np.minimum)
 
 
 def widest_per_cell(tree: ReachSetTree, feasible: np.ndarray, clearance: np.ndarray) -> np.ndarray:
