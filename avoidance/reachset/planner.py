@@ -62,11 +62,16 @@ class ReachSetAvoider:
                 psi = planned
         return KinState(pos, np.array([0.0, 0.0, psi]), t, self.speed)
 
+    def frame_due(self, t: float) -> bool:
+        """Whether a call at ``t`` [s] makes a new decision frame: one per movement period (at the
+        frame's grid time t_{i+1}, when the executing movement is over) or a waypoint just passed."""
+        return self._last is None or self.last_decision is None or t >= self.last_decision.t_grid - 1e-6 \
+            or self.mission.next_index > self._last_goal
+
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         """One decision frame per movement period; called more often, the last plan is returned
-        until the frame's grid time t_{i+1} (the executing movement is then over)."""
-        if self._last is not None and self.last_decision is not None and t < self.last_decision.t_grid - 1e-6 \
-                and not self.mission.next_index > self._last_goal:
+        until the frame is due (:meth:`frame_due`)."""
+        if not self.frame_due(t):
             return self._last
         ctl = self.control
         ctl.goal = max(ctl.goal, self.mission.next_index)  # progress marked by the plan follower

@@ -70,12 +70,6 @@ class RulesAvoider(ReachSetAvoider):
         peers = [from_track(tr, self.rules.registration(tr.id, self.speed)) for tr in threats.intruders if tr.cooperative]
         return [own] + peers
 
-    def frame_due(self, t: float) -> bool:
-        """Whether a call at ``t`` makes a new decision frame in :class:`ReachSetAvoider` (one per
-        movement period, or a waypoint just passed); else its last plan stands."""
-        return self._last is None or self.last_decision is None or t >= self.last_decision.t_grid - 1e-6 \
-            or self.mission.next_index > self._last_goal
-
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         if not self.frame_due(t):
             return self._last
