@@ -52,13 +52,13 @@ def _seg_dist(p1, q1, p2, q2) -> float:
     """Scalar Ericson segment-segment distance (§5.1.9)."""
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
     a, e, f = float(d1 @ d1), float(d2 @ d2), float(d2 @ r)
-    if a <= 1e-12 and e <= 1e-12:
+    if a == 0.0 and e == 0.0:
         s = t = 0.0
-    elif a <= 1e-12:
+    elif a == 0.0:
         s, t = 0.0, min(max(f / e, 0.0), 1.0)
     else:
         c = float(d1 @ r)
-        if e <= 1e-12:
+        if e == 0.0:
             s, t = min(max(-c / a, 0.0), 1.0), 0.0
         else:
             b = float(d1 @ d2)

@@ -38,6 +38,15 @@ def test_segment_distance_matches_scalar_and_dense_sampling(p1, q1, p2, q2, dege
     assert d >= dense - 0.01 * (np.linalg.norm(q1 - p1) + np.linalg.norm(q2 - p2)) - 1e-9
 
 
+def test_short_segment_touching_the_other_has_zero_distance():
+    """A 1e-8 m segment whose far end lies on the other segment is at distance 0 (a segment is
+    taken as a point only when its length is exactly zero)."""
+    p2, q2 = np.array([0.0, -1.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    p1, q1 = np.array([-1e-8, 0.0, 0.0]), np.array([0.0, 0.0, 0.0])
+    assert float(segseg_distance(p1, q1, p2, q2)) == pytest.approx(0.0, abs=1e-15)
+    assert float(segseg_distance(p2, q2, p1, q1)) == pytest.approx(0.0, abs=1e-15)
+
+
 @pytest.mark.parametrize("mode", ["swept", "timed"])
 def test_vectorised_check_equals_loop_reference(mode):
     """Random paths × random static/moving threats: the batched check and the per-path /

@@ -27,11 +27,12 @@ def segseg_distance(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndarr
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
     a, e, b = _dot(d1, d1), _dot(d2, d2), _dot(d1, d2)
     c, f = _dot(d1, r), _dot(d2, r)
-    tiny = 1e-12
-    a_ok, e_ok = a > tiny, e > tiny
+    # A segment is a point only when its length is exactly zero: treating a short segment as a
+    # point errs by up to its length. Parallel segments (sin² of their angle ≤ 1e-12) take s = 0.
+    a_ok, e_ok = a > 0.0, e > 0.0
     a_s, e_s = np.where(a_ok, a, 1.0), np.where(e_ok, e, 1.0)
     denom = a * e - b * b
-    general = np.where(denom > tiny * a_s * e_s, (b * f - c * e) / np.where(denom > 0, denom, 1.0), 0.0)
+    general = np.where(denom > 1e-12 * a_s * e_s, (b * f - c * e) / np.where(denom > 0, denom, 1.0), 0.0)
     s = np.clip(general, 0.0, 1.0)
     t = (b * s + f) / e_s
     s = np.where(t < 0.0, np.clip(-c / a_s, 0.0, 1.0), np.where(t > 1.0, np.clip((b - c) / a_s, 0.0, 1.0), s))
