@@ -28,7 +28,18 @@ from guidance.mission import Mission
 _PLANNERS: dict[str, tuple[tuple[str, ...], str | tuple[str, ...]]] = {
     "follow_mission": (("fixed_wing", "multirotor"), ()),
     "geometric": (("multirotor",), "avoidance.geometric.config:GeometricConfig"),
-    "reachset": (("fixed_wing", "multirotor"), ("period", "constraint_margin", "constraint_mode", "intruder_margin", "separations", "rules", *(f"rules_{f}" for f in RULES_FIELDS))),
+    "reachset": (
+        ("fixed_wing", "multirotor"),
+        (
+            "period",
+            "constraint_margin",
+            "constraint_mode",
+            "intruder_margin",
+            "separations",
+            "rules",
+            *(f"rules_{f}" for f in RULES_FIELDS),
+        ),
+    ),
     "mptp": (("fixed_wing",), "guidance.mptp.config:MptpConfig"),
     "pursuit": (("multirotor",), ("target",)),
 }
@@ -53,8 +64,10 @@ def check_planner(kind: str, airframe_kind: str, options: dict) -> None:
     names = {f.name for f in dataclasses.fields(_class(conf))} if isinstance(conf, str) else set(conf)
     unknown = sorted(set(options) - names)
     if unknown:
-        raise PlannerConfigError(f"{kind} planner: unknown option(s) {', '.join(unknown)}"
-                                 + (f" (known: {', '.join(sorted(names))})" if names else " (it takes none)"))
+        raise PlannerConfigError(
+            f"{kind} planner: unknown option(s) {', '.join(unknown)}"
+            + (f" (known: {', '.join(sorted(names))})" if names else " (it takes none)")
+        )
     if isinstance(conf, str):  # values too (the config dataclass validates them)
         _config(kind, options)
     if kind == "reachset":
@@ -85,7 +98,9 @@ def _reachset_config(options: dict):
     if "constraint_margin" in options:
         margin = options["constraint_margin"]
         if isinstance(margin, bool) or not isinstance(margin, (int, float)) or margin < 0:
-            raise PlannerConfigError(f"reachset planner: constraint_margin must be a number of metres >= 0 (got {margin!r})")
+            raise PlannerConfigError(
+                f"reachset planner: constraint_margin must be a number of metres >= 0 (got {margin!r})"
+            )
         cfg = dataclasses.replace(cfg, constraints=ConstraintConfig(safety_margin=float(margin)))
     if "constraint_mode" in options:
         mode = options["constraint_mode"]
@@ -95,12 +110,16 @@ def _reachset_config(options: dict):
     if "intruder_margin" in options:
         margin = options["intruder_margin"]
         if isinstance(margin, bool) or not isinstance(margin, (int, float)) or margin < 0:
-            raise PlannerConfigError(f"reachset planner: intruder_margin must be a number of metres >= 0 (got {margin!r})")
+            raise PlannerConfigError(
+                f"reachset planner: intruder_margin must be a number of metres >= 0 (got {margin!r})"
+            )
         cfg = dataclasses.replace(cfg, intruders=dataclasses.replace(cfg.intruders, body_margin=float(margin)))
     if "separations" in options:
         seps = options["separations"]
         if not isinstance(seps, list) or not seps or any(s not in SEPARATIONS for s in seps):
-            raise PlannerConfigError(f"reachset planner: separations must be a non-empty list of {', '.join(SEPARATIONS)} (got {seps!r})")
+            raise PlannerConfigError(
+                f"reachset planner: separations must be a non-empty list of {', '.join(SEPARATIONS)} (got {seps!r})"
+            )
         acas = ReachSetConfig.single(ExpansionConfig.acas(tuple(seps)))
         cfg = dataclasses.replace(cfg, navigation=acas, avoidance=acas)
     return cfg
@@ -110,8 +129,11 @@ def _reachset_automaton(airframe_kind: str, cruise: float, options: dict, bank_l
     from avoidance.reachset.movement import haps_automaton, multirotor_automaton
 
     period = float(options.get("period", 1.0))
-    return (multirotor_automaton(cruise, period) if airframe_kind == "multirotor"
-            else haps_automaton(cruise, period, bank_limit_rad))
+    return (
+        multirotor_automaton(cruise, period)
+        if airframe_kind == "multirotor"
+        else haps_automaton(cruise, period, bank_limit_rad)
+    )
 
 
 def reachset_grid_range(airframe_kind: str, cruise: float, options: dict) -> float:
@@ -133,8 +155,13 @@ def _rules_config(options: dict):
         raise PlannerConfigError(f"reachset planner: {exc}") from None
 
 
-def make_planner(kind: str, mission: Mission, airframe_kind: str = "multirotor", options: dict | None = None,
-                 bank_limit_rad: float = np.radians(20.0)) -> Planner:
+def make_planner(
+    kind: str,
+    mission: Mission,
+    airframe_kind: str = "multirotor",
+    options: dict | None = None,
+    bank_limit_rad: float = np.radians(20.0),
+) -> Planner:
     """The planner called ``kind`` for ``mission`` flown by an ``airframe_kind`` vehicle."""
     options = dict(options or {})
     check_planner(kind, airframe_kind, options)
@@ -148,8 +175,9 @@ def make_planner(kind: str, mission: Mission, airframe_kind: str = "multirotor",
         from avoidance.geometric.planner import GeometricAvoider
 
         start = mission.start if mission.start is not None else mission.waypoints[0]
-        return GeometricAvoider(np.vstack([start, mission.waypoints]), mission.cruise_speed,
-                                _config(kind, options), first_label=-1)
+        return GeometricAvoider(
+            np.vstack([start, mission.waypoints]), mission.cruise_speed, _config(kind, options), first_label=-1
+        )
     if kind == "reachset":
         from avoidance.reachset.planner import ReachSetAvoider
 

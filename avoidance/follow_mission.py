@@ -24,8 +24,15 @@ class FollowMissionPlanner:
         m = self.mission
         if m.waypoints_done:
             pos = m.waypoints[-1:]
-            return Plan(t, pos.copy(), np.array([t]), np.array([len(m.waypoints) - 1]),
-                        PlanStatus.OK, planner=self.name, diagnostics={"complete": 1})
+            return Plan(
+                t,
+                pos.copy(),
+                np.array([t]),
+                np.array([len(m.waypoints) - 1]),
+                PlanStatus.OK,
+                planner=self.name,
+                diagnostics={"complete": 1},
+            )
         k = m.next_index
         pts = np.vstack([m.leg_start(), m.waypoints[k:]])
         labels = np.concatenate([[k - 1 if k > 0 else -1], np.arange(k, len(m.waypoints))])

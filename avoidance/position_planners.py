@@ -20,8 +20,7 @@ class HoldPositionPlanner:
         self.position = np.asarray(position, float).copy()
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
-        return Plan(t, self.position[None, :].copy(), np.array([t]), np.array([-1]), PlanStatus.OK,
-                    planner=self.name)
+        return Plan(t, self.position[None, :].copy(), np.array([t]), np.array([-1]), PlanStatus.OK, planner=self.name)
 
 
 class GotoPlanner:

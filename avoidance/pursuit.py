@@ -28,5 +28,12 @@ class PursuitPlanner:
             return self._fallback.plan(estimate, threats, t)
         aim = track.pos_ned + track.vel_ned * (t - track.t)  # where the target is now
         dist = float(np.linalg.norm(aim - estimate.pos_ned))
-        return Plan(t, np.vstack([estimate.pos_ned, aim]), np.array([t, t + max(dist / self.mission.cruise_speed, 1e-3)]),
-                    np.array([-1, -1]), PlanStatus.OK, planner=self.name, diagnostics={"target": self.target})
+        return Plan(
+            t,
+            np.vstack([estimate.pos_ned, aim]),
+            np.array([t, t + max(dist / self.mission.cruise_speed, 1e-3)]),
+            np.array([-1, -1]),
+            PlanStatus.OK,
+            planner=self.name,
+            diagnostics={"target": self.target},
+        )

@@ -31,8 +31,14 @@ BATCH = ROOT / "scenarios" / "batch" / "haps_monte_carlo.toml"
 
 def measure(runs, workers: int) -> tuple[float, list[dict]]:
     with tempfile.TemporaryDirectory() as tmp:
-        specs = [dataclasses.replace(s, log_path=str(Path(tmp) / "runs" / f"{s.run_id}.mcap"),
-                                     result_path=str(Path(tmp) / "runs" / f"{s.run_id}.json")) for s in runs]
+        specs = [
+            dataclasses.replace(
+                s,
+                log_path=str(Path(tmp) / "runs" / f"{s.run_id}.mcap"),
+                result_path=str(Path(tmp) / "runs" / f"{s.run_id}.json"),
+            )
+            for s in runs
+        ]
         t0 = time.perf_counter()
         rows = run_batch(specs, tmp, workers=workers, resume=False)
         return time.perf_counter() - t0, rows
@@ -45,19 +51,30 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     _name, runs = load_batch(BATCH)
     runs = [dataclasses.replace(r, duration=args.duration) for r in runs[: args.runs]]
-    result = {"batch": str(BATCH.relative_to(ROOT)), "runs": len(runs), "sim_seconds_per_run": args.duration,
-              "cpu_count": os.cpu_count(), "machine": platform.processor() or platform.machine(),
-              "python": platform.python_version()}
+    result = {
+        "batch": str(BATCH.relative_to(ROOT)),
+        "runs": len(runs),
+        "sim_seconds_per_run": args.duration,
+        "cpu_count": os.cpu_count(),
+        "machine": platform.processor() or platform.machine(),
+        "python": platform.python_version(),
+    }
     rows_by = {}
     for workers in (1, 2):
         wall, rows = measure(runs, workers)
         failed = sum(r.get("status") == "failed" for r in rows)
-        result[f"workers_{workers}"] = {"wall_s": round(wall, 2), "runs_per_min": round(60 * len(runs) / wall, 2),
-                                        "failed": failed}
+        result[f"workers_{workers}"] = {
+            "wall_s": round(wall, 2),
+            "runs_per_min": round(60 * len(runs) / wall, 2),
+            "failed": failed,
+        }
         rows_by[workers] = rows
         print(f"workers={workers}: {wall:.1f} s, {60 * len(runs) / wall:.1f} runs/min, {failed} failed")
     result["speedup_2_vs_1"] = round(result["workers_1"]["wall_s"] / result["workers_2"]["wall_s"], 3)
-    strip = lambda r: {k: v for k, v in r.items() if "wall" not in k and "latency" not in k and "runtime" not in k}
+
+    def strip(r):
+        return {k: v for k, v in r.items() if "wall" not in k and "latency" not in k and "runtime" not in k}
+
     result["identical_metrics"] = [strip(r) for r in rows_by[1]] == [strip(r) for r in rows_by[2]]
     print(f"speed-up 2 vs 1 worker: {result['speedup_2_vs_1']:.2f}; identical metrics: {result['identical_metrics']}")
     out = ROOT / "benchmarks" / "results" / "batch.json"

@@ -65,8 +65,15 @@ def closed_loop_rtf(scenario_name: str, sim_seconds: float, estimator: str) -> f
 def measure(case: str, repeat: int) -> dict:
     scenario, sim_s, model, airframe, rate, target = CASES[case]
     bare = max(bare_steps_per_s(model, airframe, rate, int(sim_s * rate)) for _ in range(repeat))
-    out = {"case": case, "scenario": scenario, "bare_model": model, "bare_steps_per_s": round(bare),
-           "bare_real_time_factor": round(bare / rate, 1), "target_real_time_factor": target, "sim_seconds": sim_s}
+    out = {
+        "case": case,
+        "scenario": scenario,
+        "bare_model": model,
+        "bare_steps_per_s": round(bare),
+        "bare_real_time_factor": round(bare / rate, 1),
+        "target_real_time_factor": target,
+        "sim_seconds": sim_s,
+    }
     for estimator in ("perfect", "ekf"):
         rtf = max(closed_loop_rtf(scenario, sim_s, estimator) for _ in range(repeat))
         out[f"{estimator}_real_time_factor"] = round(rtf, 1)

@@ -45,9 +45,18 @@ _CALLS = {ImuSample: "predict", GnssFix: "fuse_gnss", BaroSample: "fuse_baro", M
 
 
 def record(seconds: float):
-    fl = generate([Segment(seconds / 4, 0.0), Segment(seconds / 4, 5.0), Segment(seconds / 4, 5.0, 0.3),
-                   Segment(seconds / 4, 5.0, 0.0, 2.0)], "multirotor", 100.0, GeoPoint(47.0, 8.0, 400.0),
-                  (0.0, 0.0, -50.0))
+    fl = generate(
+        [
+            Segment(seconds / 4, 0.0),
+            Segment(seconds / 4, 5.0),
+            Segment(seconds / 4, 5.0, 0.3),
+            Segment(seconds / 4, 5.0, 0.0, 2.0),
+        ],
+        "multirotor",
+        100.0,
+        GeoPoint(47.0, 8.0, 400.0),
+        (0.0, 0.0, -50.0),
+    )
     suite = SensorSuite(SensorSuiteConfig(), np.random.default_rng(0))
     ticks = [(fl.t[k], suite.poll(fl.sample(k))) for k in range(len(fl))]
     return fl, suite.cfg, ticks
@@ -98,15 +107,18 @@ def closed_loop(kind: str, seconds: float, with_estimator: bool) -> dict:
     if fw:
         plant.trim()
     cfg = SensorEstimatorConfig.for_kind(af.kind)
-    est = SensorEstimator(plant, cfg, np.random.default_rng(1), origin, plant.truth()) if with_estimator \
+    est = (
+        SensorEstimator(plant, cfg, np.random.default_rng(1), origin, plant.truth())
+        if with_estimator
         else PerfectEstimator(plant)
+    )
     dt = 1.0 / af.control_hz
     s0 = est.update(0.0)
     if fw:
         ctrl = HapsAutopilot(HapsGains.load())
         l1 = L1Guidance.for_airframe(ctrl)
         ctrl.reset(s0, throttle=plant["fcs/throttle-cmd-norm[0]"])
-        a, b = s0.pos_ned.copy(), s0.pos_ned + [100_000.0, 0.0, 0.0]
+        a, b = s0.pos_ned.copy(), [*s0.pos_ned, 100000.0, 0.0, 0.0]
 
         def control(t):
             e = est.update(t)
@@ -114,7 +126,7 @@ def closed_loop(kind: str, seconds: float, with_estimator: bool) -> dict:
     else:
         ctrl = MultirotorController()
         ctrl.reset(s0, landed=False)
-        sp = MultirotorSetpoint(pos_ned=s0.pos_ned + [10.0, 5.0, -5.0], yaw_rad=0.5)
+        sp = MultirotorSetpoint(pos_ned=[*s0.pos_ned, 10.0, 5.0, -5.0], yaw_rad=0.5)
 
         def control(t):
             plant.set_many(ctrl.update(est.update(t), sp, dt))
@@ -122,13 +134,16 @@ def closed_loop(kind: str, seconds: float, with_estimator: bool) -> dict:
     parts = {"sense_total": 0.0, "aiding": 0.0, "fusion": 0.0, "estimate_output": 0.0}
     clock = time.perf_counter
     if with_estimator:
+
         def timed(key, fn):
             def w(*a):
                 t0 = clock()
                 r = fn(*a)
                 parts[key] += clock() - t0
                 return r
+
             return w
+
         est._poll_aiding = timed("aiding", est._poll_aiding)
         est._fuse = timed("fusion", est._fuse)
         sense = timed("sense_total", est.sense)
@@ -148,8 +163,7 @@ def closed_loop(kind: str, seconds: float, with_estimator: bool) -> dict:
         ms["imu_sampling"] = ms["sense_total"] - ms["aiding"] - ms["fusion"]
         out["estimator_ms_per_sim_s"] = {k: round(v, 3) for k, v in ms.items()}
         out["estimator_ms_per_sim_s"]["total"] = round(ms["sense_total"] + ms["estimate_output"], 3)
-        out["rates_hz"] = {"imu": cfg.sense_hz, "fusion": cfg.fusion_hz, "control": af.control_hz,
-                           "plant": af.plant_hz}
+        out["rates_hz"] = {"imu": cfg.sense_hz, "fusion": cfg.fusion_hz, "control": af.control_hz, "plant": af.plant_hz}
     return out
 
 
@@ -162,20 +176,28 @@ def main() -> None:
     res = {"analytic": measure(fl, scfg, ticks, "analytic"), "numeric": measure(fl, scfg, ticks, "numeric")}
     base_ms = res["analytic"]["tick_us"] * scfg.imu.rate_hz / 1e3
     for kind in ("haps", "quadrotor"):  # best of 3 (the machine may be shared)
-        truth = max((closed_loop(kind, args.loop_seconds, False) for _ in range(3)),
-                    key=lambda r: r["real_time_factor"])
-        comp = max((closed_loop(kind, args.loop_seconds, True) for _ in range(3)),
-                   key=lambda r: r["real_time_factor"])
+        truth = max(
+            (closed_loop(kind, args.loop_seconds, False) for _ in range(3)), key=lambda r: r["real_time_factor"]
+        )
+        comp = max((closed_loop(kind, args.loop_seconds, True) for _ in range(3)), key=lambda r: r["real_time_factor"])
         comp_ms = comp["estimator_ms_per_sim_s"]["total"]
         res[f"closed_loop_{kind}"] = {
-            "on_truth": truth, "on_sensor_estimator": comp,
+            "on_truth": truth,
+            "on_sensor_estimator": comp,
             "baseline_per_sample_filterpy_ms_per_sim_s": round(base_ms, 3),
-            "baseline_over_component": round(base_ms / comp_ms, 1)}
+            "baseline_over_component": round(base_ms / comp_ms, 1),
+        }
         print(kind, json.dumps(res[f"closed_loop_{kind}"]))
-    res["numeric_over_analytic"] = {k: res["numeric"][k] / res["analytic"][k] for k in res["analytic"]
-                                    if k.endswith("_us")}
-    res["meta"] = {"sim_seconds": args.seconds, "imu_hz": scfg.imu.rate_hz, "states": 19,
-                   "python": platform.python_version(), "machine": platform.processor() or platform.machine()}
+    res["numeric_over_analytic"] = {
+        k: res["numeric"][k] / res["analytic"][k] for k in res["analytic"] if k.endswith("_us")
+    }
+    res["meta"] = {
+        "sim_seconds": args.seconds,
+        "imu_hz": scfg.imu.rate_hz,
+        "states": 19,
+        "python": platform.python_version(),
+        "machine": platform.processor() or platform.machine(),
+    }
     out = ROOT / "benchmarks" / "results"
     out.mkdir(parents=True, exist_ok=True)
     (out / "ekf.json").write_text(json.dumps(res, indent=2))

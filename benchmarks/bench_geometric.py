@@ -29,8 +29,8 @@ from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import numpy as np  # noqa: E402
-from scipy.spatial import KDTree  # noqa: E402
+import numpy as np
+from scipy.spatial import KDTree
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -109,7 +109,7 @@ def baseline_plan(enc: Encounter, cfg: GeometricConfig, veh: VehicleParams) -> t
     if dx < cfg.min_sep_factor * main.radius:
         return None, {}
     frame = uav_frame(x_hat)
-    paths = []                                   # (kind, theta, alpha, shape x, shape y, pts, vel, tau)
+    paths = []  # (kind, theta, alpha, shape x, shape y, pts, vel, tau)
     for kind in (PATH_TYPES.index(t) for t in cfg.path_types):
         for theta in plane_angles(cfg.n_planes):
             alpha = float(plane_elevation(frame, np.array([theta]))[0])
@@ -136,7 +136,9 @@ def baseline_plan(enc: Encounter, cfg: GeometricConfig, veh: VehicleParams) -> t
         durations[enc.main_index] = main.t_cpa + cfg.main_threat_extension_s
     moving = [j for j, th in enumerate(enc.threats) if not th.is_static]
     dist0 = {j: _seg_dist(enc.start, enc.start, enc.threats[j].p, enc.threats[j].at(durations[j])) for j in moving}
-    cmo_ids = sorted((j for j in moving if dist0[j] <= cfg.cmo_max_range_m), key=lambda j: dist0[j])[: cfg.cmo_max_objects]
+    cmo_ids = sorted((j for j in moving if dist0[j] <= cfg.cmo_max_range_m), key=lambda j: dist0[j])[
+        : cfg.cmo_max_objects
+    ]
     trees = {}
     for j in cmo_ids:
         th = enc.threats[j]
@@ -146,8 +148,17 @@ def baseline_plan(enc: Encounter, cfg: GeometricConfig, veh: VehicleParams) -> t
     (_, lim_rp, lim_m), caps, (k_s, k_t, k_c) = cfg.log_limits, cfg.caps, cfg.weights
     costs, t_norm = {}, {}
     for k, (kind, theta, alpha, xs, ys, pts, vel, tau) in enumerate(paths):
-        if baseline_collides(pts, vel, tau, enc.threats, durations, cfg.dynamic_mode, cfg.r_uav,
-                             x_hat * enc.speed, t_max + cfg.rejoin_check_s):
+        if baseline_collides(
+            pts,
+            vel,
+            tau,
+            enc.threats,
+            durations,
+            cfg.dynamic_mode,
+            cfg.r_uav,
+            x_hat * enc.speed,
+            t_max + cfg.rejoin_check_s,
+        ):
             continue
         x1, y1 = np.gradient(xs), np.gradient(ys)
         x2, y2 = np.gradient(x1), np.gradient(y1)
@@ -216,24 +227,44 @@ def main() -> None:
         cfg = GeometricConfig(l=4, n_planes=3, path_types=("symmetric",), dynamic_mode=mode, start_shift_s=0.0)
         for n in (1, 2, 3):
             encs = environments(n, args.envs)
-            for enc in encs[:3]:                               # warm-up and agreement check
+            for enc in encs[:3]:  # warm-up and agreement check
                 res, (b_chosen, _) = enc.plan(cfg, veh), baseline_plan(enc, cfg, veh)
                 assert res.chosen == b_chosen, (res.chosen, b_chosen)
             vec = median_time(lambda e: e.plan(cfg, veh), encs, args.repeat)
             base = median_time(lambda e: baseline_plan(e, cfg, veh), encs[: args.baseline_envs], 1)
             ok = sum(e.plan(cfg, veh).status is Status.AVOID for e in encs)
-            rows.append({"mode": mode, "threats": n, "paths": 16, "envs": len(encs), "with_solution": ok,
-                         "median_s": vec, "baseline_median_s": base, "thesis_mean_s": THESIS_MEAN_S[n],
-                         "speedup_vs_thesis": THESIS_MEAN_S[n] / vec, "speedup_vs_baseline": base / vec})
-    print(f"{'mode':6} {'N':>2} {'median ms':>10} {'baseline ms':>12} {'thesis ms':>10} {'x thesis':>9} {'x baseline':>11}")
+            rows.append(
+                {
+                    "mode": mode,
+                    "threats": n,
+                    "paths": 16,
+                    "envs": len(encs),
+                    "with_solution": ok,
+                    "median_s": vec,
+                    "baseline_median_s": base,
+                    "thesis_mean_s": THESIS_MEAN_S[n],
+                    "speedup_vs_thesis": THESIS_MEAN_S[n] / vec,
+                    "speedup_vs_baseline": base / vec,
+                }
+            )
+    print(
+        f"{'mode':6} {'N':>2} {'median ms':>10} {'baseline ms':>12} {'thesis ms':>10} {'x thesis':>9} {'x baseline':>11}"
+    )
     for r in rows:
-        print(f"{r['mode']:6} {r['threats']:>2} {1e3 * r['median_s']:10.3f} {1e3 * r['baseline_median_s']:12.2f} "
-              f"{1e3 * r['thesis_mean_s']:10.1f} {r['speedup_vs_thesis']:9.1f} {r['speedup_vs_baseline']:11.1f}")
+        print(
+            f"{r['mode']:6} {r['threats']:>2} {1e3 * r['median_s']:10.3f} {1e3 * r['baseline_median_s']:12.2f} "
+            f"{1e3 * r['thesis_mean_s']:10.1f} {r['speedup_vs_thesis']:9.1f} {r['speedup_vs_baseline']:11.1f}"
+        )
     out = ROOT / "benchmarks" / "results"
     out.mkdir(parents=True, exist_ok=True)
-    info = {"cpu": _cpu_model(), "python": sys.version.split()[0],
-            "numpy": np.__version__, "cpus": os.cpu_count(), "load_avg_1m": os.getloadavg()[0],
-            "blas": (np.show_config(mode="dicts") or {}).get("Build Dependencies", {}).get("blas", {}).get("name", "?")}
+    info = {
+        "cpu": _cpu_model(),
+        "python": sys.version.split()[0],
+        "numpy": np.__version__,
+        "cpus": os.cpu_count(),
+        "load_avg_1m": os.getloadavg()[0],
+        "blas": (np.show_config(mode="dicts") or {}).get("Build Dependencies", {}).get("blas", {}).get("name", "?"),
+    }
     (out / "bench_geometric.json").write_text(json.dumps({"machine": info, "rows": rows}, indent=2))
     print(f"machine: {info}; written {out / 'bench_geometric.json'}")
 

@@ -38,7 +38,6 @@ from guidance.mptp.openloop import run_open_loop  # noqa: E402
 from guidance.mptp.search import plan_trajectory  # noqa: E402
 from guidance.mptp.timeline import ObstacleTimeline  # noqa: E402
 
-
 HEURISTICS_CAP = 2000  # expansions for the heuristics comparison (the planner's default is 120)
 
 
@@ -47,10 +46,18 @@ def per_cycle(make) -> dict:
     run = run_open_loop(sc)
     w = np.array([p.diagnostics.get("weather_s", 0.0) for p in run.plans])
     s = np.array([p.diagnostics.get("runtime_s", 0.0) for p in run.plans])
-    return {"scenario": sc.name, "cycles": len(run.plans), "weather_mean_s": w.mean(), "search_mean_s": s.mean(),
-            "total_mean_s": (w + s).mean(), "total_max_s": (w + s).max(), "flown_km": run.length_m / 1000,
-            "arrival_min": run.arrived_s / 60, "partial": sum(p.status.value != "ok" for p in run.plans),
-            "tl_km": [p.diagnostics.get("path_length_m", float("nan")) / 1000 for p in run.plans]}
+    return {
+        "scenario": sc.name,
+        "cycles": len(run.plans),
+        "weather_mean_s": w.mean(),
+        "search_mean_s": s.mean(),
+        "total_mean_s": (w + s).mean(),
+        "total_max_s": (w + s).max(),
+        "flown_km": run.length_m / 1000,
+        "arrival_min": run.arrived_s / 60,
+        "partial": sum(p.status.value != "ok" for p in run.plans),
+        "tl_km": [p.diagnostics.get("path_length_m", float("nan")) / 1000 for p in run.plans],
+    }
 
 
 def closed_loop(make, scale: str) -> dict:
@@ -75,14 +82,25 @@ def closed_loop(make, scale: str) -> dict:
         haps = log_metrics(log)["vehicles"]["haps"]
         pos = log.topic("/haps/truth/state")["pos_ned"]
         plans = log.topic("/haps/plan").messages
-        runtime = [m["diagnostics"].get("runtime_s", 0.0) + m["diagnostics"].get("weather_s", 0.0) for m in plans
-                   if "runtime_s" in m["diagnostics"]]
-        return {"scenario": sc.name, "space_scale": s, "time_scale": time_scale(sc, s), "status": result.status,
-                "arrival_min": haps["mission"]["time_s"] / 60 if haps["mission"]["time_s"] else float("nan"),
-                "flown_km": float(np.sum(np.linalg.norm(np.diff(pos[:, :2], axis=0), axis=1))) / 1000,
-                "storm_min_m": haps["storms"]["min_distance_m"], "inside_s": haps["storms"]["time_inside_s"],
-                "degraded": sorted({m["status"] for m in plans} - {"ok"}), "replans": len(set(m["t"] for m in plans)),
-                "replan_max_s": max(runtime), "wall_s": result.wall_time_s}
+        runtime = [
+            m["diagnostics"].get("runtime_s", 0.0) + m["diagnostics"].get("weather_s", 0.0)
+            for m in plans
+            if "runtime_s" in m["diagnostics"]
+        ]
+        return {
+            "scenario": sc.name,
+            "space_scale": s,
+            "time_scale": time_scale(sc, s),
+            "status": result.status,
+            "arrival_min": haps["mission"]["time_s"] / 60 if haps["mission"]["time_s"] else float("nan"),
+            "flown_km": float(np.sum(np.linalg.norm(np.diff(pos[:, :2], axis=0), axis=1))) / 1000,
+            "storm_min_m": haps["storms"]["min_distance_m"],
+            "inside_s": haps["storms"]["time_inside_s"],
+            "degraded": sorted({m["status"] for m in plans} - {"ok"}),
+            "replans": len({m["t"] for m in plans}),
+            "replan_max_s": max(runtime),
+            "wall_s": result.wall_time_s,
+        }
 
 
 def densified(snaps: list[StormSnapshot], k: int) -> list[StormSnapshot]:
@@ -121,8 +139,18 @@ def growth(multipliers, repeat: int) -> list[dict]:
             nv = sum(len(c.exterior.coords) - 1 for c in snaps[0].cells)
             w, s, exst = one_replan(sc, snaps, cfg, repeat)
             ref = ref or (w + s)
-            rows.append({"smoothing": smooth, "multiplier": k, "storm_vertices": nv, "weather_s": w, "search_s": s,
-                         "total_s": w + s, "ratio": (w + s) / ref, "exst": exst})
+            rows.append(
+                {
+                    "smoothing": smooth,
+                    "multiplier": k,
+                    "storm_vertices": nv,
+                    "weather_s": w,
+                    "search_s": s,
+                    "total_s": w + s,
+                    "ratio": (w + s) / ref,
+                    "exst": exst,
+                }
+            )
     return rows
 
 
@@ -135,10 +163,18 @@ def heuristics() -> list[dict]:
                 cfg = sc.cfg.with_(max_expansions=HEURISTICS_CAP)
                 tl = ObstacleTimeline(sc.storms.nowcast(0.0), cfg, 2 * cfg.horizon_s)
                 tr = plan_trajectory(tl, sc.start, 0.0, sc.course, sc.goal, cfg)
-                rows.append({"scenario": sc.name, "turning": turning, "heuristic": h, "status": tr.status,
-                             "exst": tr.expanded, "trst": max(len(tr.positions) - 1, 0),
-                             "tl_km": tr.length_m / 1000 if tr.status == "ok" else float("nan"),
-                             "search_s": tr.runtime_s})
+                rows.append(
+                    {
+                        "scenario": sc.name,
+                        "turning": turning,
+                        "heuristic": h,
+                        "status": tr.status,
+                        "exst": tr.expanded,
+                        "trst": max(len(tr.positions) - 1, 0),
+                        "tl_km": tr.length_m / 1000 if tr.status == "ok" else float("nan"),
+                        "search_s": tr.runtime_s,
+                    }
+                )
     return rows
 
 
@@ -153,35 +189,50 @@ def main() -> None:
     if args.closed_loop:
         rows = [closed_loop(make, args.closed_loop) for make in thesis]
         (out / f"mptp_closed_loop_{args.closed_loop}.json").write_text(json.dumps(rows, indent=1, default=float))
-        print("| scenario | space x | time x | status | arrival [min] | flown [km] | closest storm [m] | inside [s] "
-              "| non-ok plans | replans | worst replan [s] | wall [s] |")
+        print(
+            "| scenario | space x | time x | status | arrival [min] | flown [km] | closest storm [m] | inside [s] "
+            "| non-ok plans | replans | worst replan [s] | wall [s] |"
+        )
         print("|---|---|---|---|---|---|---|---|---|---|---|---|")
         for r in rows:
-            print(f"| {r['scenario']} | {r['space_scale']:.3g} | {r['time_scale']:.3g} | {r['status']} | "
-                  f"{r['arrival_min']:.1f} | {r['flown_km']:.1f} | {r['storm_min_m']:.0f} | {r['inside_s']:.0f} | "
-                  f"{', '.join(r['degraded']) or '-'} | {r['replans']} | {r['replan_max_s']:.2f} | {r['wall_s']:.0f} |")
+            print(
+                f"| {r['scenario']} | {r['space_scale']:.3g} | {r['time_scale']:.3g} | {r['status']} | "
+                f"{r['arrival_min']:.1f} | {r['flown_km']:.1f} | {r['storm_min_m']:.0f} | {r['inside_s']:.0f} | "
+                f"{', '.join(r['degraded']) or '-'} | {r['replans']} | {r['replan_max_s']:.2f} | {r['wall_s']:.0f} |"
+            )
         return
     mult = (1, 3) if args.quick else (1, 2, 3, 4, 6)
-    res = {"cycles": [per_cycle(make) for make in thesis],
-           "growth": growth(mult, 1 if args.quick else 3), "heuristics": heuristics()}
+    res = {
+        "cycles": [per_cycle(make) for make in thesis],
+        "growth": growth(mult, 1 if args.quick else 3),
+        "heuristics": heuristics(),
+    }
     (out / "mptp.json").write_text(json.dumps(res, indent=1, default=float))
-    print("| scenario | cycles | partial | weather mean [s] | search mean [s] | total mean [s] | total max [s] "
-          "| flown [km] | arrival [min] |")
+    print(
+        "| scenario | cycles | partial | weather mean [s] | search mean [s] | total mean [s] | total max [s] "
+        "| flown [km] | arrival [min] |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     for r in res["cycles"]:
-        print(f"| {r['scenario']} | {r['cycles']} | {r['partial']} | {r['weather_mean_s']:.3f} | "
-              f"{r['search_mean_s']:.3f} | {r['total_mean_s']:.3f} | {r['total_max_s']:.3f} | {r['flown_km']:.1f} | "
-              f"{r['arrival_min']:.1f} |")
+        print(
+            f"| {r['scenario']} | {r['cycles']} | {r['partial']} | {r['weather_mean_s']:.3f} | "
+            f"{r['search_mean_s']:.3f} | {r['total_mean_s']:.3f} | {r['total_max_s']:.3f} | {r['flown_km']:.1f} | "
+            f"{r['arrival_min']:.1f} |"
+        )
     print("\n| smoothing | vertices x | storm vertices | weather [s] | search [s] | total [s] | ratio | EXST |")
     print("|---|---|---|---|---|---|---|---|")
     for r in res["growth"]:
-        print(f"| {'on' if r['smoothing'] else 'off'} | {r['multiplier']} | {r['storm_vertices']} | {r['weather_s']:.3f} | "
-              f"{r['search_s']:.3f} | {r['total_s']:.3f} | {r['ratio']:.2f} | {r['exst']} |")
+        print(
+            f"| {'on' if r['smoothing'] else 'off'} | {r['multiplier']} | {r['storm_vertices']} | {r['weather_s']:.3f} | "
+            f"{r['search_s']:.3f} | {r['total_s']:.3f} | {r['ratio']:.2f} | {r['exst']} |"
+        )
     print("\n| scenario | turning | heuristic | status | EXST | TRST | TRST/EXST [%] | TL [km] | search [s] |")
     print("|---|---|---|---|---|---|---|---|---|")
     for r in res["heuristics"]:
-        print(f"| {r['scenario']} | {r['turning']} | {r['heuristic']} | {r['status']} | {r['exst']} | {r['trst']} | "
-              f"{100 * r['trst'] / max(r['exst'], 1):.1f} | {r['tl_km']:.1f} | {r['search_s']:.2f} |")
+        print(
+            f"| {r['scenario']} | {r['turning']} | {r['heuristic']} | {r['status']} | {r['exst']} | {r['trst']} | "
+            f"{100 * r['trst'] / max(r['exst'], 1):.1f} | {r['tl_km']:.1f} | {r['search_s']:.2f} |"
+        )
 
 
 if __name__ == "__main__":

@@ -43,7 +43,9 @@ def intruders(n: int) -> list[IntruderTrack]:
 
 def dense_scan() -> LidarScan:
     """1° × 1° rays over ±50° × ±35°; seven wall patches between 3 and 9 m."""
-    az, el = np.meshgrid(np.radians(np.arange(-50.0, 50.5, 1.0)), np.radians(np.arange(-35.0, 35.5, 1.0)), indexing="ij")
+    az, el = np.meshgrid(
+        np.radians(np.arange(-50.0, 50.5, 1.0)), np.radians(np.arange(-35.0, 35.5, 1.0)), indexing="ij"
+    )
     dirs = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), -np.sin(el)], axis=-1).reshape(-1, 3)
     rng = np.full(len(dirs), 30.0)
     for north, east in [(3, -2.5), (4, 2), (5, 0), (6, -4), (7, 4.5), (8, 1), (9, -1)]:
@@ -66,8 +68,12 @@ def main() -> None:
     assessor = Assessor(grid, tree, cfg)
     pose = GridPose.from_ned(np.zeros(3), 0.0)
     goal = pose.ned_to_lcf(np.array([30.0, 0.0, 0.0]))
-    scenes = {"0_intruders": Threats(), "1_intruder": Threats(intruders=intruders(1)),
-              "5_intruders": Threats(intruders=intruders(5)), "dense_lidar": Threats(lidar=dense_scan())}
+    scenes = {
+        "0_intruders": Threats(),
+        "1_intruder": Threats(intruders=intruders(1)),
+        "5_intruders": Threats(intruders=intruders(5)),
+        "dense_lidar": Threats(lidar=dense_scan()),
+    }
     results = {}
     for name, threats in scenes.items():
         times, runs = [], 0
@@ -77,19 +83,33 @@ def main() -> None:
             made, sel = emergency_runs(grid, tree, parts, goal, cfg.fusion.threshold)
             times.append(time.perf_counter() - t0)
             runs = len(made)
-        results[name] = {"median_ms": 1e3 * float(np.median(times)), "p90_ms": 1e3 * float(np.percentile(times, 90)),
-                         "category_runs": runs, "path_found": sel >= 0}
+        results[name] = {
+            "median_ms": 1e3 * float(np.median(times)),
+            "p90_ms": 1e3 * float(np.percentile(times, 90)),
+            "category_runs": runs,
+            "path_found": sel >= 0,
+        }
     base = results["0_intruders"]["median_ms"]
     for r in results.values():
         r["ratio_to_0_intruders"] = r["median_ms"] / base
-    report = {"benchmark": "reachset_grid_run", "nodes": tree.n_nodes, "cells": grid.n_cells, "repeat": args.repeat,
-              "target_ms_5_intruders": 50.0, "meets_target": results["5_intruders"]["median_ms"] <= 50.0,
-              "python": platform.python_version(), "machine": platform.machine(), "results": results}
+    report = {
+        "benchmark": "reachset_grid_run",
+        "nodes": tree.n_nodes,
+        "cells": grid.n_cells,
+        "repeat": args.repeat,
+        "target_ms_5_intruders": 50.0,
+        "meets_target": results["5_intruders"]["median_ms"] <= 50.0,
+        "python": platform.python_version(),
+        "machine": platform.machine(),
+        "results": results,
+    }
     out = Path(__file__).resolve().parent / "results" / "bench_reachset.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(report, indent=2))
     for name, r in results.items():
-        print(f"{name:12s} median {r['median_ms']:7.2f} ms  p90 {r['p90_ms']:7.2f} ms  x{r['ratio_to_0_intruders']:.2f}  runs {r['category_runs']}")
+        print(
+            f"{name:12s} median {r['median_ms']:7.2f} ms  p90 {r['p90_ms']:7.2f} ms  x{r['ratio_to_0_intruders']:.2f}  runs {r['category_runs']}"
+        )
     print(f"-> {out}")
 
 

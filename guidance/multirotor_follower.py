@@ -35,9 +35,17 @@ def _project(points: np.ndarray, cum: np.ndarray, p: np.ndarray) -> float:
 
 
 class MultirotorPlanFollower:
-    def __init__(self, cruise_speed: float, max_climb: float, max_descent: float, acceptance_radius: float,
-                 hold_s: dict[int, float] | None = None, yaw_rad: dict[int, float] | None = None,
-                 max_lead_m: float = 5.0, step: bool = False):
+    def __init__(
+        self,
+        cruise_speed: float,
+        max_climb: float,
+        max_descent: float,
+        acceptance_radius: float,
+        hold_s: dict[int, float] | None = None,
+        yaw_rad: dict[int, float] | None = None,
+        max_lead_m: float = 5.0,
+        step: bool = False,
+    ):
         """``hold_s`` / ``yaw_rad``: hover time [s] / yaw [rad] at the vertices labelled with these
         mission waypoint indices (replace them with :meth:`set_waypoint_attributes` when the
         mission changes)."""

@@ -46,14 +46,16 @@ def main() -> None:
     args = ap.parse_args()
     veh = replace(VehicleParams(), **{k: float(v) for k, v in (s.split("=", 1) for s in args.set)})
     envs = list(range(0, N_ENVIRONMENTS, args.stride))
-    chunks = [envs[i::args.workers * 8] for i in range(args.workers * 8)]
+    chunks = [envs[i :: args.workers * 8] for i in range(args.workers * 8)]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as ex:
         parts = list(ex.map(_chunk, [(c, veh) for c in chunks]))
     data = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
     wall = time.perf_counter() - t0
     caps = caps_from_samples(data["time"], data["energy"])
-    ref = {name: run_sweep([e], sweep_config(), veh) for name, e in (("lower", LOWER_CAP_ENV), ("upper", UPPER_CAP_ENV))}
+    ref = {
+        name: run_sweep([e], sweep_config(), veh) for name, e in (("lower", LOWER_CAP_ENV), ("upper", UPPER_CAP_ENV))
+    }
     t_n = clip_minmax(data["time"], caps.time_lo, caps.time_hi)
     e_n = clip_minmax(data["energy"], caps.energy_lo, caps.energy_hi)
     cv = lambda a: float(np.std(a) / np.mean(a))  # noqa: E731
@@ -61,20 +63,33 @@ def main() -> None:
     m = data["cmo"][data["cmo"] > 0]
     report = {
         "vehicle": asdict(veh),
-        "config": {k: getattr(sweep_config(), k)
-                   for k in ("l", "n_planes", "path_types", "x_step_fraction", "dynamic_mode", "uav_shape")},
-        "environments": len(envs), "samples": int(data["time"].size), "wall_s": wall,
-        "caps": asdict(caps), "thesis_caps": THESIS_CAPS,
+        "config": {
+            k: getattr(sweep_config(), k)
+            for k in ("l", "n_planes", "path_types", "x_step_fraction", "dynamic_mode", "uav_shape")
+        },
+        "environments": len(envs),
+        "samples": int(data["time"].size),
+        "wall_s": wall,
+        "caps": asdict(caps),
+        "thesis_caps": THESIS_CAPS,
         "caps_vs_thesis_pct": {k: 100.0 * (getattr(caps, k) / v - 1.0) for k, v in THESIS_CAPS.items()},
-        "time_p995_s": float(np.quantile(data["time"], 0.995)), "time_max_s": float(data["time"].max()),
+        "time_p995_s": float(np.quantile(data["time"], 0.995)),
+        "time_max_s": float(data["time"].max()),
         "energy_max_j": float(data["energy"].max()),
-        "reference_env_1440": {"time_min": float(ref["lower"]["time"].min()), "energy_min": float(ref["lower"]["energy"].min())},
-        "reference_env_11088": {"time_max": float(ref["upper"]["time"].max()), "energy_max": float(ref["upper"]["energy"].max())},
+        "reference_env_1440": {
+            "time_min": float(ref["lower"]["time"].min()),
+            "energy_min": float(ref["lower"]["energy"].min()),
+        },
+        "reference_env_11088": {
+            "time_max": float(ref["upper"]["time"].max()),
+            "energy_max": float(ref["upper"]["energy"].max()),
+        },
         "ln_smoothness_rp_range": [float(ln_srp.min()), float(ln_srp.max())],
         "ln_smoothness_rp_inside_pct": float(100.0 * np.mean((ln_srp >= -3) & (ln_srp <= 3))),
         "ln_cmo_range": [float(np.log(m).min()), float(np.log(m).max())],
         "corr_energy_time_normalised": float(np.corrcoef(e_n, t_n)[0, 1]),
-        "cv_hover_power": cv(data["hover_power"]), "cv_time": cv(data["time"]),
+        "cv_hover_power": cv(data["hover_power"]),
+        "cv_time": cv(data["time"]),
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(report, indent=2))

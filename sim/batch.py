@@ -106,7 +106,7 @@ def load_batch(path: str | Path, out_dir: str | Path | None = None) -> tuple[str
     for k, v in sweep.items():
         if not isinstance(v, list) or not v:
             raise BatchError(f"{src}: sweep.{k}: must be a non-empty list of values")
-    grid = [dict(zip(sweep, combo)) for combo in itertools.product(*sweep.values())] or [{}]
+    grid = [dict(zip(sweep, combo, strict=False)) for combo in itertools.product(*sweep.values())] or [{}]
 
     mc = cfg.get("monte_carlo", {})
     unknown = set(mc) - {"runs", "seed", "uniform", "normal"}
@@ -136,8 +136,16 @@ def load_batch(path: str | Path, out_dir: str | Path | None = None) -> tuple[str
                 parse_scenario(scen, f"{src} run {run_id}")
             except ScenarioError as exc:
                 raise BatchError(str(exc)) from None
-            runs.append(RunSpec(run_id, scen, duration, str(out / "runs" / f"{run_id}.mcap"),
-                                 str(out / "runs" / f"{run_id}.json"), {"seed": seed, **params}))
+            runs.append(
+                RunSpec(
+                    run_id,
+                    scen,
+                    duration,
+                    str(out / "runs" / f"{run_id}.mcap"),
+                    str(out / "runs" / f"{run_id}.json"),
+                    {"seed": seed, **params},
+                )
+            )
             index += 1
     return name, runs
 
@@ -149,8 +157,7 @@ def run_one(spec: RunSpec) -> dict:
     scenario = parse_scenario(spec.scenario, spec.run_id)
     row = {"run_id": spec.run_id, **{f"param.{k}": v for k, v in spec.params.items()}}
     try:
-        r = run_scenario(scenario, spec.log_path, duration=spec.duration,
-                         scenario_text=tomli_w.dumps(spec.scenario))
+        r = run_scenario(scenario, spec.log_path, duration=spec.duration, scenario_text=tomli_w.dumps(spec.scenario))
         row.update(status=r.status, sim_time_s=r.sim_time_s, error="")
         metrics = r.metrics
     except RunFailed as exc:
@@ -165,9 +172,14 @@ def run_one(spec: RunSpec) -> dict:
     return row
 
 
-def run_batch(runs: list[RunSpec], out_dir: str | Path, executor: Executor | None = None,
-              workers: int = 1, progress: Callable[[int, int, dict], None] | None = None,
-              resume: bool = True) -> list[dict]:
+def run_batch(
+    runs: list[RunSpec],
+    out_dir: str | Path,
+    executor: Executor | None = None,
+    workers: int = 1,
+    progress: Callable[[int, int, dict], None] | None = None,
+    resume: bool = True,
+) -> list[dict]:
     """Run every spec (skipping finished ones when ``resume``), write ``results.csv``, return rows
     in run order."""
     out = Path(out_dir)

@@ -43,12 +43,19 @@ def cmd_run(args) -> int:
 
     scenario, text = load_scenario(args.scenario)
     from sim.runner import RunFailed, run_scenario
+
     path = Path(args.output) if args.output else Path("logs") / f"{scenario.name}.mcap"
     duration = args.duration if args.duration is not None else scenario.duration
     signal.signal(signal.SIGTERM, _raise_interrupt)
-    progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(),
-                        TextColumn("{task.fields[sim]} / {task.fields[end]} sim"), TimeElapsedColumn(),
-                        console=err, disable=args.quiet, transient=True)
+    progress = Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.fields[sim]} / {task.fields[end]} sim"),
+        TimeElapsedColumn(),
+        console=err,
+        disable=args.quiet,
+        transient=True,
+    )
     with progress:
         task = progress.add_task(scenario.name, total=duration, sim=_fmt_duration(0), end=_fmt_duration(duration))
 
@@ -63,7 +70,8 @@ def cmd_run(args) -> int:
                 err.print_exception()
     _print_summary(result)
     return {"completed": EXIT_OK, "duration_elapsed": EXIT_OK, "interrupted": EXIT_INTERRUPTED}.get(
-        result.status, EXIT_FAILED)
+        result.status, EXIT_FAILED
+    )
 
 
 def _print_summary(r) -> None:
@@ -116,9 +124,12 @@ def cmd_replay(args) -> int:
         from sim.replay.rerun import rerun_planner
 
         rep = rerun_planner(log, args.rerun_planner)
-        out.print(f"planner re-run ({rep.vehicle}, {rep.planner}): {rep.same}/{rep.plans} plans identical; "
-                  f"max vertex difference {rep.max_position_diff_m:.3g} m / {rep.max_time_diff_s:.3g} s",
-                  soft_wrap=True, highlight=False)
+        out.print(
+            f"planner re-run ({rep.vehicle}, {rep.planner}): {rep.same}/{rep.plans} plans identical; "
+            f"max vertex difference {rep.max_position_diff_m:.3g} m / {rep.max_time_diff_s:.3g} s",
+            soft_wrap=True,
+            highlight=False,
+        )
         for line in rep.differences:
             out.print(f"  {line}", soft_wrap=True, highlight=False)
     if args.json:
@@ -161,9 +172,16 @@ def cmd_batch(args) -> int:
         client = Client(args.dask)
         executor = client.get_executor()
     failures = 0
-    progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} runs"),
-                        TextColumn("{task.fields[failed]} failed"), TimeElapsedColumn(), console=err,
-                        disable=args.quiet, transient=True)
+    progress = Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total} runs"),
+        TextColumn("{task.fields[failed]} failed"),
+        TimeElapsedColumn(),
+        console=err,
+        disable=args.quiet,
+        transient=True,
+    )
     try:
         with progress:
             task = progress.add_task(name, total=len(runs), failed=0)
@@ -173,14 +191,14 @@ def cmd_batch(args) -> int:
                 failures += row.get("status") == "failed"
                 progress.update(task, total=total, completed=k, failed=failures)
 
-            rows = run_batch(runs, out_dir, executor=executor, workers=args.workers, progress=on_run,
-                             resume=not args.no_resume)
+            rows = run_batch(
+                runs, out_dir, executor=executor, workers=args.workers, progress=on_run, resume=not args.no_resume
+            )
     finally:
         if client is not None:
             client.close()
     failed = sum(r.get("status") == "failed" for r in rows)
-    out.print(f"{len(rows)} runs, {failed} failed; results: {out_dir / 'results.csv'}", soft_wrap=True,
-              highlight=False)
+    out.print(f"{len(rows)} runs, {failed} failed; results: {out_dir / 'results.csv'}", soft_wrap=True, highlight=False)
     return EXIT_OK if failed == 0 else EXIT_FAILED
 
 
@@ -210,9 +228,12 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("log")
     rp.add_argument("-o", "--output", help="report folder (default: <log>_report next to the log)")
     rp.add_argument("--json", action="store_true", help="also print the metrics as JSON")
-    rp.add_argument("--rerun-planner", metavar="VEHICLE",
-                    help="re-run VEHICLE's planner open-loop on the logged estimates and threats and "
-                         "compare its plans with the recorded ones")
+    rp.add_argument(
+        "--rerun-planner",
+        metavar="VEHICLE",
+        help="re-run VEHICLE's planner open-loop on the logged estimates and threats and "
+        "compare its plans with the recorded ones",
+    )
     rp.set_defaults(fn=cmd_replay)
     cp = sub.add_parser("compare", help="A/B: metrics of two run logs side by side")
     cp.add_argument("a")

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import math
 
-from shapely.geometry import Point, Polygon
 from shapely.affinity import rotate
+from shapely.geometry import Point, Polygon
 
 from avoidance.threats import Geofence, PrismObstacle
 from sim import scenario as sc
@@ -27,8 +27,13 @@ _MILSPEC = 3
 def apply_steady_wind(plant: JSBSimPlant, wind: sc.Wind) -> None:
     """Steady wind into one JSBSim instance; before its initial conditions and trim, so that
     the initial airspeed is relative to the moving air."""
-    plant.set_many({"atmosphere/wind-north-fps": wind.north / FT, "atmosphere/wind-east-fps": wind.east / FT,
-                    "atmosphere/wind-down-fps": wind.down / FT})
+    plant.set_many(
+        {
+            "atmosphere/wind-north-fps": wind.north / FT,
+            "atmosphere/wind-east-fps": wind.east / FT,
+            "atmosphere/wind-down-fps": wind.down / FT,
+        }
+    )
 
 
 def apply_turbulence(plant: JSBSimPlant, wind: sc.Wind, seed: int) -> None:
@@ -36,9 +41,13 @@ def apply_turbulence(plant: JSBSimPlant, wind: sc.Wind, seed: int) -> None:
     plant["simulation/randomseed"] = seed % 2**31
     speed_fps, severity = TURBULENCE[wind.turbulence]
     if severity:
-        plant.set_many({"atmosphere/turb-type": _MILSPEC,
-                        "atmosphere/turbulence/milspec/windspeed_at_20ft_AGL-fps": speed_fps,
-                        "atmosphere/turbulence/milspec/severity": severity})
+        plant.set_many(
+            {
+                "atmosphere/turb-type": _MILSPEC,
+                "atmosphere/turbulence/milspec/windspeed_at_20ft_AGL-fps": speed_fps,
+                "atmosphere/turbulence/milspec/severity": severity,
+            }
+        )
 
 
 def start_gust(plant: JSBSimPlant, gust: sc.Gust) -> None:
@@ -47,24 +56,32 @@ def start_gust(plant: JSBSimPlant, gust: sc.Gust) -> None:
     mag = math.sqrt(sum(v * v for v in vec))
     if mag == 0.0:
         return
-    plant.set_many({
-        "atmosphere/cosine-gust/startup-duration-sec": gust.ramp,
-        "atmosphere/cosine-gust/steady-duration-sec": gust.duration if gust.duration is not None else 1e9,
-        "atmosphere/cosine-gust/end-duration-sec": gust.ramp,
-        "atmosphere/cosine-gust/magnitude-ft_sec": mag / FT,
-        "atmosphere/cosine-gust/frame": 3,  # local NED
-        "atmosphere/cosine-gust/X-velocity-ft_sec": vec[0] / mag,
-        "atmosphere/cosine-gust/Y-velocity-ft_sec": vec[1] / mag,
-        "atmosphere/cosine-gust/Z-velocity-ft_sec": vec[2] / mag,
-        "atmosphere/cosine-gust/start": 1,
-    })
+    plant.set_many(
+        {
+            "atmosphere/cosine-gust/startup-duration-sec": gust.ramp,
+            "atmosphere/cosine-gust/steady-duration-sec": gust.duration if gust.duration is not None else 1e9,
+            "atmosphere/cosine-gust/end-duration-sec": gust.ramp,
+            "atmosphere/cosine-gust/magnitude-ft_sec": mag / FT,
+            "atmosphere/cosine-gust/frame": 3,  # local NED
+            "atmosphere/cosine-gust/X-velocity-ft_sec": vec[0] / mag,
+            "atmosphere/cosine-gust/Y-velocity-ft_sec": vec[1] / mag,
+            "atmosphere/cosine-gust/Z-velocity-ft_sec": vec[2] / mag,
+            "atmosphere/cosine-gust/start": 1,
+        }
+    )
 
 
 def obstacle_prism(o: sc.Obstacle, origin_alt_m: float) -> PrismObstacle:
     """The obstacle as a prism: footprint in (north, east) [m], heights above the origin [m]."""
     if o.shape == "box":
-        fp = Polygon([(-o.length / 2, -o.width / 2), (o.length / 2, -o.width / 2),
-                      (o.length / 2, o.width / 2), (-o.length / 2, o.width / 2)])
+        fp = Polygon(
+            [
+                (-o.length / 2, -o.width / 2),
+                (o.length / 2, -o.width / 2),
+                (o.length / 2, o.width / 2),
+                (-o.length / 2, o.width / 2),
+            ]
+        )
         # (north, east) axes: a positive heading turns north towards east, i.e. clockwise
         fp = rotate(fp, -math.degrees(o.heading), origin=(0, 0))
         fp = Polygon([(n + o.north, e + o.east) for n, e in fp.exterior.coords])

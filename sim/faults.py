@@ -28,12 +28,14 @@ class FaultSchedule:
         for f in self._pending:
             v = vehicles[f.vehicle]
             if isinstance(f, sc.MotorFailure) and f.engine >= v.plant.engine_count:
-                raise FaultError(f"fault on {f.vehicle}: engine {f.engine} does not exist "
-                                 f"({v.plant.engine_count} engines)")
+                raise FaultError(
+                    f"fault on {f.vehicle}: engine {f.engine} does not exist ({v.plant.engine_count} engines)"
+                )
             if isinstance(f, (sc.GnssLoss, sc.SensorBias, sc.SensorStuck)):
                 if not hasattr(v.estimator, "inject"):
-                    raise FaultError(f"fault on {f.vehicle}: {f.kind} needs sensor models, but its estimator is "
-                                     f"{v.estimator.name!r}")
+                    raise FaultError(
+                        f"fault on {f.vehicle}: {f.kind} needs sensor models, but its estimator is {v.estimator.name!r}"
+                    )
                 v.inject_sensor_fault(f)  # the sensor models switch it on and off at its times
 
     def _event(self, t: float, f, text: str) -> None:

@@ -42,7 +42,7 @@ class _QuietLogger(jsbsim.FGLogger):
     def message(self, message: str) -> None:
         self._parts.append(message)
 
-    def format(self, format) -> None:  # noqa: A002 - JSBSim's name
+    def format(self, format) -> None:
         pass
 
     def flush(self) -> None:
@@ -79,11 +79,22 @@ class InitialConditions:
 
 
 _TRUTH_PROPS = (
-    "position/lat-geod-deg", "position/long-gc-deg", "position/h-sl-ft",
-    "velocities/v-north-fps", "velocities/v-east-fps", "velocities/v-down-fps",
-    "attitude/phi-rad", "attitude/theta-rad", "attitude/psi-rad",
-    "velocities/p-rad_sec", "velocities/q-rad_sec", "velocities/r-rad_sec",
-    "velocities/vtrue-fps", "velocities/ve-fps", "aero/alpha-rad", "aero/beta-rad",
+    "position/lat-geod-deg",
+    "position/long-gc-deg",
+    "position/h-sl-ft",
+    "velocities/v-north-fps",
+    "velocities/v-east-fps",
+    "velocities/v-down-fps",
+    "attitude/phi-rad",
+    "attitude/theta-rad",
+    "attitude/psi-rad",
+    "velocities/p-rad_sec",
+    "velocities/q-rad_sec",
+    "velocities/r-rad_sec",
+    "velocities/vtrue-fps",
+    "velocities/ve-fps",
+    "aero/alpha-rad",
+    "aero/beta-rad",
 )
 
 
@@ -108,9 +119,9 @@ class JSBSimPlant:
         else:
             d = Path(airframe_dir)
             ok = self._guard(
-                lambda: self.fdm.load_model_with_paths(
-                    model, str(d.parent), str(d / "engine"), str(d / "systems")),
-                f"load model {model!r} from {d}")
+                lambda: self.fdm.load_model_with_paths(model, str(d.parent), str(d / "engine"), str(d / "systems")),
+                f"load model {model!r} from {d}",
+            )
         if not ok:
             raise PlantError(self._with_log(f"JSBSim could not load model {model!r}"))
         self.fdm.set_dt(self.dt)
@@ -193,7 +204,8 @@ class JSBSimPlant:
         if self._truth is not None and self._truth.t == self.time:
             return self._truth
         (lat, lon, h_ft, vn, ve, vd, phi, theta, psi, p, q, r, vt, veas, alpha, beta) = (
-            n.get_double_value() for n in self._truth_nodes)
+            n.get_double_value() for n in self._truth_nodes
+        )
         alt = h_ft * FT
         self._truth = VehicleState(
             t=self.time,
@@ -201,7 +213,12 @@ class JSBSimPlant:
             vel_ned=np.array([vn * FT, ve * FT, vd * FT]),
             euler=np.array([phi, theta, math.remainder(psi, math.tau)]),  # JSBSim: psi in [0, 2 pi)
             rates_body=np.array([p, q, r]),
-            alt_msl_m=alt, lat_deg=lat, lon_deg=lon,
-            tas_mps=vt * FT, eas_mps=veas * FT, alpha_rad=alpha, beta_rad=beta,
+            alt_msl_m=alt,
+            lat_deg=lat,
+            lon_deg=lon,
+            tas_mps=vt * FT,
+            eas_mps=veas * FT,
+            alpha_rad=alpha,
+            beta_rad=beta,
         )
         return self._truth

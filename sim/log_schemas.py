@@ -19,115 +19,166 @@ def _obj(title: str, fields: dict[str, tuple[dict, str]], extra: bool = False) -
     }
 
 
-VEHICLE_STATE = _obj("cosim.VehicleState", {
-    "t": (_NUM, "sim time [s]"),
-    "pos_ned": (_VEC3, "local-level NED position from the scenario origin [m]"),
-    "vel_ned": (_VEC3, "NED ground velocity [m/s]"),
-    "euler": (_VEC3, "roll, pitch, yaw (3-2-1, body FRD to NED) [rad]"),
-    "rates_body": (_VEC3, "body rates p, q, r (FRD) [rad/s]"),
-    "alt_msl_m": (_NUM, "altitude above mean sea level (WGS84 ellipsoid) [m]"),
-    "lat_deg": (_NUM, "geodetic latitude [deg]"),
-    "lon_deg": (_NUM, "longitude [deg]"),
-    "tas_mps": (_NUM, "true airspeed [m/s]"),
-    "eas_mps": (_NUM, "equivalent airspeed [m/s]"),
-    "alpha_rad": (_NUM, "angle of attack [rad]"),
-    "beta_rad": (_NUM, "sideslip angle [rad]"),
-})
+VEHICLE_STATE = _obj(
+    "cosim.VehicleState",
+    {
+        "t": (_NUM, "sim time [s]"),
+        "pos_ned": (_VEC3, "local-level NED position from the scenario origin [m]"),
+        "vel_ned": (_VEC3, "NED ground velocity [m/s]"),
+        "euler": (_VEC3, "roll, pitch, yaw (3-2-1, body FRD to NED) [rad]"),
+        "rates_body": (_VEC3, "body rates p, q, r (FRD) [rad/s]"),
+        "alt_msl_m": (_NUM, "altitude above mean sea level (WGS84 ellipsoid) [m]"),
+        "lat_deg": (_NUM, "geodetic latitude [deg]"),
+        "lon_deg": (_NUM, "longitude [deg]"),
+        "tas_mps": (_NUM, "true airspeed [m/s]"),
+        "eas_mps": (_NUM, "equivalent airspeed [m/s]"),
+        "alpha_rad": (_NUM, "angle of attack [rad]"),
+        "beta_rad": (_NUM, "sideslip angle [rad]"),
+    },
+)
 
-FIXED_WING_SETPOINT = _obj("cosim.FixedWingSetpoint", {
-    "t": (_NUM, "sim time [s]"),
-    "roll_rad": (_NUM, "bank angle demand [rad]"),
-    "altitude_m": (_NUM, "altitude demand, MSL [m]"),
-    "tas_mps": (_NUM, "true airspeed demand [m/s]"),
-    "leg": ({"type": "integer"}, "index of the plan leg being followed"),
-    "cross_track_m": (_NUM, "signed cross-track error to the leg, right positive [m]"),
-    "turning": ({"type": "boolean"}, "true while capturing a new leg (not straight flight)"),
-})
+FIXED_WING_SETPOINT = _obj(
+    "cosim.FixedWingSetpoint",
+    {
+        "t": (_NUM, "sim time [s]"),
+        "roll_rad": (_NUM, "bank angle demand [rad]"),
+        "altitude_m": (_NUM, "altitude demand, MSL [m]"),
+        "tas_mps": (_NUM, "true airspeed demand [m/s]"),
+        "leg": ({"type": "integer"}, "index of the plan leg being followed"),
+        "cross_track_m": (_NUM, "signed cross-track error to the leg, right positive [m]"),
+        "turning": ({"type": "boolean"}, "true while capturing a new leg (not straight flight)"),
+    },
+)
 
-MULTIROTOR_SETPOINT = _obj("cosim.MultirotorSetpoint", {
-    "t": (_NUM, "sim time [s]"),
-    "pos_ned": (_VEC3, "position demand (the carrot), local-level NED [m]; null: velocity control"),
-    "vel_ned": (_VEC3, "velocity feed-forward NED [m/s]"),
-    "yaw_rad": (_NUM, "yaw demand [rad] (null: hold)"),
-    "altitude_m": (_NUM, "altitude demand, MSL [m]"),
-    "leg": ({"type": "integer"}, "index of the plan leg being followed"),
-    "cross_track_m": (_NUM, "distance from the leg line (3-D) [m]"),
-    "turning": ({"type": "boolean"}, "true while the carrot waits (vertex, hold, landing)"),
-})
+MULTIROTOR_SETPOINT = _obj(
+    "cosim.MultirotorSetpoint",
+    {
+        "t": (_NUM, "sim time [s]"),
+        "pos_ned": (_VEC3, "position demand (the carrot), local-level NED [m]; null: velocity control"),
+        "vel_ned": (_VEC3, "velocity feed-forward NED [m/s]"),
+        "yaw_rad": (_NUM, "yaw demand [rad] (null: hold)"),
+        "altitude_m": (_NUM, "altitude demand, MSL [m]"),
+        "leg": ({"type": "integer"}, "index of the plan leg being followed"),
+        "cross_track_m": (_NUM, "distance from the leg line (3-D) [m]"),
+        "turning": ({"type": "boolean"}, "true while the carrot waits (vertex, hold, landing)"),
+    },
+)
 
-TRACKING = _obj("cosim.Tracking", {
-    "t": (_NUM, "sim time [s]"),
-    "cross_track_m": (_NUM, "TRUE cross-track error to the leg being followed [m] (fixed wing: signed, "
-                            "horizontal, right positive; multirotor: 3-D distance)"),
-    "leg": ({"type": "integer"}, "index of the plan leg being followed"),
-})
+TRACKING = _obj(
+    "cosim.Tracking",
+    {
+        "t": (_NUM, "sim time [s]"),
+        "cross_track_m": (
+            _NUM,
+            "TRUE cross-track error to the leg being followed [m] (fixed wing: signed, "
+            "horizontal, right positive; multirotor: 3-D distance)",
+        ),
+        "leg": ({"type": "integer"}, "index of the plan leg being followed"),
+    },
+)
 
-COMMANDS = _obj("cosim.Commands", {
-    "t": (_NUM, "sim time [s]"),
-    "properties": ({"type": "object", "additionalProperties": _NUM},
-                   "JSBSim property commands written this tick (JSBSim units)"),
-    "debug": ({"type": "object", "additionalProperties": _NUM},
-              "controller internals (energy errors, integrators...)"),
-})
+COMMANDS = _obj(
+    "cosim.Commands",
+    {
+        "t": (_NUM, "sim time [s]"),
+        "properties": (
+            {"type": "object", "additionalProperties": _NUM},
+            "JSBSim property commands written this tick (JSBSim units)",
+        ),
+        "debug": (
+            {"type": "object", "additionalProperties": _NUM},
+            "controller internals (energy errors, integrators...)",
+        ),
+    },
+)
 
-PLAN = _obj("cosim.Plan", {
-    "t": (_NUM, "sim time the plan was made [s]"),
-    "planner": ({"type": "string"}, "planner name"),
-    "status": ({"type": "string", "enum": ["ok", "degraded", "no_solution"]}, "plan status"),
-    "positions": ({"type": "array", "items": _VEC3}, "vertices, local-level NED [m]"),
-    "times": ({"type": "array", "items": _NUM}, "sim time each vertex is due [s]"),
-    "labels": ({"type": "array", "items": {"type": "integer"}}, "mission waypoint index or -1"),
-    "diagnostics": ({"type": "object"}, "planner-specific values"),
-})
+PLAN = _obj(
+    "cosim.Plan",
+    {
+        "t": (_NUM, "sim time the plan was made [s]"),
+        "planner": ({"type": "string"}, "planner name"),
+        "status": ({"type": "string", "enum": ["ok", "degraded", "no_solution"]}, "plan status"),
+        "positions": ({"type": "array", "items": _VEC3}, "vertices, local-level NED [m]"),
+        "times": ({"type": "array", "items": _NUM}, "sim time each vertex is due [s]"),
+        "labels": ({"type": "array", "items": {"type": "integer"}}, "mission waypoint index or -1"),
+        "diagnostics": ({"type": "object"}, "planner-specific values"),
+    },
+)
 
-WALL_TIMING = _obj("cosim.WallTiming", {
-    "t": (_NUM, "sim time [s]"),
-    "seconds": (_NUM, "wall-clock time the call took [s]; differs run to run by nature"),
-})
+WALL_TIMING = _obj(
+    "cosim.WallTiming",
+    {
+        "t": (_NUM, "sim time [s]"),
+        "seconds": (_NUM, "wall-clock time the call took [s]; differs run to run by nature"),
+    },
+)
 
-THREATS = _obj("cosim.Threats", {
-    "t": (_NUM, "sim time the planner saw these threats [s]"),
-    "intruders": ({"type": "array", "items": {"type": "object"}},
-                  "tracked intruders: id, t, pos_ned [m], vel_ned [m/s], radius_m, pos_cov, vel_cov, cooperative"),
-    "spheres": ({"type": "array", "items": {"type": "object"}},
-                "spherical threats: id, t, center_ned [m], radius_m, vel_ned [m/s], center_cov"),
-    "storms": ({"type": "array", "items": {"type": "object"}},
-               "storm nowcast snapshots: t [s], cells = polygons [[north, east], ...] [m]"),
-    "lidar_hits": ({"type": "integer"}, "returns in the latest LiDAR scan"),
-})
+THREATS = _obj(
+    "cosim.Threats",
+    {
+        "t": (_NUM, "sim time the planner saw these threats [s]"),
+        "intruders": (
+            {"type": "array", "items": {"type": "object"}},
+            "tracked intruders: id, t, pos_ned [m], vel_ned [m/s], radius_m, pos_cov, vel_cov, cooperative",
+        ),
+        "spheres": (
+            {"type": "array", "items": {"type": "object"}},
+            "spherical threats: id, t, center_ned [m], radius_m, vel_ned [m/s], center_cov",
+        ),
+        "storms": (
+            {"type": "array", "items": {"type": "object"}},
+            "storm nowcast snapshots: t [s], cells = polygons [[north, east], ...] [m]",
+        ),
+        "lidar_hits": ({"type": "integer"}, "returns in the latest LiDAR scan"),
+    },
+)
 
 _RECORDS = {"type": "array", "items": {"type": "object"}}
-SENSORS = _obj("cosim.Sensors", {
-    "t": (_NUM, "sim time of the log tick [s]"),
-    "imu": (_RECORDS, "per fusion interval: t, dt [s], accel_body [m/s^2], gyro_body [rad/s] (FRD, mean)"),
-    "gnss": (_RECORDS, "fixes: t (validity) [s], pos_ned [m], vel_ned [m/s]"),
-    "baro": (_RECORDS, "t [s], pressure_pa"),
-    "airspeed": (_RECORDS, "t [s], diff_pressure_pa"),
-    "mag": (_RECORDS, "t [s], field_body_ut"),
-}, extra=True)
+SENSORS = _obj(
+    "cosim.Sensors",
+    {
+        "t": (_NUM, "sim time of the log tick [s]"),
+        "imu": (_RECORDS, "per fusion interval: t, dt [s], accel_body [m/s^2], gyro_body [rad/s] (FRD, mean)"),
+        "gnss": (_RECORDS, "fixes: t (validity) [s], pos_ned [m], vel_ned [m/s]"),
+        "baro": (_RECORDS, "t [s], pressure_pa"),
+        "airspeed": (_RECORDS, "t [s], diff_pressure_pa"),
+        "mag": (_RECORDS, "t [s], field_body_ut"),
+    },
+    extra=True,
+)
 
-ESTIMATE_SIGMA = _obj("cosim.EstimateSigma", {
-    "t": (_NUM, "sim time [s]"),
-    "pos": (_VEC3, "3-sigma position NED [m]"),
-    "vel": (_VEC3, "3-sigma velocity NED [m/s]"),
-    "att": (_VEC3, "3-sigma attitude error, body axes [rad]"),
-    "heading": ({"type": "array", "items": _NUM}, "3-sigma heading [rad]"),
-    "accel": (_VEC3, "3-sigma accel bias [m/s^2]"),
-    "gyro": (_VEC3, "3-sigma gyro bias [rad/s]"),
-    "baro": ({"type": "array", "items": _NUM}, "3-sigma baro height bias [m]"),
-    "bias": ({"type": "object"}, "estimated biases: accel [m/s^2], gyro [rad/s], baro [m], gnss_gm [m]"),
-})
+ESTIMATE_SIGMA = _obj(
+    "cosim.EstimateSigma",
+    {
+        "t": (_NUM, "sim time [s]"),
+        "pos": (_VEC3, "3-sigma position NED [m]"),
+        "vel": (_VEC3, "3-sigma velocity NED [m/s]"),
+        "att": (_VEC3, "3-sigma attitude error, body axes [rad]"),
+        "heading": ({"type": "array", "items": _NUM}, "3-sigma heading [rad]"),
+        "accel": (_VEC3, "3-sigma accel bias [m/s^2]"),
+        "gyro": (_VEC3, "3-sigma gyro bias [rad/s]"),
+        "baro": ({"type": "array", "items": _NUM}, "3-sigma baro height bias [m]"),
+        "bias": ({"type": "object"}, "estimated biases: accel [m/s^2], gyro [rad/s], baro [m], gnss_gm [m]"),
+    },
+)
 
-OBJECTS = _obj("cosim.Objects", {
-    "t": (_NUM, "sim time [s]"),
-    "objects": ({"type": "array", "items": {"type": "object"}},
-                "scripted traffic: id, pos_ned [m], vel_ned [m/s], radius_m (true)"),
-})
+OBJECTS = _obj(
+    "cosim.Objects",
+    {
+        "t": (_NUM, "sim time [s]"),
+        "objects": (
+            {"type": "array", "items": {"type": "object"}},
+            "scripted traffic: id, pos_ned [m], vel_ned [m/s], radius_m (true)",
+        ),
+    },
+)
 
-MISSION_STATUS = _obj("cosim.MissionStatus", {
-    "t": (_NUM, "sim time [s]"),
-    "next_waypoint": ({"type": "integer"}, "index of the waypoint being flown to"),
-    "waypoints": ({"type": "integer"}, "number of waypoints"),
-    "complete": ({"type": "boolean"}, "all waypoints reached"),
-})
-
+MISSION_STATUS = _obj(
+    "cosim.MissionStatus",
+    {
+        "t": (_NUM, "sim time [s]"),
+        "next_waypoint": ({"type": "integer"}, "index of the waypoint being flown to"),
+        "waypoints": ({"type": "integer"}, "number of waypoints"),
+        "complete": ({"type": "boolean"}, "all waypoints reached"),
+    },
+)

@@ -30,9 +30,9 @@ from foxglove_schemas_protobuf.Log_pb2 import Log
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from sim.mcap_writer import RecordWriter
+import contextlib
 
-LEVELS = {"debug": Log.DEBUG, "info": Log.INFO, "warning": Log.WARNING, "error": Log.ERROR,
-          "fatal": Log.FATAL}
+LEVELS = {"debug": Log.DEBUG, "info": Log.INFO, "warning": Log.WARNING, "error": Log.ERROR, "fatal": Log.FATAL}
 _BATCH = 128  # records per hand-over to the writer process (a few log ticks)
 
 
@@ -43,8 +43,7 @@ class LogWriteError(RuntimeError):
 class McapLog:
     """Writes one run to ``path``. Topics are registered on first write."""
 
-    def __init__(self, path: str | Path, epoch_ns: int, chunk_size: int = 512 * 1024,
-                 background: bool = True):
+    def __init__(self, path: str | Path, epoch_ns: int, chunk_size: int = 512 * 1024, background: bool = True):
         """``background``: write in a child process (else in this one, e.g. to debug the writer)."""
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -58,8 +57,12 @@ class McapLog:
         if background:  # a fresh interpreter: nothing of the caller's __main__ is re-run
             root = str(Path(__file__).resolve().parents[1])
             env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])))
-            self._proc = subprocess.Popen([sys.executable, "-m", "sim.mcap_writer", str(self.path), str(chunk_size)],
-                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
+            self._proc = subprocess.Popen(
+                [sys.executable, "-m", "sim.mcap_writer", str(self.path), str(chunk_size)],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                env=env,
+            )
         else:
             self._inline = RecordWriter(open(self.path, "wb"), chunk_size)
         self._schemas: dict[str, int] = {}
@@ -101,10 +104,8 @@ class McapLog:
 
     def _writer_error(self) -> str:
         """Why the writer process stopped (its stdout line), after waiting for it."""
-        try:
+        with contextlib.suppress(OSError):
             self._proc.stdin.close()
-        except OSError:
-            pass
         out = self._proc.stdout.read().decode(errors="replace").strip()
         code = self._proc.wait()
         return out or (f"the writer process stopped (exit code {code})" if code else "")
@@ -114,15 +115,15 @@ class McapLog:
         seq = self._seq[cid] = self._seq[cid] + 1
         self._record(("message", cid, self.epoch_ns + round(t * 1e9), data, seq))
 
-    def write_json(self, topic: str, t: float, obj: dict[str, Any], schema: dict,
-                   metadata: dict[str, str] | None = None) -> None:
+    def write_json(
+        self, topic: str, t: float, obj: dict[str, Any], schema: dict, metadata: dict[str, str] | None = None
+    ) -> None:
         """``obj`` (floats, lists, dicts, numpy arrays) as JSON on ``topic`` with a JSON Schema.
         Floats are written in their shortest exact form (they read back bit-identical); NaN and
         infinities become ``null``."""
         cid = self._channels.get(topic)
         if cid is None:
-            sid = self._schema(schema["title"], "jsonschema",
-                               lambda: json.dumps(schema, sort_keys=True).encode())
+            sid = self._schema(schema["title"], "jsonschema", lambda: json.dumps(schema, sort_keys=True).encode())
             cid = self._channel(topic, "json", sid, metadata or {})
         self._add(cid, t, orjson.dumps(obj, option=orjson.OPT_SERIALIZE_NUMPY))
 
@@ -131,8 +132,9 @@ class McapLog:
         cid = self._channels.get(topic)
         if cid is None:
             cls = type(message)
-            sid = self._schema(cls.DESCRIPTOR.full_name, "protobuf",
-                               lambda: build_file_descriptor_set(cls).SerializeToString())
+            sid = self._schema(
+                cls.DESCRIPTOR.full_name, "protobuf", lambda: build_file_descriptor_set(cls).SerializeToString()
+            )
             cid = self._channel(topic, "protobuf", sid, metadata or {})
         self._add(cid, t, message.SerializeToString(deterministic=True))
 
@@ -173,7 +175,7 @@ class McapLog:
         if error:
             raise LogWriteError(f"{self.path}: {error}")
 
-    def __enter__(self) -> "McapLog":
+    def __enter__(self) -> McapLog:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -6,12 +6,11 @@ Sim time of a message = log time - the run's epoch (metadata ``run.epoch_ns``).
 from __future__ import annotations
 
 import json
+import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-
-import struct
 
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
@@ -64,8 +63,9 @@ def read_info(path: str | Path) -> LogInfo:
             header = reader.get_header()
             summary = reader.get_summary()
             if summary is None:
-                raise LogReadError(f"{path}: the MCAP has no summary (the run was killed before it "
-                                   "could finish the file)")
+                raise LogReadError(
+                    f"{path}: the MCAP has no summary (the run was killed before it could finish the file)"
+                )
             meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
             attachments = [a.name for a in reader.iter_attachments()]
         except _READ_ERRORS as exc:
@@ -74,16 +74,29 @@ def read_info(path: str | Path) -> LogInfo:
     stats = summary.statistics
     counts = stats.channel_message_counts if stats else {}
     topics = sorted(
-        (TopicInfo(ch.topic, summary.schemas[ch.schema_id].name if ch.schema_id else "",
-                   ch.message_encoding, counts.get(cid, 0), dict(ch.metadata))
-         for cid, ch in summary.channels.items()),
-        key=lambda ti: ti.topic)
+        (
+            TopicInfo(
+                ch.topic,
+                summary.schemas[ch.schema_id].name if ch.schema_id else "",
+                ch.message_encoding,
+                counts.get(cid, 0),
+                dict(ch.metadata),
+            )
+            for cid, ch in summary.channels.items()
+        ),
+        key=lambda ti: ti.topic,
+    )
     return LogInfo(
-        path=path, profile=header.profile, library=header.library,
+        path=path,
+        profile=header.profile,
+        library=header.library,
         start_s=((stats.message_start_time - epoch) / 1e9) if stats and stats.message_count else 0.0,
         end_s=((stats.message_end_time - epoch) / 1e9) if stats and stats.message_count else 0.0,
-        messages=stats.message_count if stats else 0, topics=topics, metadata=meta,
-        attachments=attachments)
+        messages=stats.message_count if stats else 0,
+        topics=topics,
+        metadata=meta,
+        attachments=attachments,
+    )
 
 
 def read_attachment(path: str | Path, name: str) -> bytes | None:

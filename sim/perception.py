@@ -21,14 +21,22 @@ from sim.state import VehicleState
 
 class Perception:
     def __init__(self, cfg: sc.Surveillance, rng: np.random.Generator):
-        receiver = AdsbConfig(rate_hz=cfg.rate_hz, latency_s=cfg.latency, dropout_probability=cfg.dropout,
-                              pos_ne=ChannelConfig(noise_std=cfg.position_noise_horizontal),
-                              pos_d=ChannelConfig(noise_std=cfg.position_noise_vertical),
-                              vel=ChannelConfig(noise_std=cfg.velocity_noise))
+        receiver = AdsbConfig(
+            rate_hz=cfg.rate_hz,
+            latency_s=cfg.latency,
+            dropout_probability=cfg.dropout,
+            pos_ne=ChannelConfig(noise_std=cfg.position_noise_horizontal),
+            pos_d=ChannelConfig(noise_std=cfg.position_noise_vertical),
+            vel=ChannelConfig(noise_std=cfg.velocity_noise),
+        )
         self.receiver = AdsbReceiver(receiver, rng)
-        self.tracker = IntruderTracker(TrackerConfig(
-            pos_std_ne=max(cfg.position_noise_horizontal, 1e-3), pos_std_d=max(cfg.position_noise_vertical, 1e-3),
-            vel_std=max(cfg.velocity_noise, 1e-3)))
+        self.tracker = IntruderTracker(
+            TrackerConfig(
+                pos_std_ne=max(cfg.position_noise_horizontal, 1e-3),
+                pos_std_d=max(cfg.position_noise_vertical, 1e-3),
+                vel_std=max(cfg.velocity_noise, 1e-3),
+            )
+        )
         self._targets: dict[str, tuple[float, bool]] = {}
 
     def update(self, t: float, traffic: dict[str, tuple[VehicleState, float, bool]]) -> list[IntruderTrack]:
@@ -36,5 +44,7 @@ class Perception:
         returns the current tracks."""
         self._targets.update({k: (r, c) for k, (_, r, c) in traffic.items()})
         self.tracker.push(self.receiver.poll(t, {k: s for k, (s, _, _) in traffic.items()}))
-        return [dataclasses.replace(tr, radius_m=self._targets[tr.id][0], cooperative=self._targets[tr.id][1])
-                for tr in self.tracker.tracks(t)]
+        return [
+            dataclasses.replace(tr, radius_m=self._targets[tr.id][0], cooperative=self._targets[tr.id][1])
+            for tr in self.tracker.tracks(t)
+        ]

@@ -34,8 +34,9 @@ class PlannerLogger:
             from avoidance.reachset.record import decision_record, scene_update
 
             d = planner.last_decision
-            self.log.write_json(f"{self.prefix}/decision", t, decision_record(d),
-                                {**_ANY, "title": "cosim.ReachSetDecision"})
+            self.log.write_json(
+                f"{self.prefix}/decision", t, decision_record(d), {**_ANY, "title": "cosim.ReachSetDecision"}
+            )
             self.log.write_proto(f"{self.prefix}/grid", t, scene_update(d, self.log.epoch_ns / 1e9 + t))
             rules = getattr(planner, "rules_record", None)
             if rules is not None and rules["t"] == t:

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import jsbsim
+
 from sim import __version__
 from sim.mcap_log import McapLog
 from sim.replay.metrics import MetricsWorld, run_metrics
@@ -53,8 +54,9 @@ class RunFailed(RuntimeError):
     """The run raised; ``result`` says how far it got and where its log is."""
 
     def __init__(self, result: RunResult):
-        super().__init__(f"{result.scenario}: run failed at t={result.sim_time_s:.2f} s: {result.error} "
-                         f"(log: {result.log_path})")
+        super().__init__(
+            f"{result.scenario}: run failed at t={result.sim_time_s:.2f} s: {result.error} (log: {result.log_path})"
+        )
         self.result = result
 
 
@@ -85,9 +87,17 @@ def run_scenario(
     failure: Exception | None = None
     session = None
     try:
-        log.metadata("run", {
-            "scenario": scenario.name, "seed": scenario.seed, "epoch_ns": scenario.epoch_ns,
-            "cosim_version": __version__, "jsbsim_version": jsbsim.__version__, "duration_s": end})
+        log.metadata(
+            "run",
+            {
+                "scenario": scenario.name,
+                "seed": scenario.seed,
+                "epoch_ns": scenario.epoch_ns,
+                "cosim_version": __version__,
+                "jsbsim_version": jsbsim.__version__,
+                "duration_s": end,
+            },
+        )
         if scenario_text:
             log.attach("scenario.toml", scenario_text.encode(), "application/toml")
         write_static_frames(log)
@@ -104,7 +114,9 @@ def run_scenario(
         if tick_hook is not None:
             sched.add_task("tick_hook", scenario.logging.rate_hz, Stage.LOG, tick_hook)
         log.event(0.0, f"run start: {scenario.name} (seed {scenario.seed})")
-        sched.run(round(end * world.base_hz), stop=world.all_complete if scenario.stop_when_complete else (lambda: False))
+        sched.run(
+            round(end * world.base_hz), stop=world.all_complete if scenario.stop_when_complete else (lambda: False)
+        )
         result.status = "completed" if world.all_complete() else "duration_elapsed"
     except KeyboardInterrupt:
         result.status = "interrupted"
@@ -121,19 +133,25 @@ def run_scenario(
         vehicles = world.vehicles if world is not None else []
         for v in vehicles:
             m = v.mission
-            result.missions[v.name] = MissionResult(
-                len(m.reached), len(m.waypoints), m.complete, m.completed_t)
+            result.missions[v.name] = MissionResult(len(m.reached), len(m.waypoints), m.complete, m.completed_t)
         try:
             result.metrics = run_metrics([v.recorder.trace() for v in vehicles], MetricsWorld.from_scenario(scenario))
             log.metadata("metrics", {"json": json.dumps(result.metrics, sort_keys=True)})
             if result.status != "completed":
-                log.event(result.sim_time_s, f"run ended: {result.status}"
-                          + (f" ({result.error})" if result.error else ""),
-                          level="error" if result.status == "failed" else "warning")
-            log.metadata("result", {
-                "status": result.status, "sim_time_s": repr(result.sim_time_s),
-                **{f"{n}.mission_complete": str(r.complete) for n, r in result.missions.items()},
-                **({"error": result.error} if result.error else {})})
+                log.event(
+                    result.sim_time_s,
+                    f"run ended: {result.status}" + (f" ({result.error})" if result.error else ""),
+                    level="error" if result.status == "failed" else "warning",
+                )
+            log.metadata(
+                "result",
+                {
+                    "status": result.status,
+                    "sim_time_s": repr(result.sim_time_s),
+                    **{f"{n}.mission_complete": str(r.complete) for n, r in result.missions.items()},
+                    **({"error": result.error} if result.error else {}),
+                },
+            )
         finally:
             log.close()
     if failure is not None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -118,7 +118,7 @@ class Vehicle(_Strict):
         return v
 
     @model_validator(mode="after")
-    def _fits_airframe(self) -> "Vehicle":
+    def _fits_airframe(self) -> Vehicle:
         kind = get_airframe(self.aircraft).kind
         try:
             check_planner(self.planner.type, kind, self.planner.options)
@@ -127,13 +127,17 @@ class Vehicle(_Strict):
         if self.lidar is not None and self.planner.type == "reachset":
             need = reachset_grid_range(kind, self.mission.cruise_speed, self.planner.options)
             if self.lidar.max_range_m < need:
-                raise ValueError(f"lidar.max_range_m: {self.lidar.max_range_m:g} m does not cover the reach-set grid "
-                                 f"({need:g} m at this cruise speed and period); cells beyond the range are Uncertain "
-                                 "and block every path")
+                raise ValueError(
+                    f"lidar.max_range_m: {self.lidar.max_range_m:g} m does not cover the reach-set grid "
+                    f"({need:g} m at this cruise speed and period); cells beyond the range are Uncertain "
+                    "and block every path"
+                )
         if kind == "multirotor":
             if self.initial.trim:
-                raise ValueError("initial.trim: JSBSim cannot trim a multirotor; it starts in hover "
-                                 "(or on the ground) and its controller holds it")
+                raise ValueError(
+                    "initial.trim: JSBSim cannot trim a multirotor; it starts in hover "
+                    "(or on the ground) and its controller holds it"
+                )
             return self
         if self.mission.land:
             raise ValueError(f"mission.land: only multirotors land at the end of a mission ({self.aircraft} is {kind})")
@@ -187,7 +191,7 @@ class Obstacle(_Strict):
     top: _Altitude
 
     @model_validator(mode="after")
-    def _shape_fields(self) -> "Obstacle":
+    def _shape_fields(self) -> Obstacle:
         need = {"box": ("length", "width"), "cylinder": ("radius",), "polygon": ("points",)}[self.shape]
         missing = [f for f in need if getattr(self, f) is None]
         if missing:
@@ -358,7 +362,7 @@ class Scenario(_Strict):
     description: str = ""
     seed: Annotated[int, Field(ge=0, lt=2**63)]
     duration: quantity("time", 0.0, 30 * 86400.0, lo_open=True)
-    start_time: datetime = datetime(2026, 6, 21, 6, 0, tzinfo=timezone.utc)
+    start_time: datetime = datetime(2026, 6, 21, 6, 0, tzinfo=UTC)
     stop_when_complete: bool = True
     origin: Origin
     logging: Logging = Logging()
@@ -378,10 +382,10 @@ class Scenario(_Strict):
     def _utc(cls, v: datetime) -> datetime:
         if v.tzinfo is None:
             raise ValueError("start_time needs a time zone, e.g. 2026-06-21T06:00:00Z")
-        return v.astimezone(timezone.utc)
+        return v.astimezone(UTC)
 
     @model_validator(mode="after")
-    def _references(self) -> "Scenario":
+    def _references(self) -> Scenario:
         names = [v.name for v in self.vehicle]
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
@@ -392,7 +396,9 @@ class Scenario(_Strict):
         traffic = names + [o.id for o in self.object]
         dup = sorted({i for i in traffic if traffic.count(i) > 1})
         if dup:
-            raise ValueError(f"object ids must differ from each other and from vehicle names, repeated: {', '.join(dup)}")
+            raise ValueError(
+                f"object ids must differ from each other and from vehicle names, repeated: {', '.join(dup)}"
+            )
         ids = [o.id for o in self.obstacle] + [g.id for g in self.geofence]
         dup = sorted({i for i in ids if ids.count(i) > 1})
         if dup:
@@ -458,4 +464,3 @@ def load_scenario(path: str | Path) -> tuple[Scenario, str]:
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
     return parse_scenario(data, str(path)), text
-

@@ -62,7 +62,7 @@ class LockstepScheduler:
         d = self.base_hz / rate_hz
         if rate_hz <= 0 or abs(d - round(d)) > 1e-9:
             raise SchedulerError(f"{what}: {rate_hz:g} Hz does not divide the base rate {self.base_hz} Hz")
-        return int(round(d))
+        return round(d)
 
     def add_plant(self, name: str, rate_hz: float, step: Callable[[int], None]) -> None:
         """A plant integrated at ``rate_hz``; ``step(n)`` advances it n steps."""
@@ -84,7 +84,8 @@ class LockstepScheduler:
         if task_div % plant_div:
             raise SchedulerError(
                 f"{task}: its rate {self.base_hz / task_div:g} Hz is not a sub-multiple of a "
-                f"plant rate {self.base_hz / plant_div:g} Hz")
+                f"plant rate {self.base_hz / plant_div:g} Hz"
+            )
 
     def _next_event(self, limit: int) -> int:
         k = self.tick

@@ -36,7 +36,14 @@ class TrafficObject:
         p = self.position(t)
         lat, lon, alt = ned_to_geodetic(p, self._origin)
         yaw = float(np.arctan2(self.v[1], self.v[0])) if np.any(self.v[:2]) else 0.0
-        return VehicleState(t, p, self.v.copy(), np.array([0.0, 0.0, yaw]), np.zeros(3), float(alt),
-                            float(lat), float(lon), float(np.linalg.norm(self.v)))
-
-
+        return VehicleState(
+            t,
+            p,
+            self.v.copy(),
+            np.array([0.0, 0.0, yaw]),
+            np.zeros(3),
+            float(alt),
+            float(lat),
+            float(lon),
+            float(np.linalg.norm(self.v)),
+        )

@@ -16,8 +16,14 @@ from pydantic import BeforeValidator
 # dimension -> unit -> factor to SI (radians for angles)
 _UNITS: dict[str, dict[str, float]] = {
     "length": {"m": 1.0, "km": 1000.0, "ft": 0.3048, "nmi": 1852.0, "NM": 1852.0},
-    "speed": {"m/s": 1.0, "km/h": 1 / 3.6, "kt": 1852.0 / 3600.0, "kts": 1852.0 / 3600.0,
-              "ft/s": 0.3048, "ft/min": 0.3048 / 60.0},
+    "speed": {
+        "m/s": 1.0,
+        "km/h": 1 / 3.6,
+        "kt": 1852.0 / 3600.0,
+        "kts": 1852.0 / 3600.0,
+        "ft/s": 0.3048,
+        "ft/min": 0.3048 / 60.0,
+    },
     "angle": {"deg": math.pi / 180.0, "rad": 1.0},
     "time": {"s": 1.0, "min": 60.0, "h": 3600.0, "ms": 1e-3},
     "frequency": {"Hz": 1.0},
@@ -61,8 +67,7 @@ def to_si(value, dimension: str) -> float:
     return v
 
 
-def quantity(dimension: str, lo: float | None = None, hi: float | None = None,
-             *, lo_open: bool = False):
+def quantity(dimension: str, lo: float | None = None, hi: float | None = None, *, lo_open: bool = False):
     """A pydantic field type: parsed to SI, range-checked in the bare unit (``lo``/``hi`` are
     given in that unit, e.g. degrees for angles) so that messages read as the file does."""
     bare = _BARE_UNIT[dimension]

@@ -27,7 +27,6 @@ from sim import scenario as sc
 from sim.environment import apply_steady_wind, apply_turbulence
 from sim.estimation.sensor_estimator import SensorEstimator, SensorEstimatorConfig
 from sim.estimator import PerfectEstimator
-from sim.sensors.faults import SensorFault
 from sim.frames import GeoPoint, geodetic_to_ned, ned_to_geodetic
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
 from sim.mavlink.commands import Arm, MissionUpload, PositionTarget, SetMode
@@ -35,6 +34,7 @@ from sim.mcap_log import McapLog
 from sim.planner_log import PlannerLogger
 from sim.replay.trace import TraceRecorder
 from sim.scheduler import LockstepScheduler, Stage
+from sim.sensors.faults import SensorFault
 from sim.vehicle_log import VehicleLogWriter
 
 
@@ -55,9 +55,12 @@ def mission_from_config(cfg: sc.Vehicle, origin: GeoPoint) -> Mission:
     m, ini = cfg.mission, cfg.initial
     return Mission(
         waypoints=np.array([_ned(w.north, w.east, w.altitude, origin) for w in m.waypoints]),
-        cruise_speed=m.cruise_speed, acceptance_radius=m.acceptance_radius,
+        cruise_speed=m.cruise_speed,
+        acceptance_radius=m.acceptance_radius,
         start=_ned(ini.north, ini.east, ini.altitude, origin),
-        hold_s={k: w.hold for k, w in enumerate(m.waypoints) if w.hold > 0}, land=m.land)
+        hold_s={k: w.hold for k, w in enumerate(m.waypoints) if w.hold > 0},
+        land=m.land,
+    )
 
 
 class Vehicle:
@@ -75,10 +78,17 @@ class Vehicle:
         ini = cfg.initial
         start = _ned(ini.north, ini.east, ini.altitude, origin)
         lat, lon, alt = ned_to_geodetic(start, origin)
-        self.plant.initialise(InitialConditions(
-            position=GeoPoint(float(lat), float(lon), float(alt)), tas_mps=ini.airspeed,
-            heading_rad=ini.heading, roll_rad=ini.roll, pitch_rad=ini.pitch, on_ground=ini.on_ground,
-            terrain_alt_m=origin.alt_m))
+        self.plant.initialise(
+            InitialConditions(
+                position=GeoPoint(float(lat), float(lon), float(alt)),
+                tas_mps=ini.airspeed,
+                heading_rad=ini.heading,
+                roll_rad=ini.roll,
+                pitch_rad=ini.pitch,
+                on_ground=ini.on_ground,
+                terrain_alt_m=origin.alt_m,
+            )
+        )
         if ini.trim if ini.trim is not None else af.kind == "fixed_wing":
             self.plant.trim()
         apply_turbulence(self.plant, wind, seed)
@@ -90,16 +100,22 @@ class Vehicle:
         self.mode = "AUTO"  # AUTO: the mission; HOLD: hover in place; GUIDED: ground-station targets
         self.estimate = self.estimator.update(0.0)
         if af.kind == "fixed_wing":
-            self.follower = FixedWingPlanFollower(L1Guidance.for_airframe(self.controller), m.cruise_speed,
-                                                  m.acceptance_radius, origin.alt_m)
+            self.follower = FixedWingPlanFollower(
+                L1Guidance.for_airframe(self.controller), m.cruise_speed, m.acceptance_radius, origin.alt_m
+            )
             self.controller.reset(self.estimate)
             self._setpoint_schema = S.FIXED_WING_SETPOINT
         else:
             lim = self.controller.gains.limits
             self.follower = MultirotorPlanFollower(
-                m.cruise_speed, lim.max_climb, lim.max_descent, m.acceptance_radius, self.mission.hold_s,
+                m.cruise_speed,
+                lim.max_climb,
+                lim.max_descent,
+                m.acceptance_radius,
+                self.mission.hold_s,
                 yaw_rad={k: w.yaw for k, w in enumerate(m.waypoints) if w.yaw is not None},
-                step=m.guidance == "step")
+                step=m.guidance == "step",
+            )
             self.controller.reset(self.estimate, landed=ini.on_ground)
             self._setpoint_schema = S.MULTIROTOR_SETPOINT
         self.recorder = TraceRecorder(cfg.name, af.kind, len(self.mission.waypoints))
@@ -110,8 +126,13 @@ class Vehicle:
         self._mission_logged: tuple[int, bool] | None = None
 
     def _make_planner(self):
-        return make_planner(self.cfg.planner.type, self.mission, self.airframe.kind, self.cfg.planner.options,
-                            getattr(self.controller.gains, "roll_limit_rad", np.radians(20.0)))
+        return make_planner(
+            self.cfg.planner.type,
+            self.mission,
+            self.airframe.kind,
+            self.cfg.planner.options,
+            getattr(self.controller.gains, "roll_limit_rad", np.radians(20.0)),
+        )
 
     def _make_estimator(self, kind: str, seed: int):
         """``ekf``: sensor models + INS/GNSS EKF (the default: the loop closes on estimates);
@@ -152,8 +173,9 @@ class Vehicle:
         if isinstance(cmd, MissionUpload):
             wps = geodetic_to_ned(*np.asarray(cmd.waypoints, float).T, self.origin)
             m = self.mission
-            self.mission = Mission(wps, m.cruise_speed, m.acceptance_radius, start=self.estimate.pos_ned.copy(),
-                                   land=m.land)
+            self.mission = Mission(
+                wps, m.cruise_speed, m.acceptance_radius, start=self.estimate.pos_ned.copy(), land=m.land
+            )
             self.planner = self._make_planner()
             if multirotor:
                 self.follower.set_waypoint_attributes({}, {})
@@ -184,8 +206,11 @@ class Vehicle:
             return False
         if isinstance(cmd, Arm):
             # arming follows from the mission (take-off demand); disarming in flight is refused
-            self._event(t, f"{'arm' if cmd.arm else 'disarm'} request noted; motors follow the flight "
-                           f"controller (armed: {self.armed})")
+            self._event(
+                t,
+                f"{'arm' if cmd.arm else 'disarm'} request noted; motors follow the flight "
+                f"controller (armed: {self.armed})",
+            )
             return False
         raise TypeError(f"unknown command {cmd!r}")
 
@@ -226,8 +251,7 @@ class Vehicle:
         if m.land and m.waypoints_done:  # descend, and stay down once landed
             last = m.waypoints[-1]
             descent = self.controller.gains.limits.max_descent
-            sp = MultirotorSetpoint(np.array([last[0], last[1], np.nan]), np.array([0.0, 0.0, descent]),
-                                    float("nan"))
+            sp = MultirotorSetpoint(np.array([last[0], last[1], np.nan]), np.array([0.0, 0.0, descent]), float("nan"))
         cmds = self.controller.update(self.estimate, sp, self._control_dt)
         if m.land and m.waypoints_done and m.landed_t is None and self.controller.landed:
             m.landed_t = t
@@ -244,9 +268,13 @@ class Vehicle:
         common = {"leg": f.leg, "cross_track_m": f.cross_track_m, "turning": f.turning}
         if isinstance(sp, MultirotorSetpoint):
             d = float(sp.pos_ned[2])
-            return {"pos_ned": [_json_num(x) for x in sp.pos_ned], "vel_ned": [float(x) for x in sp.vel_ned],
-                    "yaw_rad": _json_num(sp.yaw_rad),
-                    "altitude_m": _json_num(self.origin.alt_m - d), **common}
+            return {
+                "pos_ned": [_json_num(x) for x in sp.pos_ned],
+                "vel_ned": [float(x) for x in sp.vel_ned],
+                "yaw_rad": _json_num(sp.yaw_rad),
+                "altitude_m": _json_num(self.origin.alt_m - d),
+                **common,
+            }
         return {"roll_rad": sp.roll_rad, "altitude_m": sp.altitude_m, "tas_mps": sp.tas_mps, **common}
 
     def _log(self, t: float) -> None:

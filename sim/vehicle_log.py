@@ -25,6 +25,7 @@ from sim import log_schemas as S
 from sim.frames import euler_to_quaternion, ned_to_geodetic
 from sim.mcap_log import McapLog
 from sim.state import VehicleState
+import itertools
 
 NED_FRAME = "ned"
 WORLD_FRAME = "world"
@@ -34,31 +35,65 @@ _HALF_SQRT2 = math.sqrt(0.5)
 def state_dict(s: VehicleState) -> dict:
     """A state as the ``cosim.VehicleState`` log message (plain floats and lists)."""
     return {
-        "t": s.t, "pos_ned": s.pos_ned.tolist(), "vel_ned": s.vel_ned.tolist(),
-        "euler": s.euler.tolist(), "rates_body": s.rates_body.tolist(),
-        "alt_msl_m": s.alt_msl_m, "lat_deg": s.lat_deg, "lon_deg": s.lon_deg,
-        "tas_mps": s.tas_mps, "eas_mps": s.eas_mps, "alpha_rad": s.alpha_rad, "beta_rad": s.beta_rad,
+        "t": s.t,
+        "pos_ned": s.pos_ned.tolist(),
+        "vel_ned": s.vel_ned.tolist(),
+        "euler": s.euler.tolist(),
+        "rates_body": s.rates_body.tolist(),
+        "alt_msl_m": s.alt_msl_m,
+        "lat_deg": s.lat_deg,
+        "lon_deg": s.lon_deg,
+        "tas_mps": s.tas_mps,
+        "eas_mps": s.eas_mps,
+        "alpha_rad": s.alpha_rad,
+        "beta_rad": s.beta_rad,
     }
 
 
 def state_from_dict(d: dict) -> VehicleState:
     """A logged ``cosim.VehicleState`` message (plain dict) back into a VehicleState."""
     vec = {k: np.asarray(d[k], float) for k in ("pos_ned", "vel_ned", "euler", "rates_body")}
-    return VehicleState(t=float(d["t"]), alt_msl_m=float(d["alt_msl_m"]), lat_deg=float(d["lat_deg"]),
-                        lon_deg=float(d["lon_deg"]), tas_mps=float(d.get("tas_mps", 0.0)),
-                        eas_mps=float(d.get("eas_mps", 0.0)), alpha_rad=float(d.get("alpha_rad", 0.0)),
-                        beta_rad=float(d.get("beta_rad", 0.0)), **vec)
+    return VehicleState(
+        t=float(d["t"]),
+        alt_msl_m=float(d["alt_msl_m"]),
+        lat_deg=float(d["lat_deg"]),
+        lon_deg=float(d["lon_deg"]),
+        tas_mps=float(d.get("tas_mps", 0.0)),
+        eas_mps=float(d.get("eas_mps", 0.0)),
+        alpha_rad=float(d.get("alpha_rad", 0.0)),
+        beta_rad=float(d.get("beta_rad", 0.0)),
+        **vec,
+    )
 
 
 def threats_dict(t: float, th) -> dict:
     """Sensed threats as plain JSON (map obstacles and geofences are logged once in /world/map)."""
     return {
         "t": t,
-        "intruders": [{"id": i.id, "t": i.t, "pos_ned": i.pos_ned.tolist(), "vel_ned": i.vel_ned.tolist(),
-                       "radius_m": i.radius_m, "pos_cov": i.pos_cov.tolist(), "vel_cov": i.vel_cov.tolist(),
-                       "cooperative": i.cooperative} for i in th.intruders],
-        "spheres": [{"id": s.id, "t": s.t, "center_ned": s.center_ned.tolist(), "radius_m": s.radius_m,
-                     "vel_ned": s.vel_ned.tolist(), "center_cov": s.center_cov.tolist()} for s in th.spheres],
+        "intruders": [
+            {
+                "id": i.id,
+                "t": i.t,
+                "pos_ned": i.pos_ned.tolist(),
+                "vel_ned": i.vel_ned.tolist(),
+                "radius_m": i.radius_m,
+                "pos_cov": i.pos_cov.tolist(),
+                "vel_cov": i.vel_cov.tolist(),
+                "cooperative": i.cooperative,
+            }
+            for i in th.intruders
+        ],
+        "spheres": [
+            {
+                "id": s.id,
+                "t": s.t,
+                "center_ned": s.center_ned.tolist(),
+                "radius_m": s.radius_m,
+                "vel_ned": s.vel_ned.tolist(),
+                "center_cov": s.center_cov.tolist(),
+            }
+            for s in th.spheres
+        ],
         "storms": [{"t": s.t, "cells": [list(c.exterior.coords) for c in s.cells]} for s in th.storms],
         "lidar_hits": int(th.lidar.hit.sum()) if th.lidar is not None else 0,
     }
@@ -91,8 +126,13 @@ class VehicleLogWriter:
         log, t = self.log, s.t
         ns = log.epoch_ns + round(t * 1e9)
         sd = state_dict(s)
-        log.write_json(self.t_state, t, sd, S.VEHICLE_STATE,
-                       {"frame": "local-level NED from the scenario origin", "units": "SI, rad"})
+        log.write_json(
+            self.t_state,
+            t,
+            sd,
+            S.VEHICLE_STATE,
+            {"frame": "local-level NED from the scenario origin", "units": "SI, rad"},
+        )
         fix = LocationFix(frame_id=self.name, latitude=s.lat_deg, longitude=s.lon_deg, altitude=s.alt_msl_m)
         fix.timestamp.FromNanoseconds(ns)
         log.write_proto(self.t_loc, t, fix)
@@ -113,42 +153,69 @@ class VehicleLogWriter:
     def estimate(self, s: VehicleState) -> dict:
         """Log what controllers and planners saw (same schema as the truth)."""
         sd = state_dict(s)
-        self.log.write_json(self.t_est, s.t, sd, S.VEHICLE_STATE,
-                            {"frame": "local-level NED from the scenario origin", "units": "SI, rad"})
+        self.log.write_json(
+            self.t_est,
+            s.t,
+            sd,
+            S.VEHICLE_STATE,
+            {"frame": "local-level NED from the scenario origin", "units": "SI, rad"},
+        )
         return sd
 
     def sensors(self, t: float, measurements: dict, sigma3: dict, biases: dict) -> None:
         """Measurements delivered since the last log tick (one message, a list per sensor) and
         the estimate's 3-sigma bounds and estimated biases."""
         self.log.write_json(self.t_sensors, t, {"t": t, **measurements}, S.SENSORS, {"units": "SI, rad"})
-        self.log.write_json(self.t_sigma, t, {"t": t, **sigma3, "bias": biases}, S.ESTIMATE_SIGMA,
-                            {"frame": "NED; attitude error in body axes", "units": "SI, rad"})
+        self.log.write_json(
+            self.t_sigma,
+            t,
+            {"t": t, **sigma3, "bias": biases},
+            S.ESTIMATE_SIGMA,
+            {"frame": "NED; attitude error in body axes", "units": "SI, rad"},
+        )
 
     def threats(self, t: float, threats) -> None:
         """The threats as sensed when a plan was made (what the planner saw)."""
-        self.log.write_json(self.t_threats, t, threats_dict(t, threats), S.THREATS,
-                            {"frame": "local-level NED from the scenario origin"})
+        self.log.write_json(
+            self.t_threats,
+            t,
+            threats_dict(t, threats),
+            S.THREATS,
+            {"frame": "local-level NED from the scenario origin"},
+        )
 
-    def control(self, t: float, setpoint: dict, schema: dict, commands: dict[str, float],
-                debug: dict[str, float]) -> None:
+    def control(
+        self, t: float, setpoint: dict, schema: dict, commands: dict[str, float], debug: dict[str, float]
+    ) -> None:
         self.log.write_json(self.t_sp, t, {"t": t, **setpoint}, schema)
         self.log.write_json(self.t_cmd, t, {"t": t, "properties": commands, "debug": debug}, S.COMMANDS)
 
     def mission(self, t: float, next_waypoint: int, waypoints: int, complete: bool) -> None:
-        self.log.write_json(self.t_mission, t, {"t": t, "next_waypoint": next_waypoint,
-                                                "waypoints": waypoints, "complete": complete},
-                            S.MISSION_STATUS)
+        self.log.write_json(
+            self.t_mission,
+            t,
+            {"t": t, "next_waypoint": next_waypoint, "waypoints": waypoints, "complete": complete},
+            S.MISSION_STATUS,
+        )
 
     def plan(self, plan: Plan, latency_s: float) -> None:
         t = plan.t
-        self.log.write_json(self.t_plan, t, {
-            "t": t, "planner": plan.planner, "status": plan.status.value,
-            "positions": plan.positions.tolist(), "times": plan.times.tolist(),
-            "labels": plan.labels.tolist(), "diagnostics": plan.diagnostics}, S.PLAN,
-            {"frame": "local-level NED from the scenario origin"})
-        self.log.write_json(self.t_latency, t, {"t": t, "seconds": latency_s}, S.WALL_TIMING,
-                            {"wallclock": "true"})
-
+        self.log.write_json(
+            self.t_plan,
+            t,
+            {
+                "t": t,
+                "planner": plan.planner,
+                "status": plan.status.value,
+                "positions": plan.positions.tolist(),
+                "times": plan.times.tolist(),
+                "labels": plan.labels.tolist(),
+                "diagnostics": plan.diagnostics,
+            },
+            S.PLAN,
+            {"frame": "local-level NED from the scenario origin"},
+        )
+        self.log.write_json(self.t_latency, t, {"t": t, "seconds": latency_s}, S.WALL_TIMING, {"wallclock": "true"})
 
 
 def _prism_lines(footprint, d_top: float, d_bottom: float) -> list[tuple[float, float, float]]:
@@ -157,9 +224,15 @@ def _prism_lines(footprint, d_top: float, d_bottom: float) -> list[tuple[float, 
     pts: list[tuple[float, float, float]] = []
     for poly in polys:
         ring = list(poly.exterior.coords)
-        for (n0, e0), (n1, e1) in zip(ring, ring[1:]):
-            pts += [(n0, e0, d_top), (n1, e1, d_top), (n0, e0, d_bottom), (n1, e1, d_bottom),
-                    (n0, e0, d_top), (n0, e0, d_bottom)]
+        for (n0, e0), (n1, e1) in itertools.pairwise(ring):
+            pts += [
+                (n0, e0, d_top),
+                (n1, e1, d_top),
+                (n0, e0, d_bottom),
+                (n1, e1, d_bottom),
+                (n0, e0, d_top),
+                (n0, e0, d_bottom),
+            ]
     return pts
 
 
@@ -174,10 +247,21 @@ def write_map(log: McapLog, obstacles: list, fences: list, origin) -> None:
         shape = item.footprint if hasattr(item, "footprint") else item.area
         for poly in getattr(shape, "geoms", [shape]):
             lat, lon, _ = ned_to_geodetic([(n, e, 0.0) for n, e in poly.exterior.coords], origin)
-            features.append({"type": "Feature", "properties": {
-                "id": item.id, "kind": "obstacle" if hasattr(item, "footprint") else "geofence",
-                "up_min_m": item.up_min_m, "up_max_m": item.up_max_m},
-                "geometry": {"type": "Polygon", "coordinates": [list(zip(lon.tolist(), lat.tolist()))]}})
+            features.append(
+                {
+                    "type": "Feature",
+                    "properties": {
+                        "id": item.id,
+                        "kind": "obstacle" if hasattr(item, "footprint") else "geofence",
+                        "up_min_m": item.up_min_m,
+                        "up_max_m": item.up_max_m,
+                    },
+                    "geometry": {
+                        "type": "Polygon",
+                        "coordinates": [list(zip(lon.tolist(), lat.tolist(), strict=False))],
+                    },
+                }
+            )
         ent = scene.entities.add(frame_id=NED_FRAME, id=item.id)
         ent.timestamp.FromNanoseconds(log.epoch_ns)
         line = ent.lines.add(type=LinePrimitive.LINE_LIST, thickness=2.0, scale_invariant=True)
@@ -186,6 +270,5 @@ def write_map(log: McapLog, obstacles: list, fences: list, origin) -> None:
         for n, e, d in _prism_lines(shape, -item.up_max_m, -max(item.up_min_m, -1e4)):
             p = line.points.add()
             p.x, p.y, p.z = n, e, d
-    log.write_proto("/world/map", 0.0, GeoJSON(geojson=json.dumps({"type": "FeatureCollection",
-                                                                   "features": features})))
+    log.write_proto("/world/map", 0.0, GeoJSON(geojson=json.dumps({"type": "FeatureCollection", "features": features})))
     log.write_proto("/world/obstacles", 0.0, scene)

@@ -16,8 +16,8 @@ import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
-from guidance.mptp.synthetic import StormField
 from avoidance.threats import StormSnapshot
+from guidance.mptp.synthetic import StormField
 from sim import scenario as sc
 
 
@@ -39,11 +39,17 @@ class WeatherService:
         self.cfg = cfg
         self.field = ScriptedStormField(
             scripted=tuple((Polygon(c.points), np.array([c.drift_north, c.drift_east])) for c in cfg.storm),
-            seed=seed if cfg.seed is None else cfg.seed, births_after_t0=cfg.pop_up,
-            n_cells=cfg.cells, size_m=(cfg.size, cfg.size),
-            mean_velocity=(cfg.drift_north, cfg.drift_east), speed_spread=cfg.drift_spread,
-            mean_radius_m=cfg.radius, split_prob=cfg.split_probability, life_s=cfg.life,
-            centres=None if cfg.centres is None else [list(c) for c in cfg.centres])
+            seed=seed if cfg.seed is None else cfg.seed,
+            births_after_t0=cfg.pop_up,
+            n_cells=cfg.cells,
+            size_m=(cfg.size, cfg.size),
+            mean_velocity=(cfg.drift_north, cfg.drift_east),
+            speed_spread=cfg.drift_spread,
+            mean_radius_m=cfg.radius,
+            split_prob=cfg.split_probability,
+            life_s=cfg.life,
+            centres=None if cfg.centres is None else [list(c) for c in cfg.centres],
+        )
         self.nowcast: list[StormSnapshot] = []
         self.issued_t: float | None = None
 
@@ -61,7 +67,12 @@ class WeatherService:
 
 def storms_geojson(snapshot: StormSnapshot, to_lonlat) -> str:
     """A snapshot as a GeoJSON FeatureCollection string (lon/lat via ``to_lonlat(coords)``)."""
-    features = [{"type": "Feature", "properties": {"kind": "storm", "t": snapshot.t},
-                 "geometry": {"type": "Polygon", "coordinates": [to_lonlat(list(c.exterior.coords))]}}
-                for c in snapshot.cells]
+    features = [
+        {
+            "type": "Feature",
+            "properties": {"kind": "storm", "t": snapshot.t},
+            "geometry": {"type": "Polygon", "coordinates": [to_lonlat(list(c.exterior.coords))]},
+        }
+        for c in snapshot.cells
+    ]
     return json.dumps({"type": "FeatureCollection", "features": features})

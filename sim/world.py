@@ -46,21 +46,33 @@ class World:
         n = len(scenario.vehicle)
         vehicle_ss, sensing_ss, weather_ss, lidar_ss = seed_streams(scenario.seed)
         vehicle_seeds = vehicle_ss.generate_state(n, dtype=np.uint32)
-        self.vehicles = [Vehicle(v, self.origin, log, int(s), scenario.wind)
-                         for v, s in zip(scenario.vehicle, vehicle_seeds)]
+        self.vehicles = [
+            Vehicle(v, self.origin, log, int(s), scenario.wind)
+            for v, s in zip(scenario.vehicle, vehicle_seeds, strict=False)
+        ]
         self.objects = [TrafficObject(c, self.origin) for c in scenario.object]
         self.obstacles = [obstacle_prism(c, self.origin.alt_m) for c in scenario.obstacle]
         self.fences = [geofence(c, self.origin.alt_m) for c in scenario.geofence]
         for v in self.vehicles:
             v.threats.obstacles, v.threats.geofences = self.obstacles, self.fences  # known from the map
         has_traffic = n > 1 or bool(self.objects)
-        self.perception = ({v.name: Perception(scenario.surveillance, np.random.default_rng(ss))
-                            for v, ss in zip(self.vehicles, sensing_ss.spawn(n))} if has_traffic else {})
-        self.weather = (WeatherService(scenario.weather, weather_seed(weather_ss))
-                        if scenario.weather is not None else None)
+        self.perception = (
+            {
+                v.name: Perception(scenario.surveillance, np.random.default_rng(ss))
+                for v, ss in zip(self.vehicles, sensing_ss.spawn(n), strict=False)
+            }
+            if has_traffic
+            else {}
+        )
+        self.weather = (
+            WeatherService(scenario.weather, weather_seed(weather_ss)) if scenario.weather is not None else None
+        )
         self.faults = FaultSchedule(scenario.fault, {v.name: v for v in self.vehicles}, log)
-        self.lidars = {v.name: (Lidar(c.lidar, self.obstacles, np.random.default_rng(ss)), TruthSampler(v.plant))
-                       for v, c, ss in zip(self.vehicles, scenario.vehicle, lidar_ss.spawn(n)) if c.lidar is not None}
+        self.lidars = {
+            v.name: (Lidar(c.lidar, self.obstacles, np.random.default_rng(ss)), TruthSampler(v.plant))
+            for v, c, ss in zip(self.vehicles, scenario.vehicle, lidar_ss.spawn(n), strict=False)
+            if c.lidar is not None
+        }
         write_map(log, self.obstacles, self.fences, self.origin)
         log.metadata("vehicles", {v.name: v.airframe.kind for v in self.vehicles})
 
@@ -78,8 +90,9 @@ class World:
         for v in self.vehicles:
             v.schedule(sched, log_hz)
             if v.name in self.lidars:
-                sched.add_task(f"{v.name}.lidar", self.lidars[v.name][0].cfg.rate_hz, Stage.SENSE,
-                               lambda t, v=v: self._scan(v, t))
+                sched.add_task(
+                    f"{v.name}.lidar", self.lidars[v.name][0].cfg.rate_hz, Stage.SENSE, lambda t, v=v: self._scan(v, t)
+                )
         if self.objects:
             sched.add_task("world.log", log_hz, Stage.LOG, self._log_objects)
 
@@ -110,14 +123,23 @@ class World:
 
     def _lonlat(self, coords) -> list[list[float]]:
         lat, lon, _ = ned_to_geodetic([(n, e, 0.0) for n, e in coords], self.origin)
-        return [[x, y] for x, y in zip(lon.tolist(), lat.tolist())]
+        return [[x, y] for x, y in zip(lon.tolist(), lat.tolist(), strict=False)]
 
     def _log_objects(self, t: float) -> None:
         """Objects' true positions: JSON for metrics, spheres for the 3D panel."""
         live = [o for o in self.objects if o.exists(t)]
-        self.log.write_json("/world/objects", t, {"t": t, "objects": [
-            {"id": o.id, "pos_ned": o.position(t), "vel_ned": o.v, "radius_m": o.radius_m} for o in live]},
-            S.OBJECTS, {"frame": "local-level NED from the scenario origin"})
+        self.log.write_json(
+            "/world/objects",
+            t,
+            {
+                "t": t,
+                "objects": [
+                    {"id": o.id, "pos_ned": o.position(t), "vel_ned": o.v, "radius_m": o.radius_m} for o in live
+                ],
+            },
+            S.OBJECTS,
+            {"frame": "local-level NED from the scenario origin"},
+        )
         scene = SceneUpdate()
         for o in live:
             ent = scene.entities.add(frame_id=NED_FRAME, id=o.id)

@@ -17,14 +17,19 @@ def _deterministic(row: dict) -> dict:
 
 def _short_batch(tmp_path: Path, extra: str = "", runs: int = 20) -> Path:
     f = tmp_path / "mc.toml"
-    f.write_text(MC.read_text().replace('base = "../haps_box_mission.toml"', f'base = "{ROOT / "scenarios" / "haps_box_mission.toml"}"')
-                 .replace('duration = "5 min"', 'duration = "20 s"').replace("runs = 20", f"runs = {runs}") + extra)
+    f.write_text(
+        MC.read_text()
+        .replace('base = "../haps_box_mission.toml"', f'base = "{ROOT / "scenarios" / "haps_box_mission.toml"}"')
+        .replace('duration = "5 min"', 'duration = "20 s"')
+        .replace("runs = 20", f"runs = {runs}")
+        + extra
+    )
     return f
 
 
 def test_monte_carlo_same_results_on_process_pool_and_dask(tmp_path):
     distributed = pytest.importorskip("distributed")
-    name, runs = load_batch(_short_batch(tmp_path), tmp_path / "pool")
+    _name, runs = load_batch(_short_batch(tmp_path), tmp_path / "pool")
     assert len(runs) == 20 and len({r.params["seed"] for r in runs}) == 20
     headings = [r.params["vehicle.0.initial.heading"] for r in runs]
     assert all(-30 <= h <= 30 for h in headings) and len(set(headings)) == 20
@@ -33,10 +38,12 @@ def test_monte_carlo_same_results_on_process_pool_and_dask(tmp_path):
     assert (tmp_path / "pool" / "results.csv").read_text().count("\n") == 21
 
     _, runs_d = load_batch(_short_batch(tmp_path), tmp_path / "dask")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+    with (
+        distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster,
+        distributed.Client(cluster) as client,
+    ):
         dask_rows = run_batch(runs_d, tmp_path / "dask", executor=client.get_executor())
-    for a, b in zip(pool_rows, dask_rows):
+    for a, b in zip(pool_rows, dask_rows, strict=False):
         assert _deterministic(a) == _deterministic(b)
     # different seeds/params give different flights
     finals = {r["metric.vehicles.haps.tracking.max_bank_deg"] for r in pool_rows}
@@ -44,9 +51,12 @@ def test_monte_carlo_same_results_on_process_pool_and_dask(tmp_path):
 
 
 def test_failed_run_is_recorded_and_batch_resumes(tmp_path):
-    extra = '\n[sweep]\n"vehicle.0.gains" = ["no_such_gains.toml", "' + str(
-        ROOT / "aircraft" / "haps" / "gains.toml") + '"]\n'
-    name, runs = load_batch(_short_batch(tmp_path, extra, runs=2), tmp_path / "out")
+    extra = (
+        '\n[sweep]\n"vehicle.0.gains" = ["no_such_gains.toml", "'
+        + str(ROOT / "aircraft" / "haps" / "gains.toml")
+        + '"]\n'
+    )
+    _name, runs = load_batch(_short_batch(tmp_path, extra, runs=2), tmp_path / "out")
     assert len(runs) == 4
     rows = run_batch(runs, tmp_path / "out", workers=2)
     status = [r["status"] for r in rows]
@@ -58,11 +68,14 @@ def test_failed_run_is_recorded_and_batch_resumes(tmp_path):
     assert calls == [] and [_deterministic(r) for r in rows2] == [_deterministic(r) for r in rows]
 
 
-@pytest.mark.parametrize("text,msg", [
-    ('base = "x.toml"\nbogus = 1\n', "bogus: unknown key"),
-    ('name = "x"\n', "base: missing required field"),
-    ('base = "nope.toml"\n', "base: cannot load"),
-])
+@pytest.mark.parametrize(
+    "text,msg",
+    [
+        ('base = "x.toml"\nbogus = 1\n', "bogus: unknown key"),
+        ('name = "x"\n', "base: missing required field"),
+        ('base = "nope.toml"\n', "base: cannot load"),
+    ],
+)
 def test_bad_batch_files(tmp_path, text, msg):
     f = tmp_path / "b.toml"
     f.write_text(text)

@@ -100,8 +100,9 @@ def test_controllers_and_planners_follow_the_estimate_not_the_truth(tmp_path, mo
 def test_lidar_in_the_loop_sees_the_map_obstacle(tmp_path):
     data = _hover(2.0)
     data["vehicle"][0]["lidar"] = {"rate_hz": 5}
-    data["obstacle"] = [{"id": "wall", "shape": "box", "north": 6.0, "east": 0.0, "length": 2.0, "width": 20.0,
-                         "top": 440.0}]
+    data["obstacle"] = [
+        {"id": "wall", "shape": "box", "north": 6.0, "east": 0.0, "length": 2.0, "width": 20.0, "top": 440.0}
+    ]
     _, log = _run(tmp_path, data)
     hits = [m["lidar_hits"] for m in log.topic("/quad/threats").messages]
     assert min(hits) > 1000  # every plan saw the wall (the sweep runs before planning)

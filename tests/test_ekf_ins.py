@@ -41,7 +41,11 @@ def _fly(flight, seed: int, every: int, faults=(), **ekf_overrides) -> Run:
     s0 = flight.state(0)
     s0.pos_ned = s0.pos_ned + rng.normal(0.0, ecfg.init_pos_std_m, 3)
     s0.vel_ned = s0.vel_ned + rng.normal(0.0, ecfg.init_vel_std_mps, 3)
-    s0.euler = s0.euler + rng.normal(0.0, ecfg.init_tilt_std_rad, 3) * [1, 1, ecfg.init_yaw_std_rad / ecfg.init_tilt_std_rad]
+    s0.euler = s0.euler + rng.normal(0.0, ecfg.init_tilt_std_rad, 3) * [
+        1,
+        1,
+        ecfg.init_yaw_std_rad / ecfg.init_tilt_std_rad,
+    ]
     ekf = InsEkf(ecfg, s0, flight.origin)
     imu = suite.sensors["imu"]
     ts, errs, sigs, nees = [], [], [], []
@@ -53,8 +57,15 @@ def _fly(flight, seed: int, every: int, faults=(), **ekf_overrides) -> Run:
             continue
         s = ekf.three_sigma()
         dth = quat_log(quat_mul(quat_conj(ekf.nav.q), euler_to_quat(*tr.state.euler)))
-        e = np.concatenate((tr.state.pos_ned - est.pos_ned, tr.state.vel_ned - est.vel_ned, dth,
-                            imu.accel.bias - ekf.nav.ba, imu.gyro.bias - ekf.nav.bg))
+        e = np.concatenate(
+            (
+                tr.state.pos_ned - est.pos_ned,
+                tr.state.vel_ned - est.vel_ned,
+                dth,
+                imu.accel.bias - ekf.nav.ba,
+                imu.gyro.bias - ekf.nav.bg,
+            )
+        )
         ts.append(tr.t)
         errs.append(e)
         sigs.append(np.concatenate((s["pos"], s["vel"], s["att"], s["accel"], s["gyro"])))
@@ -65,20 +76,45 @@ def _fly(flight, seed: int, every: int, faults=(), **ekf_overrides) -> Run:
 @pytest.fixture(scope="module")
 def multirotor() -> Run:
     """2-minute multirotor mission at 5 m/s with hovers, a turn, a climb; GNSS lost 60-80 s."""
-    fl = generate([Segment(15, 0.0), Segment(25, 5.0), Segment(20, 5.0, 0.3), Segment(20, 5.0, 0.0, 2.0),
-                   Segment(20, 5.0, -0.2, -1.0), Segment(20, 0.0)], "multirotor", 100.0,
-                  GeoPoint(47.0, 8.0, 400.0), (0.0, 0.0, -50.0))
-    return _fly(fl, seed=11, every=5, faults=[("gnss", SensorFault(kind="dropout", t_start=GNSS_LOSS[0],
-                                                                     t_end=GNSS_LOSS[1]))])
+    fl = generate(
+        [
+            Segment(15, 0.0),
+            Segment(25, 5.0),
+            Segment(20, 5.0, 0.3),
+            Segment(20, 5.0, 0.0, 2.0),
+            Segment(20, 5.0, -0.2, -1.0),
+            Segment(20, 0.0),
+        ],
+        "multirotor",
+        100.0,
+        GeoPoint(47.0, 8.0, 400.0),
+        (0.0, 0.0, -50.0),
+    )
+    return _fly(
+        fl, seed=11, every=5, faults=[("gnss", SensorFault(kind="dropout", t_start=GNSS_LOSS[0], t_end=GNSS_LOSS[1]))]
+    )
 
 
 @pytest.fixture(scope="module")
 def haps() -> Run:
     """10-minute HAPS flight at 18 km, 25 m/s: straight, turns (about 4 deg bank), climb, descent."""
-    fl = generate([Segment(60, 25.0), Segment(90, 25.0, 0.03), Segment(60, 25.0, 0.0, 1.0),
-                   Segment(90, 25.0, -0.03), Segment(60, 25.0, 0.0, -1.0), Segment(120, 25.0, 0.02),
-                   Segment(120, 25.0)], "fixed_wing", 50.0, GeoPoint(47.0, 8.0, 0.0), (0.0, 0.0, -18_000.0),
-                  heading_rad=1.0, wind_ned=(3.0, -2.0, 0.0))
+    fl = generate(
+        [
+            Segment(60, 25.0),
+            Segment(90, 25.0, 0.03),
+            Segment(60, 25.0, 0.0, 1.0),
+            Segment(90, 25.0, -0.03),
+            Segment(60, 25.0, 0.0, -1.0),
+            Segment(120, 25.0, 0.02),
+            Segment(120, 25.0),
+        ],
+        "fixed_wing",
+        50.0,
+        GeoPoint(47.0, 8.0, 0.0),
+        (0.0, 0.0, -18_000.0),
+        heading_rad=1.0,
+        wind_ned=(3.0, -2.0, 0.0),
+    )
     return _fly(fl, seed=5, every=10)
 
 
@@ -86,9 +122,13 @@ def haps() -> Run:
 def test_error_within_3_sigma_at_least_95_percent(run, request):
     r: Run = request.getfixturevalue(run)
     inside = (np.abs(r.err) <= r.sig3).mean(axis=0)
-    assert np.all(inside >= 0.95), dict(zip(
-        ["pn", "pe", "pd", "vn", "ve", "vd", "ax", "ay", "az", "bax", "bay", "baz", "bgx", "bgy", "bgz"],
-        np.round(inside, 3)))
+    assert np.all(inside >= 0.95), dict(
+        zip(
+            ["pn", "pe", "pd", "vn", "ve", "vd", "ax", "ay", "az", "bax", "bay", "baz", "bgx", "bgy", "bgz"],
+            np.round(inside, 3),
+            strict=False,
+        )
+    )
 
 
 @pytest.mark.parametrize("run", ["multirotor", "haps"])
@@ -129,8 +169,15 @@ def test_gnss_loss_grows_position_covariance_and_recovers(multirotor):
 
 def test_analytic_jacobians_match_finite_differences():
     rng = np.random.default_rng(0)
-    s = m.NavState(rng.normal(size=3), rng.normal(size=3) * 5, euler_to_quat(0.3, -0.2, 2.0), rng.normal(size=3) * 0.1,
-                   rng.normal(size=3) * 0.01, 1.0, rng.normal(size=3))
+    s = m.NavState(
+        rng.normal(size=3),
+        rng.normal(size=3) * 5,
+        euler_to_quat(0.3, -0.2, 2.0),
+        rng.normal(size=3) * 0.1,
+        rng.normal(size=3) * 0.01,
+        1.0,
+        rng.normal(size=3),
+    )
     f, w, dt, decay = np.array([0.5, 0.2, -9.7]), np.array([0.1, -0.2, 0.3]), 0.01, 0.999
     _, r, fh, wh = m.propagate(s, f, w, dt, decay)
     phi = m.transition_analytic(np.eye(m.N), r, fh, wh, dt, decay)
@@ -149,8 +196,9 @@ def test_analytic_jacobians_match_finite_differences():
 
 
 def test_numeric_jacobian_mode_gives_the_same_estimate_and_runs_are_reproducible():
-    fl = generate([Segment(5, 0.0), Segment(10, 5.0, 0.2)], "multirotor", 100.0, GeoPoint(47.0, 8.0, 400.0),
-                  (0.0, 0.0, -50.0))
+    fl = generate(
+        [Segment(5, 0.0), Segment(10, 5.0, 0.2)], "multirotor", 100.0, GeoPoint(47.0, 8.0, 400.0), (0.0, 0.0, -50.0)
+    )
 
     def final(jac, seed=3):
         suite = SensorSuite(SensorSuiteConfig(), np.random.default_rng(seed))
@@ -162,7 +210,7 @@ def test_numeric_jacobian_mode_gives_the_same_estimate_and_runs_are_reproducible
         return est, ekf.covariance.copy()
 
     a, pa = final("analytic")
-    b, pb = final("numeric")
+    b, _pb = final("numeric")
     assert np.allclose(a.pos_ned, b.pos_ned, atol=0.05) and np.allclose(a.euler, b.euler, atol=2e-3)
     c, pc = final("analytic")
     assert np.array_equal(a.pos_ned, c.pos_ned) and np.array_equal(pa, pc)
@@ -180,6 +228,8 @@ def test_estimate_fields():
     assert est.t == truth.t and ekf.name == "ins_ekf"
     assert est.alt_msl_m == pytest.approx(fl.origin.alt_m - est.pos_ned[2])
     assert abs(est.alt_msl_m - truth.alt_msl_m) < 10.0
-    assert est.lat_deg == pytest.approx(truth.lat_deg, abs=1e-4) and est.lon_deg == pytest.approx(truth.lon_deg, abs=1e-4)
+    assert est.lat_deg == pytest.approx(truth.lat_deg, abs=1e-4) and est.lon_deg == pytest.approx(
+        truth.lon_deg, abs=1e-4
+    )
     assert est.tas_mps == pytest.approx(0.0, abs=1.5)  # pitot noise at rest (2 Pa ~ 1.8 m/s)
     assert set(ekf.three_sigma()) == {"pos", "vel", "att", "heading", "accel", "gyro", "baro"}

@@ -15,8 +15,16 @@ V = np.array([-12.0, 8.0, 0.5])
 
 
 def _intruder(t: float) -> VehicleState:
-    return VehicleState(t=t, pos_ned=P0 + V * t, vel_ned=V.copy(), euler=np.zeros(3), rates_body=np.zeros(3),
-                        alt_msl_m=0.0, lat_deg=0.0, lon_deg=0.0)
+    return VehicleState(
+        t=t,
+        pos_ned=P0 + V * t,
+        vel_ned=V.copy(),
+        euler=np.zeros(3),
+        rates_body=np.zeros(3),
+        alt_msl_m=0.0,
+        lat_deg=0.0,
+        lon_deg=0.0,
+    )
 
 
 def test_tracker_follows_constant_velocity_intruder_through_dropouts():
@@ -45,6 +53,7 @@ def test_tracker_follows_constant_velocity_intruder_through_dropouts():
 
 def test_tracks_expire_and_late_reports_are_ignored():
     from sim.sensors.measurements import AdsbReport
+
     trk = IntruderTracker(TrackerConfig(max_age_s=5.0))
     trk.push([AdsbReport(1.0, "x", P0.copy(), V.copy()), AdsbReport(2.0, "x", P0 + V, V.copy())])
     trk.push([AdsbReport(1.5, "x", P0 + 100.0, V.copy())])  # older than the track: ignored

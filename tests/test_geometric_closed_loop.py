@@ -19,7 +19,7 @@ from sim.runner import run_scenario
 from sim.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
-BOX_HALF_DIAGONAL = np.sqrt(3.0)          # 2 m cube
+BOX_HALF_DIAGONAL = np.sqrt(3.0)  # 2 m cube
 pytestmark = pytest.mark.closed_loop
 
 
@@ -68,8 +68,14 @@ def chosen(ev: dict) -> dict:
     k = ev["chosen"]
     n = ev["n_pts"][k]
     pts = np.asarray(ev["points_ned"][k][:n])
-    return {"theta": ev["theta_deg"][k], "alpha": ev["alpha_deg"][k], "omega": ev["omega_m"][k],
-            "type": ev["path_type"][k], "cost": ev["cost"][k], "points": pts}
+    return {
+        "theta": ev["theta_deg"][k],
+        "alpha": ev["alpha_deg"][k],
+        "omega": ev["omega_m"][k],
+        "type": ev["path_type"][k],
+        "cost": ev["cost"][k],
+        "points": pts,
+    }
 
 
 def assert_clear_and_complete(result, log):
@@ -95,7 +101,7 @@ def test_s1_160_solution_in_the_horizontal_plane_wider_for_the_larger_threat(tmp
         _, result, log = fly(tmp_path, name)
         assert_clear_and_complete(result, log)
         c = chosen(first_avoid(log))
-        assert c["alpha"] == pytest.approx(0.0, abs=1e-6)          # horizontal plane
+        assert c["alpha"] == pytest.approx(0.0, abs=1e-6)  # horizontal plane
         widths[radius] = abs(c["omega"])
     assert widths[1.5] > widths[1.0]
 
@@ -109,7 +115,7 @@ def test_s2_climbs_over(tmp_path):
     # the vehicle climbs faster than the 20° reference (5 sin 20° = 1.71 m/s) while avoiding
     st = log.topic("/quad/truth/state")
     during = (st.t >= ev["t"]) & (st.t <= ev["t"] + 4.0)
-    assert (-chosen(ev)["points"][:, 2]).max() > -chosen(ev)["points"][0, 2] + 3.0   # planned above
+    assert (-chosen(ev)["points"][:, 2]).max() > -chosen(ev)["points"][0, 2] + 3.0  # planned above
     assert (-st["vel_ned"][during, 2]).max() > 5.0 * np.sin(np.radians(20.0)) + 0.25
 
 
@@ -120,7 +126,7 @@ def test_s3_static_descends_first_moving_goes_left_and_costs_more(tmp_path):
     static = chosen(ev)
     pts = static["points"]
     mid = pts[len(pts) // 2]
-    assert -(mid[2] - pts[0][2]) < -1.0                       # below the reference at the peak
+    assert -(mid[2] - pts[0][2]) < -1.0  # below the reference at the peak
     st = log.topic("/quad/truth/state")
     h = -(st["pos_ned"][:, 2] - st["pos_ned"][0, 2])
     during = (st.t >= ev["t"]) & (st.t <= ev["t"] + 4.0)

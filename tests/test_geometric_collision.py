@@ -16,7 +16,9 @@ from avoidance.geometric.conflict import find_main_threat
 from avoidance.geometric.kinematics import path_kinematics
 from avoidance.geometric.threats import Threat, ThreatArrays, inflate
 
-_spec = importlib.util.spec_from_file_location("bench_geometric", Path(__file__).parents[1] / "benchmarks" / "bench_geometric.py")
+_spec = importlib.util.spec_from_file_location(
+    "bench_geometric", Path(__file__).parents[1] / "benchmarks" / "bench_geometric.py"
+)
 bench = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(bench)
 
@@ -55,22 +57,48 @@ def test_vectorised_check_equals_loop_reference(mode):
     agree = 0
     for trial in range(25):
         K, N, J = 12, int(rng.integers(3, 12)), int(rng.integers(1, 5))
-        pts = np.cumsum(rng.normal(0, 1.5, (K, N, 3)) + [2.0, 0, 0], axis=1)
+        pts = np.cumsum([*rng.normal(0, 1.5, (K, N, 3)), 2.0, 0, 0], axis=1)
         n_pts = rng.integers(2, N + 1, K)
         pts = np.where(np.arange(N)[None, :, None] < n_pts[:, None, None], pts, pts[np.arange(K), n_pts - 1][:, None])
         kin = path_kinematics(pts, n_pts, 5.0, 3.0)
-        threats = [Threat(f"t{j}", rng.uniform(-5, 20, 3), rng.normal(0, 2, 3) * (rng.random() < 0.7),
-                          float(rng.uniform(0.3, 3)), float(rng.uniform(0, 0.3))) for j in range(J)]
+        threats = [
+            Threat(
+                f"t{j}",
+                rng.uniform(-5, 20, 3),
+                rng.normal(0, 2, 3) * (rng.random() < 0.7),
+                float(rng.uniform(0.3, 3)),
+                float(rng.uniform(0, 0.3)),
+            )
+            for j in range(J)
+        ]
         durations = rng.uniform(0.5, 6.0, J)
         tail = np.array([5.0, 0, 0])
         horizon = float(kin.T.max()) + 2.0
-        vec = candidate_clearance(pts, kin.seg_vel, kin.tau, kin.seg_dt, ThreatArrays.of(threats), mode,
-                                  durations, tail, horizon).min(axis=1) >= 1.0
-        loop = np.array([not bench.baseline_collides(pts[k, : n_pts[k]], kin.seg_vel[k], kin.tau[k, : n_pts[k]], threats,
-                                                     durations, mode, 1.0, tail, horizon) for k in range(K)])
+        vec = (
+            candidate_clearance(
+                pts, kin.seg_vel, kin.tau, kin.seg_dt, ThreatArrays.of(threats), mode, durations, tail, horizon
+            ).min(axis=1)
+            >= 1.0
+        )
+        loop = np.array(
+            [
+                not bench.baseline_collides(
+                    pts[k, : n_pts[k]],
+                    kin.seg_vel[k],
+                    kin.tau[k, : n_pts[k]],
+                    threats,
+                    durations,
+                    mode,
+                    1.0,
+                    tail,
+                    horizon,
+                )
+                for k in range(K)
+            ]
+        )
         assert np.array_equal(vec, loop), trial
         agree += vec.sum()
-    assert 0 < agree < 25 * 12                                        # both outcomes exercised
+    assert 0 < agree < 25 * 12  # both outcomes exercised
 
 
 def _crossing(t_cross: float) -> tuple[np.ndarray, ThreatArrays]:
@@ -81,24 +109,26 @@ def _crossing(t_cross: float) -> tuple[np.ndarray, ThreatArrays]:
 
 
 def test_swept_is_conservative_and_timed_is_synchronised():
-    pts, ta = _crossing(t_cross=3.5)                                  # the UAV is long past x = 10 by then
+    pts, ta = _crossing(t_cross=3.5)  # the UAV is long past x = 10 by then
     kin = path_kinematics(pts, np.array([11]), 5.0, 3.0)
     args = (pts, kin.seg_vel, kin.tau, kin.seg_dt, ta)
     swept = candidate_clearance(*args, "swept", np.array([4.0]), np.zeros(3), 4.0)
     timed = candidate_clearance(*args, "timed", np.array([4.0]), np.zeros(3), 4.0)
     assert swept[0, 0] < 1.0 <= timed[0, 0]
-    pts, ta = _crossing(t_cross=2.0)                                  # both at x = 10 at τ = 2 s
+    pts, ta = _crossing(t_cross=2.0)  # both at x = 10 at τ = 2 s
     timed = candidate_clearance(pts, kin.seg_vel, kin.tau, kin.seg_dt, ta, "timed", np.array([4.0]), np.zeros(3), 4.0)
     assert timed[0, 0] == pytest.approx(-1.0)
 
 
 def test_timed_check_covers_the_reference_after_rejoin():
     pts = np.linspace([0, 0, 0], [10, 0, 0], 6)[None]
-    kin = path_kinematics(pts, np.array([6]), 5.0, 3.0)               # ends at τ = 2 s
+    kin = path_kinematics(pts, np.array([6]), 5.0, 3.0)  # ends at τ = 2 s
     ta = ThreatArrays.of([Threat("late", np.array([20.0, 0, 0]), np.zeros(3), 1.0)])
     tail = np.array([5.0, 0, 0])
-    clear = [candidate_clearance(pts, kin.seg_vel, kin.tau, kin.seg_dt, ta, "timed", np.zeros(1), tail, h)[0, 0]
-             for h in (2.5, 4.0)]
+    clear = [
+        candidate_clearance(pts, kin.seg_vel, kin.tau, kin.seg_dt, ta, "timed", np.zeros(1), tail, h)[0, 0]
+        for h in (2.5, 4.0)
+    ]
     assert clear[0] > 1.0 and clear[1] < 0.0
 
 
@@ -114,14 +144,21 @@ def test_inflation_from_covariance():
 
 def test_cpa_main_threat_finder():
     start, v = np.zeros(3), np.array([5.0, 0, 0])
-    threats = ThreatArrays.of([
-        Threat("far_side", np.array([30.0, 8, 0]), np.zeros(3), 1.0),           # misses by 8 m
-        Threat("late", np.array([40.0, 0.5, 0]), np.zeros(3), 1.0),             # on course at τ = 8 s
-        Threat("crossing", np.array([20.0, -8, 0]), np.array([0.0, 2, 0]), 1.5),  # at (20, 0) at τ = 4 s
-    ])
+    threats = ThreatArrays.of(
+        [
+            Threat("far_side", np.array([30.0, 8, 0]), np.zeros(3), 1.0),  # misses by 8 m
+            Threat("late", np.array([40.0, 0.5, 0]), np.zeros(3), 1.0),  # on course at τ = 8 s
+            Threat("crossing", np.array([20.0, -8, 0]), np.array([0.0, 2, 0]), 1.5),  # at (20, 0) at τ = 4 s
+        ]
+    )
     m = find_main_threat(start, v, threats, 1.0, 10.0)
-    assert m.index == 2 and m.t_cpa == pytest.approx(4.0) and np.allclose(m.p_c, [20, 0, 0]) and m.radius == pytest.approx(1.5)
+    assert (
+        m.index == 2
+        and m.t_cpa == pytest.approx(4.0)
+        and np.allclose(m.p_c, [20, 0, 0])
+        and m.radius == pytest.approx(1.5)
+    )
     only_late = ThreatArrays.of([Threat("late", np.array([40.0, 0.5, 0]), np.zeros(3), 1.0)])
     m = find_main_threat(start, v, only_late, 1.0, 10.0)
     assert m.miss == pytest.approx(0.5) and m.radius == pytest.approx(1.5)  # enclosing sphere on the line (G28)
-    assert find_main_threat(start, v, only_late, 1.0, 5.0) is None          # beyond the horizon
+    assert find_main_threat(start, v, only_late, 1.0, 5.0) is None  # beyond the horizon

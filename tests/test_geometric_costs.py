@@ -9,8 +9,16 @@ from avoidance.geometric.config import CostCaps, GeometricConfig, VehicleParams
 from avoidance.geometric.costs import closeness, energy, hover_power, rotation_penalty, smoothness
 from avoidance.geometric.kinematics import path_kinematics
 from avoidance.geometric.normalization import caps_from_samples, clip_minmax, log_clip_minmax
-from avoidance.geometric.sweep import (LOWER_CAP_ENV, N_ENVIRONMENTS, UPPER_CAP_ENV, env_id, env_index, env_params,
-                                       run_sweep, sweep_config)
+from avoidance.geometric.sweep import (
+    LOWER_CAP_ENV,
+    N_ENVIRONMENTS,
+    UPPER_CAP_ENV,
+    env_id,
+    env_index,
+    env_params,
+    run_sweep,
+    sweep_config,
+)
 
 THESIS = CostCaps(time_lo=1.2530, time_hi=8.1436, energy_lo=249.59, energy_hi=1759.0)
 
@@ -44,13 +52,13 @@ def test_hover_power_constants():
     W, A = veh.mass * g, veh.n_rotors * np.pi * veh.blade_radius**2
     sigma = veh.blades_per_rotor * veh.blade_chord / (np.pi * veh.blade_radius)
     assert sigma == pytest.approx(0.11696, abs=1e-5)
-    assert A == pytest.approx(0.45604, abs=1e-5) and W / A == pytest.approx(64.534, abs=1e-3)
+    assert pytest.approx(0.45604, abs=1e-5) == A and pytest.approx(64.534, abs=1e-3) == W / A
     assert np.sqrt(W / (2 * rho * A)) == pytest.approx(5.1323, abs=1e-4)
     p0 = rho * A * veh.v_tip**3 * sigma * veh.blade_cd / 8
     hover = hover_power(np.zeros((1, 1, 3)), np.array([2]), veh, rho, g)[0]
     assert hover - p0 == pytest.approx(173.70, abs=0.05)
     lit = hover_power(np.zeros((1, 1, 3)), np.array([2]), veh, rho, g, literal_ki=True)[0]
-    assert lit == pytest.approx(hover)                                 # V_y = 0 uses the hover formula
+    assert lit == pytest.approx(hover)  # V_y = 0 uses the hover formula
     # continuity at V_y = 0 of the climb and the (corrected) descent branch
     near = hover_power(np.array([[[0, 0, 1e-6]], [[0, 0, -1e-6]]]), np.array([2, 2]), veh, rho, g)
     assert np.allclose(near, hover, rtol=1e-5)
@@ -63,7 +71,9 @@ def test_normalisation_check_values():
     assert log_clip_minmax(1.0, *lim_m) == pytest.approx(0.99967, abs=1e-5)
     assert log_clip_minmax(np.exp(-3), *lim_m) == pytest.approx(0.0, abs=1e-12)
     assert log_clip_minmax(0.0, *lim_m) == 0.0
-    assert np.allclose(clip_minmax(np.array([0.5, 1.253, 4.0, 9.0]), 1.253, 8.1436), [0, 0, (4 - 1.253) / (8.1436 - 1.253), 1])
+    assert np.allclose(
+        clip_minmax(np.array([0.5, 1.253, 4.0, 9.0]), 1.253, 8.1436), [0, 0, (4 - 1.253) / (8.1436 - 1.253), 1]
+    )
     caps = caps_from_samples(np.linspace(1, 11, 1001), np.linspace(100, 1100, 1001))
     assert caps.time_lo == 1 and caps.time_hi == pytest.approx(10.95 * 1.15) and caps.energy_hi == pytest.approx(1095)
 
@@ -83,14 +93,16 @@ def test_smoothness_and_rotation_penalty():
 def test_closeness_terms():
     cfg = GeometricConfig()
     pts = np.array([[[0.0, 0, 0], [1, 0, 0], [2, 0, 0]]])
-    samples = np.array([[[0.0, 4, 0], [2, 4, 0]]])                    # nearest samples 4, √17, 4 away
+    samples = np.array([[[0.0, 4, 0], [2, 4, 0]]])  # nearest samples 4, √17, 4 away
     d = np.array([4, np.sqrt(17), 4]) - 1.0
     f = 1 / (0.5 * d.mean() + 0.5 * d.min())
     assert closeness(pts, np.array([3]), samples, np.array([1.0]), cfg)[0] == pytest.approx(f)
-    two = np.concatenate([samples, samples + [0, 10, 0]])
+    two = np.concatenate([samples, [*samples, 0, 10, 0]])
     d2 = np.array([14, np.sqrt(197), 14]) - 1.0
     f2 = 1 / (0.5 * d2.mean() + 0.5 * d2.min())
-    assert closeness(pts, np.array([3]), two, np.array([1.0, 1.0]), cfg)[0] == pytest.approx(0.5 * f + 0.5 * (f + f2) / 2)
+    assert closeness(pts, np.array([3]), two, np.array([1.0, 1.0]), cfg)[0] == pytest.approx(
+        0.5 * f + 0.5 * (f + f2) / 2
+    )
     assert closeness(pts, np.array([3]), np.zeros((0, 2, 3)), np.zeros(0), cfg)[0] == 0.0
 
 

@@ -31,12 +31,16 @@ def test_omega_grid_and_path_counts():
     assert np.allclose(sorted(np.abs(omega_grid(1.0, 12))), np.repeat([16 / 15, 1.6, 32 / 15, 8 / 3, 3.2], 2))
     assert np.degrees(plane_angles(3)) == pytest.approx([0, 45, 90, 135])
     for l, n in [(4, 3), (4, 1), (4, 5)]:
-        c = generate_candidates(np.zeros(3), [1, 0, 0], 10.0, 1.0, GeometricConfig(l=l, n_planes=n, path_types=("simple",)))
-        assert len(c) == l * (n + 1)                                  # L = l(n+1), exact for l = 4
+        c = generate_candidates(
+            np.zeros(3), [1, 0, 0], 10.0, 1.0, GeometricConfig(l=l, n_planes=n, path_types=("simple",))
+        )
+        assert len(c) == l * (n + 1)  # L = l(n+1), exact for l = 4
     both = generate_candidates(np.zeros(3), [1, 0, 0], 10.0, 1.0, GeometricConfig())
     assert len(both) == 32 and set(both.n_pts) == {16, 21}
     # l = 12 keeps 10 offsets per plane, not l: the thesis count holds only for l = 4
-    assert len(generate_candidates(np.zeros(3), [1, 0, 0], 10.0, 1.0, GeometricConfig(l=12, path_types=("simple",)))) == 40
+    assert (
+        len(generate_candidates(np.zeros(3), [1, 0, 0], 10.0, 1.0, GeometricConfig(l=12, path_types=("simple",)))) == 40
+    )
 
 
 @pytest.mark.parametrize("x_dir", [[1, 0, 0], [0.3, -0.8, 0.4], [0.0, 0.0, 1.0]])
@@ -54,10 +58,12 @@ def test_peak_offset_above_threat_and_tangential_ends(x_dir):
         along = rel @ x_hat
         lateral = rel - along[:, None] * x_hat
         peak = np.argmax(np.linalg.norm(lateral, axis=1))
-        assert np.allclose(p[peak] - lateral[peak], centre) and np.linalg.norm(lateral[peak]) == pytest.approx(abs(c.omega[k]))
+        assert np.allclose(p[peak] - lateral[peak], centre) and np.linalg.norm(lateral[peak]) == pytest.approx(
+            abs(c.omega[k])
+        )
         first = (p[1] - p[0]) / np.linalg.norm(p[1] - p[0])
-        assert first @ x_hat > 0.99                                    # O(h²) chord of a zero slope
-        assert np.linalg.norm(lateral[-1]) < 1e-9                      # rejoins the reference line
+        assert first @ x_hat > 0.99  # O(h²) chord of a zero slope
+        assert np.linalg.norm(lateral[-1]) < 1e-9  # rejoins the reference line
         if c.kind[k] == SYMMETRIC:
             last = (p[-1] - p[-2]) / np.linalg.norm(p[-1] - p[-2])
             assert last @ x_hat > 0.99 and along[-1] == pytest.approx(2 * dx)
@@ -67,7 +73,7 @@ def test_peak_offset_above_threat_and_tangential_ends(x_dir):
 
 def test_frame_and_plane_elevation():
     f = uav_frame([1.0, 0.0, 0.0])
-    assert np.allclose(f, np.eye(3))                                  # ŷ = ẑ×x̂ is left, ẑ up
+    assert np.allclose(f, np.eye(3))  # ŷ = ẑ×x̂ is left, ẑ up
     assert np.allclose(f.T @ f, np.eye(3)) and np.linalg.det(uav_frame([0, 0, -1])) == pytest.approx(1)
     a = plane_elevation(f, plane_angles(3))
     assert np.degrees(a) == pytest.approx([0, 45, 90, 45])
@@ -95,7 +101,7 @@ def test_kinematics_padding_and_times():
 def test_symmetric_shape_mirrors_about_peak():
     x, y = path_shape(8.0, np.array([2.0, -3.0]), SYMMETRIC, 0.1)
     assert np.allclose(x + x[::-1], 16.0) and np.allclose(y, y[:, ::-1]) and x[10] == 8.0
-    xs, ys = path_shape(8.0, np.array([2.0]), SIMPLE, 0.1)
+    _xs, ys = path_shape(8.0, np.array([2.0]), SIMPLE, 0.1)
     assert np.allclose(y[0, :11], ys[0, :11])
 
 
@@ -125,9 +131,13 @@ unit_vectors = st.tuples(*[st.floats(-1, 1)] * 3).filter(lambda v: np.linalg.nor
 
 
 @settings(max_examples=40, deadline=None)
-@given(x_dir=unit_vectors, dist=st.floats(8.0, 14.0), radius=st.floats(0.5, 2.0),
-       others=st.lists(st.tuples(st.floats(0, 25), st.floats(-8, 8), st.floats(-8, 8), st.floats(0.3, 2.5)), max_size=4),
-       mode=st.sampled_from(["swept", "timed"]))
+@given(
+    x_dir=unit_vectors,
+    dist=st.floats(8.0, 14.0),
+    radius=st.floats(0.5, 2.0),
+    others=st.lists(st.tuples(st.floats(0, 25), st.floats(-8, 8), st.floats(-8, 8), st.floats(0.3, 2.5)), max_size=4),
+    mode=st.sampled_from(["swept", "timed"]),
+)
 def test_accepted_paths_clear_every_static_sphere(x_dir, dist, radius, others, mode):
     """Property: every available candidate keeps >= R + r_uav from every static sphere at every
     sample point (and on the segments between them)."""

@@ -15,16 +15,17 @@ from avoidance.geometric.config import GeometricConfig
 from avoidance.geometric.conflict import find_main_threat
 from avoidance.geometric.planner import GeometricAvoider
 from avoidance.geometric.threats import Threat, ThreatArrays
-from avoidance.planner import Plan, PlanStatus, Planner, Threats
+from avoidance.planner import Plan, Planner, PlanStatus, Threats
 from avoidance.threats import IntruderTrack, SphereThreat
 from sim.state import VehicleState
 
-REF = np.array([[0.0, 0.0, -20.0], [50.0, 0.0, -20.0], [120.0, 0.0, -20.0]])   # north at 20 m
+REF = np.array([[0.0, 0.0, -20.0], [50.0, 0.0, -20.0], [120.0, 0.0, -20.0]])  # north at 20 m
 
 
 def state(t: float, north: float, east: float = 0.0, down: float = -20.0, speed: float = 5.0) -> VehicleState:
-    return VehicleState(t, np.array([north, east, down]), np.array([speed, 0, 0]), np.zeros(3), np.zeros(3), -down,
-                        47.0, 8.0)
+    return VehicleState(
+        t, np.array([north, east, down]), np.array([speed, 0, 0]), np.zeros(3), np.zeros(3), -down, 47.0, 8.0
+    )
 
 
 def sphere(north: float, east: float = 0.0, r: float = 2.0, **kw) -> SphereThreat:
@@ -49,7 +50,7 @@ def test_avoidance_plan_leaves_and_rejoins_the_reference():
     assert d["main_threat_id"] == "s" and d["cost"] > 0 and 0 <= d["chosen_index"] < 32
     assert {"t_generation_s", "t_collision_s", "t_cost_s", "t_total_s"} <= d.keys()
     assert np.allclose(p.positions[0], [10, 0, -20]) and p.times[0] == 2.0
-    assert np.allclose(p.positions[1], [12.5, 0, -20]) and p.times[1] == pytest.approx(2.5)   # latency shift
+    assert np.allclose(p.positions[1], [12.5, 0, -20]) and p.times[1] == pytest.approx(2.5)  # latency shift
     assert np.all(np.diff(p.times) > 0) and np.allclose(p.positions[-1], REF[-1]) and p.labels[-1] == 2
     off = np.hypot(p.positions[:, 1], p.positions[:, 2] + 20)
     assert off.max() == pytest.approx(abs(av.candidate_log()["omega_m"][d["chosen_index"]]))
@@ -81,9 +82,11 @@ def test_no_solution_hovers_and_too_close_hovers():
     av = GeometricAvoider(REF, 5.0, GeometricConfig(start_shift_s=0.0))
     # a ring of spheres abreast of the main threat at 4.8 m, in the 8 directions of the planes:
     # every candidate peak (3.2 or 6.4 m off the reference) passes within 1.6 m of a centre
-    ring = [SphereThreat(f"r{i}", 0.0, np.array([25.0, 4.8 * np.cos(a), -20 + 4.8 * np.sin(a)]), 2.0)
-            for i, a in enumerate(np.radians(np.arange(0, 360, 45)))]
-    p = av.plan(state(3.0, 10.0), Threats(spheres=[sphere(25.0)] + ring), 3.0)
+    ring = [
+        SphereThreat(f"r{i}", 0.0, np.array([25.0, 4.8 * np.cos(a), -20 + 4.8 * np.sin(a)]), 2.0)
+        for i, a in enumerate(np.radians(np.arange(0, 360, 45)))
+    ]
+    p = av.plan(state(3.0, 10.0), Threats(spheres=[sphere(25.0), *ring]), 3.0)
     assert p.status is PlanStatus.NO_SOLUTION and p.diagnostics["status"] == "no_solution"
     assert np.allclose(p.positions, [[10, 0, -20]]) and np.allclose(p.velocities, 0) and p.times[0] == 3.0
     p = av.plan(state(3.5, 10.0), Threats(spheres=[sphere(14.0)]), 3.5)
@@ -93,13 +96,20 @@ def test_no_solution_hovers_and_too_close_hovers():
 def test_intruder_track_with_covariance_and_candidate_log():
     cfg = GeometricConfig(start_shift_s=0.0, k_sigma=2.0)
     av = GeometricAvoider(REF, 5.0, cfg)
-    head_on = IntruderTrack("ac1", 0.0, np.array([60.0, 0, -20]), np.array([-5.0, 0, 0]), 1.0,
-                            pos_cov=np.eye(3) * 0.25, vel_cov=np.eye(3) * 0.01)
+    head_on = IntruderTrack(
+        "ac1",
+        0.0,
+        np.array([60.0, 0, -20]),
+        np.array([-5.0, 0, 0]),
+        1.0,
+        pos_cov=np.eye(3) * 0.25,
+        vel_cov=np.eye(3) * 0.01,
+    )
     p = av.plan(state(0.0, 10.0), Threats(intruders=[head_on]), 0.0)
     assert p.diagnostics["main_threat_id"] == "ac1"
     assert p.diagnostics["t_cpa_s"] == pytest.approx(5.0)
     log = av.candidate_log()
-    text = json.dumps(log)                                             # plain JSON
+    text = json.dumps(log)  # plain JSON
     assert np.array(log["points_ned"]).shape == (32, 21, 3) and len(log["cost"]) == 32
     assert set(log["raw"]) == {"time", "energy", "smoothness", "smoothness_rp", "cmo", "hover_power"}
     assert set(log["normalised"]) == {"time", "energy", "smoothness_rp", "cmo"}
@@ -120,7 +130,8 @@ def test_invalid_inputs_raise_clear_errors():
         av.plan(state(0, 10), Threats(spheres=[sphere(30.0, r=-1.0)]), 0.0)
     with pytest.raises(ValueError, match="covariance"):
         GeometricAvoider(REF, 5.0, GeometricConfig(k_sigma=2.0)).plan(
-            state(0, 10), Threats(spheres=[sphere(30.0, center_cov=-np.eye(3))]), 0.0)
+            state(0, 10), Threats(spheres=[sphere(30.0, center_cov=-np.eye(3))]), 0.0
+        )
     assert isinstance(av.plan(state(0, 10), Threats(), 0.0), Plan)
 
 
@@ -161,7 +172,7 @@ def test_static_threat_beyond_the_horizon_keeps_its_centre_and_radius():
     m = find_main_threat(start, v, ta, 1.0, 1.0, 20.0)
     assert m.t_cpa == pytest.approx(1.3) and np.allclose(m.p_c, [6.5, 0, 0])
     assert m.radius == pytest.approx(2.0) and m.miss == pytest.approx(0.0)
-    cut = find_main_threat(start, v, ta, 1.0, 1.0)                    # geometry cut at the horizon
+    cut = find_main_threat(start, v, ta, 1.0, 1.0)  # geometry cut at the horizon
     assert cut.t_cpa == pytest.approx(1.0) and cut.radius == pytest.approx(3.5)
     # the planner passes the time to the reference end: it plans around the sphere where it is
     # (with the cut geometry, dx = 5 m < 2.5 · 3.5 m would be "too close")
@@ -174,9 +185,9 @@ def test_commitment_lasts_until_the_vehicle_passes_the_rejoin_point_not_the_sche
     av = GeometricAvoider(REF, 5.0, GeometricConfig(start_shift_s=0.0))
     threats = Threats(spheres=[sphere(25.0)])
     first = av.plan(state(0.0, 10.0), threats, 0.0)
-    end = int(np.flatnonzero(first.labels == -1)[-1])                   # the rejoin point
+    end = int(np.flatnonzero(first.labels == -1)[-1])  # the rejoin point
     peak, _ = peak_of(first)
-    late = float(first.times[end]) + 2.0                                # schedule over, vehicle at the peak
+    late = float(first.times[end]) + 2.0  # schedule over, vehicle at the peak
     lagging = av.plan(state(late, peak[0], peak[1], peak[2]), threats, late)
     assert lagging.diagnostics["status"] == "committed" and np.array_equal(lagging.positions, first.positions)
     past = av.plan(state(late + 0.1, first.positions[end, 0] + 0.2), threats, late + 0.1)
@@ -189,7 +200,7 @@ def test_committed_recheck_is_retimed_to_the_vehicles_lag():
     path, times = first.positions[first.labels == -1], first.times[first.labels == -1]
     q = peak_of(first)[0]
     tq = float(times[np.flatnonzero(np.all(path == q, axis=1))[0]])
-    v = np.array([0.0, 0.0, 5.0])                                       # descending through q at tq + 2 s
+    v = np.array([0.0, 0.0, 5.0])  # descending through q at tq + 2 s
 
     def check(t: float, t_sched: float) -> bool:
         pos = np.array([np.interp(t_sched, times, path[:, i]) for i in range(3)])
@@ -197,13 +208,13 @@ def test_committed_recheck_is_retimed_to_the_vehicles_lag():
         return av.still_valid(Threats(spheres=[sphere(25.0)], intruders=[track]), t, pos)
 
     assert tq > 1.0
-    assert check(1.0, 1.0)              # on schedule: at q 2 s before the intruder
-    assert not check(3.0, 1.0)          # 2 s behind: at q with it
+    assert check(1.0, 1.0)  # on schedule: at q 2 s before the intruder
+    assert not check(3.0, 1.0)  # 2 s behind: at q with it
 
 
 def test_hovering_vehicle_plans_from_where_it_is():
     threats = Threats(spheres=[sphere(25.0)])
-    p = GeometricAvoider(REF, 5.0).plan(state(0.0, 19.5, speed=0.0), threats, 0.0)   # 0.75 s latency shift
+    p = GeometricAvoider(REF, 5.0).plan(state(0.0, 19.5, speed=0.0), threats, 0.0)  # 0.75 s latency shift
     assert p.diagnostics["status"] == "avoid"
     assert np.allclose(p.positions[0], [19.5, 0, -20]) and p.times[0] == pytest.approx(0.75)
     # at cruise speed the evading point is 3.75 m ahead, 1.75 m from the centre
@@ -235,7 +246,7 @@ def test_unsafe_commitment_far_off_the_reference_is_suspended_and_resumed():
     av = GeometricAvoider(REF, 5.0, GeometricConfig(start_shift_s=0.0, select_margin_m=1.0))
     first = av.plan(state(0.0, 10.0), threats, 0.0)
     peak, out = peak_of(first)
-    here = peak - np.array([2.0, 0, 0]) - out * 0.5                        # before the peak, ~5.9 m off
+    here = peak - np.array([2.0, 0, 0]) - out * 0.5  # before the peak, ~5.9 m off
     blocked = Threats(spheres=[sphere(25.0), SphereThreat("new", 2.0, peak, 1.0)])
     p = av.plan(state(2.0, *here), blocked, 2.0)
     assert p.status is PlanStatus.NO_SOLUTION and p.diagnostics["status"] == "suspended"
@@ -249,8 +260,8 @@ def test_unsafe_commitment_far_off_the_reference_flies_on_when_holding_is_worse(
     first = av.plan(state(0.0, 10.0), Threats(spheres=[sphere(25.0)]), 0.0)
     peak, out = peak_of(first)
     here = peak - np.array([2.0, 0, 0]) - out * 0.5
-    grazing = SphereThreat("new", 2.0, peak + out * 1.5, 1.0)                # 0.5 m from the path's peak
-    from_above = IntruderTrack("ac", 2.0, here + [0, 0, -5.0], np.array([0, 0, 5.0]), 1.0)   # at `here` in 1 s
+    grazing = SphereThreat("new", 2.0, peak + out * 1.5, 1.0)  # 0.5 m from the path's peak
+    from_above = IntruderTrack("ac", 2.0, [*here, 0, 0, -5.0], np.array([0, 0, 5.0]), 1.0)  # at `here` in 1 s
     p = av.plan(state(2.0, *here), Threats(spheres=[sphere(25.0), grazing], intruders=[from_above]), 2.0)
     d = p.diagnostics
     assert d["status"] == "committed_unsafe" and np.array_equal(p.positions, first.positions)

@@ -26,10 +26,10 @@ def test_scenario1_collision_angle(cfg):
         res = scenario1(160.0, radius).plan(cfg)
         assert res.status is Status.AVOID
         c, k, _ = _chosen(res)
-        assert c.theta[k] == 0.0 and c.alpha[k] == pytest.approx(0.0)          # horizontal plane
+        assert c.theta[k] == 0.0 and c.alpha[k] == pytest.approx(0.0)  # horizontal plane
         assert abs(c.omega[k]) == pytest.approx(3.2 * radius)
         widths[radius] = abs(c.omega[k])
-    assert widths[1.5] > widths[1.0]                                          # wider for the larger threat
+    assert widths[1.5] > widths[1.0]  # wider for the larger threat
     res = scenario1(174.0, 1.5).plan(cfg)
     assert res.status is Status.NO_SOLUTION and not res.available.any()
 
@@ -48,7 +48,9 @@ def test_scenario2_climbs_over(cfg):
     d = np.array([np.cos(np.radians(20)), 0, np.sin(np.radians(20))])
     height_over_reference = p[:, 2] - (p @ d) * d[2]
     assert height_over_reference.min() >= -1e-9 and height_over_reference.max() > 3.0
-    descend_first = np.flatnonzero((c.theta == c.theta[k]) & (c.kind == c.kind[k]) & np.isclose(c.omega, -c.omega[k]))[0]
+    descend_first = np.flatnonzero((c.theta == c.theta[k]) & (c.kind == c.kind[k]) & np.isclose(c.omega, -c.omega[k]))[
+        0
+    ]
     assert res.costs.normalised["cmo"][descend_first] > res.costs.normalised["cmo"][k]
 
 
@@ -57,12 +59,12 @@ def test_scenario3_static_descends_moving_goes_lateral_and_costs_more(cfg):
     a = scenario3(moving_main=False).plan(cfg)
     b = scenario3(moving_main=True).plan(cfg)
     assert a.status is b.status is Status.AVOID
-    ca, ka, pa = _chosen(a)
-    assert pa[len(pa) // 2, 2] < -3.0 and np.all(pa[:, 2] <= 1e-9)           # descends first (below p_c)
-    assert not b.available[ka]                                                # (a)'s choice is unavailable in (b)
+    _ca, ka, pa = _chosen(a)
+    assert pa[len(pa) // 2, 2] < -3.0 and np.all(pa[:, 2] <= 1e-9)  # descends first (below p_c)
+    assert not b.available[ka]  # (a)'s choice is unavailable in (b)
     cb, kb, pb = _chosen(b)
     assert cb.alpha[kb] == pytest.approx(0.0) and abs(cb.omega[kb]) == pytest.approx(1.6 * 2.0)
-    assert np.allclose(pb[:, 2], 0.0, atol=1e-9)                              # horizontal, lateral
+    assert np.allclose(pb[:, 2], 0.0, atol=1e-9)  # horizontal, lateral
     assert b.cost > a.cost
     # the reconstructed geometry is point-symmetric about p_c: the mirror image (left / right)
     # ties to 1e-12, so which side wins is decided by rounding, not by the scenario
@@ -80,7 +82,7 @@ def test_scenario3_moving_goes_to_the_side_away_from_the_diagonal_threats(cfg):
         b = scenario3(True, shift).plan(cfg)
         assert a.status is b.status is Status.AVOID
         _, _, pa = _chosen(a)
-        assert pa[len(pa) // 2, 2] < -2.0 and np.all(pa[:, 2] <= 1e-9)       # static: descends first
+        assert pa[len(pa) // 2, 2] < -2.0 and np.all(pa[:, 2] <= 1e-9)  # static: descends first
         cb, kb, pb = _chosen(b)
         assert np.allclose(pb[:, 2], 0.0, atol=1e-9) and np.sign(pb[len(pb) // 2, 1]) == side
         assert b.cost > a.cost

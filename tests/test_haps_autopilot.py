@@ -25,6 +25,7 @@ OVERSHOOT = math.radians(1.0)  # bank beyond the command limit allowed by the in
 
 # -- gains file ----------------------------------------------------------------------------------
 
+
 def test_default_gains_load_in_code_units():
     g = HapsGains.load()
     assert g.roll_limit_rad == pytest.approx(math.radians(20.0))
@@ -41,12 +42,15 @@ def _edited(tmp_path: Path, old: str, new: str) -> Path:
     return p
 
 
-@pytest.mark.parametrize("old,new,match", [
-    ("[tecs]\n", "[tecs]\nthr_dampp = 0.1\n", r"\[tecs\]: unknown key\(s\) thr_dampp; allowed here: .*thr_damp"),
-    ("[l1]\n", "[l1x]\n", r"unknown section\(s\) l1x"),
-    ("kp_roll = 12.0", "", r"\[inner\]: missing key\(s\) kp_roll"),
-    ("kp_roll = 12.0", 'kp_roll = "12"', r"kp_roll must be a number"),
-])
+@pytest.mark.parametrize(
+    "old,new,match",
+    [
+        ("[tecs]\n", "[tecs]\nthr_dampp = 0.1\n", r"\[tecs\]: unknown key\(s\) thr_dampp; allowed here: .*thr_damp"),
+        ("[l1]\n", "[l1x]\n", r"unknown section\(s\) l1x"),
+        ("kp_roll = 12.0", "", r"\[inner\]: missing key\(s\) kp_roll"),
+        ("kp_roll = 12.0", 'kp_roll = "12"', r"kp_roll must be a number"),
+    ],
+)
 def test_gains_file_is_strict(tmp_path, old, new, match):
     with pytest.raises(GainsError, match=match):
         HapsGains.load(_edited(tmp_path, old, new))
@@ -54,11 +58,20 @@ def test_gains_file_is_strict(tmp_path, old, new, match):
 
 # -- L1 geometry (point-mass kinematics, no JSBSim) -----------------------------------------------
 
+
 def _state(n, e, course, speed=30.0) -> VehicleState:
-    return VehicleState(t=0.0, pos_ned=np.array([n, e, -ALT]),
-                        vel_ned=np.array([speed * math.cos(course), speed * math.sin(course), 0.0]),
-                        euler=np.array([0.0, 0.0, course]), rates_body=np.zeros(3),
-                        alt_msl_m=ALT, lat_deg=0.0, lon_deg=0.0, tas_mps=speed, eas_mps=8.0)
+    return VehicleState(
+        t=0.0,
+        pos_ned=np.array([n, e, -ALT]),
+        vel_ned=np.array([speed * math.cos(course), speed * math.sin(course), 0.0]),
+        euler=np.array([0.0, 0.0, course]),
+        rates_body=np.zeros(3),
+        alt_msl_m=ALT,
+        lat_deg=0.0,
+        lon_deg=0.0,
+        tas_mps=speed,
+        eas_mps=8.0,
+    )
 
 
 def _fly_point_mass(l1, n, e, course, a, b, seconds, speed=30.0):
@@ -107,6 +120,7 @@ def test_l1_behind_a_flies_to_a_and_past_b_returns():
 
 # -- TECS logic (synthetic states) -----------------------------------------------------------------
 
+
 def test_first_update_engages_inner_loops_once():
     ap = HapsAutopilot(HapsGains.load())
     s = _state(0.0, 0.0, 0.0)
@@ -114,8 +128,12 @@ def test_first_update_engages_inner_loops_once():
     first = ap.update(s, FixedWingSetpoint(0.0, ALT, TAS), DT)
     second = ap.update(s, FixedWingSetpoint(0.0, ALT, TAS), DT)
     assert first["ap/engage"] == 1.0 and first["ap/kp-roll"] == ap.gains.kp_roll
-    assert set(second) == {"ap/roll-cmd-rad", "ap/pitch-cmd-rad",
-                           "fcs/throttle-cmd-norm[0]", "fcs/throttle-cmd-norm[1]"}
+    assert set(second) == {
+        "ap/roll-cmd-rad",
+        "ap/pitch-cmd-rad",
+        "fcs/throttle-cmd-norm[0]",
+        "fcs/throttle-cmd-norm[1]",
+    }
 
 
 def test_update_without_reset_starts_from_the_state():
@@ -154,6 +172,7 @@ def test_roll_command_is_limited_and_slewed():
 
 # -- closed loop on the JSBSim model ---------------------------------------------------------------
 
+
 class Loop:
     """Trimmed HAPS plant + autopilot + L1 at 10 Hz; records what the checks need."""
 
@@ -175,12 +194,19 @@ class Loop:
             cmds = self.ap.update(s, FixedWingSetpoint(roll_cmd, alt_cmd, tas_cmd), DT)
             self.plant.set_many(cmds)
             self.plant.step(STEPS_PER_CONTROL)
-            rec.append((s.t, s.alt_msl_m, s.tas_mps, s.roll, xt, cmds["fcs/throttle-cmd-norm[0]"],
-                        *self.ap.debug.values()))
+            rec.append(
+                (s.t, s.alt_msl_m, s.tas_mps, s.roll, xt, cmds["fcs/throttle-cmd-norm[0]"], *self.ap.debug.values())
+            )
         arr = np.array(rec)
         assert np.isfinite(arr).all()  # state, commands and the autopilot's internals
-        return {"t": arr[:, 0], "alt": arr[:, 1], "tas": arr[:, 2], "roll": arr[:, 3],
-                "xt": arr[:, 4], "thr": arr[:, 5]}
+        return {
+            "t": arr[:, 0],
+            "alt": arr[:, 1],
+            "tas": arr[:, 2],
+            "roll": arr[:, 3],
+            "xt": arr[:, 4],
+            "thr": arr[:, 5],
+        }
 
 
 @pytest.mark.closed_loop
@@ -241,4 +267,3 @@ def test_closed_loop_without_trim_throttle_and_lower_gains_scheduled():
     assert np.abs(r["alt"] - ALT).max() < 50.0
     assert np.abs(r["tas"][-200:] - TAS * 10.0 / 8.0).max() < 0.5
     assert loop.plant["ap/gain-sched"] == pytest.approx(0.64, abs=0.03)
-

@@ -14,6 +14,7 @@ from aircraft.haps.autopilot import HapsGains
 from sim.mcap_read import read_info, read_topic
 from sim.runner import RunFailed, run_scenario
 from sim.scenario import load_scenario
+import itertools
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "scenarios" / "haps_box_mission.toml"
@@ -33,7 +34,7 @@ def test_box_mission_completes_with_tight_tracking(box_run):
     assert result.status == "completed", result
     assert result.missions["haps"].complete
     wps = scenario.vehicle[0].mission.waypoints
-    legs = [math.hypot(b.north - a.north, b.east - a.east) for a, b in zip(wps, wps[1:])]
+    legs = [math.hypot(b.north - a.north, b.east - a.east) for a, b in itertools.pairwise(wps)]
     assert min(legs) >= 20_000
     assert all(18_000 <= w.altitude <= 20_000 for w in wps)
 
@@ -49,7 +50,7 @@ def test_box_mission_completes_with_tight_tracking(box_run):
     # straight flight: not capturing a leg, and 60 s past the last capture (let transients settle)
     settled = np.zeros_like(turning)
     last_turn = -math.inf
-    for i, (t, turn) in enumerate(zip(st["t"], turning)):
+    for i, (t, turn) in enumerate(zip(st["t"], turning, strict=False)):
         if turn:
             last_turn = t
         settled[i] = (not turn) and t - last_turn >= 60.0
@@ -92,8 +93,9 @@ def test_same_seed_same_payloads(tmp_path):
     assert pa == pb
 
 
-@pytest.mark.parametrize("exc,status", [(RuntimeError("injected fault"), "failed"),
-                                        (KeyboardInterrupt(), "interrupted")])
+@pytest.mark.parametrize(
+    "exc,status", [(RuntimeError("injected fault"), "failed"), (KeyboardInterrupt(), "interrupted")]
+)
 def test_run_killed_midway_leaves_log_to_last_tick(tmp_path, exc, status):
     scenario, text = load_scenario(SCENARIO)
     path = tmp_path / "killed.mcap"
@@ -118,12 +120,18 @@ def test_run_killed_midway_leaves_log_to_last_tick(tmp_path, exc, status):
 
 def test_cli_run_and_info(tmp_path):
     log = tmp_path / "cli.mcap"
-    run = subprocess.run([sys.executable, "-m", "sim.cli", "run", str(SCENARIO), "-o", str(log),
-                          "--duration", "20"], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    run = subprocess.run(
+        [sys.executable, "-m", "sim.cli", "run", str(SCENARIO), "-o", str(log), "--duration", "20"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=120,
+    )
     assert run.returncode == 0, run.stderr
     for word in ("duration_elapsed", "real-time factor", "mission haps", "0/4 waypoints", str(log)):
         assert word in run.stdout
-    info = subprocess.run([sys.executable, "-m", "sim.cli", "info", str(log)],
-                          capture_output=True, text=True, cwd=ROOT, timeout=60)
+    info = subprocess.run(
+        [sys.executable, "-m", "sim.cli", "info", str(log)], capture_output=True, text=True, cwd=ROOT, timeout=60
+    )
     assert info.returncode == 0, info.stderr
     assert "/haps/truth/state" in info.stdout and "haps_box_mission" in info.stdout

@@ -41,10 +41,19 @@ def free_port() -> int:
 def make_state(t=1.25) -> VehicleState:
     pos = np.array([120.0, -40.0, -600.0])
     lat, lon, alt = ned_to_geodetic(pos, ORIGIN)
-    return VehicleState(t=t, pos_ned=pos, vel_ned=np.array([20.0, -5.0, -1.5]),
-                        euler=np.array([0.2, -0.05, -2.0]), rates_body=np.array([0.01, -0.02, 0.03]),
-                        alt_msl_m=float(alt), lat_deg=float(lat), lon_deg=float(lon),
-                        tas_mps=23.0, eas_mps=21.5, extra={"throttle": 0.42})
+    return VehicleState(
+        t=t,
+        pos_ned=pos,
+        vel_ned=np.array([20.0, -5.0, -1.5]),
+        euler=np.array([0.2, -0.05, -2.0]),
+        rates_body=np.array([0.01, -0.02, 0.03]),
+        alt_msl_m=float(alt),
+        lat_deg=float(lat),
+        lon_deg=float(lon),
+        tas_mps=23.0,
+        eas_mps=21.5,
+        extra={"throttle": 0.42},
+    )
 
 
 class Harness:
@@ -52,11 +61,14 @@ class Harness:
 
     def __init__(self, **cfg):
         port = free_port()
-        self.gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", dialect="common",
-                                              source_system=255, source_component=190)
+        self.gcs = mavutil.mavlink_connection(
+            f"udpin:127.0.0.1:{port}", dialect="common", source_system=255, source_component=190
+        )
         self.events: list[tuple[str, str]] = []
-        self.link = VehicleLink(LinkConfig(system_id=SYSID, gcs_port=port, **cfg),
-                                on_event=lambda text, level: self.events.append((level, text)))
+        self.link = VehicleLink(
+            LinkConfig(system_id=SYSID, gcs_port=port, **cfg),
+            on_event=lambda text, level: self.events.append((level, text)),
+        )
         self.commands = []
         self.inbox = []
         self.state = make_state()
@@ -133,9 +145,10 @@ def test_heartbeat_identity_and_scaled_telemetry(h):
 
 
 def test_adsb_vehicle_per_intruder(h):
-    tracks = [IntruderTrack("cessna", 2.0, np.array([1000.0, 0.0, -300.0]), np.array([0.0, 50.0, 2.0])),
-              IntruderTrack("uas2", 1.0, np.array([0.0, 500.0, -100.0]), np.array([-10.0, 0.0, 0.0]),
-                            cooperative=True)]
+    tracks = [
+        IntruderTrack("cessna", 2.0, np.array([1000.0, 0.0, -300.0]), np.array([0.0, 50.0, 2.0])),
+        IntruderTrack("uas2", 1.0, np.array([0.0, 500.0, -100.0]), np.array([-10.0, 0.0, 0.0]), cooperative=True),
+    ]
     h.drain()
     h.link.publish(2.0, make_state(2.0), 0, True, "AUTO", tracks, ORIGIN)
     got = {}
@@ -186,9 +199,23 @@ def upload(h, waypoints, frame=mav.MAV_FRAME_GLOBAL_INT, skip=None):
             return m
         seq = skip if skip is not None and m.seq == 0 else m.seq
         lat, lon, alt = waypoints[seq]
-        h.gcs.mav.mission_item_int_send(SYSID, 1, seq, frame, mav.MAV_CMD_NAV_WAYPOINT, 0, 1, 0, 0, 0,
-                                        math.nan, round(lat * 1e7), round(lon * 1e7), alt,
-                                        mav.MAV_MISSION_TYPE_MISSION)
+        h.gcs.mav.mission_item_int_send(
+            SYSID,
+            1,
+            seq,
+            frame,
+            mav.MAV_CMD_NAV_WAYPOINT,
+            0,
+            1,
+            0,
+            0,
+            0,
+            math.nan,
+            round(lat * 1e7),
+            round(lon * 1e7),
+            alt,
+            mav.MAV_MISSION_TYPE_MISSION,
+        )
     return None
 
 
@@ -225,8 +252,9 @@ def test_out_of_sequence_item_is_refused_and_counted(h):
     assert h.link.stats["mission_sequence"] == 1
     assert any("mission_sequence" in text for _, text in h.events)
     # a stray item outside any upload is counted, not answered
-    h.gcs.mav.mission_item_int_send(SYSID, 1, 1, mav.MAV_FRAME_GLOBAL_INT, mav.MAV_CMD_NAV_WAYPOINT, 0, 1,
-                                    0, 0, 0, 0, 470000000, 80000000, 500.0, 0)
+    h.gcs.mav.mission_item_int_send(
+        SYSID, 1, 1, mav.MAV_FRAME_GLOBAL_INT, mav.MAV_CMD_NAV_WAYPOINT, 0, 1, 0, 0, 0, 0, 470000000, 80000000, 500.0, 0
+    )
     h.settle()
     assert h.link.stats["mission_unexpected_item"] == 1
 
@@ -252,6 +280,8 @@ def test_gcs_can_cancel_its_upload(h):
     h.gcs.mav.mission_ack_send(SYSID, 1, mav.MAV_MISSION_OPERATION_CANCELLED, mav.MAV_MISSION_TYPE_MISSION)
     h.settle()
     assert not h.link.mission.uploading
+
+
 def test_unsupported_frame_is_refused(h):
     ack = upload(h, WAYPOINTS, frame=mav.MAV_FRAME_LOCAL_NED)
     assert ack.type == mav.MAV_MISSION_UNSUPPORTED_FRAME
@@ -282,15 +312,36 @@ def test_arm_and_mode_commands_are_acknowledged(h):
 
 
 def test_position_target_respects_type_mask(h):
-    ignore_z_accel_yawrate = (mav.POSITION_TARGET_TYPEMASK_Z_IGNORE | 0b111 << 6
-                              | mav.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE)
-    h.gcs.mav.set_position_target_local_ned_send(1234, SYSID, 1, mav.MAV_FRAME_LOCAL_NED, ignore_z_accel_yawrate,
-                                                 10.0, 20.0, -30.0, 1.0, 2.0, 3.0, 0, 0, 0, 0.5, 0.1)
-    velocity_only = 0b111 | 0b111 << 6 | mav.POSITION_TARGET_TYPEMASK_YAW_IGNORE | mav.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
-    h.gcs.mav.set_position_target_local_ned_send(1300, SYSID, 1, mav.MAV_FRAME_LOCAL_NED, velocity_only,
-                                                 0, 0, 0, 4.0, 5.0, 6.0, 0, 0, 0, 0, 0)
-    h.gcs.mav.set_position_target_local_ned_send(1400, SYSID, 1, mav.MAV_FRAME_BODY_NED, 0,
-                                                 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0)
+    ignore_z_accel_yawrate = (
+        mav.POSITION_TARGET_TYPEMASK_Z_IGNORE | 0b111 << 6 | mav.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
+    )
+    h.gcs.mav.set_position_target_local_ned_send(
+        1234,
+        SYSID,
+        1,
+        mav.MAV_FRAME_LOCAL_NED,
+        ignore_z_accel_yawrate,
+        10.0,
+        20.0,
+        -30.0,
+        1.0,
+        2.0,
+        3.0,
+        0,
+        0,
+        0,
+        0.5,
+        0.1,
+    )
+    velocity_only = (
+        0b111 | 0b111 << 6 | mav.POSITION_TARGET_TYPEMASK_YAW_IGNORE | mav.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
+    )
+    h.gcs.mav.set_position_target_local_ned_send(
+        1300, SYSID, 1, mav.MAV_FRAME_LOCAL_NED, velocity_only, 0, 0, 0, 4.0, 5.0, 6.0, 0, 0, 0, 0, 0
+    )
+    h.gcs.mav.set_position_target_local_ned_send(
+        1400, SYSID, 1, mav.MAV_FRAME_BODY_NED, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0
+    )
     h.settle(0.2)
     a, b = h.commands
     assert isinstance(a, PositionTarget) and a.t_boot_ms == 1234

@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 
 os.environ.setdefault("MAVLINK20", "1")
-from pymavlink import mavutil  # noqa: E402
-from pymavlink.dialects.v20 import common as mav  # noqa: E402
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import common as mav
 
-from sim.frames import GeoPoint, ned_to_geodetic  # noqa: E402
-from sim.replay.runlog import RunLog  # noqa: E402
-from sim.runner import run_scenario  # noqa: E402
-from sim.scenario import parse_scenario  # noqa: E402
+from sim.frames import GeoPoint, ned_to_geodetic
+from sim.replay.runlog import RunLog
+from sim.runner import run_scenario
+from sim.scenario import parse_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.closed_loop
@@ -37,8 +37,9 @@ class Gcs(threading.Thread):
 
     def __init__(self, port: int):
         super().__init__(daemon=True)
-        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", dialect="common",
-                                               source_system=255, source_component=190)
+        self.conn = mavutil.mavlink_connection(
+            f"udpin:127.0.0.1:{port}", dialect="common", source_system=255, source_component=190
+        )
         self.heartbeat = None
         self.positions = []
         self.ack = None
@@ -74,8 +75,22 @@ class Gcs(threading.Thread):
                     break
                 k = m.seq
                 self.conn.mav.mission_item_int_send(
-                    1, 1, k, mav.MAV_FRAME_GLOBAL_INT, mav.MAV_CMD_NAV_WAYPOINT, 0, 1, 0, 0, 0, math.nan,
-                    round(lat[k] * 1e7), round(lon[k] * 1e7), float(alt[k]), mav.MAV_MISSION_TYPE_MISSION)
+                    1,
+                    1,
+                    k,
+                    mav.MAV_FRAME_GLOBAL_INT,
+                    mav.MAV_CMD_NAV_WAYPOINT,
+                    0,
+                    1,
+                    0,
+                    0,
+                    0,
+                    math.nan,
+                    round(lat[k] * 1e7),
+                    round(lon[k] * 1e7),
+                    float(alt[k]),
+                    mav.MAV_MISSION_TYPE_MISSION,
+                )
             end = time.monotonic() + 30
             while time.monotonic() < end and self.recv({"GLOBAL_POSITION_INT"}, 1.0) is not None:
                 pass
@@ -86,8 +101,11 @@ class Gcs(threading.Thread):
 def test_gcs_uploads_a_mission_that_the_vehicle_flies(tmp_path):
     port = _free_port()
     data = tomllib.loads((ROOT / "scenarios" / "quad_square_mission.toml").read_text())
-    data.update(duration=60.0, stop_when_complete=True,
-                mavlink={"enabled": True, "base_port": port, "rate_hz": 5.0, "pace": 4.0})
+    data.update(
+        duration=60.0,
+        stop_when_complete=True,
+        mavlink={"enabled": True, "base_port": port, "rate_hz": 5.0, "pace": 4.0},
+    )
     v = data["vehicle"][0]
     v["mission"]["land"] = False
     v["mission"]["waypoints"] = [{"north": 0, "east": 0, "altitude": 415, "hold": "120 s"}]
@@ -105,7 +123,8 @@ def test_gcs_uploads_a_mission_that_the_vehicle_flies(tmp_path):
     events = [text for _, text in log.events()]
     assert "quad: mission uploaded: 3 waypoints, mode AUTO" in events
     assert [e for e in events if "waypoint" in e and e.endswith("/3 reached")] == [
-        f"quad: waypoint {k}/3 reached" for k in (1, 2, 3)]
+        f"quad: waypoint {k}/3 reached" for k in (1, 2, 3)
+    ]
     assert result.status == "completed"
     assert any("mavlink" in e and "garbage" in e for e in events)
     # telemetry matched the vehicle: the last position report is near the last waypoint

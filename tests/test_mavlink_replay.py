@@ -56,15 +56,32 @@ def write_log(path, scenario=SCENARIO):
             for name, speed, up in (("haps", 20.0, 500.0), ("quad", 5.0, 50.0)):
                 pos = np.array([speed * t, 0.0, -up])
                 lat, lon, alt = ned_to_geodetic(pos, ORIGIN)
-                log.write_json(f"/{name}/truth/state", t, {
-                    "t": t, "pos_ned": pos.tolist(), "vel_ned": [speed, 0.0, 0.0], "euler": [0.0, 0.0, 0.0],
-                    "rates_body": [0.0, 0.0, 0.0], "alt_msl_m": float(alt), "lat_deg": float(lat),
-                    "lon_deg": float(lon), "tas_mps": speed, "eas_mps": speed, "alpha_rad": 0.0,
-                    "beta_rad": 0.0}, VEHICLE_STATE)
+                log.write_json(
+                    f"/{name}/truth/state",
+                    t,
+                    {
+                        "t": t,
+                        "pos_ned": pos.tolist(),
+                        "vel_ned": [speed, 0.0, 0.0],
+                        "euler": [0.0, 0.0, 0.0],
+                        "rates_body": [0.0, 0.0, 0.0],
+                        "alt_msl_m": float(alt),
+                        "lat_deg": float(lat),
+                        "lon_deg": float(lon),
+                        "tas_mps": speed,
+                        "eas_mps": speed,
+                        "alpha_rad": 0.0,
+                        "beta_rad": 0.0,
+                    },
+                    VEHICLE_STATE,
+                )
                 if k % 10 == 0:
-                    log.write_json(f"/{name}/mission/status", t, {"t": t, "next_waypoint": k // 10,
-                                                                  "waypoints": 4, "complete": False},
-                                   MISSION_STATUS)
+                    log.write_json(
+                        f"/{name}/mission/status",
+                        t,
+                        {"t": t, "next_waypoint": k // 10, "waypoints": 4, "complete": False},
+                        MISSION_STATUS,
+                    )
 
 
 def two_gcs():
@@ -74,8 +91,12 @@ def two_gcs():
             s.bind(("127.0.0.1", 0))
             port = s.getsockname()[1]
         try:
-            conns = [mavutil.mavlink_connection(f"udpin:127.0.0.1:{p}", dialect="common", source_system=255,
-                                                source_component=190) for p in (port, port + 1)]
+            conns = [
+                mavutil.mavlink_connection(
+                    f"udpin:127.0.0.1:{p}", dialect="common", source_system=255, source_component=190
+                )
+                for p in (port, port + 1)
+            ]
         except OSError:
             continue
         return port, conns
@@ -107,8 +128,9 @@ def test_replay_reaches_gcs_at_n_times_speed(tmp_path):
     events, box = [], {}
 
     def run():
-        box["result"] = replay_to_gcs(path, speed=speed, base_port=port, rate_hz=5.0,
-                                      on_event=lambda text, level: events.append((level, text)))
+        box["result"] = replay_to_gcs(
+            path, speed=speed, base_port=port, rate_hz=5.0, on_event=lambda text, level: events.append((level, text))
+        )
 
     thread = threading.Thread(target=run)
     thread.start()
@@ -131,7 +153,7 @@ def test_replay_reaches_gcs_at_n_times_speed(tmp_path):
         return [m for m in msgs if m.get_type() == kind]
 
     # identity per vehicle: rank in name order -> system id and port
-    assert {(m.get_srcSystem(), m.type) for m in of(haps_msgs, "HEARTBEAT") + [first]} == {(1, mav.MAV_TYPE_FIXED_WING)}
+    assert {(m.get_srcSystem(), m.type) for m in [*of(haps_msgs, "HEARTBEAT"), first]} == {(1, mav.MAV_TYPE_FIXED_WING)}
     assert {(m.get_srcSystem(), m.type) for m in of(quad_msgs, "HEARTBEAT")} == {(2, mav.MAV_TYPE_QUADROTOR)}
     # 3.9 s of sim time at 5 Hz: t = 0, 0.2, ... 3.8
     gpi = of(haps_msgs, "GLOBAL_POSITION_INT")
@@ -157,9 +179,14 @@ def test_replay_without_scenario_falls_back_and_can_stop(tmp_path):
         port = sink.getsockname()[1]
         events = []
         seen = []
-        result = replay_to_gcs(path, speed=None, base_port=port, vehicles=["haps"],
-                               on_event=lambda text, level: events.append((level, text)),
-                               should_stop=lambda: seen.append(1) or len(seen) >= 15)
+        result = replay_to_gcs(
+            path,
+            speed=None,
+            base_port=port,
+            vehicles=["haps"],
+            on_event=lambda text, level: events.append((level, text)),
+            should_stop=lambda: seen.append(1) or len(seen) >= 15,
+        )
         assert result.states == {"haps": 15} and not result.complete
         assert any(level == "warning" and "no scenario.toml" in text for level, text in events)
         sink.settimeout(1.0)

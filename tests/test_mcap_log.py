@@ -24,8 +24,9 @@ def _write(path, n=50, fail_at=None):
             t = k * 0.1
             if fail_at is not None and k == fail_at:
                 raise RuntimeError("injected")
-            log.write_json("/v/mission/status", t, {"t": t, "next_waypoint": k, "waypoints": n,
-                                                     "complete": False}, MISSION_STATUS)
+            log.write_json(
+                "/v/mission/status", t, {"t": t, "next_waypoint": k, "waypoints": n, "complete": False}, MISSION_STATUS
+            )
             fix = LocationFix(latitude=47.0 + k * 1e-5, longitude=8.0, altitude=18000.0)
             log.write_proto("/v/truth/location", t, fix)
         log.event(n * 0.1, "done")
@@ -45,7 +46,7 @@ def test_round_trip_json_proto_events_metadata(tmp_path):
     assert status[7][0] == pytest.approx(0.7)
     fixes = read_topic(p, "/v/truth/location")
     assert fixes[3][1].latitude == pytest.approx(47.00003)
-    (_, t, log), = [m for m in iter_messages(p, ["/log"])]
+    ((_, t, log),) = list(iter_messages(p, ["/log"]))
     assert log.message == "done" and t == pytest.approx(5.0)
 
 
@@ -89,8 +90,12 @@ def test_inline_and_background_writers_write_the_same_bytes(tmp_path):
     for background in (True, False):
         with McapLog(tmp_path / f"{background}.mcap", EPOCH, background=background) as log:
             for k in range(300):  # several hand-overs to the writer process
-                log.write_json("/v/mission/status", k * 0.1, {"t": k * 0.1, "next_waypoint": k, "waypoints": 300,
-                                                               "complete": False}, MISSION_STATUS)
+                log.write_json(
+                    "/v/mission/status",
+                    k * 0.1,
+                    {"t": k * 0.1, "next_waypoint": k, "waypoints": 300, "complete": False},
+                    MISSION_STATUS,
+                )
     assert (tmp_path / "True.mcap").read_bytes() == (tmp_path / "False.mcap").read_bytes()
 
 
@@ -115,8 +120,11 @@ def test_killed_simulation_process_still_leaves_a_finished_log(tmp_path):
     """The writer process finishes the file when the simulation process dies without closing it:
     every handed-over message is readable, and the summary is there."""
     p = tmp_path / "killed.mcap"
-    run = subprocess.run([sys.executable, "-c", _KILLED_WRITER.format(epoch=EPOCH), str(p)],
-                         cwd=Path(__file__).resolve().parents[1], timeout=60)
+    run = subprocess.run(
+        [sys.executable, "-c", _KILLED_WRITER.format(epoch=EPOCH), str(p)],
+        cwd=Path(__file__).resolve().parents[1],
+        timeout=60,
+    )
     assert run.returncode == -signal.SIGKILL
     for _ in range(100):  # the orphaned writer finishes on its own, shortly after
         try:
@@ -138,7 +146,8 @@ def test_a_script_without_main_guard_runs_once(tmp_path):
         "from sim.mcap_log import McapLog\n"
         f"open({str(marker)!r}, 'a').write('x')\n"
         f"with McapLog({str(tmp_path / 'u.mcap')!r}, {EPOCH}) as log:\n"
-        "    log.event(0.0, 'hello')\n")
+        "    log.event(0.0, 'hello')\n"
+    )
     subprocess.run([sys.executable, str(script)], cwd=Path(__file__).resolve().parents[1], timeout=60, check=True)
     assert marker.read_text() == "x"
-    assert [m for _, m in read_topic(tmp_path / "u.mcap", "/log")][0].message == "hello"
+    assert next(m for _, m in read_topic(tmp_path / "u.mcap", "/log")).message == "hello"

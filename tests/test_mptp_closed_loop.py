@@ -76,12 +76,15 @@ def test_an_opening_corridor_is_waited_for_in_closed_loop(tmp_path):
     assert truth.t[k] > opens_s
 
 
-@pytest.mark.parametrize("options, message", [
-    ({"goal_track": [[0, 1, 2], [0, 3, 4]]}, "goal_track: expected rows [t, north, east]"),
-    ({"goal_track": "x"}, "goal_track: expected rows [t, north, east]"),
-    ({"mission_area": [[0, 0], [1, 1]]}, "mission_area: expected >= 3 vertices"),
-    ({"heuristic": "astar"}, "unknown heuristic 'astar'"),
-])
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ({"goal_track": [[0, 1, 2], [0, 3, 4]]}, "goal_track: expected rows [t, north, east]"),
+        ({"goal_track": "x"}, "goal_track: expected rows [t, north, east]"),
+        ({"mission_area": [[0, 0], [1, 1]]}, "mission_area: expected >= 3 vertices"),
+        ({"heuristic": "astar"}, "unknown heuristic 'astar'"),
+    ],
+)
 def test_bad_mptp_options_are_one_line_scenario_errors(options, message):
     data = tomllib.loads(SCENARIO.read_text())
     data["vehicle"][0]["planner"]["options"] = options

@@ -18,8 +18,14 @@ from guidance.mptp.margins import (
 )
 from guidance.mptp.timeline import ObstacleTimeline, minkowski_sequences
 
-CFG = MptpConfig(simplify_tol_m=0.0, safety_single_m=(1000.0, 1500.0, 2000.0), safety_line_m=(3000.0,) * 3,
-                 sigma_front_mps=2.0, sigma_back_mps=1.0, probability=0.9)
+CFG = MptpConfig(
+    simplify_tol_m=0.0,
+    safety_single_m=(1000.0, 1500.0, 2000.0),
+    safety_line_m=(3000.0,) * 3,
+    sigma_front_mps=2.0,
+    sigma_back_mps=1.0,
+    probability=0.9,
+)
 
 
 def test_probability_factor_is_the_rayleigh_quantile():
@@ -79,8 +85,10 @@ def test_minkowski_interpolation_of_a_moving_growing_square():
     ca, cb = minkowski_sequences(a, b)
     for s, lo, side in [(0.0, 0.0, 2.0), (0.5, 5.0, 3.0), (0.25, 2.5, 2.5), (1.0, 10.0, 4.0)]:
         p = Polygon((1 - s) * ca + s * cb)
-        assert p.equals_exact(box(lo, 0, lo + side, side).normalize(), 1e-9) or p.symmetric_difference(
-            box(lo, 0, lo + side, side)).area < 1e-9
+        assert (
+            p.equals_exact(box(lo, 0, lo + side, side).normalize(), 1e-9)
+            or p.symmetric_difference(box(lo, 0, lo + side, side)).area < 1e-9
+        )
 
 
 def test_minkowski_of_square_and_triangle_has_the_mixed_area():
@@ -93,8 +101,10 @@ def test_minkowski_of_square_and_triangle_has_the_mixed_area():
 
 def _one_cell_nowcast(speed_e=10.0):
     cell = box(-2000, -2000, 2000, 2000)
-    snaps = [StormSnapshot(300.0 * k, (shapely.affinity.translate(cell, 0, speed_e * 300 * k),),
-                           np.array([[0.0, speed_e]])) for k in range(3)]
+    snaps = [
+        StormSnapshot(300.0 * k, (shapely.affinity.translate(cell, 0, speed_e * 300 * k),), np.array([[0.0, speed_e]]))
+        for k in range(3)
+    ]
     return snaps
 
 
@@ -102,6 +112,7 @@ def test_timeline_interpolates_between_nowcast_steps_and_envelopes_cover_the_int
     cfg = CFG.with_(dt_s=100.0, sigma_front_mps=0.0, sigma_back_mps=0.0)
     tl = ObstacleTimeline(_one_cell_nowcast(), cfg, 600.0)
     from guidance.mptp.margins import turn_cut_m
+
     r = 1500.0 + turn_cut_m(cfg)  # 10 m/s: second speed band
     for t in (0.0, 150.0, 450.0):
         shape = tl.shape_at(t)
@@ -115,7 +126,9 @@ def test_timeline_interpolates_between_nowcast_steps_and_envelopes_cover_the_int
 
 
 def test_cells_are_extrapolated_after_the_last_step():
-    tl = ObstacleTimeline(_one_cell_nowcast()[:1], CFG.with_(dt_s=100.0, sigma_front_mps=0.0, sigma_back_mps=0.0), 1200.0)
+    tl = ObstacleTimeline(
+        _one_cell_nowcast()[:1], CFG.with_(dt_s=100.0, sigma_front_mps=0.0, sigma_back_mps=0.0), 1200.0
+    )
     assert tl.shape_at(1200.0).centroid.y == pytest.approx(12_000.0, abs=50.0)
 
 

@@ -24,7 +24,7 @@ from guidance.mptp.turning import flyby_path
 
 
 def _assert_clear_of_storms(run, field):
-    for ne, t in zip(run.flown_ne, run.flown_t):
+    for ne, t in zip(run.flown_ne, run.flown_t, strict=False):
         cells = field.truth(float(t)).cells
         assert not shapely.contains_xy(shapely.union_all(list(cells)), ne[0], ne[1]), f"inside a storm at t={t}"
 
@@ -39,8 +39,11 @@ def _assert_flyable(plan, cfg):
     flyby_path(plan.positions[:, :2], float(chi[0]), cfg.turn_radius_m, step_deg=5.0)  # raises if not flyable
 
 
-@pytest.mark.parametrize("make", [S.scenario_1, S.scenario_2, S.holding_scenario, S.moving_goal_scenario],
-                         ids=["scenario1", "scenario2", "holding", "moving_goal"])
+@pytest.mark.parametrize(
+    "make",
+    [S.scenario_1, S.scenario_2, S.holding_scenario, S.moving_goal_scenario],
+    ids=["scenario1", "scenario2", "holding", "moving_goal"],
+)
 def test_thesis_scenarios_open_loop(make):
     sc = make()
     if sc.name == "moving goal":  # dt 60 s instead of the thesis's 30 s keeps the suite fast;
@@ -75,9 +78,15 @@ class _Corridor:
         return [self.truth(t + k * step_s) for k in range(int(horizon_s / step_s) + 1)]
 
 
-_CORRIDOR_CFG = MptpConfig(safety_single_m=(1000.0,) * 3, safety_line_m=(1000.0,) * 3, sigma_front_mps=0.0,
-                           sigma_back_mps=0.0, simplify_tol_m=50.0, heuristic="edh",
-                           mission_area=box(-15_000, -25_000, 40_000, 25_000))
+_CORRIDOR_CFG = MptpConfig(
+    safety_single_m=(1000.0,) * 3,
+    safety_line_m=(1000.0,) * 3,
+    sigma_front_mps=0.0,
+    sigma_back_mps=0.0,
+    simplify_tol_m=50.0,
+    heuristic="edh",
+    mission_area=box(-15_000, -25_000, 40_000, 25_000),
+)
 _CORRIDOR_GOAL = GoalTrack.fixed([30_000.0, 0.0])
 
 
@@ -93,13 +102,14 @@ def test_a_corridor_that_opens_later_is_solved_by_waiting():
     (given the expansions) waits by circling; direct flight would be at the walls at ~6 min."""
     cfg = _CORRIDOR_CFG.with_(max_expansions=1000)
     field = _Corridor()
-    traj = plan_trajectory(ObstacleTimeline(field.nowcast(0.0), cfg, 7200.0), np.zeros(2), 0.0, 0.0,
-                           _CORRIDOR_GOAL, cfg)
+    traj = plan_trajectory(
+        ObstacleTimeline(field.nowcast(0.0), cfg, 7200.0), np.zeros(2), 0.0, 0.0, _CORRIDOR_GOAL, cfg
+    )
     assert traj.status == "ok"
     assert np.all(np.diff(traj.times) > 0)
     t = np.linspace(traj.times[0], traj.times[-1], 2000)
     ne = np.column_stack([np.interp(t, traj.times, traj.positions[:, k]) for k in range(2)])
-    for p, tt in zip(ne[::10], t[::10]):
+    for p, tt in zip(ne[::10], t[::10], strict=False):
         assert not shapely.contains_xy(shapely.union_all(field.truth(tt).cells), p[0], p[1])
     east, when = _crossing(ne, t)
     assert abs(east) < 2_500.0  # through the gap, not around the 80 km walls
@@ -121,12 +131,23 @@ def test_the_opening_corridor_in_replanning_with_the_expansion_cap():
 
 def test_planner_falls_back_to_the_safe_area_when_boxed_in():
     # no partial plan lasts until the next replan within 30 expansions: the safe-area leg
-    cfg = MptpConfig(max_expansions=30, safety_single_m=(500.0,) * 3, safety_line_m=(500.0,) * 3,
-                     sigma_front_mps=0.0, sigma_back_mps=0.0, replan_period_s=3000.0)
-    frame = (box(-8000, -8000, 8000, -6000), box(-8000, 6000, 8000, 8000),
-             box(-8000, -6000, -6000, 6000), box(6000, -6000, 8000, 6000))  # convex walls of a closed pen
+    cfg = MptpConfig(
+        max_expansions=30,
+        safety_single_m=(500.0,) * 3,
+        safety_line_m=(500.0,) * 3,
+        sigma_front_mps=0.0,
+        sigma_back_mps=0.0,
+        replan_period_s=3000.0,
+    )
+    frame = (
+        box(-8000, -8000, 8000, -6000),
+        box(-8000, 6000, 8000, 8000),
+        box(-8000, -6000, -6000, 6000),
+        box(6000, -6000, 8000, 6000),
+    )  # convex walls of a closed pen
     mission = Mission(np.array([[20_000.0, 0.0, 0.0]]), cfg.tas_mps, 500.0)
-    plan = MptpPlanner(mission, cfg).plan(vehicle_state(0.0, np.zeros(2), 0.0, cfg.tas_mps),
-                                          Threats(storms=[StormSnapshot(0.0, frame, None)]), 0.0)
+    plan = MptpPlanner(mission, cfg).plan(
+        vehicle_state(0.0, np.zeros(2), 0.0, cfg.tas_mps), Threats(storms=[StormSnapshot(0.0, frame, None)]), 0.0
+    )
     assert plan.status == PlanStatus.NO_SOLUTION and len(plan.positions) == 2
     assert not shapely.union_all(frame).buffer(500.0).contains(shapely.Point(plan.positions[1, :2]))

@@ -60,19 +60,25 @@ def test_astar_is_optimal_against_brute_force(g, heuristic):
     pts, w = g
     n = len(pts)
     h = (lambda v: 0.0) if heuristic == "zero" else (lambda v: float(np.linalg.norm(pts[v] - pts[n - 1])))
-    res = astar(0, lambda v: [(b, c, h(b)) for (a, b), c in w.items() if a == v], lambda v: v == n - 1,
-                lambda v: v, 10_000, h(0))
+    res = astar(
+        0,
+        lambda v: [(b, c, h(b)) for (a, b), c in w.items() if a == v],
+        lambda v: v == n - 1,
+        lambda v: v,
+        10_000,
+        h(0),
+    )
     best = math.inf
     for k in range(n - 1):  # every simple path 0 -> n-1
-        for mid in itertools.permutations([v for v in range(1, n - 1)], k):
+        for mid in itertools.permutations(list(range(1, n - 1)), k):
             seq = (0, *mid, n - 1)
-            if all((a, b) in w for a, b in zip(seq, seq[1:])):
-                best = min(best, sum(w[a, b] for a, b in zip(seq, seq[1:])))
+            if all((a, b) in w for a, b in itertools.pairwise(seq)):
+                best = min(best, sum(w[a, b] for a, b in itertools.pairwise(seq)))
     if math.isinf(best):
         assert res.status == "exhausted"
     else:
         assert res.status == "ok" and res.cost == pytest.approx(best)
-        assert sum(w[a, b] for a, b in zip(res.path, res.path[1:])) == pytest.approx(best)
+        assert sum(w[a, b] for a, b in zip(res.path, res.path[1:], strict=False)) == pytest.approx(best)
 
 
 def test_astar_reports_the_expansion_limit():
@@ -83,6 +89,7 @@ def test_astar_reports_the_expansion_limit():
 def test_astar_returns_the_best_partial_path_at_the_limit():
     """Two branches from 0: the even one gets closer to the goal (smaller h); at the limit the
     partial path ends at the expanded node with the smallest h that partial_ok accepts."""
+
     def expand(v):
         return [(v + 2, 1.0, 50.0 - v), (v + 1, 1.0, 100.0)] if v % 2 == 0 else []
 
@@ -93,10 +100,17 @@ def test_astar_returns_the_best_partial_path_at_the_limit():
 def test_goal_availability_waits_for_the_goal_to_uncover():
     """A cell on the goal until it dissipates at 600 s: an arrival before then cannot happen, so
     the wait-aware EDH is the time to 600 s; after, the plain straight-line time."""
-    cfg = MptpConfig(safety_single_m=(500.0,) * 3, safety_line_m=(500.0,) * 3, sigma_front_mps=0.0,
-                     sigma_back_mps=0.0, simplify_tol_m=50.0)
-    snaps = [StormSnapshot(300.0 * k, (box(-1000, -1000, 1000, 1000),) if k < 2 else (),
-                           np.zeros((1 if k < 2 else 0, 2))) for k in range(13)]
+    cfg = MptpConfig(
+        safety_single_m=(500.0,) * 3,
+        safety_line_m=(500.0,) * 3,
+        sigma_front_mps=0.0,
+        sigma_back_mps=0.0,
+        simplify_tol_m=50.0,
+    )
+    snaps = [
+        StormSnapshot(300.0 * k, (box(-1000, -1000, 1000, 1000),) if k < 2 else (), np.zeros((1 if k < 2 else 0, 2)))
+        for k in range(13)
+    ]
     av = GoalAvailability(ObstacleTimeline(snaps, cfg, 7200.0), GoalTrack.fixed([0.0, 0.0]))
     np.testing.assert_allclose(av.earliest(np.array([0.0, 100.0, 590.0, 900.0])), [600.0, 600.0, 600.0, 900.0])
     h = edh(np.array([[26_000.0, 0.0], [2_600.0, 0.0]]), np.zeros(2), GoalTrack.fixed([0.0, 0.0]), 26.0, av)
@@ -110,9 +124,9 @@ def _square_world():
 def test_tangents_visibility_and_reduced_graph_around_a_square():
     b = _square_world()
     assert len(b.verts) == 4  # the square's corners; the workspace corners are reflex
-    si, vi = visible_vertices(np.array([[-50.0, 0.0]]), b)
+    _si, vi = visible_vertices(np.array([[-50.0, 0.0]]), b)
     assert sorted(map(tuple, b.verts[vi])) == [(-10.0, -10.0), (-10.0, 10.0)]
-    i, j, d = reduced_graph(b)
+    i, _j, d = reduced_graph(b)
     assert len(i) == 4 and np.allclose(d, 20.0)  # the four body edges; diagonals are not bitangent
     p, q = np.array([[-50.0, 0.0], [-50.0, 0.0]]), np.array([[50.0, 0.0], [-50.0, 50.0]])
     assert blocked(p, q, b).tolist() == [True, False]
@@ -153,23 +167,30 @@ def test_nowcast_file_round_trip(tmp_path):
         save_nowcast(tmp_path / f"{frame}.json", snaps, frame, origin)
         back = load_nowcast(tmp_path / f"{frame}.json")
         assert [s.t for s in back] == [s.t for s in snaps]
-        for a, b in zip(back, snaps):
+        for a, b in zip(back, snaps, strict=False):
             assert shapely.hausdorff_distance(shapely.union_all(list(a.cells)), shapely.union_all(list(b.cells))) < 1.0
             assert np.allclose(a.velocities_ne, b.velocities_ne)
 
 
-@pytest.mark.parametrize("mutate,msg", [
-    (lambda d: d.update(type="Feature"), "type: expected 'FeatureCollection'"),
-    (lambda d: d.update(frame="utm"), "frame: 'utm'"),
-    (lambda d: d["features"][1]["properties"].pop("t"), r"features\[1\].properties.t: expected a finite number"),
-    (lambda d: d["features"][0]["properties"].update(t="soon"), r"features\[0\].properties.t"),
-    (lambda d: d["features"][2].update(geometry={"type": "Point", "coordinates": [0, 0]}),
-     r"features\[2\].geometry.type"),
-    (lambda d: d["features"][0]["geometry"].update(coordinates=[[[0, 0], [1, 1], [0, 1], [1, 0], [0, 0]]]),
-     r"features\[0\].geometry.coordinates\[0\]: not a valid polygon"),
-    (lambda d: d["features"][0]["properties"].update(velocity_ne=[1.0]), r"features\[0\].properties.velocity_ne"),
-    (lambda d: d["features"][0]["properties"].pop("velocity_ne"), "some cells have properties.velocity_ne"),
-])
+@pytest.mark.parametrize(
+    "mutate,msg",
+    [
+        (lambda d: d.update(type="Feature"), "type: expected 'FeatureCollection'"),
+        (lambda d: d.update(frame="utm"), "frame: 'utm'"),
+        (lambda d: d["features"][1]["properties"].pop("t"), r"features\[1\].properties.t: expected a finite number"),
+        (lambda d: d["features"][0]["properties"].update(t="soon"), r"features\[0\].properties.t"),
+        (
+            lambda d: d["features"][2].update(geometry={"type": "Point", "coordinates": [0, 0]}),
+            r"features\[2\].geometry.type",
+        ),
+        (
+            lambda d: d["features"][0]["geometry"].update(coordinates=[[[0, 0], [1, 1], [0, 1], [1, 0], [0, 0]]]),
+            r"features\[0\].geometry.coordinates\[0\]: not a valid polygon",
+        ),
+        (lambda d: d["features"][0]["properties"].update(velocity_ne=[1.0]), r"features\[0\].properties.velocity_ne"),
+        (lambda d: d["features"][0]["properties"].pop("velocity_ne"), "some cells have properties.velocity_ne"),
+    ],
+)
 def test_nowcast_errors_name_the_feature_and_field(mutate, msg):
     doc = dump_nowcast(StormField(seed=4, n_cells=5).nowcast(0.0, 300.0))
     mutate(doc)
@@ -202,7 +223,9 @@ def test_goal_covered_for_the_whole_horizon_gives_a_holding_orbit():
     cfg = MptpConfig(safety_single_m=(2000.0,) * 3, sigma_front_mps=0.0, sigma_back_mps=0.0)
     storm = StormSnapshot(0.0, (box(18_000, -3000, 24_000, 3000),), None)  # static cell on the goal
     mission = Mission(np.array([[21_000.0, 0.0, 0.0]]), cfg.tas_mps, 500.0)
-    plan = MptpPlanner(mission, cfg).plan(vehicle_state(0.0, np.zeros(2), 0.0, cfg.tas_mps), Threats(storms=[storm]), 0.0)
+    plan = MptpPlanner(mission, cfg).plan(
+        vehicle_state(0.0, np.zeros(2), 0.0, cfg.tas_mps), Threats(storms=[storm]), 0.0
+    )
     assert plan.status == PlanStatus.DEGRADED and plan.diagnostics["reason"] == "goal covered"
     assert plan.times[-1] >= cfg.replan_period_s and np.all(np.diff(plan.times) > 0)
     assert np.linalg.norm(plan.positions[:, :2] - plan.positions[0, :2], axis=1).max() < 3 * cfg.leg_m
@@ -212,18 +235,26 @@ def test_no_leg_from_a_boundary_vertex_into_the_obstacle():
     """A state on a corner of EX_obs, its course pointing into the obstacle: the auxiliary state
     straight ahead lies inside, and no edge crossing shows it (the leg starts on the boundary).
     The plan must go around, every leg outside the margins at its time."""
-    cfg = MptpConfig(safety_single_m=(1000.0,) * 3, safety_line_m=(1000.0,) * 3, sigma_front_mps=0.0,
-                     sigma_back_mps=0.0, simplify_tol_m=50.0, heuristic="edh")
+    cfg = MptpConfig(
+        safety_single_m=(1000.0,) * 3,
+        safety_line_m=(1000.0,) * 3,
+        sigma_front_mps=0.0,
+        sigma_back_mps=0.0,
+        simplify_tol_m=50.0,
+        heuristic="edh",
+    )
     storm = box(10_000, -5_000, 20_000, 5_000)
     tl = ObstacleTimeline([StormSnapshot(0.0, (storm,), np.zeros((1, 2)))], cfg, 7200.0)
     goal = GoalTrack.fixed([30_000.0, 5_000.0])
-    fs = free_space(tl, np.zeros(2), 0.0, default_workspace(np.zeros(2), goal.at(0.0), cfg), cfg.tas_mps, cfg.ring_segments)
+    fs = free_space(
+        tl, np.zeros(2), 0.0, default_workspace(np.zeros(2), goal.at(0.0), cfg), cfg.tas_mps, cfg.ring_segments
+    )
     corner = fs.boundary.verts[np.argmin(np.linalg.norm(fs.boundary.verts - [9_000.0, -6_000.0], axis=1))]
     ahead = math.atan2(0.0 - corner[1], 15_000.0 - corner[0])  # towards the storm's centre
     traj = plan_trajectory(tl, corner, 0.0, ahead - cfg.course_change_max, goal, cfg)
     assert traj.status == "ok"
     margin = tl.shape_at(0.0).buffer(-1.0)  # legs along its edges graze it
-    for p, q in zip(traj.positions[:-1], traj.positions[1:]):
+    for p, q in zip(traj.positions[:-1], traj.positions[1:], strict=False):
         s = np.linspace(0.0, 1.0, 50)[:, None]
         pts = p + s * (q - p)
         assert not shapely.contains_xy(margin, pts[:, 0], pts[:, 1]).any(), f"leg {p} -> {q} enters the margins"

@@ -71,14 +71,15 @@ def test_square_mission_on_the_ekf_tracks_within_the_gnss_error(tmp_path):
 
 def test_square_mission_takeoff_tracking_landing(tmp_path):
     # the controller's tracking (issue 3) is judged with ideal sensors
-    result, log = _fly(tmp_path, "quad_square_mission", stop_when_complete=False, duration=80.0,
-                       transform=_ideal_sensors)
+    result, log = _fly(
+        tmp_path, "quad_square_mission", stop_when_complete=False, duration=80.0, transform=_ideal_sensors
+    )
     m = log_metrics(log)["vehicles"]["quad"]
     assert m["mission"]["complete"] and m["mission"]["waypoints_reached"] == 5
     assert m["tracking"]["cross_track_m"]["rms"] <= 1.0
     st = log.topic("/quad/truth/state")
     ground_d = 0.0  # the origin altitude is the ground
-    events = dict((text, t) for t, text in log.events())
+    events = {text: t for t, text in log.events()}
     t_land = events["quad: landed"]
     # cruise at 5 m/s on the legs
     speed = np.linalg.norm(np.gradient(st["pos_ned"], st.t, axis=0), axis=1)

@@ -24,11 +24,15 @@ ORIGIN = GeoPoint(47.0, 8.0, 0.0)
 MOTORS = [f"fcs/throttle-pos-norm[{i}]" for i in range(4)]
 
 
-def make(alt_m: float = 20.0, *, on_ground: bool = False, roll: float = 0.0,
-         pitch: float = 0.0) -> tuple[JSBSimPlant, MultirotorController]:
+def make(
+    alt_m: float = 20.0, *, on_ground: bool = False, roll: float = 0.0, pitch: float = 0.0
+) -> tuple[JSBSimPlant, MultirotorController]:
     plant = JSBSimPlant("quadrotor", DT, ORIGIN, airframe_dir("quadrotor"))
-    plant.initialise(InitialConditions(GeoPoint(ORIGIN.lat_deg, ORIGIN.lon_deg, alt_m),
-                                       roll_rad=roll, pitch_rad=pitch, on_ground=on_ground))
+    plant.initialise(
+        InitialConditions(
+            GeoPoint(ORIGIN.lat_deg, ORIGIN.lon_deg, alt_m), roll_rad=roll, pitch_rad=pitch, on_ground=on_ground
+        )
+    )
     ctrl = MultirotorController()
     ctrl.reset(plant.truth(), landed=on_ground)
     return plant, ctrl
@@ -42,7 +46,7 @@ def fly(plant: JSBSimPlant, ctrl: MultirotorController, setpoint, duration_s: fl
     t0 = plant.time
     keys = ("t", "pos", "vel", "euler", "motors", "landed", "armed")
     rows: dict[str, list] = {k: [] for k in keys}
-    for _ in range(int(round(duration_s / (DIV * DT)))):
+    for _ in range(round(duration_s / (DIV * DT))):
         s = plant.truth()
         plant.set_many(ctrl.update(s, setpoint(s.t - t0), DIV * DT))
         plant.step(DIV)
@@ -65,6 +69,7 @@ def hold(sp: MultirotorSetpoint):
 
 # -- gains file ------------------------------------------------------------------------------
 
+
 def test_gains_load_and_convert_degrees():
     g = MultirotorGains.load()
     assert g.limits.max_tilt_rad == pytest.approx(math.radians(35.0))
@@ -75,8 +80,7 @@ def test_gains_reject_unknown_and_missing_keys(tmp_path):
     text = (airframe_dir("quadrotor") / "gains.toml").read_text()
     bad = tmp_path / "typo.toml"
     bad.write_text(text.replace("kp_xy = 0.95", "kp_xyz = 0.95"))
-    with pytest.raises(GainsError,
-                       match=r"\[position\]: unknown key\(s\) kp_xyz; allowed here: kp_xy, kp_z"):
+    with pytest.raises(GainsError, match=r"\[position\]: unknown key\(s\) kp_xyz; allowed here: kp_xy, kp_z"):
         MultirotorGains.load(bad)
     nested = tmp_path / "nested.toml"
     nested.write_text(text.replace("int_lim = ", "int_limit = ", 1))  # first one: [rate.roll]
@@ -97,6 +101,7 @@ def test_fcs_defaults_match_gains_file():
 
 
 # -- model ------------------------------------------------------------------------------------
+
 
 def test_ground_start_rests_on_gear():
     plant, _ = make(0.0, on_ground=True)
@@ -126,6 +131,7 @@ def test_commands_reach_the_escs_in_the_same_step():
 
 
 # -- closed loop ------------------------------------------------------------------------------
+
 
 def test_hover_recovers_from_attitude_offsets():
     plant, ctrl = make(roll=math.radians(5.0), pitch=math.radians(5.0))
@@ -179,8 +185,7 @@ def test_takeoff_hover_and_landing():
     p0 = plant.truth().pos_ned.copy()
     g = ctrl.gains
     up = MultirotorSetpoint(pos_ned=p0 + np.array([0.0, 0.0, -10.0]))
-    down = MultirotorSetpoint(pos_ned=np.array([p0[0], p0[1], np.nan]),
-                              vel_ned=np.array([0.0, 0.0, 0.7]))
+    down = MultirotorSetpoint(pos_ned=np.array([p0[0], p0[1], np.nan]), vel_ned=np.array([0.0, 0.0, 0.7]))
     stay = MultirotorSetpoint(pos_ned=p0.copy())
     r = fly(plant, ctrl, lambda t: stay if t < 1.0 else (up if t < 13.0 else down), 32.0)
 

@@ -17,7 +17,8 @@ from avoidance.reachset.fusion import Categories, SpaceClass
 from avoidance.reachset.grid import AvoidanceGrid
 from avoidance.reachset.gridrun import Steering, emergency_runs, grid_run
 from avoidance.reachset.mission import MissionControl, Mode
-from avoidance.reachset.movement import KinState, MovementType as M, build_primitive_table, thesis_automaton
+from avoidance.reachset.movement import KinState, build_primitive_table, thesis_automaton
+from avoidance.reachset.movement import MovementType as M
 from avoidance.reachset.planner import ReachSetAvoider
 from avoidance.reachset.record import decision_record, scene_update
 from avoidance.reachset.situation import Assessor
@@ -35,7 +36,9 @@ GOAL = POSE.ned_to_lcf(np.array([30.0, 0.0, 0.0]))
 
 def wall_scan(north: float = 5.0, half_width: float = 1.5, half_height: float = 1.5) -> LidarScan:
     """Ray-cast a wall ⊥ north at ``north`` [m] with a 1° lattice covering the grid."""
-    az, el = np.meshgrid(np.radians(np.arange(-50.0, 50.5, 1.0)), np.radians(np.arange(-35.0, 35.5, 1.0)), indexing="ij")
+    az, el = np.meshgrid(
+        np.radians(np.arange(-50.0, 50.5, 1.0)), np.radians(np.arange(-35.0, 35.5, 1.0)), indexing="ij"
+    )
     dirs = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), -np.sin(el)], axis=-1).reshape(-1, 3)
     rng = north / dirs[:, 0]
     p = dirs * rng[:, None]
@@ -80,7 +83,10 @@ def test_head_on_intruder_picks_an_avoiding_trajectory():
     assert np.linalg.norm(own - other, axis=1).min() > intruder.radius_m
     straight = POSE.lcf_to_ned(TREE.path_samples(straight_node()))
     t_s = np.linspace(0.0, TREE.depth[straight_node()] * TREE.period, len(straight))
-    assert np.linalg.norm(straight - (intruder.pos_ned + np.outer(t_s, intruder.vel_ned)), axis=1).min() < intruder.radius_m
+    assert (
+        np.linalg.norm(straight - (intruder.pos_ned + np.outer(t_s, intruder.vel_ned)), axis=1).min()
+        < intruder.radius_m
+    )
 
 
 def test_last_resort_path_keeps_away_from_an_intruder_that_blocks_every_path():
@@ -107,8 +113,10 @@ def test_last_resort_path_maximises_the_predicted_closest_approach():
     full-length one whose closest approach to the intruders' linear predictions (body surface,
     brute force over every path sample at its time) is the largest; two intruders, one ahead
     and one from the right."""
-    tracks = [IntruderTrack("i1", 0.0, np.array([10.0, 0.5, 0.0]), np.array([-1.0, 0.0, 0.0]), radius_m=8.0),
-              IntruderTrack("i2", 0.0, np.array([6.0, 9.0, 1.0]), np.array([0.0, -1.0, 0.0]), radius_m=2.0)]
+    tracks = [
+        IntruderTrack("i1", 0.0, np.array([10.0, 0.5, 0.0]), np.array([-1.0, 0.0, 0.0]), radius_m=8.0),
+        IntruderTrack("i2", 0.0, np.array([6.0, 9.0, 1.0]), np.array([0.0, -1.0, 0.0]), radius_m=2.0),
+    ]
     parts = Assessor(GRID, TREE, CFG).assess(POSE, 0.0, Threats(intruders=tracks))
     runs, sel = emergency_runs(GRID, TREE, parts, GOAL, CFG.fusion.threshold)
     assert sel == 3 and not runs[2].path.ok
@@ -116,8 +124,10 @@ def test_last_resort_path_maximises_the_predicted_closest_approach():
     def closest(node: int) -> float:
         p = POSE.lcf_to_ned(TREE.path_samples(node))
         t = np.linspace(0.0, TREE.depth[node] * TREE.period, len(p))
-        return min(float((np.linalg.norm(p - (tr.pos_ned + np.outer(t, tr.vel_ned)), axis=1) - tr.radius_m).min())
-                   for tr in tracks)
+        return min(
+            float((np.linalg.norm(p - (tr.pos_ned + np.outer(t, tr.vel_ned)), axis=1) - tr.radius_m).min())
+            for tr in tracks
+        )
 
     leaves = TREE.leaves()
     best = max(closest(n) for n in leaves[runs[sel].fused.node_ok[leaves]])
@@ -139,7 +149,10 @@ def test_mission_control_modes_waypoints_and_buffer():
     d2 = mc.step(kin(1.0, t=1.0), Threats())
     assert d2.executing == planned[0]  # the movement planned for this frame is kept
     wall = wall_scan(north=6.0)
-    d3 = mc.step(kin(2.0, t=2.0), Threats(lidar=LidarScan(2.0, np.array([2.0, 0, 0]), wall.directions_ned, wall.ranges_m, wall.hit, 30.0)))
+    d3 = mc.step(
+        kin(2.0, t=2.0),
+        Threats(lidar=LidarScan(2.0, np.array([2.0, 0, 0]), wall.directions_ned, wall.ranges_m, wall.hit, 30.0)),
+    )
     assert d3.mode == Mode.EMERGENCY and "mode:emergency" in d3.events and "obstacle" in d3.events
     assert d3.status == "ok" and d3.runs[d3.selected].categories == Categories()
     d4 = mc.step(kin(3.0, t=3.0), Threats())
@@ -150,7 +163,9 @@ def test_mission_control_modes_waypoints_and_buffer():
 def test_planner_adapter_returns_ned_plan_record_and_scene():
     mission = Mission(np.array([[20.0, 0.0, -5.0]]), cruise_speed=1.0, acceptance_radius=2.0)
     av = ReachSetAvoider(mission, thesis_automaton())
-    est = VehicleState(0.0, np.array([0.0, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0)
+    est = VehicleState(
+        0.0, np.array([0.0, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0
+    )
     wall = wall_scan()
     scan = LidarScan(0.0, est.pos_ned, wall.directions_ned, wall.ranges_m, wall.hit, 30.0)
     plan = av.plan(est, Threats(lidar=scan), 0.0)
@@ -167,7 +182,9 @@ def test_planner_adapter_returns_ned_plan_record_and_scene():
     assert ent.frame_id == "ned" and len(ent.cubes) == int((np.array(rec["cells"]["class"]) != 0).sum())
     assert len(ent.lines[0].points) == len(av.last_decision.reference.positions)
     assert scene.SerializeToString()
-    est_near = VehicleState(15.0, np.array([19.0, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0)
+    est_near = VehicleState(
+        15.0, np.array([19.0, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0
+    )
     near = av.plan(est_near, Threats(), 15.0)  # final approach: a leg ending exactly at the waypoint
     assert near.diagnostics["complete"] == 0 and near.labels.tolist() == [-1, 0]
     np.testing.assert_allclose(near.positions, [est_near.pos_ned, mission.waypoints[0]])
@@ -206,7 +223,9 @@ def test_lidar_shorter_than_the_grid_is_a_scenario_error():
     data = tomllib.loads((Path(__file__).resolve().parents[1] / "scenarios/reachset/building_lidar.toml").read_text())
     parse_scenario(data)  # 60 m covers the 50 m grid of 5 m movements
     data["vehicle"][0]["lidar"] = {"max_range_m": 10.0}
-    with pytest.raises(ScenarioError, match=r"vehicle\[0\]: lidar.max_range_m: 10 m does not cover the reach-set grid \(50 m"):
+    with pytest.raises(
+        ScenarioError, match=r"vehicle\[0\]: lidar.max_range_m: 10 m does not cover the reach-set grid \(50 m"
+    ):
         parse_scenario(data, "x.toml")
 
 
@@ -217,14 +236,16 @@ def test_emergency_path_keeps_its_course_while_feasible():
     acas = ReachSetConfig.single(ExpansionConfig.acas(("horizontal",)))
     wps = np.array([[0.0, 40.0, 0.0]])  # GCF (east, north, up): straight ahead
     mc = MissionControl(wps, thesis_automaton(), dataclasses.replace(CFG, navigation=acas, avoidance=acas))
-    threats = Threats(intruders=[IntruderTrack("i1", 0.0, np.array([12.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]), radius_m=1.0)])
+    threats = Threats(
+        intruders=[IntruderTrack("i1", 0.0, np.array([12.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]), radius_m=1.0)]
+    )
     s1 = kin(0.0)
     d1 = mc.step(s1, threats)
     assert d1.mode == Mode.EMERGENCY and len(d1.buffer) > 2
     s2 = mc.sma.automata[0].apply(s1, d1.executing)
     d2 = mc.step(KinState(s2.pos, np.array([0.0, 0.0, s2.att[2]]), 1.0, 1.0), threats)
     assert d2.executing == d1.buffer[0]
-    assert "keep_course" in d2.events and d2.buffer[:len(d1.buffer) - 1] == d1.buffer[1:]
+    assert "keep_course" in d2.events and d2.buffer[: len(d1.buffer) - 1] == d1.buffer[1:]
 
 
 def test_planning_heading_is_the_planned_one_within_a_yaw_increment():
@@ -233,7 +254,9 @@ def test_planning_heading_is_the_planned_one_within_a_yaw_increment():
     the measured course (velocity)."""
     mission = Mission(np.array([[40.0, 0.0, -5.0]]), cruise_speed=1.0, acceptance_radius=2.0)
     av = ReachSetAvoider(mission, thesis_automaton())
-    est = VehicleState(0.0, np.array([0.0, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0)
+    est = VehicleState(
+        0.0, np.array([0.0, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0
+    )
     av.plan(est, Threats(), 0.0)
     planned = av.last_decision.pose.psi  # heading at t = 1 s (GCF)
 

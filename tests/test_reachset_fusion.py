@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 import shapely
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from avoidance.reachset.cache import reach_set
@@ -47,14 +48,19 @@ def test_cells_beyond_the_sensor_range_are_not_visible():
     np.testing.assert_allclose(middle_row(vis), np.r_[np.ones(5), np.full(3, 0.5), np.zeros(2)], atol=1e-12)
     scans = hits_at(2.5, rays[:5])  # returns hinder as before, on top
     _, vis = lidar_ratings_polar(GRID, rays, scans, LidarConfig(), np.where(np.arange(20) < 5, np.inf, reach))
-    np.testing.assert_allclose(middle_row(vis), np.r_[np.ones(3), np.full(2, 0.75), np.full(3, 0.5), np.zeros(2)], atol=1e-12)
+    np.testing.assert_allclose(
+        middle_row(vis), np.r_[np.ones(3), np.full(2, 0.75), np.full(3, 0.5), np.zeros(2)], atol=1e-12
+    )
 
 
 def test_visibility_worked_example():
     rays = row_rays(20)
     scans = [hits_at(2.5, rays[:5]), hits_at(4.5, rays[5:8]), hits_at(6.5, rays[8:12])]  # 0.25, 0.15, 0.20
-    expected = [np.r_[np.ones(3), np.full(7, 0.75)], np.r_[np.ones(3), 0.75, 0.75, np.full(5, 0.60)],
-                np.r_[np.ones(3), 0.75, 0.75, 0.60, 0.60, np.full(3, 0.40)]]
+    expected = [
+        np.r_[np.ones(3), np.full(7, 0.75)],
+        np.r_[np.ones(3), 0.75, 0.75, np.full(5, 0.60)],
+        np.r_[np.ones(3), 0.75, 0.75, 0.60, 0.60, np.full(3, 0.40)],
+    ]
     _, vis0 = lidar_ratings_polar(GRID, rays, np.zeros((0, 3)), LidarConfig())
     np.testing.assert_allclose(middle_row(vis0), 1.0)
     for n, want in enumerate(expected, 1):
@@ -142,8 +148,14 @@ def test_thresholds_and_space_classes():
     parts.hard[3] = True
     parts.soft[4] = True
     cls = fuse_cells(parts, Categories(), THR)[6]
-    assert cls[:6].tolist() == [SpaceClass.OCCUPIED, SpaceClass.UNCERTAIN, SpaceClass.CONSTRAINED,
-                                SpaceClass.CONSTRAINED, SpaceClass.CONSTRAINED, SpaceClass.FREE]
+    assert cls[:6].tolist() == [
+        SpaceClass.OCCUPIED,
+        SpaceClass.UNCERTAIN,
+        SpaceClass.CONSTRAINED,
+        SpaceClass.CONSTRAINED,
+        SpaceClass.CONSTRAINED,
+        SpaceClass.FREE,
+    ]
     assert fuse_cells(parts, Categories(soft=False), THR)[6][4] == SpaceClass.FREE
 
 
@@ -154,7 +166,9 @@ def test_constraints_hard_soft_and_moving():
     hard, soft = classify(GRID, pose, [Constraint(body, (-5.0, 5.0), 1.0)], ConstraintConfig(), 0.0, leave)
     assert hard.any() and soft.any() and not (hard & soft).any()
     assert not hard[GRID.layer < 5].any()
-    circle_hard, _ = classify(GRID, pose, [Constraint(body, (-5.0, 5.0), 1.0)], ConstraintConfig(mode="circle"), 0.0, leave)
+    circle_hard, _ = classify(
+        GRID, pose, [Constraint(body, (-5.0, 5.0), 1.0)], ConstraintConfig(mode="circle"), 0.0, leave
+    )
     assert (circle_hard >= hard).all() and circle_hard.sum() > hard.sum()
     moving = Constraint(shapely.box(16.0, -1.0, 17.0, 1.0), (-5.0, 5.0), 1.0, np.array([-1.0, 0.0]), 0.0)
     m_hard, _ = classify(GRID, pose, [moving], ConstraintConfig(), 0.0, leave)
@@ -173,8 +187,14 @@ unit = st.floats(0.0, 1.0)
 
 
 @settings(max_examples=60, deadline=None)
-@given(arrays(float, (2, N), elements=unit), arrays(float, (1, N), elements=unit), arrays(float, N, elements=unit),
-       arrays(float, (3, N), elements=unit), arrays(bool, N), arrays(bool, N))
+@given(
+    arrays(float, (2, N), elements=unit),
+    arrays(float, (1, N), elements=unit),
+    arrays(float, N, elements=unit),
+    arrays(float, (3, N), elements=unit),
+    arrays(bool, N),
+    arrays(bool, N),
+)
 def test_fusion_stays_in_unit_interval(vis, obs, map_, intr, hard, soft):
     parts = ThreatParts(vis, np.vstack([obs, obs]), map_, intr, hard, soft)
     f = fuse(TREE, parts, Categories(), THR)
@@ -205,7 +225,9 @@ def test_more_intruders_and_hits_only_add_threat(intr, more):
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.lists(st.tuples(st.integers(0, 19), st.floats(0.1, 10.0)), max_size=30), st.integers(0, 19), st.floats(0.1, 10.0))
+@given(
+    st.lists(st.tuples(st.integers(0, 19), st.floats(0.1, 10.0)), max_size=30), st.integers(0, 19), st.floats(0.1, 10.0)
+)
 def test_an_extra_hit_never_increases_visibility(hits, ray, dist):
     rays = row_rays(20)
     pts = np.array([[d, *rays[r]] for r, d in hits]).reshape(-1, 3)

@@ -2,7 +2,8 @@
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from avoidance.reachset.config import GridConfig
 from avoidance.reachset.frames import GridPose, from_polar, to_polar
@@ -14,7 +15,9 @@ GRID = AvoidanceGrid()
 def test_default_grid_has_350_cells():
     assert GRID.n_cells == 350 and GRID.shape == (10, 7, 5)
     assert GRID.steps[0] == pytest.approx(1.0)
-    assert np.degrees(GRID.steps[1]) == pytest.approx(12.857, abs=1e-3) and np.degrees(GRID.steps[2]) == pytest.approx(12.0)
+    assert np.degrees(GRID.steps[1]) == pytest.approx(12.857, abs=1e-3) and np.degrees(GRID.steps[2]) == pytest.approx(
+        12.0
+    )
     assert GRID.volume.sum() == pytest.approx(1000 / 3 * np.pi / 2 * 1.0, rel=1e-12)
     mid = GRID.cell_index_polar(np.array([[9.5, 0.0, 0.0]]))[0]
     assert GRID.volume[mid] == pytest.approx(4.2377, abs=1e-4)
@@ -55,12 +58,16 @@ def test_volume_samples_cover_every_cell():
 def test_pose_round_trip_and_heading():
     pose = GridPose.from_ned(np.array([10.0, 5.0, -3.0]), np.pi / 2)  # heading east
     np.testing.assert_allclose(pose.ned_to_lcf(np.array([10.0, 7.0, -3.0])), [2.0, 0.0, 0.0], atol=1e-12)
-    np.testing.assert_allclose(pose.ned_to_lcf(np.array([12.0, 5.0, -4.0])), [0.0, 2.0, 1.0], atol=1e-12)  # north = left
+    np.testing.assert_allclose(
+        pose.ned_to_lcf(np.array([12.0, 5.0, -4.0])), [0.0, 2.0, 1.0], atol=1e-12
+    )  # north = left
     p = np.array([1.0, -2.0, 3.0])
     np.testing.assert_allclose(pose.lcf_to_ned(pose.ned_to_lcf(p)), p, atol=1e-12)
 
 
-inside = st.tuples(st.floats(1e-6, 10.0), st.floats(-np.pi / 4 + 1e-6, np.pi / 4), st.floats(-np.pi / 6 + 1e-6, np.pi / 6))
+inside = st.tuples(
+    st.floats(1e-6, 10.0), st.floats(-np.pi / 4 + 1e-6, np.pi / 4), st.floats(-np.pi / 6 + 1e-6, np.pi / 6)
+)
 
 
 @settings(max_examples=300, deadline=None)

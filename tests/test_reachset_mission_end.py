@@ -14,7 +14,9 @@ from sim.state import VehicleState
 
 def fly(waypoints, planner_hz: float, cruise: float = 5.0, acceptance: float = 1.0, t_end: float = 80.0):
     """Point-mass vehicle following the carrot (first-order position loop + feed-forward)."""
-    mission = Mission(np.asarray(waypoints, float), cruise_speed=cruise, acceptance_radius=acceptance, start=np.zeros(3))
+    mission = Mission(
+        np.asarray(waypoints, float), cruise_speed=cruise, acceptance_radius=acceptance, start=np.zeros(3)
+    )
     av = ReachSetAvoider(mission, multirotor_automaton(cruise, 1.0))
     fol = MultirotorPlanFollower(cruise, 2.0, 1.0, acceptance)
     pos, vel, dt, t, yaw = np.array([0.0, 0.0, -20.0]), np.zeros(3), 0.02, 0.0, 0.0
@@ -47,7 +49,7 @@ def test_last_waypoint_is_reached_within_the_acceptance_radius():
 def test_intermediate_waypoints_off_the_lattice_and_fast_planner_calls():
     wps = [[33.0, 4.0, -20.0], [70.0, 14.0, -21.0], [108.0, 10.0, -20.0]]  # goals ahead (see docs)
     for hz in (1.0, 10.0):  # called faster than the movement period: one decision per period
-        mission, pos, av = fly(wps, planner_hz=hz)
+        mission, pos, _av = fly(wps, planner_hz=hz)
         assert mission.complete, (hz, mission.reached)
         assert [i for i, _ in mission.reached] == [0, 1, 2]
         assert np.linalg.norm(pos - mission.waypoints[-1]) <= mission.acceptance_radius

@@ -4,15 +4,29 @@ import numpy as np
 import pytest
 
 from avoidance.reachset.config import MovementConfig
-from avoidance.reachset.movement import (KinState, MovementAutomaton, MovementType as M, build_primitive_table,
-                                         haps_automaton, multirotor_automaton, thesis_automaton)
+from avoidance.reachset.movement import (
+    KinState,
+    MovementAutomaton,
+    build_primitive_table,
+    haps_automaton,
+    multirotor_automaton,
+    thesis_automaton,
+)
+from avoidance.reachset.movement import (
+    MovementType as M,
+)
 from avoidance.reachset.reference import reference_trajectory
 
 TABLE = {  # spec §2.3: Δpitch, Δyaw [deg], Δx, Δy, Δz [m]
-    M.STRAIGHT: (0, 0, 1.0000, 0, 0), M.DOWN: (15, 0, 0.9886, 0, -0.1302), M.UP: (-15, 0, 0.9886, 0, 0.1302),
-    M.LEFT: (0, 15, 0.9886, 0.1302, 0), M.RIGHT: (0, -15, 0.9886, -0.1302, 0),
-    M.DOWN_LEFT: (15, 15, 0.9775, 0.1279, -0.1302), M.DOWN_RIGHT: (15, -15, 0.9775, -0.1279, -0.1302),
-    M.UP_LEFT: (-15, 15, 0.9775, 0.1279, 0.1302), M.UP_RIGHT: (-15, -15, 0.9775, -0.1279, 0.1302),
+    M.STRAIGHT: (0, 0, 1.0000, 0, 0),
+    M.DOWN: (15, 0, 0.9886, 0, -0.1302),
+    M.UP: (-15, 0, 0.9886, 0, 0.1302),
+    M.LEFT: (0, 15, 0.9886, 0.1302, 0),
+    M.RIGHT: (0, -15, 0.9886, -0.1302, 0),
+    M.DOWN_LEFT: (15, 15, 0.9775, 0.1279, -0.1302),
+    M.DOWN_RIGHT: (15, -15, 0.9775, -0.1279, -0.1302),
+    M.UP_LEFT: (-15, 15, 0.9775, 0.1279, 0.1302),
+    M.UP_RIGHT: (-15, -15, 0.9775, -0.1279, 0.1302),
 }
 
 

@@ -7,7 +7,8 @@ from avoidance.reachset.cache import reach_set
 from avoidance.reachset.config import ExpansionConfig, GridConfig, MovementConfig, ReachSetConfig
 from avoidance.reachset.grid import AvoidanceGrid
 from avoidance.reachset.metrics import bounds, full_tree_size, trajectory_count
-from avoidance.reachset.movement import MovementType as M, build_primitive_table
+from avoidance.reachset.movement import MovementType as M
+from avoidance.reachset.movement import build_primitive_table
 
 GRID = AvoidanceGrid()
 TABLE = build_primitive_table(MovementConfig())
@@ -55,11 +56,12 @@ def test_combined_is_union_with_mode_switch_cost():
         assert combined.cost[n] == pytest.approx(base * (2 - smooth))
 
 
-@pytest.mark.parametrize("sep,allowed", [(("horizontal",), {M.STRAIGHT, M.LEFT, M.RIGHT}),
-                                         (("vertical",), {M.STRAIGHT, M.UP, M.DOWN})])
+@pytest.mark.parametrize(
+    "sep,allowed", [(("horizontal",), {M.STRAIGHT, M.LEFT, M.RIGHT}), (("vertical",), {M.STRAIGHT, M.UP, M.DOWN})]
+)
 def test_acas_like_buffers_stay_in_their_plane(sep, allowed):
     tree = reach_set(GRID, TABLE, ReachSetConfig.single(ExpansionConfig.acas(sep)))
-    assert set(tree.movement[1:].tolist()) <= set(int(m) for m in allowed)
+    assert set(tree.movement[1:].tolist()) <= {int(m) for m in allowed}
     axis = 2 if sep == ("horizontal",) else 1
     np.testing.assert_allclose(tree.samples[:, :, axis], 0.0, atol=1e-12)
 
@@ -80,6 +82,7 @@ def test_disk_cache_round_trip(tmp_path):
     first = reach_set(grid, TABLE, cfg, tmp_path)
     assert list(tmp_path.glob("*.npz"))
     from avoidance.reachset import cache
+
     cache._MEMORY.clear()
     again = reach_set(grid, TABLE, cfg, tmp_path)
     np.testing.assert_array_equal(first.parent, again.parent)

@@ -47,8 +47,13 @@ def test_report_and_compare_cli(short_run, tmp_path):
     for png in ("map.png", "haps_timeseries.png"):
         assert (tmp_path / "rep" / png).stat().st_size > 10_000
     assert json.loads((tmp_path / "rep" / "metrics.json").read_text()) == json.loads(json.dumps(metrics))
-    proc = subprocess.run([sys.executable, "-m", "sim.cli", "compare", str(path), str(path), "--changed"],
-                          capture_output=True, text=True, cwd=ROOT, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-m", "sim.cli", "compare", str(path), str(path), "--changed"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr
     assert "tracking" not in proc.stdout  # the same log twice: nothing changed
 
@@ -56,8 +61,19 @@ def test_report_and_compare_cli(short_run, tmp_path):
 def _trace(name, t, pos):
     n = len(t)
     z = np.zeros(n)
-    return VehicleTrace(name, "fixed_wing", np.asarray(t, float), np.asarray(pos, float), z, z, np.zeros((n, 3)),
-                        {"altitude_m": z, "tas_mps": z, "cross_track_m": z, "turning": z}, np.zeros(0), 0, [])
+    return VehicleTrace(
+        name,
+        "fixed_wing",
+        np.asarray(t, float),
+        np.asarray(pos, float),
+        z,
+        z,
+        np.zeros((n, 3)),
+        {"altitude_m": z, "tas_mps": z, "cross_track_m": z, "turning": z},
+        np.zeros(0),
+        0,
+        [],
+    )
 
 
 def test_min_separation_matches_analytic_crossing():
@@ -81,8 +97,18 @@ def test_object_clearance_matches_analytic_crossing():
     from sim.traffic import TrafficObject
 
     origin = GeoPoint(47.0, 8.0, 400.0)
-    obj = TrafficObject(sc.TrafficObject(id="ball", radius=5.0, north=-200.0, east=300.0, altitude=450.0,
-                                         velocity=sc.Velocity(north=10.0), appear=10.0), origin)
+    obj = TrafficObject(
+        sc.TrafficObject(
+            id="ball",
+            radius=5.0,
+            north=-200.0,
+            east=300.0,
+            altitude=450.0,
+            velocity=sc.Velocity(north=10.0),
+            appear=10.0,
+        ),
+        origin,
+    )
     t = np.arange(0.0, 60.0, 0.1)
     a = np.stack([np.zeros_like(t), 10 * t, np.zeros_like(t)], axis=1)
     m = object_metrics(_trace("a", t, a), MetricsWorld(objects=(obj,)))["object.ball"]
@@ -123,17 +149,30 @@ def test_clearance_geofence_and_well_clear_metrics_on_a_known_geometry(tmp_path)
     from sim.scenario import parse_scenario
 
     def quad(name, north):
-        return {"name": name, "aircraft": "quadrotor", "estimator": "perfect", "initial": {"north": north, "altitude": 420.0},
-                "mission": {"cruise_speed": 5.0, "acceptance_radius": 0.5, "guidance": "step",
-                            "waypoints": [{"north": north, "east": 0, "altitude": 420, "hold": "60 s"}]}}
+        return {
+            "name": name,
+            "aircraft": "quadrotor",
+            "estimator": "perfect",
+            "initial": {"north": north, "altitude": 420.0},
+            "mission": {
+                "cruise_speed": 5.0,
+                "acceptance_radius": 0.5,
+                "guidance": "step",
+                "waypoints": [{"north": north, "east": 0, "altitude": 420, "hold": "60 s"}],
+            },
+        }
 
-    data = {"name": "geometry", "seed": 1, "duration": 5.0, "stop_when_complete": False,
-            "origin": {"lat": 47.0, "lon": 8.0, "altitude": 400.0},
-            "obstacle": [{"id": "mast", "shape": "cylinder", "north": 0, "east": 30, "radius": 5, "top": 410}],
-            "geofence": [{"id": "site", "points": [[-200, -200], [200, -200], [200, 200], [-200, 200]],
-                          "ceiling": 500}],
-            "metrics": {"well_clear_horizontal": "100 m", "well_clear_vertical": "20 m"},
-            "vehicle": [quad("a", 0.0), quad("b", 60.0)]}
+    data = {
+        "name": "geometry",
+        "seed": 1,
+        "duration": 5.0,
+        "stop_when_complete": False,
+        "origin": {"lat": 47.0, "lon": 8.0, "altitude": 400.0},
+        "obstacle": [{"id": "mast", "shape": "cylinder", "north": 0, "east": 30, "radius": 5, "top": 410}],
+        "geofence": [{"id": "site", "points": [[-200, -200], [200, -200], [200, 200], [-200, 200]], "ceiling": 500}],
+        "metrics": {"well_clear_horizontal": "100 m", "well_clear_vertical": "20 m"},
+        "vehicle": [quad("a", 0.0), quad("b", 60.0)],
+    }
     path = tmp_path / "geo.mcap"
     result = run_scenario(parse_scenario(data, "geometry"), path, scenario_text=tomli_w.dumps(data))
     m = log_metrics(RunLog(path))
@@ -156,6 +195,7 @@ def test_vehicles_of_different_plant_rates_share_their_log_times():
     from types import SimpleNamespace
 
     from sim.replay.metrics import common_times
+
     t240 = np.cumsum(np.full(2400, 1 / 240))[23::24]  # 0.1, 0.2, ... as accumulated 240 Hz steps
     t120 = np.cumsum(np.full(1200, 1 / 120))[11::12]
     assert np.intersect1d(t240, t120).size < t240.size  # the bits differ

@@ -104,8 +104,11 @@ def test_s14_adversarial_pursuer_is_reported_unresolved(tmp_path):
     assert separation(m, "uas1", "uas2") >= HEAD_ON_MARGIN
     assert separation(m, "uas1", "uas3") < HEAD_ON_MARGIN  # the pursuer got through
     dec = log.topic("/uas1/plan/decision")
-    reported = [t for t, msg in zip(dec.t, dec.messages)
-                if any(e.startswith("rule:case_unresolved:self-uas3:") for e in msg["events"])]
+    reported = [
+        t
+        for t, msg in zip(dec.t, dec.messages, strict=False)
+        if any(e.startswith("rule:case_unresolved:self-uas3:") for e in msg["events"])
+    ]
     assert reported
     assert not any(e.startswith("rule:case_unresolved:self-uas2:") for e in events(log, "uas1"))
     p1, p3 = log.topic("/uas1/truth/state"), log.topic("/uas3/truth/state")

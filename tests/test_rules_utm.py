@@ -18,14 +18,35 @@ from avoidance.reachset.grid import AvoidanceGrid
 from avoidance.reachset.gridrun import find_best_path
 from avoidance.reachset.movement import build_primitive_table
 from avoidance.rules.config import RulesConfig
-from avoidance.rules.restrictions import (moving_margin_mask, path_clearance, right_plane_heading_mask, safety_margin_mask,
-                                          widest_per_cell)
+from avoidance.rules.restrictions import (
+    moving_margin_mask,
+    path_clearance,
+    right_plane_heading_mask,
+    safety_margin_mask,
+    widest_per_cell,
+)
 from avoidance.rules.rules_of_air import overtake_speed, overtake_waypoints
 from avoidance.utm.cases import CaseBook
-from avoidance.utm.collision_case import (Encounter, Role, UtmConfig, angle_of_approach, case_margin, classify,
-                                          closest_approach, collision_margin, compute_collision_case,
-                                          trajectory_min_distance)
-from avoidance.utm.notification import Category, Margins, Maneuverability, PositionNotification, Registration, flight_levels
+from avoidance.utm.collision_case import (
+    Encounter,
+    Role,
+    UtmConfig,
+    angle_of_approach,
+    case_margin,
+    classify,
+    closest_approach,
+    collision_margin,
+    compute_collision_case,
+    trajectory_min_distance,
+)
+from avoidance.utm.notification import (
+    Category,
+    Maneuverability,
+    Margins,
+    PositionNotification,
+    Registration,
+    flight_levels,
+)
 from sim.frames import FT
 from sim.scenario import ScenarioError, load_scenario
 
@@ -39,9 +60,17 @@ def note(uas, pos, vel, t=0.0, **reg) -> PositionNotification:
 
 
 # -- T-UT-1..6 -------------------------------------------------------------------------------------
-@pytest.mark.parametrize("alpha, speeds, expected", [
-    (180.0, (1, 1), Encounter.HEAD_ON), (130.0, (1, 1), Encounter.HEAD_ON), (129.9, (1, 1), Encounter.CONVERGING),
-    (70.0, (1, 1), Encounter.CONVERGING), (69.9, (2, 1), Encounter.OVERTAKE), (69.9, (1, 1), Encounter.PARALLEL)])
+@pytest.mark.parametrize(
+    "alpha, speeds, expected",
+    [
+        (180.0, (1, 1), Encounter.HEAD_ON),
+        (130.0, (1, 1), Encounter.HEAD_ON),
+        (129.9, (1, 1), Encounter.CONVERGING),
+        (70.0, (1, 1), Encounter.CONVERGING),
+        (69.9, (2, 1), Encounter.OVERTAKE),
+        (69.9, (1, 1), Encounter.PARALLEL),
+    ],
+)
 def test_ut1_classification_thresholds(alpha, speeds, expected):
     assert classify(alpha, *speeds) == expected
 
@@ -50,8 +79,9 @@ def test_ut2_head_on_cpa():
     t, d, cp = closest_approach((0, 20, 0), (1, 0, 0), (40, 20, 0), (-1, 0, 0))
     assert t == pytest.approx(20.0) and d == pytest.approx(0.0) and cp == pytest.approx([20, 20, 0])
     assert angle_of_approach((0, 20, 0), (40, 20, 0), cp) == pytest.approx(180.0)
-    case = compute_collision_case(note("a", (0, 20, 0), (1, 0, 0)), note("b", (40, 20, 0), (-1, 0, 0)), 0.0,
-                                  UtmConfig(time_margin=25.0))
+    case = compute_collision_case(
+        note("a", (0, 20, 0), (1, 0, 0)), note("b", (40, 20, 0), (-1, 0, 0)), 0.0, UtmConfig(time_margin=25.0)
+    )
     assert case.flagged and case.encounter == Encounter.HEAD_ON and case.roles == (Role.ROUNDABOUT, Role.ROUNDABOUT)
     assert case.margin == pytest.approx(10.0)
 
@@ -60,8 +90,9 @@ def test_ut3_converging_cpa_and_right_of_way():
     t, d, cp = closest_approach((0, 20, 0), (1, 0, 0), (20, 0, 0), (0, 1, 0))
     assert t == pytest.approx(20.0) and d == pytest.approx(0.0) and cp == pytest.approx([20, 20, 0])
     assert angle_of_approach((0, 20, 0), (20, 0, 0), cp) == pytest.approx(90.0)
-    case = compute_collision_case(note("uas1", (0, 20, 0), (1, 0, 0)), note("uas2", (20, 0, 0), (0, 1, 0)), 0.0,
-                                  UtmConfig(time_margin=25.0))
+    case = compute_collision_case(
+        note("uas1", (0, 20, 0), (1, 0, 0)), note("uas2", (20, 0, 0), (0, 1, 0)), 0.0, UtmConfig(time_margin=25.0)
+    )
     # UAS1 (east-bound) has UAS2 on its right: it gives way (S9)
     assert case.encounter == Encounter.CONVERGING and case.roles == (Role.CONVERGING, Role.RIGHT_OF_WAY)
     assert case.margin == pytest.approx(8.0)
@@ -116,8 +147,10 @@ def test_overtake_roles_and_waypoints_on_the_right():
     assert case.encounter == Encounter.OVERTAKE and case.roles == (Role.OVERTAKING, Role.OVERTAKEN)
     div, conv = overtake_waypoints(fast.pos, fast.vel, slow.pos, slow.vel, case.collision_point, 5.0, 1.0, 2.0)
     # overtaken heads +x: its right is -y; offset = Δv·frame + margin = 6
-    assert div == pytest.approx(case.collision_point + [0, -6, 0])
-    assert conv[0] - div[0] == pytest.approx(np.sqrt(40.0 ** 2 + 25.0) + 1 + 2)  # |p - cp| = 40 (meet at x = 0) and conv[1] == pytest.approx(div[1])
+    assert div == pytest.approx([*case.collision_point, 0, -6, 0])
+    assert conv[0] - div[0] == pytest.approx(
+        np.sqrt(40.0**2 + 25.0) + 1 + 2
+    )  # |p - cp| = 40 (meet at x = 0) and conv[1] == pytest.approx(div[1])
 
 
 def test_lower_priority_gives_way_whatever_the_side():
@@ -125,8 +158,9 @@ def test_lower_priority_gives_way_whatever_the_side():
     quad = note("quad", (0, 20, 0), (1, 0, 0))  # would have the HAPS on its right anyway: swap sides
     case = compute_collision_case(note("quad", (40, 20, 0), (-1, 0, 0)), haps, 0.0, UtmConfig(time_margin=25.0))
     assert case.encounter == Encounter.CONVERGING and case.roles == (Role.CONVERGING, Role.RIGHT_OF_WAY)
-    case = compute_collision_case(quad, note("balloon", (20, 0, 0), (0, 1, 0), category=Category.BALLOON), 0.0,
-                                  UtmConfig(time_margin=25.0))
+    case = compute_collision_case(
+        quad, note("balloon", (20, 0, 0), (0, 1, 0), category=Category.BALLOON), 0.0, UtmConfig(time_margin=25.0)
+    )
     assert case.roles == (Role.CONVERGING, Role.RIGHT_OF_WAY)
 
 
@@ -149,8 +183,12 @@ def test_head_case_fixes_the_point_and_the_chain_closes_after_passing():
 
 def test_four_way_encounter_merges_into_one_roundabout():
     book = CaseBook(UtmConfig(time_margin=25.0))
-    notes = [note("1", (0, 20, 0), (1, 0, 0)), note("2", (40, 20, 0), (-1, 0, 0)),
-             note("3", (20, 0, 0), (0, 1, 0)), note("4", (20, 40, 0), (0, -1, 0))]
+    notes = [
+        note("1", (0, 20, 0), (1, 0, 0)),
+        note("2", (40, 20, 0), (-1, 0, 0)),
+        note("3", (20, 0, 0), (0, 1, 0)),
+        note("4", (20, 40, 0), (0, -1, 0)),
+    ]
     book.update(notes, 0.0)
     assert not book.active()
     book.update([dataclasses.replace(n, t=1.0, pos=n.pos + n.vel) for n in notes], 1.0)
@@ -189,7 +227,7 @@ def test_restrictions_disable_left_and_inside_the_margin():
     ball = safety_margin_mask(NAV, pose, cp, 5.0)
     dist = np.linalg.norm(NAV.samples[~ball] - cp, axis=-1)
     assert ball.any() and dist.min() >= 5.0 - 1e-9
-    barrel = safety_margin_mask(NAV, pose, cp + [0, 0, 10.0], 5.0, barrel_half_height=3.0)
+    barrel = safety_margin_mask(NAV, pose, [*cp, 0, 0, 10.0], 5.0, barrel_half_height=3.0)
     assert not barrel.any()  # 10 m above the band's half height: nothing disabled
     # already inside the ball: keep what does not get closer than now
     inside = safety_margin_mask(NAV, pose, np.array([3.0, 0, 0]), 5.0)
@@ -227,8 +265,15 @@ def test_classification_agrees_with_the_angle_thresholds(alpha, r, k, rot):
     assert case.flagged and case.t_cpa == pytest.approx(r, rel=1e-6)
     assert case.collision_point == pytest.approx(cp, abs=1e-6)
     assert case.alpha_deg == pytest.approx(alpha, abs=1e-6)
-    expected = (Encounter.HEAD_ON if alpha >= 130 else Encounter.CONVERGING if alpha >= 70
-                else Encounter.OVERTAKE if abs(s1 - s2) > 0.2 else Encounter.PARALLEL)
+    expected = (
+        Encounter.HEAD_ON
+        if alpha >= 130
+        else Encounter.CONVERGING
+        if alpha >= 70
+        else Encounter.OVERTAKE
+        if abs(s1 - s2) > 0.2
+        else Encounter.PARALLEL
+    )
     assert case.encounter == expected
     if expected == Encounter.CONVERGING:  # exactly one gives way: the one with the other on its right
         assert sorted(case.roles) == sorted((Role.CONVERGING, Role.RIGHT_OF_WAY))
@@ -245,16 +290,18 @@ def test_head_on_encounters_both_turn_right(alpha, r, rot):
     cp = np.array([20.0, 20.0, 0.0])
     a = np.radians(alpha)
     dirs = [np.array([np.cos(rot), np.sin(rot), 0.0]), np.array([np.cos(rot + a), np.sin(rot + a), 0.0])]
-    notes = [note(u, cp + r * d, -d) for u, d in zip("ab", dirs)]
+    notes = [note(u, cp + r * d, -d) for u, d in zip("ab", dirs, strict=False)]
     case = compute_collision_case(*notes, 0.0, UtmConfig(time_margin=25.0))
     assert case.roles == (Role.ROUNDABOUT, Role.ROUNDABOUT)
-    for n, d in zip(notes, dirs):
+    for n, d in zip(notes, dirs, strict=False):
         pose = GridPose(n.pos, float(np.arctan2(-d[1], -d[0])))
         path = _resolve(pose, case.collision_point, cp - 30.0 * d, case.margin + 1.0)
         assert path.ok
         lateral = _lateral(pose, case.collision_point, NAV.path_samples(path.node))
         assert lateral.max() <= 1e-6 and lateral.min() < -1.0  # right of the line to the point
-        assert np.linalg.norm(NAV.path_samples(path.node) - pose.to_lcf(case.collision_point), axis=1).min() >= case.margin
+        assert (
+            np.linalg.norm(NAV.path_samples(path.node) - pose.to_lcf(case.collision_point), axis=1).min() >= case.margin
+        )
 
 
 @settings(max_examples=15, deadline=None)
@@ -266,7 +313,7 @@ def test_symmetric_head_on_resolves_symmetrically(r, rot, shift):
     notes = [note("a", cp + r * d, -d), note("b", cp - r * d, d)]
     case = compute_collision_case(*notes, 0.0, UtmConfig(time_margin=25.0))
     paths = []
-    for n, sign in zip(notes, (1, -1)):
+    for n, sign in zip(notes, (1, -1), strict=False):
         pose = GridPose(n.pos, float(np.arctan2(-sign * d[1], -sign * d[0])))
         paths.append(_resolve(pose, case.collision_point, cp - sign * 30.0 * d, case.margin + 1.0))
     assert paths[0].ok and NAV.buffer(paths[0].node) == NAV.buffer(paths[1].node)
@@ -286,11 +333,14 @@ def test_moving_margin_follows_the_peer_in_time():
     assert (mask != static).any()
 
 
-@pytest.mark.parametrize("old, new, message", [
-    ('"head_on", "converging"', '"head_on", "converge"', "unknown rule(s) converge"),
-    ("rules_settle = 10.0", "rules_settle = -1", "settle must be >= 0"),
-    ("rules_unit = 5.0", "rules_units = 5.0", "unknown option(s) rules_units"),
-])
+@pytest.mark.parametrize(
+    "old, new, message",
+    [
+        ('"head_on", "converging"', '"head_on", "converge"', "unknown rule(s) converge"),
+        ("rules_settle = 10.0", "rules_settle = -1", "settle must be >= 0"),
+        ("rules_unit = 5.0", "rules_units = 5.0", "unknown option(s) rules_units"),
+    ],
+)
 def test_bad_rules_options_are_one_line_scenario_errors(old, new, message, tmp_path):
     path = Path(__file__).resolve().parents[1] / "scenarios" / "rules" / "s9_converging.toml"
     bad = tmp_path / "bad.toml"
@@ -312,11 +362,21 @@ def _avoider_with_traffic(cooperative: bool, ahead: float):
 
     mission = Mission(np.array([[60.0, 0.0, -5.0]]), cruise_speed=1.0, acceptance_radius=2.0)
     av = RulesAvoider(mission, thesis_automaton(), RulesConfig())
-    peer = lambda t: IntruderTrack("peer", t, np.array([ahead - t, 0.0, -5.0]), np.array([-1.0, 0, 0]),  # noqa: E731
-                                   cooperative=cooperative)
+
+    def peer(t):
+        return IntruderTrack(
+            "peer",
+            t,
+            np.array([ahead - t, 0.0, -5.0]),
+            np.array([-1.0, 0, 0]),
+            cooperative=cooperative,
+        )
+
     decisions = []
     for t in (0.0, 1.0, 2.0):
-        est = VehicleState(t, np.array([t, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0)
+        est = VehicleState(
+            t, np.array([t, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0
+        )
         av.plan(est, Threats(intruders=[peer(t)]), t)
         decisions.append(av.last_decision)
     return av, decisions
@@ -326,13 +386,16 @@ def test_cooperative_peer_is_resolved_by_the_rules_in_navigation_mode():
     av, decisions = _avoider_with_traffic(cooperative=True, ahead=40.0)
     d = decisions[1]  # the case opens on the second (confirming) frame
     assert d.mode.value == "navigation" and "intruder" not in d.events and d.status == "ok"
-    assert "rule:case_open:self-peer:head_on:roundabout" in d.events and "rule:head_on:self-peer:head_on:roundabout" in d.events
+    assert (
+        "rule:case_open:self-peer:head_on:roundabout" in d.events
+        and "rule:head_on:self-peer:head_on:roundabout" in d.events
+    )
     assert d.reference.positions[-1][0] > 1.0  # turned right: the UAS flies north (ENU +y), right is east (+x)
     assert av.rules_record["cases"][0]["encounter"] == "head_on"
 
 
 def test_non_cooperative_intruder_falls_back_to_the_emergency_avoidance():
-    av, decisions = _avoider_with_traffic(cooperative=False, ahead=15.0)
+    _av, decisions = _avoider_with_traffic(cooperative=False, ahead=15.0)
     assert decisions[-1].mode.value == "emergency" and "intruder" in decisions[-1].events
     assert not any(e.startswith("rule:") for d in decisions for e in d.events)
 

@@ -27,37 +27,83 @@ def _mutate(path: list, value):
 _DELETE = object()
 
 CASES = [
-    ("unknown_key", _mutate(["vehicle", 0, "initial", "altitude_ft"], 59000), None,
-     "vehicle[0].initial.altitude_ft: unknown key"),
-    ("wrong_unit", _mutate(["vehicle", 0, "mission", "cruise_speed"], "26 km"), None,
-     "vehicle[0].mission.cruise_speed: wrong unit: 'km' is a length, this field is a speed"),
-    ("unknown_unit", _mutate(["vehicle", 0, "initial", "altitude"], "18 furlong"), None,
-     "vehicle[0].initial.altitude: unknown unit 'furlong'"),
-    ("unknown_aircraft", _mutate(["vehicle", 0, "aircraft"], "hapz"), None,
-     "vehicle[0].aircraft: unknown aircraft 'hapz' (known: haps"),
-    ("missing_field", _mutate(["vehicle", 0, "mission", "waypoints"], _DELETE), None,
-     "vehicle[0].mission.waypoints: missing required field"),
-    ("out_of_range", _mutate(["vehicle", 0, "mission", "waypoints", 2, "altitude"], "45 km"), None,
-     "vehicle[0].mission.waypoints[2].altitude: out of range: 45000 m not in [-500, 30000] m"),
-    ("latitude_range", _mutate(["origin", "lat"], 95.0), None,
-     "origin.lat: out of range: 95 deg not in [-90, 90] deg"),
+    (
+        "unknown_key",
+        _mutate(["vehicle", 0, "initial", "altitude_ft"], 59000),
+        None,
+        "vehicle[0].initial.altitude_ft: unknown key",
+    ),
+    (
+        "wrong_unit",
+        _mutate(["vehicle", 0, "mission", "cruise_speed"], "26 km"),
+        None,
+        "vehicle[0].mission.cruise_speed: wrong unit: 'km' is a length, this field is a speed",
+    ),
+    (
+        "unknown_unit",
+        _mutate(["vehicle", 0, "initial", "altitude"], "18 furlong"),
+        None,
+        "vehicle[0].initial.altitude: unknown unit 'furlong'",
+    ),
+    (
+        "unknown_aircraft",
+        _mutate(["vehicle", 0, "aircraft"], "hapz"),
+        None,
+        "vehicle[0].aircraft: unknown aircraft 'hapz' (known: haps",
+    ),
+    (
+        "missing_field",
+        _mutate(["vehicle", 0, "mission", "waypoints"], _DELETE),
+        None,
+        "vehicle[0].mission.waypoints: missing required field",
+    ),
+    (
+        "out_of_range",
+        _mutate(["vehicle", 0, "mission", "waypoints", 2, "altitude"], "45 km"),
+        None,
+        "vehicle[0].mission.waypoints[2].altitude: out of range: 45000 m not in [-500, 30000] m",
+    ),
+    ("latitude_range", _mutate(["origin", "lat"], 95.0), None, "origin.lat: out of range: 95 deg not in [-90, 90] deg"),
     ("wrong_type", _mutate(["seed"], "one"), None, "seed: "),
-    ("duplicate_names", {**GOOD, "vehicle": GOOD["vehicle"] * 2}, None,
-     "vehicle names must be unique, repeated: haps"),
-    ("naive_time", None, 'name="x"\nseed=1\nduration=10\nstart_time=2026-06-21T06:00:00\n'
-     '[origin]\nlat=0\nlon=0\n', "start_time: start_time needs a time zone"),
+    ("duplicate_names", {**GOOD, "vehicle": GOOD["vehicle"] * 2}, None, "vehicle names must be unique, repeated: haps"),
+    (
+        "naive_time",
+        None,
+        'name="x"\nseed=1\nduration=10\nstart_time=2026-06-21T06:00:00\n[origin]\nlat=0\nlon=0\n',
+        "start_time: start_time needs a time zone",
+    ),
     ("bad_toml", None, 'name = "x\nseed = 1\n', "not valid TOML"),
-    ("fault_vehicle", {**GOOD, "fault": [{"vehicle": "hapz", "kind": "gust", "at": 10, "east": 3}]}, None,
-     "fault[0].vehicle: no vehicle 'hapz' (vehicles: haps)"),
-    ("fault_kind", {**GOOD, "fault": [{"vehicle": "haps", "kind": "lightning", "at": 10}]}, None,
-     "fault[0]: Input tag 'lightning' found using 'kind' does not match any of the expected tags"),
-    ("obstacle_fields", {**GOOD, "obstacle": [{"id": "t", "shape": "cylinder", "top": 500}]}, None,
-     "obstacle[0]: radius: a cylinder needs radius"),
-    ("crossed_polygon", {**GOOD, "geofence": [{"id": "g", "points": [[0, 0], [1, 1], [1, 0], [0, 1]]}]}, None,
-     "geofence[0].points: points: the polygon is not simple (its edges cross)"),
+    (
+        "fault_vehicle",
+        {**GOOD, "fault": [{"vehicle": "hapz", "kind": "gust", "at": 10, "east": 3}]},
+        None,
+        "fault[0].vehicle: no vehicle 'hapz' (vehicles: haps)",
+    ),
+    (
+        "fault_kind",
+        {**GOOD, "fault": [{"vehicle": "haps", "kind": "lightning", "at": 10}]},
+        None,
+        "fault[0]: Input tag 'lightning' found using 'kind' does not match any of the expected tags",
+    ),
+    (
+        "obstacle_fields",
+        {**GOOD, "obstacle": [{"id": "t", "shape": "cylinder", "top": 500}]},
+        None,
+        "obstacle[0]: radius: a cylinder needs radius",
+    ),
+    (
+        "crossed_polygon",
+        {**GOOD, "geofence": [{"id": "g", "points": [[0, 0], [1, 1], [1, 0], [0, 1]]}]},
+        None,
+        "geofence[0].points: points: the polygon is not simple (its edges cross)",
+    ),
     ("turbulence", {**GOOD, "wind": {"turbulence": "extreme"}}, None, "wind.turbulence: Input should be 'none'"),
-    ("fixed_wing_land", _mutate(["vehicle", 0, "mission", "land"], True), None,
-     "vehicle[0]: mission.land: only multirotors land at the end of a mission (haps is fixed_wing)"),
+    (
+        "fixed_wing_land",
+        _mutate(["vehicle", 0, "mission", "land"], True),
+        None,
+        "vehicle[0]: mission.land: only multirotors land at the end of a mission (haps is fixed_wing)",
+    ),
 ]
 
 
@@ -65,8 +111,9 @@ CASES = [
 def test_bad_scenario_is_one_line_error_exit_2(tmp_path, kind, data, text, expected):
     f = tmp_path / f"{kind}.toml"
     f.write_text(text if text is not None else tomli_w.dumps(data))
-    proc = subprocess.run([sys.executable, "-m", "sim.cli", "run", str(f), "-q"],
-                          capture_output=True, text=True, cwd=ROOT, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "sim.cli", "run", str(f), "-q"], capture_output=True, text=True, cwd=ROOT, timeout=60
+    )
     assert proc.returncode == 2, proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1, proc.stderr
@@ -77,20 +124,35 @@ def test_bad_scenario_is_one_line_error_exit_2(tmp_path, kind, data, text, expec
 
 
 def test_missing_file_is_exit_2(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "sim.cli", "run", str(tmp_path / "nope.toml")],
-                          capture_output=True, text=True, cwd=ROOT, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "sim.cli", "run", str(tmp_path / "nope.toml")],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=60,
+    )
     assert proc.returncode == 2
     assert "cannot read scenario file" in proc.stderr and "Traceback" not in proc.stderr
 
 
 def test_unwritable_log_path_is_exit_2(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "sim.cli", "run", "scenarios/quad_hover_offset.toml",
-                           "-o", str(tmp_path)], capture_output=True, text=True, cwd=ROOT, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "sim.cli", "run", "scenarios/quad_hover_offset.toml", "-o", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=60,
+    )
     assert proc.returncode == 2
     assert "cannot write the log" in proc.stderr and "Traceback" not in proc.stderr
 
 
 def test_good_scenario_validates():
-    proc = subprocess.run([sys.executable, "-m", "sim.cli", "validate", "scenarios/haps_box_mission.toml"],
-                          capture_output=True, text=True, cwd=ROOT, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "sim.cli", "validate", "scenarios/haps_box_mission.toml"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=60,
+    )
     assert proc.returncode == 0, proc.stderr

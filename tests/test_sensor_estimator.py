@@ -43,9 +43,24 @@ class Recorder:
         ekf, imu = self.est.ekf, self.est.imu
         dth = quat_log(quat_mul(quat_conj(ekf.nav.q), euler_to_quat(*tr.euler)))
         s = ekf.three_sigma()
-        self.rows.append(np.concatenate((
-            [t], tr.pos_ned - e.pos_ned, tr.vel_ned - e.vel_ned, dth, imu.accel.bias - ekf.nav.ba,
-            imu.gyro.bias - ekf.nav.bg, s["pos"], s["vel"], s["att"], s["accel"], s["gyro"], tr.pos_ned)))
+        self.rows.append(
+            np.concatenate(
+                (
+                    [t],
+                    tr.pos_ned - e.pos_ned,
+                    tr.vel_ned - e.vel_ned,
+                    dth,
+                    imu.accel.bias - ekf.nav.ba,
+                    imu.gyro.bias - ekf.nav.bg,
+                    s["pos"],
+                    s["vel"],
+                    s["att"],
+                    s["accel"],
+                    s["gyro"],
+                    tr.pos_ned,
+                )
+            )
+        )
 
     def arrays(self) -> dict[str, np.ndarray]:
         a = np.array(self.rows)
@@ -60,6 +75,7 @@ def _inside(run, skip_s: float = 10.0) -> np.ndarray:
 
 # -- HAPS: trimmed at 18 km, straight then a 90 deg turn, autopilot + L1 on the estimate -------
 
+
 def _fly_haps(seconds: float, seed: int = 3):
     af = get_airframe("haps")
     plant = JSBSimPlant(af.jsbsim_model, 1.0 / af.plant_hz, ORIGIN, af.folder)
@@ -72,14 +88,14 @@ def _fly_haps(seconds: float, seed: int = 3):
     l1 = L1Guidance.for_airframe(ap)
     ap.reset(est.update(0.0), throttle=plant["fcs/throttle-cmd-norm[0]"])
     start = plant.truth().pos_ned.copy()
-    leg = {"a": start, "b": start + [100_000.0, 0.0, 0.0]}
+    leg = {"a": start, "b": [*start, 100000.0, 0.0, 0.0]}
     dt = 1.0 / af.control_hz
 
     def control(t: float) -> None:
         e = est.update(t)
         if t >= 60.0 and leg["b"][1] == start[1]:  # turn east after a minute
             leg["a"] = e.pos_ned.copy()
-            leg["b"] = e.pos_ned + [0.0, 100_000.0, 0.0]
+            leg["b"] = [*e.pos_ned, 0.0, 100000.0, 0.0]
         roll, _ = l1.update(e, leg["a"], leg["b"])
         plant.set_many(ap.update(e, FixedWingSetpoint(roll, HAPS_ALT, HAPS_TAS), dt))
 
@@ -103,7 +119,7 @@ def haps():
 
 @pytest.mark.closed_loop
 def test_haps_estimate_within_3_sigma_and_flies_the_route(haps):
-    run, est, plant, rtf = haps
+    run, _est, plant, rtf = haps
     frac = _inside(run)
     assert frac.min() >= 0.95, f"inside 3 sigma: {np.round(frac, 3)}"
     tr = plant.truth()
@@ -129,11 +145,12 @@ def test_haps_biases_converge(haps):
 
 # -- multirotor: hover, move, 20 s GNSS loss while holding, return ---------------------------
 
+
 def _quad_setpoint(t: float, home: np.ndarray) -> MultirotorSetpoint:
     if t < 20.0:
         p = home
     elif t < 100.0:
-        p = home + [30.0, 20.0, -10.0]
+        p = [*home, 30.0, 20.0, -10.0]
     else:
         p = home
     return MultirotorSetpoint(pos_ned=np.array(p, float), yaw_rad=0.0 if t < 40.0 else 0.5)
@@ -171,18 +188,17 @@ def _fly_quad(seconds: float, seed: int = 5, faults=()):
 
 @pytest.fixture(scope="module")
 def quad():
-    return _fly_quad(120.0, faults=[("gnss", SensorFault(kind="dropout", t_start=GNSS_LOSS[0],
-                                                             t_end=GNSS_LOSS[1]))])
+    return _fly_quad(120.0, faults=[("gnss", SensorFault(kind="dropout", t_start=GNSS_LOSS[0], t_end=GNSS_LOSS[1]))])
 
 
 @pytest.mark.closed_loop
 def test_multirotor_estimate_within_3_sigma_and_flies_the_setpoints(quad):
-    run, est, plant, rtf, home = quad
+    run, _est, _plant, rtf, home = quad
     frac = _inside(run)
     assert frac.min() >= 0.95, f"inside 3 sigma: {np.round(frac, 3)}"
     t, pos = run["t"], run["pos"]
     at_b = (t > 50.0) & (t < GNSS_LOSS[0])
-    assert np.abs(pos[at_b] - (home + [30.0, 20.0, -10.0])).max() < 1.5
+    assert np.abs(pos[at_b] - ([*home, 30.0, 20.0, -10.0])).max() < 1.5
     assert np.linalg.norm(pos[-1] - home) < 1.5  # back home (true position)
     assert np.abs(run["err"][t > 10.0, 12:15]).max() < math.radians(0.1)  # gyro biases
     print(f"multirotor closed loop with sensors + EKF: {rtf:.0f}x real time")
@@ -195,13 +211,15 @@ def test_multirotor_gnss_loss_grows_covariance_stays_controlled_and_recovers(qua
     horiz = np.hypot(sig[:, 0], sig[:, 1])
     lost = (t >= GNSS_LOSS[0] + 0.5) & (t < GNSS_LOSS[1])
     assert np.all(np.diff(horiz[lost]) >= -1e-9)  # grows monotonically without GNSS
-    print(f"horizontal 3 sigma: {horiz[t < GNSS_LOSS[0]][-1]:.2f} m before the loss, {horiz[lost][-1]:.2f} m "
-          f"at its end, {horiz[t > GNSS_LOSS[1] + 10.0][0]:.2f} m 10 s after; max true error while blind "
-          f"{np.abs(err[lost, :2]).max():.2f} m")
+    print(
+        f"horizontal 3 sigma: {horiz[t < GNSS_LOSS[0]][-1]:.2f} m before the loss, {horiz[lost][-1]:.2f} m "
+        f"at its end, {horiz[t > GNSS_LOSS[1] + 10.0][0]:.2f} m 10 s after; max true error while blind "
+        f"{np.abs(err[lost, :2]).max():.2f} m"
+    )
     before = horiz[(t > GNSS_LOSS[0] - 5.0) & (t < GNSS_LOSS[0])].max()
     assert horiz[lost][-1] > 2.0 * before
     # controlled: the true position stays near the held point while blind
-    b = home + [30.0, 20.0, -10.0]
+    b = [*home, 30.0, 20.0, -10.0]
     assert np.abs(pos[lost] - b)[:, :2].max() < 10.0
     assert np.abs(pos[lost, 2] - b[2]).max() < 3.0
     # recovers after the loss: bound back near its value before, errors small
@@ -219,6 +237,7 @@ def test_closed_loop_speed_reported(haps, quad):
 
 
 # -- config, accessors -------------------------------------------------------------------------
+
 
 def test_config_defaults_fit_the_plant_rates():
     for name in ("haps", "quadrotor"):
@@ -251,6 +270,7 @@ def test_normal_gravity_matches_jsbsim_at_18_km():
     plant.step(5)
     from sim.sensors.rotations import euler_to_dcm
     from sim.sensors.truth import TruthSampler
+
     s = TruthSampler(plant).sample()
     f_ned = euler_to_dcm(*s.state.euler) @ s.specific_force_body
     assert -f_ned[2] == pytest.approx(normal_gravity(ORIGIN.lat_deg, s.state.alt_msl_m), abs=1e-3)

@@ -62,8 +62,10 @@ def test_box_turns_estimate_consistent(box_log):
     assert turned > 170.0, f"the test must fly at least two 90 deg turns (turned {turned:.0f} deg)"
 
     after = t > SETTLE_S
-    for name, err, bound in (("pos", es["pos_ned"] - tr["pos_ned"], sg["pos"]),
-                             ("vel", es["vel_ned"] - tr["vel_ned"], sg["vel"])):
+    for name, err, bound in (
+        ("pos", es["pos_ned"] - tr["pos_ned"], sg["pos"]),
+        ("vel", es["vel_ned"] - tr["vel_ned"], sg["vel"]),
+    ):
         inside = (np.abs(err) <= bound)[after].mean(axis=0)
         rms = np.sqrt((err[after] ** 2).mean(axis=0))
         assert (inside >= 0.95).all(), f"{name} N/E/D inside 3 sigma: {inside.round(3)} (rms {rms.round(3)})"
@@ -83,19 +85,26 @@ def test_velocity_map_integrates_to_scenario_position():
     frame, geo = LocalLevelFrame(origin), LocalGeodetic(origin)
     dt, n = 1.0, 2700
     s = np.arange(n + 1) * dt
-    lat = 47.0 + 0.18 * np.sin(s / 900.0)   # ~ 20 km north and east, climbing 500 m
+    lat = 47.0 + 0.18 * np.sin(s / 900.0)  # ~ 20 km north and east, climbing 500 m
     lon = 8.0 + 0.26 * (1.0 - np.cos(s / 700.0))
     alt = 18_000.0 + 500.0 * s / s[-1]
-    pos = np.array([frame.ned(*x) for x in zip(lat, lon, alt)])
+    pos = np.array([frame.ned(*x) for x in zip(lat, lon, alt, strict=False)])
 
     def local_vel(k: int) -> np.ndarray:  # ECEF velocity at mid-step in the local NED axes
         from sim.frames import _ecef
-        a, b = np.array(_ecef(*np.radians([lat[k], lon[k]]), alt[k])), np.array(
-            _ecef(*np.radians([lat[k + 1], lon[k + 1]]), alt[k + 1]))
+
+        a, b = (
+            np.array(_ecef(*np.radians([lat[k], lon[k]]), alt[k])),
+            np.array(_ecef(*np.radians([lat[k + 1], lon[k + 1]]), alt[k + 1])),
+        )
         la, lo = np.radians(0.5 * (lat[k] + lat[k + 1])), np.radians(0.5 * (lon[k] + lon[k + 1]))
-        axes = np.array([[-math.sin(la) * math.cos(lo), -math.sin(la) * math.sin(lo), math.cos(la)],
-                         [-math.sin(lo), math.cos(lo), 0.0],
-                         [-math.cos(la) * math.cos(lo), -math.cos(la) * math.sin(lo), -math.sin(la)]])
+        axes = np.array(
+            [
+                [-math.sin(la) * math.cos(lo), -math.sin(la) * math.sin(lo), math.cos(la)],
+                [-math.sin(lo), math.cos(lo), 0.0],
+                [-math.cos(la) * math.cos(lo), -math.cos(la) * math.sin(lo), -math.sin(la)],
+            ]
+        )
         return axes @ (b - a) / dt
 
     p_map, p_flat = pos[0].copy(), pos[0].copy()

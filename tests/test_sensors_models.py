@@ -19,17 +19,32 @@ from sim.sensors.config import SensorConfigError
 from sim.sensors.faults import SensorFault
 from sim.sensors.gnss import Gnss, GnssConfig
 from sim.sensors.imu import Imu, ImuConfig
-from sim.sensors.lidar import Lidar, LidarConfig, cast_rays, _prepare
+from sim.sensors.lidar import Lidar, LidarConfig, _prepare, cast_rays
 from sim.sensors.suite import SensorSuite, SensorSuiteConfig
 from sim.sensors.truth import TruthSample
 from sim.state import VehicleState
 
 
-
-def _truth(t=0.0, pos=(0.0, 0.0, -50.0), vel=(0.0, 0.0, 0.0), euler=(0.0, 0.0, 0.0), rates=(0.0, 0.0, 0.0),
-           f=(0.0, 0.0, -9.80665), p=95_000.0) -> TruthSample:
-    s = VehicleState(t=t, pos_ned=np.array(pos, float), vel_ned=np.array(vel, float), euler=np.array(euler, float),
-                     rates_body=np.array(rates, float), alt_msl_m=450.0, lat_deg=47.0, lon_deg=8.0, tas_mps=20.0)
+def _truth(
+    t=0.0,
+    pos=(0.0, 0.0, -50.0),
+    vel=(0.0, 0.0, 0.0),
+    euler=(0.0, 0.0, 0.0),
+    rates=(0.0, 0.0, 0.0),
+    f=(0.0, 0.0, -9.80665),
+    p=95_000.0,
+) -> TruthSample:
+    s = VehicleState(
+        t=t,
+        pos_ned=np.array(pos, float),
+        vel_ned=np.array(vel, float),
+        euler=np.array(euler, float),
+        rates_body=np.array(rates, float),
+        alt_msl_m=450.0,
+        lat_deg=47.0,
+        lon_deg=8.0,
+        tas_mps=20.0,
+    )
     return TruthSample(s, np.array(f, float), p, 285.0, 1.15, np.zeros(3))
 
 
@@ -60,8 +75,15 @@ def test_channel_noise_bias_rw_and_quantisation_statistics():
 
 
 def test_imu_noise_matches_density_rate_and_is_reproducible():
-    cfg = ImuConfig(rate_hz=200.0, accel_bias_init_std=0.0, accel_bias_rw=0.0, gyro_bias_init_std=0.0,
-                    gyro_bias_rw=0.0, accel_quantum=0.0, gyro_quantum=0.0)
+    cfg = ImuConfig(
+        rate_hz=200.0,
+        accel_bias_init_std=0.0,
+        accel_bias_rw=0.0,
+        gyro_bias_init_std=0.0,
+        gyro_bias_rw=0.0,
+        accel_quantum=0.0,
+        gyro_quantum=0.0,
+    )
     out = _run(Imu(cfg, np.random.default_rng(3)), 4000, 0.005)
     acc = np.array([m.accel_body for m in out])
     gyr = np.array([m.gyro_body for m in out])
@@ -70,8 +92,10 @@ def test_imu_noise_matches_density_rate_and_is_reproducible():
     assert np.allclose(gyr.std(0), cfg.gyro_noise_density * math.sqrt(200.0), rtol=0.05)
     assert np.allclose(acc.mean(0), [0, 0, -9.80665], atol=0.005)
     again = _run(Imu(cfg, np.random.default_rng(3)), 4000, 0.005)
-    assert all(np.array_equal(a.accel_body, b.accel_body) and np.array_equal(a.gyro_body, b.gyro_body)
-               for a, b in zip(out, again))
+    assert all(
+        np.array_equal(a.accel_body, b.accel_body) and np.array_equal(a.gyro_body, b.gyro_body)
+        for a, b in zip(out, again, strict=False)
+    )
 
 
 def test_rate_and_latency():
@@ -137,6 +161,7 @@ def test_suite_sensors_independent_streams_and_seeded():
             for m in s.poll(_truth(t=k * 0.01)):
                 if type(m).__name__ == "GnssFix":
                     return m.pos_ned
+
     a = first_gnss(SensorSuiteConfig())
     assert np.array_equal(a, first_gnss(SensorSuiteConfig(imu=ImuConfig(rate_hz=50.0))))
     assert np.array_equal(a, first_gnss(SensorSuiteConfig()))
@@ -148,6 +173,7 @@ def test_isa_inverse_and_jsbsim_agreement():
     jsbsim = pytest.importorskip("jsbsim")
     from sim.jsbsim_plant import InitialConditions, JSBSimPlant
     from sim.sensors.truth import TruthSampler
+
     plant = JSBSimPlant("c172p", 1 / 120, GeoPoint(47.0, 8.0, 0.0))
     for alt in (1000.0, 18_000.0):
         plant.initialise(InitialConditions(GeoPoint(47.0, 8.0, alt), tas_mps=50.0))
@@ -161,6 +187,7 @@ def test_truth_sampler_specific_force_in_trimmed_flight():
     pytest.importorskip("jsbsim")
     from sim.jsbsim_plant import InitialConditions, JSBSimPlant
     from sim.sensors.truth import TruthSampler
+
     plant = JSBSimPlant("c172p", 1 / 120, GeoPoint(47.0, 8.0, 0.0))
     plant.initialise(InitialConditions(GeoPoint(47.0, 8.0, 1000.0), tas_mps=50.0))
     plant.trim()
@@ -169,10 +196,11 @@ def test_truth_sampler_specific_force_in_trimmed_flight():
     r_th = ts.state.euler[1]
     assert ts.specific_force_body[2] == pytest.approx(-9.80665 * math.cos(r_th), rel=0.02)
     assert abs(ts.specific_force_body[1]) < 0.05
-    assert ts.dynamic_pressure_pa == pytest.approx(0.5 * ts.air_density_kgm3 * ts.state.tas_mps ** 2)
+    assert ts.dynamic_pressure_pa == pytest.approx(0.5 * ts.air_density_kgm3 * ts.state.tas_mps**2)
 
 
 # -- LiDAR ---------------------------------------------------------------------------------------
+
 
 def test_lidar_hits_a_box_at_the_analytic_range():
     ob = PrismObstacle("b", box(10.0, -5.0, 20.0, 5.0), up_min_m=0.0, up_max_m=30.0)
@@ -204,8 +232,16 @@ def test_lidar_top_face_holes_range_noise_and_scan_in_estimated_frame():
     ret = lidar.poll(_truth(pos=(0.0, 0.0, -10.0), euler=(0.0, 0.0, 0.0)))[0]
     ahead = np.flatnonzero(np.all(np.isclose(lidar.directions, [1.0, 0.0, 0.0], atol=1e-12), axis=1))[0]
     assert ret.ranges_m[ahead] == pytest.approx(5.0, abs=0.1)
-    est = VehicleState(t=0.0, pos_ned=np.array([0.5, 0.0, -10.0]), vel_ned=np.zeros(3), euler=np.array([0.0, 0.0, 0.1]),
-                       rates_body=np.zeros(3), alt_msl_m=0.0, lat_deg=0.0, lon_deg=0.0)
+    est = VehicleState(
+        t=0.0,
+        pos_ned=np.array([0.5, 0.0, -10.0]),
+        vel_ned=np.zeros(3),
+        euler=np.array([0.0, 0.0, 0.1]),
+        rates_body=np.zeros(3),
+        alt_msl_m=0.0,
+        lat_deg=0.0,
+        lon_deg=0.0,
+    )
     scan = ret.to_scan(est)
     assert np.allclose(scan.origin_ned, est.pos_ned)
     assert scan.directions_ned[ahead] == pytest.approx([math.cos(0.1), math.sin(0.1), 0.0])
@@ -220,14 +256,25 @@ def test_lidar_default_pattern_and_cost():
 
 # -- ADS-B ---------------------------------------------------------------------------------------
 
+
 def test_adsb_latency_rate_dropouts_and_quantised_altitude():
     rx = AdsbReceiver(AdsbConfig(dropout_probability=0.2), np.random.default_rng(5))
     got = []
     for k in range(6000):  # 60 s at 100 Hz, two intruders
         t = k * 0.01
-        intr = {iid: VehicleState(t=t, pos_ned=np.array([100.0 + 10 * t, s, -300.0]), vel_ned=np.array([10.0, 0, 0]),
-                                  euler=np.zeros(3), rates_body=np.zeros(3), alt_msl_m=0, lat_deg=0, lon_deg=0)
-                for iid, s in (("a", 0.0), ("b", 50.0))}
+        intr = {
+            iid: VehicleState(
+                t=t,
+                pos_ned=np.array([100.0 + 10 * t, s, -300.0]),
+                vel_ned=np.array([10.0, 0, 0]),
+                euler=np.zeros(3),
+                rates_body=np.zeros(3),
+                alt_msl_m=0,
+                lat_deg=0,
+                lon_deg=0,
+            )
+            for iid, s in (("a", 0.0), ("b", 50.0))
+        }
         got += [(t, r) for r in rx.poll(t, intr)]
     for iid in "ab":
         reps = [(t, r) for t, r in got if r.id == iid]

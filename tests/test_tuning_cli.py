@@ -20,9 +20,14 @@ def test_margins_haps(tmp_path, capsys):
 
 
 def test_bad_inputs_exit_2(capsys):
-    for argv in (["trim", "plane"], ["linearize", "haps", "--alt", "21000", "--tas", "20"],
-                 ["margins", "haps", "--tas", "-3"], ["bogus"], ["roll-gain"],
-                 ["linearize", "quadrotor"]):
+    for argv in (
+        ["trim", "plane"],
+        ["linearize", "haps", "--alt", "21000", "--tas", "20"],
+        ["margins", "haps", "--tas", "-3"],
+        ["bogus"],
+        ["roll-gain"],
+        ["linearize", "quadrotor"],
+    ):
         assert tune_main(argv) == 2, argv
         err = capsys.readouterr().err.strip()
         assert err.startswith("error:") and "\n" not in err, (argv, err)

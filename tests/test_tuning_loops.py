@@ -30,13 +30,16 @@ def roll_axis():
 def _roll_loops(axis, kp_att=None):
     g = MultirotorGains.load()
     r = g.rate.roll
-    return quad_axis_loops(axis, RatePid(r.kp, r.ki, r.kd, 2 * math.pi * g.rate.d_cutoff_hz),
-                           kp_att if kp_att is not None else g.attitude.kp_roll)
+    return quad_axis_loops(
+        axis,
+        RatePid(r.kp, r.ki, r.kd, 2 * math.pi * g.rate.d_cutoff_hz),
+        kp_att if kp_att is not None else g.attitude.kp_roll,
+    )
 
 
 def test_identified_roll_plant_matches_model_card(roll_axis):
     # README: 546 rad/s^2 per unit torque command, motor tau ~55 ms
-    assert roll_axis.K == pytest.approx(546, rel=0.08)
+    assert pytest.approx(546, rel=0.08) == roll_axis.K
     assert 0.035 < roll_axis.tau_s < 0.065
 
 

@@ -7,23 +7,47 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sim.frames import GeoPoint, LocalLevelFrame, enu_to_ned, euler_to_quaternion, geodetic_to_ned, ned_to_enu, ned_to_geodetic
+from sim.frames import (
+    GeoPoint,
+    LocalLevelFrame,
+    enu_to_ned,
+    euler_to_quaternion,
+    geodetic_to_ned,
+    ned_to_enu,
+    ned_to_geodetic,
+)
 from sim.units import to_si
 
 
-@pytest.mark.parametrize("value,dim,si", [
-    ("18 km", "length", 18000.0), (59000, "length", 59000.0), ("1000 ft", "length", 304.8),
-    ("50 kt", "speed", 50 * 1852 / 3600), ("90 km/h", "speed", 25.0), (90, "angle", math.pi / 2),
-    ("1 rad", "angle", 1.0), ("2.5 h", "time", 9000.0), ("75 min", "time", 4500.0), ("-1e3 m", "length", -1000.0),
-])
+@pytest.mark.parametrize(
+    "value,dim,si",
+    [
+        ("18 km", "length", 18000.0),
+        (59000, "length", 59000.0),
+        ("1000 ft", "length", 304.8),
+        ("50 kt", "speed", 50 * 1852 / 3600),
+        ("90 km/h", "speed", 25.0),
+        (90, "angle", math.pi / 2),
+        ("1 rad", "angle", 1.0),
+        ("2.5 h", "time", 9000.0),
+        ("75 min", "time", 4500.0),
+        ("-1e3 m", "length", -1000.0),
+    ],
+)
 def test_quantities(value, dim, si):
     assert to_si(value, dim) == pytest.approx(si)
 
 
-@pytest.mark.parametrize("value,dim,msg", [
-    ("26 km", "speed", "wrong unit: 'km' is a length"), ("3 parsec", "length", "unknown unit"),
-    (True, "length", "boolean"), ("fast", "speed", "expected a speed"), ("inf m", "length", "expected"),
-])
+@pytest.mark.parametrize(
+    "value,dim,msg",
+    [
+        ("26 km", "speed", "wrong unit: 'km' is a length"),
+        ("3 parsec", "length", "unknown unit"),
+        (True, "length", "boolean"),
+        ("fast", "speed", "expected a speed"),
+        ("inf m", "length", "expected"),
+    ],
+)
 def test_bad_quantities(value, dim, msg):
     with pytest.raises(ValueError, match=msg):
         to_si(value, dim)
@@ -51,11 +75,20 @@ def test_enu_ned_swap_and_quaternion():
     assert np.allclose(enu_to_ned(ned_to_enu(v)), v)
     # yaw 90 deg: body x points east
     x, y, z, w = euler_to_quaternion(0.0, 0.0, math.pi / 2)
-    assert (x, y) == pytest.approx((0.0, 0.0)) and z == pytest.approx(math.sqrt(0.5)) and w == pytest.approx(math.sqrt(0.5))
+    assert (
+        (x, y) == pytest.approx((0.0, 0.0))
+        and z == pytest.approx(math.sqrt(0.5))
+        and w == pytest.approx(math.sqrt(0.5))
+    )
 
 
-@given(lat=st.floats(-80, 80), lon=st.floats(-179, 179), n=st.floats(-2e5, 2e5), e=st.floats(-2e5, 2e5),
-       h=st.floats(-400, 30000))
+@given(
+    lat=st.floats(-80, 80),
+    lon=st.floats(-179, 179),
+    n=st.floats(-2e5, 2e5),
+    e=st.floats(-2e5, 2e5),
+    h=st.floats(-400, 30000),
+)
 def test_fast_local_frame_equals_the_array_conversion(lat, lon, n, e, h):
     origin = GeoPoint(lat, lon, 350.0)
     la, lo, al = ned_to_geodetic(np.array([n, e, 350.0 - h]), origin)

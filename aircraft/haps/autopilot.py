@@ -103,12 +103,15 @@ class HapsAutopilot:
         # demand shaping: rate-limited references, kept within the P loops' linear range
         v_dem = _clamp(sp.tas_mps, g.eas_min * tas_per_eas, g.eas_max * tas_per_eas)
         v_lead = g.accel_max * g.spd_time_const_s
-        v_ref = _clamp(self._v_ref + _clamp(v_dem - self._v_ref, -g.accel_max * dt, g.accel_max * dt),
-                       v - v_lead, v + v_lead)
+        v_ref = _clamp(
+            self._v_ref + _clamp(v_dem - self._v_ref, -g.accel_max * dt, g.accel_max * dt), v - v_lead, v + v_lead
+        )
         v_ref_rate = (v_ref - self._v_ref) / dt
-        h_ref = _clamp(self._h_ref + _clamp(sp.altitude_m - self._h_ref, -g.sink_rate_max * dt,
-                                            g.climb_rate_max * dt),
-                       h - g.sink_rate_max * g.alt_time_const_s, h + g.climb_rate_max * g.alt_time_const_s)
+        h_ref = _clamp(
+            self._h_ref + _clamp(sp.altitude_m - self._h_ref, -g.sink_rate_max * dt, g.climb_rate_max * dt),
+            h - g.sink_rate_max * g.alt_time_const_s,
+            h + g.climb_rate_max * g.alt_time_const_s,
+        )
         h_ref_rate = (h_ref - self._h_ref) / dt
         self._v_ref, self._h_ref = v_ref, h_ref
         hdot_dem = _clamp(h_ref_rate + (h_ref - h) / g.alt_time_const_s, -g.sink_rate_max, g.climb_rate_max)
@@ -133,8 +136,7 @@ class HapsAutopilot:
         seb_rate_err = seb_rate_dem - ((2.0 - w) * G * hdot - w * v * vdot)
         seb_err = (2.0 - w) * G * (h_ref - h) - w * 0.5 * (v_ref * v_ref - v * v)
         per_seb_rate = 1.0 / (G * v)  # pitch [rad] per unit energy-balance rate [W/kg]
-        i_pitch = _clamp(self._i_pitch + g.pitch_integ * seb_err * per_seb_rate * dt,
-                         g.pitch_min_rad, g.pitch_max_rad)
+        i_pitch = _clamp(self._i_pitch + g.pitch_integ * seb_err * per_seb_rate * dt, g.pitch_min_rad, g.pitch_max_rad)
         pitch_raw = i_pitch + (seb_rate_dem + g.pitch_damp * seb_rate_err) * per_seb_rate
         pitch = _clamp(pitch_raw, g.pitch_min_rad, g.pitch_max_rad)
         if pitch == pitch_raw or (pitch_raw > pitch) == (i_pitch < self._i_pitch):
@@ -146,13 +148,21 @@ class HapsAutopilot:
         self._roll_cmd = _clamp(roll_dem, self._roll_cmd - step, self._roll_cmd + step)
 
         self.debug = {
-            "h_ref_m": h_ref, "v_ref_mps": v_ref, "hdot_dem_mps": hdot_dem, "vdot_dem_mps2": vdot_dem,
-            "vdot_mps2": vdot, "ste_err_jkg": ste_err, "ste_rate_err_wkg": ste_rate_err,
-            "seb_err_jkg": seb_err, "seb_rate_err_wkg": seb_rate_err, "thr_ff": thr_ff,
-            "i_thr": self._i_thr, "i_pitch_rad": self._i_pitch, "underspeed": float(underspeed),
+            "h_ref_m": h_ref,
+            "v_ref_mps": v_ref,
+            "hdot_dem_mps": hdot_dem,
+            "vdot_dem_mps2": vdot_dem,
+            "vdot_mps2": vdot,
+            "ste_err_jkg": ste_err,
+            "ste_rate_err_wkg": ste_rate_err,
+            "seb_err_jkg": seb_err,
+            "seb_rate_err_wkg": seb_rate_err,
+            "thr_ff": thr_ff,
+            "i_thr": self._i_thr,
+            "i_pitch_rad": self._i_pitch,
+            "underspeed": float(underspeed),
         }
-        cmds = {"ap/roll-cmd-rad": self._roll_cmd, "ap/pitch-cmd-rad": pitch,
-                _THROTTLES[0]: thr, _THROTTLES[1]: thr}
+        cmds = {"ap/roll-cmd-rad": self._roll_cmd, "ap/pitch-cmd-rad": pitch, _THROTTLES[0]: thr, _THROTTLES[1]: thr}
         if self._send_fcs:
             cmds.update(self._fcs)
             self._send_fcs = False

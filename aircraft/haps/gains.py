@@ -92,14 +92,22 @@ class HapsGains:
         """The ``[inner]`` gains and the attitude limits as JSBSim properties of
         ``systems/attitude_hold.xml`` (gain schedule reference as dynamic pressure [psf])."""
         return {
-            "ap/kp-roll": self.kp_roll, "ap/ki-roll": self.ki_roll, "ap/kd-roll": self.kd_roll,
+            "ap/kp-roll": self.kp_roll,
+            "ap/ki-roll": self.ki_roll,
+            "ap/kd-roll": self.kd_roll,
             "ap/k-roll-yaw": self.k_roll_yaw,
-            "ap/kp-pitch": self.kp_pitch, "ap/ki-pitch": self.ki_pitch, "ap/kd-pitch": self.kd_pitch,
-            "ap/kr-yaw": self.kr_yaw, "ap/kbeta-yaw": self.kbeta_yaw, "ap/k-ari": self.k_ari,
+            "ap/kp-pitch": self.kp_pitch,
+            "ap/ki-pitch": self.ki_pitch,
+            "ap/kd-pitch": self.kd_pitch,
+            "ap/kr-yaw": self.kr_yaw,
+            "ap/kbeta-yaw": self.kbeta_yaw,
+            "ap/k-ari": self.k_ari,
             "ap/qbar-ref-psf": 0.5 * RHO0 * self.sched_eas_ref**2 * PA_TO_PSF,
-            "ap/sched-min": self.sched_min, "ap/sched-max": self.sched_max,
+            "ap/sched-min": self.sched_min,
+            "ap/sched-max": self.sched_max,
             "ap/roll-limit-rad": self.roll_limit_rad,
-            "ap/pitch-min-rad": self.pitch_min_rad, "ap/pitch-max-rad": self.pitch_max_rad,
+            "ap/pitch-min-rad": self.pitch_min_rad,
+            "ap/pitch-max-rad": self.pitch_max_rad,
         }
 
 
@@ -120,8 +128,7 @@ def _flatten(table: dict[str, Any], where: str) -> dict[str, float]:
         sections.setdefault(f.metadata["section"], {})[key] = (f.name, factor)
     unknown = sorted(set(table) - set(sections))
     if unknown:
-        raise GainsError(f"{where}: unknown section(s) {', '.join(unknown)}; "
-                         f"allowed: {', '.join(sorted(sections))}")
+        raise GainsError(f"{where}: unknown section(s) {', '.join(unknown)}; allowed: {', '.join(sorted(sections))}")
     values: dict[str, float] = {}
     for sec, keys in sections.items():
         given = table.get(sec)
@@ -129,8 +136,9 @@ def _flatten(table: dict[str, Any], where: str) -> dict[str, float]:
             raise GainsError(f"{where}: missing section [{sec}]")
         unknown = sorted(set(given) - set(keys))
         if unknown:
-            raise GainsError(f"{where} [{sec}]: unknown key(s) {', '.join(unknown)}; "
-                             f"allowed here: {', '.join(sorted(keys))}")
+            raise GainsError(
+                f"{where} [{sec}]: unknown key(s) {', '.join(unknown)}; allowed here: {', '.join(sorted(keys))}"
+            )
         missing = sorted(set(keys) - set(given))
         if missing:
             raise GainsError(f"{where} [{sec}]: missing key(s) {', '.join(missing)}")

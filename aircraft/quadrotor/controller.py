@@ -219,8 +219,9 @@ class MultirotorController:
         d["yaw_sp"] = self._yaw_sp
         return self._commands(thrust, roll, pitch, self._yaw_sp, yaw_step / dt, landed=False)
 
-    def _commands(self, thrust: float, roll: float, pitch: float, yaw: float, yaw_rate: float,
-                  *, landed: bool) -> dict[str, float]:
+    def _commands(
+        self, thrust: float, roll: float, pitch: float, yaw: float, yaw_rate: float, *, landed: bool
+    ) -> dict[str, float]:
         cmd = {
             "ap/armed": 1.0 if self.armed else 0.0,
             "ap/landed": 1.0 if landed else 0.0,

@@ -185,8 +185,7 @@ def _build(cls: type, table: dict[str, Any], where: str) -> Any:
     expected = {_file_key(f.name) for f in fields(cls)}
     unknown = sorted(set(table) - expected)
     if unknown:
-        raise GainsError(f"{where}: unknown key(s) {', '.join(unknown)}; "
-                         f"allowed here: {', '.join(sorted(expected))}")
+        raise GainsError(f"{where}: unknown key(s) {', '.join(unknown)}; allowed here: {', '.join(sorted(expected))}")
     missing = sorted(expected - set(table))
     if missing:
         raise GainsError(f"{where}: missing key(s) {', '.join(missing)}")

@@ -23,16 +23,14 @@ class LandDetector:
         """Forget any contact time accumulated so far."""
         self._timer = 0.0
 
-    def update(self, descent_demanded: bool, vz: float, v_xy: float, thrust: float,
-               dt: float) -> bool:
+    def update(self, descent_demanded: bool, vz: float, v_xy: float, thrust: float, dt: float) -> bool:
         """Feed one controller step; True once the contact has lasted ``time_s``.
 
         ``vz`` is the NED vertical speed [m/s], ``v_xy`` the horizontal speed [m/s], ``thrust``
         the collective thrust demand [fraction], ``dt`` the step [s].
         """
         g = self._g
-        if (descent_demanded and abs(vz) < g.max_vz and v_xy < g.max_vxy
-                and thrust < self._thrust_low):
+        if descent_demanded and abs(vz) < g.max_vz and v_xy < g.max_vxy and thrust < self._thrust_low:
             self._timer += dt
         else:
             self._timer = 0.0

@@ -9,5 +9,12 @@ from avoidance.geometric.avoider import AvoidanceResult, Status, plan_avoidance
 from avoidance.geometric.config import CostCaps, GeometricConfig, VehicleParams
 from avoidance.geometric.planner import GeometricAvoider
 
-__all__ = ["AvoidanceResult", "CostCaps", "GeometricAvoider", "GeometricConfig", "Status", "VehicleParams",
-           "plan_avoidance"]
+__all__ = [
+    "AvoidanceResult",
+    "CostCaps",
+    "GeometricAvoider",
+    "GeometricConfig",
+    "Status",
+    "VehicleParams",
+    "plan_avoidance",
+]

@@ -23,8 +23,8 @@ from avoidance.geometric.threats import ThreatArrays
 
 
 class Status(str, Enum):
-    AVOID = "avoid"              # a collision-free candidate was chosen
-    TOO_CLOSE = "too_close"      # evading point closer than min_sep_factor·R to the main threat
+    AVOID = "avoid"  # a collision-free candidate was chosen
+    TOO_CLOSE = "too_close"  # evading point closer than min_sep_factor·R to the main threat
     NO_SOLUTION = "no_solution"  # no candidate is collision-free (or all exceed max_cost)
 
 
@@ -63,8 +63,9 @@ class AvoidanceResult:
         return float(self.costs.total[self.chosen]) if self.chosen is not None else float("nan")
 
 
-def sweep_durations(threats: ThreatArrays, main_index: int | None, main_t_cpa: float, t_max: float,
-                    cfg: GeometricConfig) -> np.ndarray:
+def sweep_durations(
+    threats: ThreatArrays, main_index: int | None, main_t_cpa: float, t_max: float, cfg: GeometricConfig
+) -> np.ndarray:
     """(J,) collision-path durations [s]: t_max, except a moving main threat, which runs to the
     collision point (``main_t_cpa`` [s] ahead) plus ``main_threat_extension_s`` (G12, G13)."""
     d = np.full(len(threats), t_max)
@@ -85,8 +86,15 @@ def cmo_threats(start: np.ndarray, threats: ThreatArrays, durations: np.ndarray,
     return keep[np.argsort(d[d <= cfg.cmo_max_range_m], kind="stable")[: cfg.cmo_max_objects]]
 
 
-def evaluate_costs(c: CandidateSet, kin: Kinematics, idx: np.ndarray, threats: ThreatArrays,
-                   durations: np.ndarray, cfg: GeometricConfig, veh: VehicleParams) -> CostTable:
+def evaluate_costs(
+    c: CandidateSet,
+    kin: Kinematics,
+    idx: np.ndarray,
+    threats: ThreatArrays,
+    durations: np.ndarray,
+    cfg: GeometricConfig,
+    veh: VehicleParams,
+) -> CostTable:
     """Cost terms of the candidates ``idx`` (the available ones), scattered into (K,) arrays."""
     pts, n = c.points[idx], c.n_pts[idx]
     s_shape = np.concatenate([smoothness(x, y, cfg.smoothness) for x, y in c.shapes])
@@ -117,8 +125,9 @@ def evaluate_costs(c: CandidateSet, kin: Kinematics, idx: np.ndarray, threats: T
         out[idx] = v
         return out
 
-    return CostTable({k: scatter(v) for k, v in raw_sub.items()},
-                     {k: scatter(v) for k, v in norm_sub.items()}, scatter(total_sub))
+    return CostTable(
+        {k: scatter(v) for k, v in raw_sub.items()}, {k: scatter(v) for k, v in norm_sub.items()}, scatter(total_sub)
+    )
 
 
 def select(costs: CostTable, available: np.ndarray, max_cost: float | None) -> int | None:
@@ -130,8 +139,15 @@ def select(costs: CostTable, available: np.ndarray, max_cost: float | None) -> i
     return None if max_cost is not None and costs.total[best] > max_cost else best
 
 
-def plan_avoidance(start: np.ndarray, x_dir: np.ndarray, ref_speed: float, threats: ThreatArrays,
-                   main: MainThreat, cfg: GeometricConfig, veh: VehicleParams) -> AvoidanceResult:
+def plan_avoidance(
+    start: np.ndarray,
+    x_dir: np.ndarray,
+    ref_speed: float,
+    threats: ThreatArrays,
+    main: MainThreat,
+    cfg: GeometricConfig,
+    veh: VehicleParams,
+) -> AvoidanceResult:
     """Plan around ``main`` (a threat of ``threats``, every one of which is checked) from the
     evading point ``start`` [m] on a reference along ``x_dir`` flown at ``ref_speed`` [m/s]."""
     clock = time.perf_counter
@@ -146,8 +162,17 @@ def plan_avoidance(start: np.ndarray, x_dir: np.ndarray, ref_speed: float, threa
     t_max = float(kin.T.max())
     t2 = clock()
     durations = sweep_durations(threats, main.index, main.t_cpa, t_max, cfg)
-    clearance = candidate_clearance(cands.points, kin.seg_vel, kin.tau, kin.seg_dt, threats, cfg.dynamic_mode,
-                                    durations, x_hat * ref_speed, t_max + cfg.rejoin_check_s)
+    clearance = candidate_clearance(
+        cands.points,
+        kin.seg_vel,
+        kin.tau,
+        kin.seg_dt,
+        threats,
+        cfg.dynamic_mode,
+        durations,
+        x_hat * ref_speed,
+        t_max + cfg.rejoin_check_s,
+    )
     available = np.all(clearance >= cfg.r_uav + cfg.select_margin_m, axis=1)
     t3 = clock()
     costs = evaluate_costs(cands, kin, np.flatnonzero(available), threats, durations, cfg, veh)
@@ -155,13 +180,28 @@ def plan_avoidance(start: np.ndarray, x_dir: np.ndarray, ref_speed: float, threa
     chosen = select(costs, available, cfg.max_cost)
     t5 = clock()
     return AvoidanceResult(
-        Status.AVOID if chosen is not None else Status.NO_SOLUTION, main, cands, kin, clearance, available,
-        costs, chosen, t_max,
-        {"generation": t1 - t0, "kinematics": t2 - t1, "collision": t3 - t2, "cost": t4 - t3, "selection": t5 - t4})
+        Status.AVOID if chosen is not None else Status.NO_SOLUTION,
+        main,
+        cands,
+        kin,
+        clearance,
+        available,
+        costs,
+        chosen,
+        t_max,
+        {"generation": t1 - t0, "kinematics": t2 - t1, "collision": t3 - t2, "cost": t4 - t3, "selection": t5 - t4},
+    )
 
 
-def path_clearance(points: np.ndarray, times: np.ndarray, threats: ThreatArrays, main_index: int | None,
-                   main_t_cpa: float, tail_vel: np.ndarray, cfg: GeometricConfig) -> float:
+def path_clearance(
+    points: np.ndarray,
+    times: np.ndarray,
+    threats: ThreatArrays,
+    main_index: int | None,
+    main_t_cpa: float,
+    tail_vel: np.ndarray,
+    cfg: GeometricConfig,
+) -> float:
     """Smallest clearance [m] (distance minus threat radius) of a path (N, 3) [m] flown on the
     schedule ``times`` (N,) [s, τ = 0 now, increasing] and then at ``tail_vel`` (3,) [m/s], with
     the rules used to choose a candidate (the path is clear if it is >= r_uav); inf without
@@ -173,6 +213,7 @@ def path_clearance(points: np.ndarray, times: np.ndarray, threats: ThreatArrays,
     vel = np.diff(pts, axis=1) / dt[..., None]
     tau = np.concatenate([[0.0], np.cumsum(dt[0])])[None]
     durations = sweep_durations(threats, main_index, main_t_cpa, float(tau[0, -1]), cfg)
-    clearance = candidate_clearance(pts, vel, tau, dt, threats, cfg.dynamic_mode, durations, tail_vel,
-                                    float(tau[0, -1]) + cfg.rejoin_check_s)
+    clearance = candidate_clearance(
+        pts, vel, tau, dt, threats, cfg.dynamic_mode, durations, tail_vel, float(tau[0, -1]) + cfg.rejoin_check_s
+    )
     return float(clearance.min(initial=np.inf))

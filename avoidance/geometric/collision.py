@@ -52,8 +52,9 @@ def swept_clearance(points: np.ndarray, threats: ThreatArrays, durations: np.nda
     return d - radius
 
 
-def timed_clearance(starts: np.ndarray, vel: np.ndarray, tau0: np.ndarray, dt: np.ndarray,
-                    threats: ThreatArrays) -> np.ndarray:
+def timed_clearance(
+    starts: np.ndarray, vel: np.ndarray, tau0: np.ndarray, dt: np.ndarray, threats: ThreatArrays
+) -> np.ndarray:
     """(K, S, J) minimum over each segment's time interval of |UAV − threat centre| minus the
     threat radius grown to the segment end [m]. Segment s of path k starts at ``starts`` (K, S, 3)
     at time ``tau0`` (K, S) and moves at ``vel`` (K, S, 3) for ``dt`` (K, S) seconds."""
@@ -65,20 +66,31 @@ def timed_clearance(starts: np.ndarray, vel: np.ndarray, tau0: np.ndarray, dt: n
     return np.sqrt(_dot(gap, gap)) - (threats.radius + threats.growth * (tau0 + dt)[..., None])
 
 
-def with_rejoin_tail(points: np.ndarray, seg_vel: np.ndarray, tau: np.ndarray, seg_dt: np.ndarray,
-                     tail_vel: np.ndarray, horizon: float) -> tuple[np.ndarray, ...]:
+def with_rejoin_tail(
+    points: np.ndarray, seg_vel: np.ndarray, tau: np.ndarray, seg_dt: np.ndarray, tail_vel: np.ndarray, horizon: float
+) -> tuple[np.ndarray, ...]:
     """Segment arrays (starts, velocities, start times, durations) of K paths followed by the
     reference after the rejoin point, flown at ``tail_vel`` (3,) [m/s] until τ = ``horizon``."""
     end_t = tau[:, -1:]
-    return (np.concatenate([points[:, :-1], points[:, -1:]], axis=1),
-            np.concatenate([seg_vel, np.broadcast_to(tail_vel, (len(points), 1, 3))], axis=1),
-            np.concatenate([tau[:, :-1], end_t], axis=1),
-            np.concatenate([seg_dt, np.maximum(horizon - end_t, 0.0)], axis=1))
+    return (
+        np.concatenate([points[:, :-1], points[:, -1:]], axis=1),
+        np.concatenate([seg_vel, np.broadcast_to(tail_vel, (len(points), 1, 3))], axis=1),
+        np.concatenate([tau[:, :-1], end_t], axis=1),
+        np.concatenate([seg_dt, np.maximum(horizon - end_t, 0.0)], axis=1),
+    )
 
 
-def candidate_clearance(points: np.ndarray, seg_vel: np.ndarray, tau: np.ndarray, seg_dt: np.ndarray,
-                        threats: ThreatArrays, mode: str, sweep_durations: np.ndarray,
-                        tail_vel: np.ndarray, horizon: float) -> np.ndarray:
+def candidate_clearance(
+    points: np.ndarray,
+    seg_vel: np.ndarray,
+    tau: np.ndarray,
+    seg_dt: np.ndarray,
+    threats: ThreatArrays,
+    mode: str,
+    sweep_durations: np.ndarray,
+    tail_vel: np.ndarray,
+    horizon: float,
+) -> np.ndarray:
     """(K, J) smallest clearance [m] (distance minus threat radius) of each candidate to each
     threat; the candidate collides with threat j iff the value is < r_uav.
 

@@ -45,8 +45,18 @@ class VehicleParams:
     k_induced: float = 1.15
 
     def __post_init__(self) -> None:
-        for name in ("mass", "drag_coefficient", "effective_area", "blade_chord", "blade_radius",
-                     "v_cruise", "max_roc", "blade_cd", "v_tip", "k_induced"):
+        for name in (
+            "mass",
+            "drag_coefficient",
+            "effective_area",
+            "blade_chord",
+            "blade_radius",
+            "v_cruise",
+            "max_roc",
+            "blade_cd",
+            "v_tip",
+            "k_induced",
+        ):
             _positive(name, getattr(self, name))
         _require(self.blades_per_rotor >= 1 and self.n_rotors >= 1, "blade and rotor counts must be >= 1")
 
@@ -135,9 +145,12 @@ class GeometricConfig:
 
     def __post_init__(self) -> None:
         _require(self.l >= 1 and self.n_planes >= 0, "need l >= 1 and n_planes >= 0")
-        _require(len(self.path_types) >= 1 and set(self.path_types) <= set(PATH_TYPES)
-                 and len(set(self.path_types)) == len(self.path_types),
-                 f"path_types must be distinct values of {PATH_TYPES}, got {self.path_types!r}")
+        _require(
+            len(self.path_types) >= 1
+            and set(self.path_types) <= set(PATH_TYPES)
+            and len(set(self.path_types)) == len(self.path_types),
+            f"path_types must be distinct values of {PATH_TYPES}, got {self.path_types!r}",
+        )
         _require(self.dynamic_mode in DYNAMIC_MODES, f"dynamic_mode must be one of {DYNAMIC_MODES}")
         _require(self.uav_shape in UAV_SHAPES, f"uav_shape must be one of {UAV_SHAPES}")
         _require(self.smoothness in SMOOTHNESS_METHODS, f"smoothness must be one of {SMOOTHNESS_METHODS}")
@@ -145,19 +158,34 @@ class GeometricConfig:
         _require(0 < self.x_step_fraction <= 0.5, "x_step_fraction must be in (0, 0.5]")
         for name in ("min_sep_factor", "collision_radius", "rho", "g", "cmo_min_distance"):
             _positive(name, getattr(self, name))
-        for name in ("rejoin_check_s", "select_margin_m", "main_threat_extension_s", "k_sigma", "k_p", "start_shift_s",
-                     "k1", "k2", "min_replan_interval_s",
-                     "replan_max_offset_m"):
+        for name in (
+            "rejoin_check_s",
+            "select_margin_m",
+            "main_threat_extension_s",
+            "k_sigma",
+            "k_p",
+            "start_shift_s",
+            "k1",
+            "k2",
+            "min_replan_interval_s",
+            "replan_max_offset_m",
+        ):
             v = getattr(self, name)
             _require(math.isfinite(v) and v >= 0, f"{name} must be finite and >= 0, got {v!r}")
         _positive("conflict_horizon_s", self.conflict_horizon_s)
         _require(self.cmo_max_range_m > 0, "cmo_max_range_m must be > 0")
-        _require(self.cmo_max_objects >= 1 and self.cmo_threat_samples >= 2,
-                 "need cmo_max_objects >= 1 and cmo_threat_samples >= 2")
-        _require(len(self.weights) == 3 and all(w >= 0 for w in self.weights)
-                 and abs(sum(self.weights) - 1.0) < 1e-9, "weights must be 3 values >= 0 summing to 1")
-        _require(len(self.log_limits) == 3 and all(lo < hi for lo, hi in self.log_limits),
-                 "log_limits must be 3 (lo, hi) pairs with lo < hi")
+        _require(
+            self.cmo_max_objects >= 1 and self.cmo_threat_samples >= 2,
+            "need cmo_max_objects >= 1 and cmo_threat_samples >= 2",
+        )
+        _require(
+            len(self.weights) == 3 and all(w >= 0 for w in self.weights) and abs(sum(self.weights) - 1.0) < 1e-9,
+            "weights must be 3 values >= 0 summing to 1",
+        )
+        _require(
+            len(self.log_limits) == 3 and all(lo < hi for lo, hi in self.log_limits),
+            "log_limits must be 3 (lo, hi) pairs with lo < hi",
+        )
 
     @classmethod
     def thesis(cls, **overrides) -> GeometricConfig:

@@ -39,8 +39,9 @@ def cpa(start: np.ndarray, ref_vel: np.ndarray, threats: ThreatArrays, horizon: 
     return t, np.linalg.norm(r0 + w * t[:, None], axis=1)
 
 
-def main_threat(index: int, start: np.ndarray, ref_vel: np.ndarray, threats: ThreatArrays,
-                horizon: float) -> MainThreat:
+def main_threat(
+    index: int, start: np.ndarray, ref_vel: np.ndarray, threats: ThreatArrays, horizon: float
+) -> MainThreat:
     """The designated threat ``index`` as main threat (its CPA with the reference)."""
     if not 0 <= index < len(threats):
         raise IndexError(f"main threat index {index} out of range for {len(threats)} threats")
@@ -50,8 +51,14 @@ def main_threat(index: int, start: np.ndarray, ref_vel: np.ndarray, threats: Thr
     return MainThreat(index, tc, start + ref_vel * tc, m, float(r))
 
 
-def find_main_threat(start: np.ndarray, ref_vel: np.ndarray, threats: ThreatArrays, r_uav: float,
-                     horizon: float, geometry_horizon: float | None = None) -> MainThreat | None:
+def find_main_threat(
+    start: np.ndarray,
+    ref_vel: np.ndarray,
+    threats: ThreatArrays,
+    r_uav: float,
+    horizon: float,
+    geometry_horizon: float | None = None,
+) -> MainThreat | None:
     """The earliest threat whose CPA miss distance within ``horizon`` [s] is below its (grown)
     radius + ``r_uav`` [m]; ties broken by the smaller miss. None when nothing conflicts.
 
@@ -67,5 +74,10 @@ def find_main_threat(start: np.ndarray, ref_vel: np.ndarray, threats: ThreatArra
     if not conflict.any():
         return None
     idx = np.flatnonzero(conflict)
-    return main_threat(int(idx[np.lexsort((miss[idx], t[idx]))[0]]), start, ref_vel, threats,
-                       horizon if geometry_horizon is None else max(geometry_horizon, horizon))
+    return main_threat(
+        int(idx[np.lexsort((miss[idx], t[idx]))[0]]),
+        start,
+        ref_vel,
+        threats,
+        horizon if geometry_horizon is None else max(geometry_horizon, horizon),
+    )

@@ -24,8 +24,13 @@ def energy(points: np.ndarray, wp_vel: np.ndarray, veh: VehicleParams, rho: floa
     e1 = np.abs(np.diff(e_m, axis=1)).sum(axis=1)
     vsum = wp_vel[:, 1:] + wp_vel[:, :-1]
     seg_len = np.linalg.norm(np.diff(points, axis=1), axis=-1)
-    e2 = 0.5 * veh.drag_coefficient * rho * veh.effective_area * (
-        seg_len * np.einsum("kni,kni->kn", vsum, vsum) / 2.0).sum(axis=1)
+    e2 = (
+        0.5
+        * veh.drag_coefficient
+        * rho
+        * veh.effective_area
+        * (seg_len * np.einsum("kni,kni->kn", vsum, vsum) / 2.0).sum(axis=1)
+    )
     return e1 + e2
 
 
@@ -59,8 +64,9 @@ def sample_threat_paths(start: np.ndarray, end: np.ndarray, step: float, min_sam
     return start[:, None, :] + (end - start)[:, None, :] * u[None, :, None]
 
 
-def closeness(points: np.ndarray, n_pts: np.ndarray, samples: np.ndarray, radii: np.ndarray,
-              cfg: GeometricConfig) -> np.ndarray:
+def closeness(
+    points: np.ndarray, n_pts: np.ndarray, samples: np.ndarray, radii: np.ndarray, cfg: GeometricConfig
+) -> np.ndarray:
     """Closeness to moving objects M (eqs 4.11–4.12) of K paths to J sampled collision paths
     ``samples`` (J, S, 3) of threats with ``radii`` (J,) [m]: per threat, nearest-sample distance
     of every waypoint minus the radius (clamped to ``cmo_min_distance``), f = 1/(k1·mean + k2·min);
@@ -70,18 +76,19 @@ def closeness(points: np.ndarray, n_pts: np.ndarray, samples: np.ndarray, radii:
     K, N, _ = points.shape
     J, S, _ = samples.shape
     a, b = points.reshape(-1, 3), samples.reshape(-1, 3)
-    sq = (a * a).sum(1)[:, None] + (b * b).sum(1)[None, :] - 2.0 * (a @ b.T)   # |a − b|², (K·N, J·S)
+    sq = (a * a).sum(1)[:, None] + (b * b).sum(1)[None, :] - 2.0 * (a @ b.T)  # |a − b|², (K·N, J·S)
     d = np.sqrt(np.maximum(sq.reshape(K, N, J, S).min(axis=-1), 0.0)) - radii
     d = np.maximum(d, cfg.cmo_min_distance)
     mask = waypoint_mask(n_pts, points.shape[1])[..., None]
     mean = np.where(mask, d, 0.0).sum(axis=1) / n_pts[:, None]
     dmin = np.where(mask, d, np.inf).min(axis=1)
-    f = 1.0 / (cfg.k1 * mean + cfg.k2 * dmin)                                   # (K, J)
+    f = 1.0 / (cfg.k1 * mean + cfg.k2 * dmin)  # (K, J)
     return 0.5 * f.max(axis=1) + 0.5 * f.mean(axis=1)
 
 
-def hover_power(seg_vel: np.ndarray, n_pts: np.ndarray, veh: VehicleParams, rho: float, g: float,
-                literal_ki: bool = False) -> np.ndarray:
+def hover_power(
+    seg_vel: np.ndarray, n_pts: np.ndarray, veh: VehicleParams, rho: float, g: float, literal_ki: bool = False
+) -> np.ndarray:
     """Sum over segments of the rotor power [W] for the segment's vertical speed (eqs 4.15–4.23,
     G19; a sum of watts, as in the thesis). Diagnostic only. ``literal_ki`` applies k_i on top of
     the empirical descent fit as the thesis writes it (counting it twice)."""

@@ -84,8 +84,9 @@ class CandidateSet:
         return len(self.points)
 
 
-def generate_candidates(start: np.ndarray, x_dir: np.ndarray, dx: float, r_thr: float,
-                        cfg: GeometricConfig) -> CandidateSet:
+def generate_candidates(
+    start: np.ndarray, x_dir: np.ndarray, dx: float, r_thr: float, cfg: GeometricConfig
+) -> CandidateSet:
     """All candidates around a main-threat sphere of radius ``r_thr`` [m] centred on the
     reference at distance ``dx`` [m] from the evading point ``start`` along ``x_dir``. The 2.5·R
     rule is the caller's (see ``avoider``); here only dx > 0 is required."""
@@ -100,13 +101,20 @@ def generate_candidates(start: np.ndarray, x_dir: np.ndarray, dx: float, r_thr: 
     n_max = max(len(x) for x, _ in shapes)
     W, P = len(omega), len(theta)
     # padded in-plane shapes (types·W, N): repeat each shape's last sample
-    sx = np.concatenate([np.broadcast_to(np.pad(x, (0, n_max - len(x)), mode="edge"), (len(y), n_max)) for x, y in shapes])
+    sx = np.concatenate(
+        [np.broadcast_to(np.pad(x, (0, n_max - len(x)), mode="edge"), (len(y), n_max)) for x, y in shapes]
+    )
     sy = np.concatenate([np.pad(y, ((0, 0), (0, n_max - y.shape[1])), mode="edge") for _, y in shapes])
     # local 3D points per (type, plane, ω): R_x(θ)·[x, y, 0] = [x, y cosθ, y sinθ]
     c, s = np.cos(theta), np.sin(theta)
-    local = np.stack([np.broadcast_to(sx[:, None, :], (len(sx), P, n_max)),
-                      sy[:, None, :] * c[None, :, None],
-                      sy[:, None, :] * s[None, :, None]], axis=-1)          # (T·W, P, N, 3)
+    local = np.stack(
+        [
+            np.broadcast_to(sx[:, None, :], (len(sx), P, n_max)),
+            sy[:, None, :] * c[None, :, None],
+            sy[:, None, :] * s[None, :, None],
+        ],
+        axis=-1,
+    )  # (T·W, P, N, 3)
     T = len(kinds)
     local = local.reshape(T, W, P, n_max, 3).transpose(0, 2, 1, 3, 4).reshape(T * P * W, n_max, 3)
     points = start + local @ frame.T

@@ -42,7 +42,7 @@ def path_kinematics(points: np.ndarray, n_pts: np.ndarray, v_cruise: float, max_
     if np.any(real & (seg_len <= 0.0)):
         raise ValueError("candidate path has a zero-length segment before its end")
     direction = d / np.where(real, seg_len, 1.0)[..., None]
-    last = np.minimum(np.arange(d.shape[1])[None, :], n_pts[:, None] - 2)   # padded -> last real
+    last = np.minimum(np.arange(d.shape[1])[None, :], n_pts[:, None] - 2)  # padded -> last real
     direction = np.take_along_axis(direction, last[..., None], axis=1)
     seg_vel = capped_velocity(direction, v_cruise, max_roc)
     seg_dt = np.where(real, seg_len / np.linalg.norm(seg_vel, axis=-1), 0.0)

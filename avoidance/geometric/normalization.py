@@ -24,14 +24,17 @@ def log_clip_minmax(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
     return np.where(x > 0, clip_minmax(lx, lo, hi), 0.0)
 
 
-def caps_from_samples(time_s: np.ndarray, energy_j: np.ndarray, upper_quantile: float = 0.995,
-                      time_factor: float = 1.15) -> CostCaps:
+def caps_from_samples(
+    time_s: np.ndarray, energy_j: np.ndarray, upper_quantile: float = 0.995, time_factor: float = 1.15
+) -> CostCaps:
     """Caps from a sweep of collision-free candidates: lower = minimum, upper = the
     ``upper_quantile`` value, time upper × ``time_factor`` (G20)."""
     time_s, energy_j = np.asarray(time_s, float), np.asarray(energy_j, float)
     if time_s.size == 0 or energy_j.size == 0:
         raise ValueError("cap calibration needs at least one sample")
-    return CostCaps(time_lo=float(time_s.min()),
-                    time_hi=float(np.quantile(time_s, upper_quantile) * time_factor),
-                    energy_lo=float(energy_j.min()),
-                    energy_hi=float(np.quantile(energy_j, upper_quantile)))
+    return CostCaps(
+        time_lo=float(time_s.min()),
+        time_hi=float(np.quantile(time_s, upper_quantile) * time_factor),
+        energy_lo=float(energy_j.min()),
+        energy_hi=float(np.quantile(energy_j, upper_quantile)),
+    )

@@ -99,9 +99,14 @@ class GeometricAvoider:
 
     name = "geometric"
 
-    def __init__(self, reference_ned: np.ndarray | None = None, speed: float | None = None,
-                 config: GeometricConfig | None = None, vehicle: VehicleParams | None = None,
-                 first_label: int = 0):
+    def __init__(
+        self,
+        reference_ned: np.ndarray | None = None,
+        speed: float | None = None,
+        config: GeometricConfig | None = None,
+        vehicle: VehicleParams | None = None,
+        first_label: int = 0,
+    ):
         """``first_label``: the label of the reference's first vertex (plans label the reference
         vertices ``index + first_label``, -1 where that is negative): -1 when the reference is
         [start, mission waypoints...] so that the labels are the mission waypoint indices."""
@@ -110,7 +115,7 @@ class GeometricAvoider:
         self.vehicle = vehicle or VehicleParams()
         self.reference: ReferenceLine | None = None
         self._commit: _Commitment | None = None
-        self._t_planned = -np.inf                   # time of the last candidate generation [s]
+        self._t_planned = -np.inf  # time of the last candidate generation [s]
         self._last: tuple[float, AvoidanceResult, list[Threat]] | None = None
         if reference_ned is not None:
             if speed is None:
@@ -142,11 +147,12 @@ class GeometricAvoider:
             if go >= cfg.r_uav:
                 return self._with_diagnostics(self._commit.plan, {"status": "committed"}, t_start)
             replan = "invalid"
-            if cross > cfg.replan_max_offset_m:      # candidates start on the reference, out of reach
+            if cross > cfg.replan_max_offset_m:  # candidates start on the reference, out of reach
                 diag = {"cross_track_m": cross, "clearance_go_m": go, "clearance_hold_m": hold}
                 if hold >= go:
-                    return self._with_diagnostics(self._hover_plan(t, estimate.pos_ned),
-                                                  {**diag, "status": "suspended"}, t_start)
+                    return self._with_diagnostics(
+                        self._hover_plan(t, estimate.pos_ned), {**diag, "status": "suspended"}, t_start
+                    )
                 return self._with_diagnostics(self._commit.plan, {**diag, "status": "committed_unsafe"}, t_start)
         self._commit = None
         v_along = min(max(float(vel @ ref.x_hat), 0.0), ref.speed)
@@ -158,28 +164,36 @@ class GeometricAvoider:
         ta = ThreatArrays.of(core)
         to_end = (ref.length - s_e) / ref.speed
         horizon = min(cfg.conflict_horizon_s, to_end)
-        main = find_main_threat(start, ref.velocity, ta, cfg.r_uav + cfg.select_margin_m, horizon, to_end) if horizon > 0 else None
+        main = (
+            find_main_threat(start, ref.velocity, ta, cfg.r_uav + cfg.select_margin_m, horizon, to_end)
+            if horizon > 0
+            else None
+        )
         if main is None:
             return self._with_diagnostics(self._reference_plan(t, s_now), {**base, "status": "no_conflict"}, t_start)
         diag = {**base, "main_threat_id": core[main.index].id, "t_cpa_s": main.t_cpa}
         if t - self._t_planned < cfg.min_replan_interval_s:
-            return self._with_diagnostics(self._hover_plan(t, estimate.pos_ned), {**diag, "status": "rate_limited"},
-                                          t_start)
+            return self._with_diagnostics(
+                self._hover_plan(t, estimate.pos_ned), {**diag, "status": "rate_limited"}, t_start
+            )
         self._t_planned = t
         res = plan_avoidance(start, ref.x_hat, ref.speed, ta, main, cfg, self.vehicle)
         self._last = (t, res, core)
-        diag |= {"status": res.status.value,
-                 "n_candidates": 0 if res.candidates is None else len(res.candidates),
-                 "n_available": 0 if res.available is None else int(res.available.sum()),
-                 **{f"t_{k}_s": v for k, v in res.timings.items()}}
+        diag |= {
+            "status": res.status.value,
+            "n_candidates": 0 if res.candidates is None else len(res.candidates),
+            "n_available": 0 if res.available is None else int(res.available.sum()),
+            **{f"t_{k}_s": v for k, v in res.timings.items()},
+        }
         if res.status is not Status.AVOID:
             return self._with_diagnostics(self._hover_plan(t, estimate.pos_ned), diag, t_start)
         diag |= {"chosen_index": res.chosen, "cost": res.cost}
         plan = self._avoid_plan(t, s_now, s_e, t_e, res)
-        m = res.candidates.n_pts[res.chosen] + (s_e > s_now)        # [lead point +] the chosen path
+        m = res.candidates.n_pts[res.chosen] + (s_e > s_now)  # [lead point +] the chosen path
         pts = ned_to_enu(plan.positions[:m])
-        self._commit = _Commitment(pts, (pts - ref.origin) @ ref.x_hat, plan.times[:m], plan,
-                                   core[main.index].id, t_e + main.t_cpa)
+        self._commit = _Commitment(
+            pts, (pts - ref.origin) @ ref.x_hat, plan.times[:m], plan, core[main.index].id, t_e + main.t_cpa
+        )
         return self._with_diagnostics(plan, diag, t_start)
 
     def still_valid(self, threats: Threats, t: float, pos_ned: np.ndarray) -> bool:
@@ -216,15 +230,23 @@ class GeometricAvoider:
         t, res, core = self._last
         c = res.candidates
         return {
-            "t": t, "status": res.status.value, "main_threat_id": core[res.main.index].id,
-            "chosen": res.chosen, "t_max_s": res.t_max,
-            "points_ned": _json(enu_to_ned(c.points)), "n_pts": _json(c.n_pts),
-            "omega_m": _json(c.omega), "theta_deg": _json(np.degrees(c.theta)),
-            "alpha_deg": _json(np.degrees(c.alpha)), "path_type": [PATH_TYPES[k] for k in c.kind],
-            "available": _json(res.available), "min_clearance_m": _json(res.clearance.min(axis=1, initial=np.inf)),
+            "t": t,
+            "status": res.status.value,
+            "main_threat_id": core[res.main.index].id,
+            "chosen": res.chosen,
+            "t_max_s": res.t_max,
+            "points_ned": _json(enu_to_ned(c.points)),
+            "n_pts": _json(c.n_pts),
+            "omega_m": _json(c.omega),
+            "theta_deg": _json(np.degrees(c.theta)),
+            "alpha_deg": _json(np.degrees(c.alpha)),
+            "path_type": [PATH_TYPES[k] for k in c.kind],
+            "available": _json(res.available),
+            "min_clearance_m": _json(res.clearance.min(axis=1, initial=np.inf)),
             "raw": {k: _json(v) for k, v in res.costs.raw.items()},
             "normalised": {k: _json(v) for k, v in res.costs.normalised.items()},
-            "cost": _json(res.costs.total), "timings_s": dict(res.timings),
+            "cost": _json(res.costs.total),
+            "timings_s": dict(res.timings),
         }
 
     # -- plans ----------------------------------------------------------------------------------
@@ -241,12 +263,26 @@ class GeometricAvoider:
         ref = self.reference
         pos, times, idx, vel = ref.onward(s_now, t)
         first_v = enu_to_ned(ref.velocity) if len(idx) else np.zeros(3)
-        return Plan(t, np.vstack([enu_to_ned(ref.point(s_now)), pos]), np.concatenate([[t], times]),
-                    np.concatenate([[-1], self._labels(idx)]), PlanStatus.OK, np.vstack([first_v, vel]), self.name)
+        return Plan(
+            t,
+            np.vstack([enu_to_ned(ref.point(s_now)), pos]),
+            np.concatenate([[t], times]),
+            np.concatenate([[-1], self._labels(idx)]),
+            PlanStatus.OK,
+            np.vstack([first_v, vel]),
+            self.name,
+        )
 
     def _hover_plan(self, t: float, pos_ned: np.ndarray) -> Plan:
-        return Plan(t, np.asarray(pos_ned, float)[None].copy(), np.array([t]), np.array([-1]),
-                    PlanStatus.NO_SOLUTION, np.zeros((1, 3)), self.name)
+        return Plan(
+            t,
+            np.asarray(pos_ned, float)[None].copy(),
+            np.array([t]),
+            np.array([-1]),
+            PlanStatus.NO_SOLUTION,
+            np.zeros((1, 3)),
+            self.name,
+        )
 
     def _avoid_plan(self, t: float, s_now: float, s_e: float, t_e: float, res: AvoidanceResult) -> Plan:
         """[along-track point now (if the start was moved ahead)] + chosen path + rest of the reference."""
@@ -260,12 +296,17 @@ class GeometricAvoider:
         lead = s_e > s_now
         pos = [enu_to_ned(ref.point(s_now))[None]] * lead + [enu_to_ned(pts), tail_pos]
         vels = [enu_to_ned(ref.velocity)[None]] * lead + [enu_to_ned(vel), tail_vel]
-        return Plan(t, np.vstack(pos), np.concatenate([[t]] * lead + [times, tail_t]),
-                    np.concatenate([[-1]] * lead + [np.full(n, -1), self._labels(tail_idx)]), PlanStatus.OK,
-                    np.vstack(vels), self.name)
+        return Plan(
+            t,
+            np.vstack(pos),
+            np.concatenate([[t]] * lead + [times, tail_t]),
+            np.concatenate([[-1]] * lead + [np.full(n, -1), self._labels(tail_idx)]),
+            PlanStatus.OK,
+            np.vstack(vels),
+            self.name,
+        )
 
     def _with_diagnostics(self, plan: Plan, diag: dict, t_start: float) -> Plan:
         d = {k: v for k, v in diag.items() if v is not None}
         d["t_total_s"] = time.perf_counter() - t_start
-        return Plan(plan.t, plan.positions, plan.times, plan.labels, plan.status, plan.velocities,
-                    plan.planner, d)
+        return Plan(plan.t, plan.positions, plan.times, plan.labels, plan.status, plan.velocities, plan.planner, d)

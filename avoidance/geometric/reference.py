@@ -40,7 +40,9 @@ class ReferenceLine:
         along = rel @ x_hat
         off = np.linalg.norm(rel - along[:, None] * x_hat, axis=1)
         if off.max() > tol_m:
-            raise ValueError(f"reference must be straight (vertex {int(off.argmax())} is {off.max():.3g} m off the line)")
+            raise ValueError(
+                f"reference must be straight (vertex {int(off.argmax())} is {off.max():.3g} m off the line)"
+            )
         if np.any(np.diff(along) <= 0):
             raise ValueError("reference vertices must advance strictly along the line")
         return cls(enu, float(speed), x_hat, along)

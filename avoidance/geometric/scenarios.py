@@ -47,7 +47,9 @@ def scenario1(beta_deg: float, radius: float) -> Encounter:
     5 m/s in the z = 0 plane reaching p_c at τ = 2 s."""
     b = np.radians(beta_deg)
     v = SPEED * np.array([np.cos(b), np.sin(b), 0.0])
-    return Encounter(np.zeros(3), np.array([1.0, 0.0, 0.0]), (_on_course("main", np.array([10.0, 0, 0]), v, 2.0, radius),))
+    return Encounter(
+        np.zeros(3), np.array([1.0, 0.0, 0.0]), (_on_course("main", np.array([10.0, 0, 0]), v, 2.0, radius),)
+    )
 
 
 def scenario2() -> Encounter:
@@ -57,7 +59,7 @@ def scenario2() -> Encounter:
     d = np.array([np.cos(g), 0.0, np.sin(g)])
     main = _on_course("main", 10.0 * d, np.array([0.0, -2.0, 2.0]), 2.0, 1.0)
     side = tuple(Threat(f"parallel_{s:+.0f}", np.array([0.0, s, 0.0]) + 2.0 * d, SPEED * d, 1.0) for s in (3.5, -3.5))
-    return Encounter(np.zeros(3), d, (main,) + side)
+    return Encounter(np.zeros(3), d, (main, *side))
 
 
 def scenario3(moving_main: bool, diagonal_shift_m: float = 0.0) -> Encounter:
@@ -70,9 +72,18 @@ def scenario3(moving_main: bool, diagonal_shift_m: float = 0.0) -> Encounter:
     the side of a lateral path is a tie (decided by rounding). The thesis reports "left" but gives
     no coordinates; with the diagonal threats shifted right (< 0) left is the cheaper side."""
     p_c = np.array([10.0, 0.0, 0.0])
-    main = _on_course("main", p_c, np.array([0.0, 0.0, 3.0]), 2.0, 2.0) if moving_main else Threat("main", p_c, np.zeros(3), 2.0)
+    main = (
+        _on_course("main", p_c, np.array([0.0, 0.0, 3.0]), 2.0, 2.0)
+        if moving_main
+        else Threat("main", p_c, np.zeros(3), 2.0)
+    )
     shift = np.array([0.0, diagonal_shift_m, 0.0])
-    return Encounter(np.zeros(3), np.array([1.0, 0.0, 0.0]), (
-        main,
-        Threat("diag_a", np.array([6.0, -6.0, 4.0]) + shift, np.array([1.5, 1.5, 0.0]), 1.0),
-        Threat("diag_b", np.array([14.0, 6.0, 4.0]) + shift, np.array([-1.5, -1.5, 0.0]), 1.0)))
+    return Encounter(
+        np.zeros(3),
+        np.array([1.0, 0.0, 0.0]),
+        (
+            main,
+            Threat("diag_a", np.array([6.0, -6.0, 4.0]) + shift, np.array([1.5, 1.5, 0.0]), 1.0),
+            Threat("diag_b", np.array([14.0, 6.0, 4.0]) + shift, np.array([-1.5, -1.5, 0.0]), 1.0),
+        ),
+    )

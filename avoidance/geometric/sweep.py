@@ -23,7 +23,7 @@ D_MOVING = 3.0 + 3.5 * np.arange(3)
 E_MOVING = np.linspace(-10.0, 10.0, 8)
 S_MOVING = 1.0 + 0.5 * np.arange(3)
 AXES = (D_MAIN, E_MAIN, S_MAIN, D_MOVING, E_MOVING, S_MOVING)
-N_ENVIRONMENTS = int(np.prod([len(a) for a in AXES]))          # 16 200
+N_ENVIRONMENTS = int(np.prod([len(a) for a in AXES]))  # 16 200
 MOVING_VELOCITY = np.array([0.0, 2.0, 0.0])
 LOWER_CAP_ENV, UPPER_CAP_ENV = 1440, 11088
 
@@ -42,15 +42,23 @@ def env_id(indices: tuple[int, ...]) -> int:
 
 def env_params(env: int) -> dict[str, float]:
     """Table 4.1 values of an environment: D_M, E_M, S_M, D_m, E_m, S_m [m]."""
-    return {k: float(a[i]) for k, a, i in zip(("D_M", "E_M", "S_M", "D_m", "E_m", "S_m"), AXES, env_index(env))}
+    return {
+        k: float(a[i])
+        for k, a, i in zip(("D_M", "E_M", "S_M", "D_m", "E_m", "S_m"), AXES, env_index(env), strict=False)
+    }
 
 
 def sweep_encounter(env: int) -> Encounter:
     p = env_params(env)
     main = np.array([p["D_M"], 0.0, p["E_M"]])
-    return Encounter(np.zeros(3), main, (
-        Threat("main", main, np.zeros(3), p["S_M"]),
-        Threat("moving", np.array([p["D_m"], 0.0, p["E_m"]]), MOVING_VELOCITY, p["S_m"])))
+    return Encounter(
+        np.zeros(3),
+        main,
+        (
+            Threat("main", main, np.zeros(3), p["S_M"]),
+            Threat("moving", np.array([p["D_m"], 0.0, p["E_m"]]), MOVING_VELOCITY, p["S_m"]),
+        ),
+    )
 
 
 def sweep_config(**overrides) -> GeometricConfig:
@@ -61,7 +69,7 @@ def sweep_config(**overrides) -> GeometricConfig:
 def run_sweep(envs, cfg: GeometricConfig, veh: VehicleParams) -> dict[str, np.ndarray]:
     """Raw cost terms of every collision-free candidate over ``envs`` (IDs), plus ``env`` and
     ``candidate`` indices of each sample. Environments that are too close yield nothing."""
-    out: dict[str, list[np.ndarray]] = {k: [] for k in RAW_TERMS + ("env", "candidate")}
+    out: dict[str, list[np.ndarray]] = {k: [] for k in (*RAW_TERMS, "env", "candidate")}
     for e in envs:
         res = sweep_encounter(int(e)).plan(cfg, veh)
         if res.status is Status.TOO_CLOSE:

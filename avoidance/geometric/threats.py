@@ -60,8 +60,9 @@ def sigma_max(cov: np.ndarray | None) -> float:
     return float(np.sqrt(max(lam[-1], 0.0)))
 
 
-def inflate(radius: float, pos_cov: np.ndarray | None, vel_cov: np.ndarray | None,
-            k_sigma: float, age_s: float) -> tuple[float, float]:
+def inflate(
+    radius: float, pos_cov: np.ndarray | None, vel_cov: np.ndarray | None, k_sigma: float, age_s: float
+) -> tuple[float, float]:
     """(radius at τ = 0, growth rate) for a track whose estimate is ``age_s`` [s] old at τ = 0:
     R + k_σ·(σ_p + σ_v·age) and k_σ·σ_v, σ = sqrt(λ_max) of the covariances (spec §3.1, G27)."""
     if k_sigma == 0.0:
@@ -87,8 +88,13 @@ class ThreatArrays:
             z = np.zeros((0, 3))
             return cls(z, z.copy(), np.zeros(0), np.zeros(0), np.zeros(0, bool))
         v = np.array([t.v for t in threats])
-        return cls(np.array([t.p for t in threats]), v, np.array([t.radius for t in threats]),
-                   np.array([t.growth for t in threats]), ~np.any(v != 0.0, axis=1))
+        return cls(
+            np.array([t.p for t in threats]),
+            v,
+            np.array([t.radius for t in threats]),
+            np.array([t.growth for t in threats]),
+            ~np.any(v != 0.0, axis=1),
+        )
 
     def __len__(self) -> int:
         return len(self.radius)

@@ -24,7 +24,9 @@ def cache_key(grid: GridConfig, table: PrimitiveTable, cfg: ReachSetConfig) -> s
     return hashlib.sha256(repr((grid, table.config, cfg)).encode()).hexdigest()[:20]
 
 
-def reach_set(grid: AvoidanceGrid, table: PrimitiveTable, cfg: ReachSetConfig, cache_dir: Path | None = None) -> ReachSetTree:
+def reach_set(
+    grid: AvoidanceGrid, table: PrimitiveTable, cfg: ReachSetConfig, cache_dir: Path | None = None
+) -> ReachSetTree:
     """The reach set of ``cfg`` for ``grid`` and ``table``, built once."""
     key = cache_key(grid.cfg, table, cfg)
     if key in _MEMORY:

@@ -44,12 +44,21 @@ class GridConfig:
     crash_layers: int = 3
     samples_per_axis: int = 4  # volume samples per cell and axis (map obstacles, constraints)
 
-    def scaled(self, length: float) -> "GridConfig":
+    def scaled(self, length: float) -> GridConfig:
         """The same grid for a movement length ``length`` [m] (range = layers × L, §2.7)."""
         d0, d1 = self.d_range
-        return GridConfig((d0 * length, d1 * length), self.theta_range, self.phi_range, self.n_layers,
-                          self.n_h, self.n_v, self.eps, self.safe_layers, self.crash_layers,
-                          self.samples_per_axis)
+        return GridConfig(
+            (d0 * length, d1 * length),
+            self.theta_range,
+            self.phi_range,
+            self.n_layers,
+            self.n_h,
+            self.n_v,
+            self.eps,
+            self.safe_layers,
+            self.crash_layers,
+            self.samples_per_axis,
+        )
 
 
 @dataclass(frozen=True, slots=True)
@@ -71,15 +80,15 @@ class ExpansionConfig:
     attitude_key: bool = True
 
     @staticmethod
-    def chaotic(spread: int | None = 9, footprint_length: int | None = 3, **kw) -> "ExpansionConfig":
+    def chaotic(spread: int | None = 9, footprint_length: int | None = 3, **kw) -> ExpansionConfig:
         return ExpansionConfig("chaotic", spread, footprint_length, **kw)
 
     @staticmethod
-    def harmonic(spread: int | None = 9, **kw) -> "ExpansionConfig":
+    def harmonic(spread: int | None = 9, **kw) -> ExpansionConfig:
         return ExpansionConfig("harmonic", spread, None, **kw)
 
     @staticmethod
-    def acas(separations: tuple[str, ...] = ("horizontal",), spread: int | None = None, **kw) -> "ExpansionConfig":
+    def acas(separations: tuple[str, ...] = ("horizontal",), spread: int | None = None, **kw) -> ExpansionConfig:
         return ExpansionConfig("acas", spread, None, separations, **kw)
 
 
@@ -94,12 +103,14 @@ class ReachSetConfig:
     pitch_cost: float = 1.2
 
     @staticmethod
-    def combined(chaotic_spread: int = 8, footprint_length: int = 3, harmonic_spread: int = 1) -> "ReachSetConfig":
-        return ReachSetConfig((ExpansionConfig.chaotic(chaotic_spread, footprint_length),
-                               ExpansionConfig.harmonic(harmonic_spread)), cost_mode_switch=True)
+    def combined(chaotic_spread: int = 8, footprint_length: int = 3, harmonic_spread: int = 1) -> ReachSetConfig:
+        return ReachSetConfig(
+            (ExpansionConfig.chaotic(chaotic_spread, footprint_length), ExpansionConfig.harmonic(harmonic_spread)),
+            cost_mode_switch=True,
+        )
 
     @staticmethod
-    def single(part: ExpansionConfig) -> "ReachSetConfig":
+    def single(part: ExpansionConfig) -> ReachSetConfig:
         return ReachSetConfig((part,))
 
 
@@ -149,11 +160,11 @@ class IntruderModelConfig:
     body_margin: float = 0.0
 
     @staticmethod
-    def cooperative(**kw) -> "IntruderModelConfig":
+    def cooperative(**kw) -> IntruderModelConfig:
         return IntruderModelConfig(line=True, body=True, spread=False, timed=True, **kw)
 
     @staticmethod
-    def non_cooperative(**kw) -> "IntruderModelConfig":
+    def non_cooperative(**kw) -> IntruderModelConfig:
         return IntruderModelConfig(line=True, body=False, spread=True, timed=False, **kw)
 
 

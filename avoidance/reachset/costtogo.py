@@ -62,7 +62,9 @@ class CostToGo:
             rows.append(idx[a][ok])
             cols.append(idx[b][ok])
             w.append(np.full(int(ok.sum()), spacing * length))
-        graph = coo_matrix((np.concatenate(w), (np.concatenate(rows), np.concatenate(cols))), shape=(free.size, free.size))
+        graph = coo_matrix(
+            (np.concatenate(w), (np.concatenate(rows), np.concatenate(cols))), shape=(free.size, free.size)
+        )
         return dijkstra(graph.tocsr(), directed=False, indices=source)
 
     def __call__(self, xy: np.ndarray) -> np.ndarray:

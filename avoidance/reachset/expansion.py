@@ -16,7 +16,8 @@ import numpy as np
 
 from avoidance.reachset.config import ExpansionConfig
 from avoidance.reachset.grid import AvoidanceGrid
-from avoidance.reachset.movement import N_MOVEMENTS, MovementType as M, PrimitiveTable
+from avoidance.reachset.movement import N_MOVEMENTS, PrimitiveTable
+from avoidance.reachset.movement import MovementType as M
 from avoidance.reachset.tree import expand, runs
 
 SEPARATIONS: dict[str, frozenset[M]] = {
@@ -50,11 +51,11 @@ class _Batch:
     fp: np.ndarray  # interned whole-footprint id
     tail: np.ndarray  # interned selection key: footprint (tail) [+ tip attitude]
 
-    def take(self, idx: np.ndarray) -> "_Batch":
+    def take(self, idx: np.ndarray) -> _Batch:
         return _Batch(*(getattr(self, f)[idx] for f in self.__slots__))
 
     @staticmethod
-    def concat(batches: list["_Batch"]) -> "_Batch":
+    def concat(batches: list[_Batch]) -> _Batch:
         return _Batch(*(np.concatenate([getattr(b, f) for b in batches]) for f in _Batch.__slots__))
 
 
@@ -76,8 +77,17 @@ class _Builder:
     def root(self) -> _Batch:
         fp = self._intern(self._fp, (-1, ()))
         self._fp_cells.append(())
-        return _Batch(np.array([0]), np.zeros((1, 3)), np.zeros((1, 3)), np.array([-1]), np.array([0]),
-                      np.array([0]), np.array([np.bitwise_or.reduce(self.sep_bits)]), np.array([fp]), np.array([-1]))
+        return _Batch(
+            np.array([0]),
+            np.zeros((1, 3)),
+            np.zeros((1, 3)),
+            np.array([-1]),
+            np.array([0]),
+            np.array([0]),
+            np.array([np.bitwise_or.reduce(self.sep_bits)]),
+            np.array([fp]),
+            np.array([-1]),
+        )
 
     def children(self, b: _Batch, movements: np.ndarray) -> _Batch:
         """Expand every node of ``b`` by ``movements``; drop children leaving the grid (contained
@@ -103,12 +113,15 @@ class _Builder:
                 self._fp_cells.append(self._fp_cells[pf] + new)
             fp[r] = fid
             cells_key = self._fp_cells[fid][-fl:] if fl else fid
-            tail[r] = self._intern(self._tail, (cells_key, *heading[r].tolist()) if self.cfg.attitude_key else cells_key)
+            tail[r] = self._intern(
+                self._tail, (cells_key, *heading[r].tolist()) if self.cfg.attitude_key else cells_key
+            )
         ids = np.arange(self.next_id, self.next_id + n)
         self.next_id += n
         self.parent.append(b.id[par]), self.movement.append(mov), self.depth.append(b.depth[par] + 1)
-        return _Batch(ids, samples[:, -1], att, sc[:, -1], b.depth[par] + 1,
-                      b.smooth[par] + (mov == M.STRAIGHT), sep, fp, tail)
+        return _Batch(
+            ids, samples[:, -1], att, sc[:, -1], b.depth[par] + 1, b.smooth[par] + (mov == M.STRAIGHT), sep, fp, tail
+        )
 
     def metric(self, b: _Batch) -> tuple[np.ndarray, np.ndarray]:
         """(primary, secondary) selection metric, smaller is better."""
@@ -161,7 +174,7 @@ class _Builder:
             b = _Batch.concat(pending.pop(n_layers - 1))
             final = b.id[self.select(b)]
             selected.append(final)
-        return self._keep(final if self.cfg.prune_to_final_layer else np.concatenate(selected + [final]))
+        return self._keep(final if self.cfg.prune_to_final_layer else np.concatenate([*selected, final]))
 
     def _keep(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         parent = np.concatenate(self.parent)

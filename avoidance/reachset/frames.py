@@ -42,7 +42,7 @@ def rotation_zyx(att: np.ndarray) -> np.ndarray:
     cr, sr = np.cos(att[..., 0]), np.sin(att[..., 0])
     cp, sp = np.cos(att[..., 1]), np.sin(att[..., 1])
     cy, sy = np.cos(att[..., 2]), np.sin(att[..., 2])
-    r = np.empty(att.shape[:-1] + (3, 3))
+    r = np.empty((*att.shape[:-1], 3, 3))
     r[..., 0, 0] = cy * cp
     r[..., 0, 1] = cy * sp * sr - sy * cr
     r[..., 0, 2] = cy * sp * cr + sy * sr
@@ -63,7 +63,7 @@ class GridPose:
     psi: float
 
     @staticmethod
-    def from_ned(pos_ned: np.ndarray, yaw_ned: float) -> "GridPose":
+    def from_ned(pos_ned: np.ndarray, yaw_ned: float) -> GridPose:
         return GridPose(ned_to_enu(pos_ned), heading_from_yaw_ned(yaw_ned))
 
     @property

@@ -46,10 +46,16 @@ class ThreatParts:
     intruder_motion: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))  # (n_intruders, 7)
 
     @staticmethod
-    def empty(n_cells: int) -> "ThreatParts":
+    def empty(n_cells: int) -> ThreatParts:
         z = np.zeros(n_cells)
-        return ThreatParts(np.zeros((0, n_cells)), np.zeros((0, n_cells)), z, np.zeros((0, n_cells)),
-                           np.zeros(n_cells, bool), np.zeros(n_cells, bool))
+        return ThreatParts(
+            np.zeros((0, n_cells)),
+            np.zeros((0, n_cells)),
+            z,
+            np.zeros((0, n_cells)),
+            np.zeros(n_cells, bool),
+            np.zeros(n_cells, bool),
+        )
 
 
 @dataclass(frozen=True, slots=True)
@@ -65,8 +71,12 @@ class Categories:
         return "soft" if self.soft else "hard" if self.hard else "intruder" if self.intruders else "obstacle"
 
 
-EMERGENCY_ORDER = (Categories(True, True, True), Categories(True, True, False),
-                   Categories(True, False, False), Categories(False, False, False))
+EMERGENCY_ORDER = (
+    Categories(True, True, True),
+    Categories(True, True, False),
+    Categories(True, False, False),
+    Categories(False, False, False),
+)
 
 
 @dataclass(slots=True)

@@ -35,8 +35,14 @@ class AvoidanceGrid:
         self.layer = ijk[:, 0]  # 0-based layer of each cell
         self.centers_polar = 0.5 * (self.lower + self.upper)
         self.centers = from_polar(self.centers_polar)
-        self.outer = (ijk[:, 0] == cfg.n_layers - 1) | np.isin(ijk[:, 1], (0, cfg.n_h - 1)) | np.isin(ijk[:, 2], (0, cfg.n_v - 1))
-        self.zone = np.where(ijk[:, 0] < cfg.safe_layers, 0, np.where(ijk[:, 0] >= cfg.n_layers - cfg.crash_layers, 2, 1))
+        self.outer = (
+            (ijk[:, 0] == cfg.n_layers - 1)
+            | np.isin(ijk[:, 1], (0, cfg.n_h - 1))
+            | np.isin(ijk[:, 2], (0, cfg.n_v - 1))
+        )
+        self.zone = np.where(
+            ijk[:, 0] < cfg.safe_layers, 0, np.where(ijk[:, 0] >= cfg.n_layers - cfg.crash_layers, 2, 1)
+        )
 
     @property
     def range(self) -> float:
@@ -75,8 +81,15 @@ class AvoidanceGrid:
     @cached_property
     def z_band(self) -> np.ndarray:
         """(n_cells, 2) min/max height of each cell relative to the LCF origin [m]."""
-        z = np.stack([self.lower[:, 0] * np.sin(self.lower[:, 2]), self.lower[:, 0] * np.sin(self.upper[:, 2]),
-                      self.upper[:, 0] * np.sin(self.lower[:, 2]), self.upper[:, 0] * np.sin(self.upper[:, 2])], axis=1)
+        z = np.stack(
+            [
+                self.lower[:, 0] * np.sin(self.lower[:, 2]),
+                self.lower[:, 0] * np.sin(self.upper[:, 2]),
+                self.upper[:, 0] * np.sin(self.lower[:, 2]),
+                self.upper[:, 0] * np.sin(self.upper[:, 2]),
+            ],
+            axis=1,
+        )
         return np.stack([z.min(axis=1), z.max(axis=1)], axis=1)
 
     @cached_property
@@ -84,7 +97,9 @@ class AvoidanceGrid:
         """(n_cells,) shapely polygons: horizontal LCF footprint of each cell, an annular sector
         ρ ∈ [d_s·cos φ_far, d_e·cos φ_near], θ ∈ [θ_s, θ_e] (spec §5.3), arcs ≤ ``arc_step``."""
         lo, hi = self.lower, self.upper
-        cos_near = np.where((lo[:, 2] <= 0) & (hi[:, 2] >= 0), 1.0, np.cos(np.minimum(np.abs(lo[:, 2]), np.abs(hi[:, 2]))))
+        cos_near = np.where(
+            (lo[:, 2] <= 0) & (hi[:, 2] >= 0), 1.0, np.cos(np.minimum(np.abs(lo[:, 2]), np.abs(hi[:, 2])))
+        )
         cos_far = np.cos(np.maximum(np.abs(lo[:, 2]), np.abs(hi[:, 2])))
         rho_in, rho_out = lo[:, 0] * cos_far, hi[:, 0] * cos_near
         n_arc = max(2, int(np.ceil(self.steps[1] / np.radians(2.0))) + 1)
@@ -104,7 +119,7 @@ class AvoidanceGrid:
         dtp = self.lower[:, None, :] + uu[None, :, :] * self.steps  # (n_cells, n³, 3)
         w = dtp[..., 0] ** 2 * np.cos(dtp[..., 2])
         w = w / w.sum(axis=1, keepdims=True) * self.volume[:, None]
-        cells = np.repeat(np.arange(self.n_cells), n ** 3)
+        cells = np.repeat(np.arange(self.n_cells), n**3)
         return from_polar(dtp).reshape(-1, 3), cells, w.reshape(-1)
 
     def per_cell(self, values: np.ndarray) -> np.ndarray:

@@ -6,8 +6,8 @@ A trajectory "in a cell" is a feasible node whose tip lies in the cell; goal and
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -67,8 +67,14 @@ def straight_distance(goal_lcf: np.ndarray) -> GoalCost:
     return lambda p: np.linalg.norm(np.asarray(p, float) - goal_lcf, axis=-1)
 
 
-def find_best_path(grid: AvoidanceGrid, tree: ReachSetTree, fused: Fused, goal_lcf: np.ndarray,
-                   steering: Steering | None = None, goal_cost: GoalCost | None = None) -> PathResult:
+def find_best_path(
+    grid: AvoidanceGrid,
+    tree: ReachSetTree,
+    fused: Fused,
+    goal_lcf: np.ndarray,
+    steering: Steering | None = None,
+    goal_cost: GoalCost | None = None,
+) -> PathResult:
     """Alg. 6.6, deterministic form (A-17): the goal cell if reachable, else the best reachable
     cell of its layer; for a goal outside the grid the reachable outer cell closest to it; then
     the cheapest feasible node ending in that cell. Ties (equal costs, as in the ACAS-like sets
@@ -90,8 +96,11 @@ def find_best_path(grid: AvoidanceGrid, tree: ReachSetTree, fused: Fused, goal_l
     candidates = tip_cells[fused.reachable[tip_cells]]
     if len(candidates) == 0:
         return PathResult(-1, -1, "no path: empty reach set")
-    away = (steering is not None and steering.in_turn_circle(goal_lcf)
-            and not (np.linalg.norm(tree.tip[ok] - goal_lcf, axis=1) <= steering.reach_radius).any())
+    away = (
+        steering is not None
+        and steering.in_turn_circle(goal_lcf)
+        and not (np.linalg.norm(tree.tip[ok] - goal_lcf, axis=1) <= steering.reach_radius).any()
+    )
     if away:
         goal_lcf = np.array([2.0 * grid.range, 0.0, 0.0])
     if away or goal_cost is None:
@@ -121,17 +130,30 @@ def find_best_path(grid: AvoidanceGrid, tree: ReachSetTree, fused: Fused, goal_l
     return PathResult(int(best), cell, away=away)
 
 
-def grid_run(grid: AvoidanceGrid, tree: ReachSetTree, parts: ThreatParts, goal_lcf: np.ndarray,
-             categories: Categories, threshold: float, steering: Steering | None = None,
-             goal_cost: GoalCost | None = None) -> GridRun:
+def grid_run(
+    grid: AvoidanceGrid,
+    tree: ReachSetTree,
+    parts: ThreatParts,
+    goal_lcf: np.ndarray,
+    categories: Categories,
+    threshold: float,
+    steering: Steering | None = None,
+    goal_cost: GoalCost | None = None,
+) -> GridRun:
     """One assessment (fusion + reachability) and path search for one set of categories."""
     fused = fuse(tree, parts, categories, threshold)
     return GridRun(categories, fused, find_best_path(grid, tree, fused, goal_lcf, steering, goal_cost))
 
 
-def emergency_runs(grid: AvoidanceGrid, tree: ReachSetTree, parts: ThreatParts, goal_lcf: np.ndarray,
-                   threshold: float, steering: Steering | None = None,
-                   goal_cost: GoalCost | None = None) -> tuple[list[GridRun], int]:
+def emergency_runs(
+    grid: AvoidanceGrid,
+    tree: ReachSetTree,
+    parts: ThreatParts,
+    goal_lcf: np.ndarray,
+    threshold: float,
+    steering: Steering | None = None,
+    goal_cost: GoalCost | None = None,
+) -> tuple[list[GridRun], int]:
     """Steps 7-11 in selection priority order (soft, hard, intruder, obstacle paths): the runs
     made and the index of the selected one (-1 if none found). Runs stop at the first path,
     which is the one step 11 selects; a relaxed run's path is the least exposed one
@@ -142,8 +164,9 @@ def emergency_runs(grid: AvoidanceGrid, tree: ReachSetTree, parts: ThreatParts, 
         if runs[-1].path.ok:
             if len(runs) > 1:
                 dropped = runs[-2].categories.intruders and not cats.intruders
-                least = least_threat_path(tree, runs[-1].fused, runs[-2].fused, goal_lcf,
-                                          parts.intruder_motion if dropped else None)
+                least = least_threat_path(
+                    tree, runs[-1].fused, runs[-2].fused, goal_lcf, parts.intruder_motion if dropped else None
+                )
                 runs[-1].path = least if least.ok else runs[-1].path
             return runs, len(runs) - 1
     return runs, -1
@@ -162,8 +185,9 @@ def closest_approach(tree: ReachSetTree, motion: np.ndarray) -> np.ndarray:
     return tree.along_paths(closest, np.minimum)
 
 
-def least_threat_path(tree: ReachSetTree, fused: Fused, stricter: Fused, goal_lcf: np.ndarray,
-                      intruder_motion: np.ndarray | None = None) -> PathResult:
+def least_threat_path(
+    tree: ReachSetTree, fused: Fused, stricter: Fused, goal_lcf: np.ndarray, intruder_motion: np.ndarray | None = None
+) -> PathResult:
     """The path of a relaxed run (a threat category dropped because no path respects it, spec
     §6.2 step 11): of the full-length trajectories feasible in ``fused``, the one least exposed to
     the dropped threats (smallest sum of the threat ratings of its footprint cells in the

@@ -11,7 +11,7 @@ from avoidance.reachset.tree import ReachSetTree
 
 def full_tree_size(n_movements: int, n_layers: int) -> int:
     """(6.69): nodes of the full tree, 1 + Σ M^i."""
-    return 1 + sum(n_movements ** i for i in range(1, n_layers + 1))
+    return 1 + sum(n_movements**i for i in range(1, n_layers + 1))
 
 
 def expansion_bounds(part: ExpansionConfig, grid: GridConfig) -> tuple[float, float]:
@@ -34,4 +34,3 @@ def bounds(cfg: ReachSetConfig, grid: GridConfig) -> tuple[float, float]:
 def trajectory_count(tree: ReachSetTree) -> int:
     """Trajectories = root-to-leaf paths."""
     return len(tree.leaves())
-

@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -30,7 +30,15 @@ from avoidance.reachset.costtogo import CostToGo
 from avoidance.reachset.frames import GridPose
 from avoidance.reachset.fusion import Categories
 from avoidance.reachset.grid import AvoidanceGrid
-from avoidance.reachset.gridrun import GoalCost, GridRun, Steering, emergency_runs, find_best_path, grid_run, least_threat_path
+from avoidance.reachset.gridrun import (
+    GoalCost,
+    GridRun,
+    Steering,
+    emergency_runs,
+    find_best_path,
+    grid_run,
+    least_threat_path,
+)
 from avoidance.reachset.movement import KinState, MovementType, SegmentedMovementAutomaton
 from avoidance.reachset.reference import ReferenceTrajectory, reference_trajectory
 from avoidance.reachset.situation import Assessor, situation_events
@@ -90,8 +98,15 @@ Restriction = Callable[[Decision, GridRun], np.ndarray | None]
 class MissionControl:
     """Navigation loop of one vehicle (spec §6.2, steps 1-15)."""
 
-    def __init__(self, waypoints: np.ndarray, sma: SegmentedMovementAutomaton, cfg: AvoidanceConfig = AvoidanceConfig(),
-                 cache_dir: Path | None = None, restrict: Restriction | None = None, advance_on_reach: bool = True):
+    def __init__(
+        self,
+        waypoints: np.ndarray,
+        sma: SegmentedMovementAutomaton,
+        cfg: AvoidanceConfig = AvoidanceConfig(),
+        cache_dir: Path | None = None,
+        restrict: Restriction | None = None,
+        advance_on_reach: bool = True,
+    ):
         """``advance_on_reach``: step 1-2 (goal reached at the reach radius) done here; False when
         the caller owns waypoint progress (the planner adapter, whose plan follower marks waypoints
         reached within the mission's acceptance radius) and sets :attr:`goal` itself."""
@@ -109,10 +124,16 @@ class MissionControl:
         if index not in self._segments:
             table = self.sma.automata[index].table
             grid = AvoidanceGrid(self.cfg.grid.scaled(table.config.length))
-            trees = {Mode.NAVIGATION: reach_set(grid, table, self.cfg.navigation, self.cache_dir),
-                     Mode.EMERGENCY: reach_set(grid, table, self.cfg.avoidance, self.cache_dir)}
-            self._segments[index] = SegmentPlanning(grid, trees, {m: Assessor(grid, t, self.cfg) for m, t in trees.items()},
-                                                    {m: {b: n for n, b in enumerate(t.buffers())} for m, t in trees.items()})
+            trees = {
+                Mode.NAVIGATION: reach_set(grid, table, self.cfg.navigation, self.cache_dir),
+                Mode.EMERGENCY: reach_set(grid, table, self.cfg.avoidance, self.cache_dir),
+            }
+            self._segments[index] = SegmentPlanning(
+                grid,
+                trees,
+                {m: Assessor(grid, t, self.cfg) for m, t in trees.items()},
+                {m: {b: n for n, b in enumerate(t.buffers())} for m, t in trees.items()},
+            )
         return self._segments[index]
 
     @property
@@ -127,14 +148,29 @@ class MissionControl:
         events: list[str] = []
         radius = self.cfg.mission.reach_radius_lengths * length
         # 1-2: waypoint reached -> next goal
-        while self.advance_on_reach and not self.complete and np.linalg.norm(s_now.pos - self.waypoints[self.goal]) <= radius:
+        while (
+            self.advance_on_reach
+            and not self.complete
+            and np.linalg.norm(s_now.pos - self.waypoints[self.goal]) <= radius
+        ):
             events.append(f"waypoint_reached:{self.goal}")
             self.goal += 1
         pose_now = GridPose(s_now.pos, float(s_now.att[2]))
         if self.complete:
             self.buffer = []
-            d = Decision(s_now.t, s_now.t, self.mode, events + ["mission_complete"], self.goal, None, [], pose_now,
-                         reference=reference_trajectory(ma, s_now, None, []), complete=True, reach_radius=radius)
+            d = Decision(
+                s_now.t,
+                s_now.t,
+                self.mode,
+                [*events, "mission_complete"],
+                self.goal,
+                None,
+                [],
+                pose_now,
+                reference=reference_trajectory(ma, s_now, None, []),
+                complete=True,
+                reach_radius=radius,
+            )
             d.runtime_s = time.perf_counter() - t0
             return d
         # 3, 6: executing movement (never changed) and the predicted state at t_{i+1}
@@ -156,11 +192,35 @@ class MissionControl:
             self.mode = new_mode
             parts = plan.assessors[self.mode].assess(pose, s_next.t, threats)
         events += threat_events
-        d = Decision(s_now.t, s_next.t, self.mode, events, self.goal, executing, self.buffer, pose, plan.grid,
-                     plan.trees[self.mode], reach_radius=radius, threat_events=list(threat_events))
-        replan = self.cfg.mission.replan_policy == "every_frame" or bool(threat_events) or not self.buffer or self.mode == Mode.EMERGENCY
+        d = Decision(
+            s_now.t,
+            s_next.t,
+            self.mode,
+            events,
+            self.goal,
+            executing,
+            self.buffer,
+            pose,
+            plan.grid,
+            plan.trees[self.mode],
+            reach_radius=radius,
+            threat_events=list(threat_events),
+        )
+        replan = (
+            self.cfg.mission.replan_policy == "every_frame"
+            or bool(threat_events)
+            or not self.buffer
+            or self.mode == Mode.EMERGENCY
+        )
         if replan:
-            self._run(d, plan, parts, goal_lcf, Steering(ma.table.turn_radii, radius), self._goal_cost(pose, s_now, threats, length))
+            self._run(
+                d,
+                plan,
+                parts,
+                goal_lcf,
+                Steering(ma.table.turn_radii, radius),
+                self._goal_cost(pose, s_now, threats, length),
+            )
         d.reference = reference_trajectory(ma, s_now, executing, self.buffer)
         d.buffer = list(self.buffer)
         d.runtime_s = time.perf_counter() - t0
@@ -172,17 +232,29 @@ class MissionControl:
         if self._cost_to_go is None or self._cost_to_go[0] != self.goal:
             goal = self.waypoints[self.goal]
             margin = self.cfg.constraints.safety_margin
-            bodies = [c.body.buffer(margin) for c in (from_geofence(g, margin) for g in threats.geofences)
-                      if not c.keep_in and c.z_band[0] <= goal[2] <= c.z_band[1]]
+            bodies = [
+                c.body.buffer(margin)
+                for c in (from_geofence(g, margin) for g in threats.geofences)
+                if not c.keep_in and c.z_band[0] <= goal[2] <= c.z_band[1]
+            ]
             if not bodies:
                 return None
-            self._cost_to_go = (self.goal, CostToGo(goal, bodies, 0.5 * length, self.cfg.grid.scaled(length).d_range[1] + margin,
-                                                    s_now.pos[:2]))
+            self._cost_to_go = (
+                self.goal,
+                CostToGo(goal, bodies, 0.5 * length, self.cfg.grid.scaled(length).d_range[1] + margin, s_now.pos[:2]),
+            )
         ctg = self._cost_to_go[1]
         return lambda p_lcf: ctg(pose.to_gcf(p_lcf))
 
-    def _keep_course(self, d: Decision, plan: SegmentPlanning, goal_lcf: np.ndarray, steering: Steering,
-                     goal_cost: GoalCost | None, intruder_motion: np.ndarray) -> None:
+    def _keep_course(
+        self,
+        d: Decision,
+        plan: SegmentPlanning,
+        goal_lcf: np.ndarray,
+        steering: Steering,
+        goal_cost: GoalCost | None,
+        intruder_motion: np.ndarray,
+    ) -> None:
         """In an emergency, the previous path's future movements stay the start of the new path
         while they are feasible in the selected run (its best continuation is chosen by alg. 6.6
         among their descendants): re-choosing freely every frame flipped between two equally good
@@ -203,8 +275,15 @@ class MissionControl:
             run.path = path
             d.events.append("keep_course")
 
-    def _run(self, d: Decision, plan: SegmentPlanning, parts, goal_lcf: np.ndarray, steering: Steering,
-             goal_cost: GoalCost | None) -> None:
+    def _run(
+        self,
+        d: Decision,
+        plan: SegmentPlanning,
+        parts,
+        goal_lcf: np.ndarray,
+        steering: Steering,
+        goal_cost: GoalCost | None,
+    ) -> None:
         """Steps 7-12: grid run(s), path selection, buffer replacement."""
         threshold = self.cfg.fusion.threshold
         tree = plan.trees[self.mode]

@@ -7,10 +7,10 @@ descending (6.28); positions [m]; times [s].
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import IntEnum
 from math import pi, tan
-from typing import Callable, Sequence
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -62,8 +62,10 @@ class PrimitiveTable:
         """Smallest horizontal and vertical turn radii R = L / Δangle of a full Left/Right and
         Up/Down movement [m] (inf for a zero increment)."""
         length = self.config.length
-        return (length / self.config.dyaw if self.config.dyaw > 0 else np.inf,
-                length / self.config.dpitch if self.config.dpitch > 0 else np.inf)
+        return (
+            length / self.config.dyaw if self.config.dyaw > 0 else np.inf,
+            length / self.config.dpitch if self.config.dpitch > 0 else np.inf,
+        )
 
     @property
     def pitching(self) -> np.ndarray:
@@ -77,10 +79,17 @@ def build_primitive_table(cfg: MovementConfig) -> PrimitiveTable:
     rates = _RATE_SIGNS * np.array([cfg.dpitch, cfg.dyaw]) / cfg.period
     samples = np.empty((N_MOVEMENTS, cfg.n_sub + 1, 3))
     for m, (q, r) in enumerate(rates):
+
         def rhs(t, s, q=q, r=r):
             pitch, yaw = s[3], s[4]
-            return [cfg.speed * np.cos(pitch) * np.cos(yaw), cfg.speed * np.cos(pitch) * np.sin(yaw),
-                    -cfg.speed * np.sin(pitch), q, r]
+            return [
+                cfg.speed * np.cos(pitch) * np.cos(yaw),
+                cfg.speed * np.cos(pitch) * np.sin(yaw),
+                -cfg.speed * np.sin(pitch),
+                q,
+                r,
+            ]
+
         sol = solve_ivp(rhs, (0.0, cfg.period), np.zeros(5), t_eval=t_eval, rtol=1e-11, atol=1e-12)
         samples[m] = sol.y[:3].T
     d_att = np.zeros((N_MOVEMENTS, 3))
@@ -88,7 +97,9 @@ def build_primitive_table(cfg: MovementConfig) -> PrimitiveTable:
     return PrimitiveTable(cfg, samples, d_att)
 
 
-def propagate(table: PrimitiveTable, pos: np.ndarray, att: np.ndarray, movement: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def propagate(
+    table: PrimitiveTable, pos: np.ndarray, att: np.ndarray, movement: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Apply ``movement`` (N,) to states ``pos`` (N, 3), ``att`` (N, 3): the intra-movement
     samples (N, n_sub+1, 3) (sample 0 = start) and the end attitudes (N, 3) (prediction rule §2.3)."""
     samples = pos[:, None, :] + np.einsum("nij,nsj->nsi", rotation_zyx(att), table.samples_body[movement])
@@ -188,9 +199,13 @@ def thesis_automaton() -> SegmentedMovementAutomaton:
     return SegmentedMovementAutomaton([Segment({}, MovementConfig())])
 
 
-def speed_band_automaton(bands: Sequence[tuple[float, float, float]], period: float,
-                         turn_rate: Callable[[float], float], climb_rate: float,
-                         n_sub: int = 10) -> SegmentedMovementAutomaton:
+def speed_band_automaton(
+    bands: Sequence[tuple[float, float, float]],
+    period: float,
+    turn_rate: Callable[[float], float],
+    climb_rate: float,
+    n_sub: int = 10,
+) -> SegmentedMovementAutomaton:
     """Segments over airspeed bands ``(lower, upper, movement speed)`` [m/s]: per band the yaw
     increment is ``turn_rate(speed)·period`` and the pitch increment the flight-path angle of
     ``climb_rate`` [m/s] at that speed (spec §2.7)."""
@@ -201,18 +216,30 @@ def speed_band_automaton(bands: Sequence[tuple[float, float, float]], period: fl
     return SegmentedMovementAutomaton(segs)
 
 
-def multirotor_automaton(cruise: float = 3.0, period: float = 1.0, lateral_accel: float = 2.0,
-                         climb_rate: float = 1.0) -> SegmentedMovementAutomaton:
+def multirotor_automaton(
+    cruise: float = 3.0, period: float = 1.0, lateral_accel: float = 2.0, climb_rate: float = 1.0
+) -> SegmentedMovementAutomaton:
     """Multirotor (spec §2.7): a slow segment (1 m/s, the thesis set) below 2 m/s and a cruise
     segment; the turn increment is limited by a lateral acceleration [m/s²] (ω = a / v), at most
     15° so that the ±45° grid keeps containing the reach set."""
+
     def turn(v: float) -> float:
         return min(lateral_accel / v, pi / 12 / period)
+
     return speed_band_automaton([(0.0, 2.0, 1.0), (2.0, np.inf, cruise)], period, turn, climb_rate)
 
 
-def haps_automaton(cruise: float = 26.0, period: float = 1.0, bank_max: float = np.radians(20.0),
-                   climb_rate: float = 1.0, g: float = 9.80665) -> SegmentedMovementAutomaton:
+def haps_automaton(
+    cruise: float = 26.0,
+    period: float = 1.0,
+    bank_max: float = np.radians(20.0),
+    climb_rate: float = 1.0,
+    g: float = 9.80665,
+) -> SegmentedMovementAutomaton:
     """Fixed-wing HAPS (spec §2.7): ω = g·tan(bank)/v per airspeed band (slow, cruise, fast)."""
-    bands = [(0.0, 0.9 * cruise, 0.8 * cruise), (0.9 * cruise, 1.1 * cruise, cruise), (1.1 * cruise, np.inf, 1.2 * cruise)]
+    bands = [
+        (0.0, 0.9 * cruise, 0.8 * cruise),
+        (0.9 * cruise, 1.1 * cruise, cruise),
+        (1.1 * cruise, np.inf, 1.2 * cruise),
+    ]
     return speed_band_automaton(bands, period, lambda v: g * tan(bank_max) / v, climb_rate)

@@ -36,10 +36,19 @@ class ReachSetAvoider:
 
     name = "reachset"
 
-    def __init__(self, mission: Mission, sma: SegmentedMovementAutomaton, cfg: AvoidanceConfig = AvoidanceConfig(),
-                 cache_dir: Path | None = None, restrict: Restriction | None = None, heading_from_velocity: float = 0.5):
+    def __init__(
+        self,
+        mission: Mission,
+        sma: SegmentedMovementAutomaton,
+        cfg: AvoidanceConfig = AvoidanceConfig(),
+        cache_dir: Path | None = None,
+        restrict: Restriction | None = None,
+        heading_from_velocity: float = 0.5,
+    ):
         self.mission = mission
-        self.control = MissionControl(ned_to_enu(mission.waypoints), sma, cfg, cache_dir, restrict, advance_on_reach=False)
+        self.control = MissionControl(
+            ned_to_enu(mission.waypoints), sma, cfg, cache_dir, restrict, advance_on_reach=False
+        )
         self.speed = float(mission.cruise_speed)
         self.heading_from_velocity = heading_from_velocity
         self.last_decision: Decision | None = None
@@ -49,7 +58,11 @@ class ReachSetAvoider:
     def kin_state(self, est: VehicleState, t: float) -> KinState:
         vel = ned_to_enu(est.vel_ned)
         ground = float(np.hypot(vel[0], vel[1]))
-        psi = float(np.arctan2(vel[1], vel[0])) if ground >= self.heading_from_velocity * self.speed else heading_from_yaw_ned(est.yaw)
+        psi = (
+            float(np.arctan2(vel[1], vel[0]))
+            if ground >= self.heading_from_velocity * self.speed
+            else heading_from_yaw_ned(est.yaw)
+        )
         pos = ned_to_enu(est.pos_ned)
         d = self.last_decision
         if d is not None and not d.complete and abs(t - d.t_grid) < 1e-6:
@@ -65,8 +78,12 @@ class ReachSetAvoider:
     def frame_due(self, t: float) -> bool:
         """Whether a call at ``t`` [s] makes a new decision frame: one per movement period (at the
         frame's grid time t_{i+1}, when the executing movement is over) or a waypoint just passed."""
-        return self._last is None or self.last_decision is None or t >= self.last_decision.t_grid - 1e-6 \
+        return (
+            self._last is None
+            or self.last_decision is None
+            or t >= self.last_decision.t_grid - 1e-6
             or self.mission.next_index > self._last_goal
+        )
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         """One decision frame per movement period; called more often, the last plan is returned
@@ -78,18 +95,29 @@ class ReachSetAvoider:
         d = ctl.step(self.kin_state(estimate, t), threats)
         self.last_decision = d
         pos, times, labels = self._vertices(d, estimate, threats)
-        vel = np.vstack([np.diff(pos, axis=0) / np.diff(times)[:, None], np.zeros((1, 3))]) if len(pos) > 1 else np.zeros((1, 3))
+        vel = (
+            np.vstack([np.diff(pos, axis=0) / np.diff(times)[:, None], np.zeros((1, 3))])
+            if len(pos) > 1
+            else np.zeros((1, 3))
+        )
         run = d.run
         diag: dict[str, float | int | str] = {
-            "mode": d.mode.value, "events": ";".join(d.events), "goal_index": d.goal_index,
+            "mode": d.mode.value,
+            "events": ";".join(d.events),
+            "goal_index": d.goal_index,
             "category": d.runs[d.selected].categories.name if d.selected >= 0 else "",
             "feasible_nodes": int(run.fused.node_ok.sum()) if run is not None else 0,
-            "buffer": "".join(str(m) for m in d.buffer), "runtime_ms": 1e3 * d.runtime_s, "complete": int(d.complete)}
+            "buffer": "".join(str(m) for m in d.buffer),
+            "runtime_ms": 1e3 * d.runtime_s,
+            "complete": int(d.complete),
+        }
         self._last = Plan(t, pos, times, labels, PlanStatus(d.status), vel, self.name, diag)
         self._last_goal = self.mission.next_index
         return self._last
 
-    def _vertices(self, d: Decision, estimate: VehicleState, threats: Threats) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _vertices(
+        self, d: Decision, estimate: VehicleState, threats: Threats
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """NED vertices, times and labels of decision ``d``.
 
         The movements end on a 1-movement-length lattice, so the mission's waypoint (acceptance
@@ -111,8 +139,11 @@ class ReachSetAvoider:
         here = ned_to_enu(estimate.pos_ned)
         dist = float(np.linalg.norm(goal - here))
         if dist <= d.reach_radius and (not d.threat_events or self._approach_free(d, here, goal, threats)):
-            return (enu_to_ned(np.vstack([here, goal])), np.array([d.t, d.t + max(dist / speed, 1e-3)]),
-                    np.array([-1, ctl.goal]))
+            return (
+                enu_to_ned(np.vstack([here, goal])),
+                np.array([d.t, d.t + max(dist / speed, 1e-3)]),
+                np.array([-1, ctl.goal]),
+            )
         ref = d.reference
         ends = np.flatnonzero(ref.movement_end)
         gcf, times = ref.positions[ends], ref.times[ends]
@@ -123,9 +154,9 @@ class ReachSetAvoider:
         if len(near) and self._leg_free(d, gcf[near[0]], goal):
             k = int(near[0])
             gap = float(np.linalg.norm(goal - gcf[k]))
-            gcf = np.vstack([gcf[:k + 1], goal])
-            times = np.append(times[:k + 1], times[k] + max(gap / speed, 1e-3))
-            labels = np.append(labels[:k + 1], ctl.goal)
+            gcf = np.vstack([gcf[: k + 1], goal])
+            times = np.append(times[: k + 1], times[k] + max(gap / speed, 1e-3))
+            labels = np.append(labels[: k + 1], ctl.goal)
         return enu_to_ned(gcf), times, labels
 
     def _approach_free(self, d: Decision, here: np.ndarray, goal: np.ndarray, threats: Threats) -> bool:

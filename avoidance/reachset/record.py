@@ -26,25 +26,53 @@ from avoidance.reachset.mission import Decision
 from sim.frames import enu_to_ned, euler_to_quaternion
 
 NED_FRAME = "ned"
-CLASS_COLORS = {SpaceClass.FREE: (0.2, 0.8, 0.2, 0.05), SpaceClass.UNCERTAIN: (0.5, 0.5, 0.5, 0.25),
-                SpaceClass.OCCUPIED: (0.9, 0.1, 0.1, 0.6), SpaceClass.CONSTRAINED: (1.0, 0.6, 0.0, 0.5)}
+CLASS_COLORS = {
+    SpaceClass.FREE: (0.2, 0.8, 0.2, 0.05),
+    SpaceClass.UNCERTAIN: (0.5, 0.5, 0.5, 0.25),
+    SpaceClass.OCCUPIED: (0.9, 0.1, 0.1, 0.6),
+    SpaceClass.CONSTRAINED: (1.0, 0.6, 0.0, 0.5),
+}
 
 
 def decision_record(d: Decision) -> dict:
     """Everything one decision frame decided, as JSON-ready values."""
-    rec = {"t": d.t, "t_grid": d.t_grid, "mode": d.mode.value, "events": list(d.events), "goal_index": d.goal_index,
-           "executing": d.executing, "buffer": [int(m) for m in d.buffer], "status": d.status, "complete": d.complete,
-           "grid_origin_ned": enu_to_ned(d.pose.origin).tolist(), "grid_heading_gcf": d.pose.psi,
-           "runs": [r.categories.name for r in d.runs], "selected": d.runs[d.selected].categories.name if d.selected >= 0 else "",
-           "runtime_s": d.runtime_s}
+    rec = {
+        "t": d.t,
+        "t_grid": d.t_grid,
+        "mode": d.mode.value,
+        "events": list(d.events),
+        "goal_index": d.goal_index,
+        "executing": d.executing,
+        "buffer": [int(m) for m in d.buffer],
+        "status": d.status,
+        "complete": d.complete,
+        "grid_origin_ned": enu_to_ned(d.pose.origin).tolist(),
+        "grid_heading_gcf": d.pose.psi,
+        "runs": [r.categories.name for r in d.runs],
+        "selected": d.runs[d.selected].categories.name if d.selected >= 0 else "",
+        "runtime_s": d.runtime_s,
+    }
     run = d.run
     if run is not None:
         f = run.fused
-        rec.update({"chosen_node": run.path.node, "chosen_cell": run.path.cell, "error": run.path.error,
-                    "feasible_nodes": int(f.node_ok.sum()),
-                    "cells": {"visibility": f.visibility.tolist(), "obstacle": f.obstacle.tolist(), "map": f.map.tolist(),
-                              "intruder": f.intruder.tolist(), "constraint": f.constraint.tolist(), "threat": f.threat.tolist(),
-                              "class": f.space_class.astype(int).tolist(), "reachable": f.reachable.astype(int).tolist()}})
+        rec.update(
+            {
+                "chosen_node": run.path.node,
+                "chosen_cell": run.path.cell,
+                "error": run.path.error,
+                "feasible_nodes": int(f.node_ok.sum()),
+                "cells": {
+                    "visibility": f.visibility.tolist(),
+                    "obstacle": f.obstacle.tolist(),
+                    "map": f.map.tolist(),
+                    "intruder": f.intruder.tolist(),
+                    "constraint": f.constraint.tolist(),
+                    "threat": f.threat.tolist(),
+                    "class": f.space_class.astype(int).tolist(),
+                    "reachable": f.reachable.astype(int).tolist(),
+                },
+            }
+        )
     if d.reference is not None:
         rec["reference_ned"] = enu_to_ned(d.reference.positions).tolist()
         rec["reference_t"] = d.reference.times.tolist()
@@ -53,7 +81,7 @@ def decision_record(d: Decision) -> dict:
 
 def _stamp(t_log: float) -> Timestamp:
     sec = int(np.floor(t_log))
-    return Timestamp(seconds=sec, nanos=int(round((t_log - sec) * 1e9)) % 1_000_000_000)
+    return Timestamp(seconds=sec, nanos=round((t_log - sec) * 1e9) % 1_000_000_000)
 
 
 def _color(rgba) -> Color:
@@ -78,12 +106,23 @@ def scene_update(d: Decision, t_log: float, entity_id: str = "reachset", show_fr
             pitch_ned = mid[2]  # nose-up positive in FRD/NED Euler
             qx, qy, qz, qw = euler_to_quaternion(0.0, pitch_ned, yaw_ned)
             q = Quaternion(x=qx, y=qy, z=qz, w=qw)
-            ent.cubes.append(CubePrimitive(pose=Pose(position=Vector3(x=centre[0], y=centre[1], z=centre[2]), orientation=q),
-                                           size=Vector3(x=size[0], y=size[1], z=size[2]), color=_color(CLASS_COLORS[SpaceClass(int(cls[c]))])))
+            ent.cubes.append(
+                CubePrimitive(
+                    pose=Pose(position=Vector3(x=centre[0], y=centre[1], z=centre[2]), orientation=q),
+                    size=Vector3(x=size[0], y=size[1], z=size[2]),
+                    color=_color(CLASS_COLORS[SpaceClass(int(cls[c]))]),
+                )
+            )
     if d.reference is not None:
         pts = enu_to_ned(d.reference.positions)
-        ent.lines.append(LinePrimitive(type=LinePrimitive.LINE_STRIP, thickness=0.1, scale_invariant=False,
-                                       points=[Point3(x=p[0], y=p[1], z=p[2]) for p in pts],
-                                       color=_color((0.1, 0.4, 1.0, 1.0)), pose=Pose(orientation=Quaternion(w=1.0))))
+        ent.lines.append(
+            LinePrimitive(
+                type=LinePrimitive.LINE_STRIP,
+                thickness=0.1,
+                scale_invariant=False,
+                points=[Point3(x=p[0], y=p[1], z=p[2]) for p in pts],
+                color=_color((0.1, 0.4, 1.0, 1.0)),
+                pose=Pose(orientation=Quaternion(w=1.0)),
+            )
+        )
     return SceneUpdate(entities=[ent])
-

@@ -9,8 +9,8 @@ trajectory the avoidance grid run checked.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -31,8 +31,9 @@ def level(s: KinState) -> KinState:
     return KinState(s.pos, np.array([0.0, 0.0, s.att[2]]), s.t, s.v)
 
 
-def reference_trajectory(ma: MovementAutomaton, s_now: KinState, executing: int | None,
-                         planned: Sequence[int], sampled: bool = False) -> ReferenceTrajectory:
+def reference_trajectory(
+    ma: MovementAutomaton, s_now: KinState, executing: int | None, planned: Sequence[int], sampled: bool = False
+) -> ReferenceTrajectory:
     """Reference of ``executing`` (None: none, the plan starts now) then ``planned``."""
     parts, ends = [], []
     s = s_now

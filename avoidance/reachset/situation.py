@@ -55,10 +55,14 @@ class Assessor:
         obstacles = [MapObstacle.from_prism(p, cfg.map.safety_margin) for p in threats.obstacles]
         obstacles += [MapObstacle.from_sphere(s, cfg.map.safety_margin) for s in static]
         parts.map = map_rating(grid, pose, obstacles, cfg.map)
-        tracks = list(threats.intruders) + [IntruderTrack(s.id, s.t, s.center_ned, s.vel_ned, s.radius_m) for s in moving]
+        tracks = list(threats.intruders) + [
+            IntruderTrack(s.id, s.t, s.center_ned, s.vel_ned, s.radius_m) for s in moving
+        ]
         parts.intruder_motion = intruder_motion(pose, t_grid, tracks, cfg.intruders.body_margin)
         parts.intruders = intruder_ratings(grid, parts.intruder_motion, self.intruder_model)
-        parts.hard, parts.soft = classify(grid, pose, self.constraints(threats, t_grid), cfg.constraints, t_grid, self.uas_leave)
+        parts.hard, parts.soft = classify(
+            grid, pose, self.constraints(threats, t_grid), cfg.constraints, t_grid, self.uas_leave
+        )
         return parts
 
 

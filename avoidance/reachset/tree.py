@@ -130,7 +130,7 @@ def runs(sample_cells: np.ndarray, parent_tip_cell: np.ndarray, t0: np.ndarray, 
     """Runs of equal consecutive cells per row of ``sample_cells`` (n, n_sub): flat arrays of
     (row, cell, is_new, entry, leave). A run starts one sample step before its first sample
     (conservative entry) and ends at its last sample."""
-    n, m = sample_cells.shape
+    _n, m = sample_cells.shape
     prev = np.concatenate([parent_tip_cell[:, None], sample_cells[:, :-1]], axis=1)
     start = sample_cells != prev
     start[:, 0] = True
@@ -146,8 +146,14 @@ def runs(sample_cells: np.ndarray, parent_tip_cell: np.ndarray, t0: np.ndarray, 
     return row, cells, is_new, entry, leave
 
 
-def assemble(grid: AvoidanceGrid, table: PrimitiveTable, parent: np.ndarray, movement: np.ndarray,
-             pitch_cost: float, mode_switch: bool) -> ReachSetTree:
+def assemble(
+    grid: AvoidanceGrid,
+    table: PrimitiveTable,
+    parent: np.ndarray,
+    movement: np.ndarray,
+    pitch_cost: float,
+    mode_switch: bool,
+) -> ReachSetTree:
     """Recompute every bound property of a tree given by (parent, movement), nodes sorted by depth
     with the root at 0 (used after building, pruning and merging, alg. 6.4's applyCostFunction)."""
     n = len(parent)
@@ -181,6 +187,22 @@ def assemble(grid: AvoidanceGrid, table: PrimitiveTable, parent: np.ndarray, mov
     order = np.argsort(rows, kind="stable")
     counts = np.bincount(rows, minlength=n)
     cat = lambda parts, dtype: (np.concatenate(parts) if parts else np.zeros(0, dtype))[order]  # noqa: E731
-    return ReachSetTree(parent, movement, depth, samples, att, tip_cell, smoothness, base, cost,
-                        np.concatenate([[0], np.cumsum(counts)]), cat(cell_l, np.int64), cat(new_l, bool),
-                        cat(en_l, float), cat(lv_l, float), level_ptr, table.duration, grid.n_cells)
+    return ReachSetTree(
+        parent,
+        movement,
+        depth,
+        samples,
+        att,
+        tip_cell,
+        smoothness,
+        base,
+        cost,
+        np.concatenate([[0], np.cumsum(counts)]),
+        cat(cell_l, np.int64),
+        cat(new_l, bool),
+        cat(en_l, float),
+        cat(lv_l, float),
+        level_ptr,
+        table.duration,
+        grid.n_cells,
+    )

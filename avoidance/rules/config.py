@@ -81,19 +81,31 @@ class RulesConfig:
             _check_class(reg.get("category", self.category), reg.get("maneuverability", self.maneuverability))
         bad = sorted(set(self.navigation) - {"horizontal", "vertical", "slash", "backslash"})
         if bad or not self.navigation:
-            raise ValueError(f"navigation: unknown separation(s) {', '.join(bad) or '(none given)'} "
-                             "(known: horizontal, vertical, slash, backslash)")
+            raise ValueError(
+                f"navigation: unknown separation(s) {', '.join(bad) or '(none given)'} "
+                "(known: horizontal, vertical, slash, backslash)"
+            )
         if not (isinstance(self.navigation_spread, int) and self.navigation_spread >= 1):
             raise ValueError("navigation_spread must be an integer >= 1")
         if not self.unit > 0.0:
             raise ValueError("unit must be > 0")
-        for name in ("universal", "head_on", "converging", "overtake", "converging_extra", "bloat", "time_margin",
-                     "plane_tolerance", "established_speed", "settle"):
+        for name in (
+            "universal",
+            "head_on",
+            "converging",
+            "overtake",
+            "converging_extra",
+            "bloat",
+            "time_margin",
+            "plane_tolerance",
+            "established_speed",
+            "settle",
+        ):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"{name} must be >= 0")
 
     @staticmethod
-    def from_options(options: dict) -> "RulesConfig":
+    def from_options(options: dict) -> RulesConfig:
         """From a scenario's options (lists for the tuples); ValueError naming the field."""
         known = {f.name for f in fields(RulesConfig)}
         unknown = sorted(set(options) - known)
@@ -112,25 +124,37 @@ class RulesConfig:
         """The registration filed for ``uas`` (margins in metres)."""
         reg = self.filed.get(uas, {})
         category, maneuverability = reg.get("category", self.category), reg.get("maneuverability", self.maneuverability)
-        return Registration(uas, Category[category.upper()], Maneuverability[maneuverability.upper()],
-                            Margins(self.universal, self.head_on, self.converging, self.overtake).scaled(self.unit),
-                            min_cruise=0.5 * cruise, max_cruise=cruise)
+        return Registration(
+            uas,
+            Category[category.upper()],
+            Maneuverability[maneuverability.upper()],
+            Margins(self.universal, self.head_on, self.converging, self.overtake).scaled(self.unit),
+            min_cruise=0.5 * cruise,
+            max_cruise=cruise,
+        )
 
     def avoidance(self, base: AvoidanceConfig = AvoidanceConfig()) -> AvoidanceConfig:
         """The reach-set configuration flown under these rules (navigation reach set replaced)."""
-        return replace(base, navigation=ReachSetConfig.single(ExpansionConfig.acas(self.navigation, self.navigation_spread)))
+        return replace(
+            base, navigation=ReachSetConfig.single(ExpansionConfig.acas(self.navigation, self.navigation_spread))
+        )
 
     def utm(self, grid_range: float, cruise: float) -> UtmConfig:
-        return UtmConfig(time_margin=self.time_margin * grid_range / max(cruise, 1e-6), close_after=self.close_after,
-                         min_speed=0.2 * cruise)
+        return UtmConfig(
+            time_margin=self.time_margin * grid_range / max(cruise, 1e-6),
+            close_after=self.close_after,
+            min_speed=0.2 * cruise,
+        )
 
 
 def _check_class(category: str, maneuverability: str) -> None:
     if category.upper() not in Category.__members__:
         raise ValueError(f"unknown category {category!r} (known: {', '.join(m.lower() for m in Category.__members__)})")
     if maneuverability.upper() not in Maneuverability.__members__:
-        raise ValueError(f"unknown maneuverability {maneuverability!r} "
-                         f"(known: {', '.join(m.lower() for m in Maneuverability.__members__)})")
+        raise ValueError(
+            f"unknown maneuverability {maneuverability!r} "
+            f"(known: {', '.join(m.lower() for m in Maneuverability.__members__)})"
+        )
 
 
 RULES_FIELDS = tuple(f.name for f in fields(RulesConfig) if f.name != "enabled")

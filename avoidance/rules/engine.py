@@ -9,9 +9,10 @@ applied rule is recorded (``ctx.decisions``) and turned into events of the decis
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import TYPE_CHECKING, Protocol, Sequence
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -37,7 +38,7 @@ class RuleContext:
 
     uas: str
     t: float
-    cfg: "RulesConfig"
+    cfg: RulesConfig
     book: CaseBook
     notifications: list[PositionNotification]
     length: float  # movement length at cruise [m]
@@ -49,8 +50,8 @@ class RuleContext:
     unresolved: set = field(default_factory=set)  # (ids, head time) of chains reported unresolved (carried over)
     events: list[str] = field(default_factory=list)
     decisions: list[dict] = field(default_factory=list)
-    decision: "Decision | None" = None
-    run: "GridRun | None" = None
+    decision: Decision | None = None
+    run: GridRun | None = None
     disabled: np.ndarray | None = None  # nodes disabled so far (navigation reach set)
     goal_override: np.ndarray | None = None  # GCF waypoint flown instead of the mission goal
     path_found: bool | None = None  # the restricted navigation run found a path
@@ -85,7 +86,7 @@ class Rule(Protocol):
 
     def condition(self, ctx: RuleContext) -> bool: ...
 
-    def apply(self, ctx: RuleContext, engine: "RuleEngine") -> None: ...
+    def apply(self, ctx: RuleContext, engine: RuleEngine) -> None: ...
 
 
 class RuleEngine:
@@ -95,7 +96,8 @@ class RuleEngine:
     def __init__(self, rules: Sequence[Rule]):
         self.rules = {r.code: r for r in rules}
         self.table: dict[DecisionPoint, list[Rule]] = {
-            p: sorted((r for r in rules if r.point == p), key=lambda r: r.priority) for p in DecisionPoint}
+            p: sorted((r for r in rules if r.point == p), key=lambda r: r.priority) for p in DecisionPoint
+        }
 
     def enabled(self, code: str) -> bool:
         return code in self.rules

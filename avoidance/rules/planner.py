@@ -45,8 +45,14 @@ OWN = "self"  # the own UAS' id in its case book (peers are named by their track
 
 
 class RulesAvoider(ReachSetAvoider):
-    def __init__(self, mission: Mission, sma: SegmentedMovementAutomaton, rules: RulesConfig,
-                 cfg: AvoidanceConfig = AvoidanceConfig(), cache_dir: Path | None = None):
+    def __init__(
+        self,
+        mission: Mission,
+        sma: SegmentedMovementAutomaton,
+        rules: RulesConfig,
+        cfg: AvoidanceConfig = AvoidanceConfig(),
+        cache_dir: Path | None = None,
+    ):
         """``cfg``'s navigation reach set is replaced by the rules' ACAS-like one."""
         cfg = rules.avoidance(cfg)
         super().__init__(mission, sma, cfg, cache_dir, restrict=self._restrict)
@@ -67,20 +73,33 @@ class RulesAvoider(ReachSetAvoider):
 
     def notifications(self, estimate: VehicleState, threats: Threats, t: float) -> list[PositionNotification]:
         own = PositionNotification(t, self.registration, ned_to_enu(estimate.pos_ned), ned_to_enu(estimate.vel_ned))
-        peers = [from_track(tr, self.rules.registration(tr.id, self.speed)) for tr in threats.intruders if tr.cooperative]
-        return [own] + peers
+        peers = [
+            from_track(tr, self.rules.registration(tr.id, self.speed)) for tr in threats.intruders if tr.cooperative
+        ]
+        return [own, *peers]
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         if not self.frame_due(t):
             return self._last
-        ctx = RuleContext(OWN, t, self.rules, self.book, self.notifications(estimate, threats, t), self.length,
-                          self.frame, emergency=set(self.emergency), deadlock_frames=self._deadlock_frames,
-                          unresolved=self._unresolved, start=self._start if self._start is not None else t)
+        ctx = RuleContext(
+            OWN,
+            t,
+            self.rules,
+            self.book,
+            self.notifications(estimate, threats, t),
+            self.length,
+            self.frame,
+            emergency=set(self.emergency),
+            deadlock_frames=self._deadlock_frames,
+            unresolved=self._unresolved,
+            start=self._start if self._start is not None else t,
+        )
         self._ctx = ctx
         self._start = ctx.start
         self.engine.invoke(DecisionPoint.BEFORE_AVOIDANCE_RUN, ctx)
-        sensed = dataclasses.replace(threats, intruders=[tr for tr in threats.intruders
-                                                         if tr.id not in ctx.managed or tr.id in ctx.emergency])
+        sensed = dataclasses.replace(
+            threats, intruders=[tr for tr in threats.intruders if tr.id not in ctx.managed or tr.id in ctx.emergency]
+        )
         ctl = self.control
         self._mission_waypoints = ctl.waypoints
         goal = max(ctl.goal, self.mission.next_index)
@@ -97,11 +116,18 @@ class RulesAvoider(ReachSetAvoider):
         self.emergency, self._deadlock_frames = ctx.emergency, ctx.deadlock_frames
         d.events.extend(ctx.events)
         plan.diagnostics["events"] = ";".join(d.events)
-        self.rules_record = {"t": t, "events": list(ctx.events), "decisions": ctx.decisions,
-                             "cases": [c.record() for c in self.book.active(OWN)],
-                             "roundabouts": [{"members": sorted(r.members), "centre_enu": r.centre.tolist(),
-                                              "margin_m": r.margin} for r in self.book.roundabouts()],
-                             "emergency": sorted(ctx.emergency), "mode": d.mode.value}
+        self.rules_record = {
+            "t": t,
+            "events": list(ctx.events),
+            "decisions": ctx.decisions,
+            "cases": [c.record() for c in self.book.active(OWN)],
+            "roundabouts": [
+                {"members": sorted(r.members), "centre_enu": r.centre.tolist(), "margin_m": r.margin}
+                for r in self.book.roundabouts()
+            ],
+            "emergency": sorted(ctx.emergency),
+            "mode": d.mode.value,
+        }
         self._ctx = None
         return plan
 

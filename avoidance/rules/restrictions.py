@@ -15,7 +15,9 @@ from avoidance.reachset.frames import GridPose
 from avoidance.reachset.tree import ReachSetTree
 
 
-def right_plane_heading_mask(tree: ReachSetTree, pose: GridPose, collision_point: np.ndarray, tol: float = 1e-6) -> np.ndarray:
+def right_plane_heading_mask(
+    tree: ReachSetTree, pose: GridPose, collision_point: np.ndarray, tol: float = 1e-6
+) -> np.ndarray:
     """(6.215-6.216) Separation plane through the UAS (grid origin), the collision point and
     the vertical; nodes with any sample more than ``tol`` [m] left of it (left of the line
     origin -> collision point) are disabled. Only applies while the collision point is in front
@@ -30,8 +32,14 @@ def right_plane_heading_mask(tree: ReachSetTree, pose: GridPose, collision_point
     return tree.along_paths((left > tol).any(axis=1), np.logical_or)
 
 
-def safety_margin_mask(tree: ReachSetTree, pose: GridPose, collision_point: np.ndarray, margin: float,
-                       barrel_half_height: float | None = None, tol: float = 0.0) -> np.ndarray:
+def safety_margin_mask(
+    tree: ReachSetTree,
+    pose: GridPose,
+    collision_point: np.ndarray,
+    margin: float,
+    barrel_half_height: float | None = None,
+    tol: float = 0.0,
+) -> np.ndarray:
     """(6.218) ball: disable nodes with a sample closer than ``margin`` [m] to the collision
     point; (6.219, A-20) well-clear barrel when ``barrel_half_height`` [m] is given: closer than
     ``margin`` horizontally **and** within the height band. When the grid origin itself is
@@ -50,8 +58,9 @@ def safety_margin_mask(tree: ReachSetTree, pose: GridPose, collision_point: np.n
     return tree.along_paths(((dist < _radius(tree, margin, here, tol) - 1e-9) & inside_band).any(axis=1), np.logical_or)
 
 
-def moving_margin_mask(tree: ReachSetTree, pose: GridPose, peer_pos: np.ndarray, peer_vel: np.ndarray,
-                       margin: float, tol: float = 0.0) -> np.ndarray:
+def moving_margin_mask(
+    tree: ReachSetTree, pose: GridPose, peer_pos: np.ndarray, peer_vel: np.ndarray, margin: float, tol: float = 0.0
+) -> np.ndarray:
     """Safety margin around a peer flying on at constant velocity: disable nodes with a sample
     closer than ``margin`` [m] to where the peer is at that sample's time. ``peer_pos`` GCF [m]
     at the grid's time, ``peer_vel`` GCF [m/s]. Radius as for the ball (:func:`_radius`)."""
@@ -59,7 +68,9 @@ def moving_margin_mask(tree: ReachSetTree, pose: GridPose, peer_pos: np.ndarray,
     v = pose.vec_to_lcf(np.asarray(peer_vel, float))
     peer = p0 + tree.sample_times()[..., None] * v
     dist = np.linalg.norm(tree.samples - peer, axis=-1)
-    return tree.along_paths((dist < _radius(tree, margin, float(np.linalg.norm(p0)), tol) - 1e-9).any(axis=1), np.logical_or)
+    return tree.along_paths(
+        (dist < _radius(tree, margin, float(np.linalg.norm(p0)), tol) - 1e-9).any(axis=1), np.logical_or
+    )
 
 
 def _radius(tree: ReachSetTree, margin: float, here: float, tol: float) -> np.ndarray:

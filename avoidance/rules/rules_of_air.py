@@ -11,8 +11,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from avoidance.rules.engine import DecisionPoint, RuleContext, RuleEngine
-from avoidance.rules.restrictions import (moving_margin_mask, path_clearance, right_plane_heading_mask,
-                                          safety_margin_mask, widest_per_cell)
+from avoidance.rules.restrictions import (
+    moving_margin_mask,
+    path_clearance,
+    right_plane_heading_mask,
+    safety_margin_mask,
+    widest_per_cell,
+)
 from avoidance.utm.cases import as_roundabout
 from avoidance.utm.collision_case import CollisionCase, Encounter, Role
 
@@ -25,8 +30,9 @@ def overtake_speed(min_cruise: float, intruder_speeds) -> float:
     return max(min_cruise, min(intruder_speeds))
 
 
-def overtake_waypoints(p_uas, v_uas, p_overtaken, v_overtaken, cp, margin: float, frame: float,
-                       reach_margin: float) -> tuple[np.ndarray, np.ndarray]:
+def overtake_waypoints(
+    p_uas, v_uas, p_overtaken, v_overtaken, cp, margin: float, frame: float, reach_margin: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Divergence and convergence waypoints (6.207-6.214, 6.209 with its square), GCF [m]:
     in the overtaken UAS' frame (X+ along its velocity, Y+ left, origin at the collision point)
     divergence = (0, -(Δv·frame + margin)), convergence = (safeOffset, same), with
@@ -34,7 +40,7 @@ def overtake_waypoints(p_uas, v_uas, p_overtaken, v_overtaken, cp, margin: float
     p_uas, cp = np.asarray(p_uas, float), np.asarray(cp, float)
     dv = float(np.linalg.norm(np.asarray(v_uas, float) - np.asarray(v_overtaken, float)))
     decision = dv * frame
-    middle = float(np.sqrt(np.sum((p_uas - cp) ** 2) + margin ** 2))
+    middle = float(np.sqrt(np.sum((p_uas - cp) ** 2) + margin**2))
     safe = middle + decision + reach_margin
     h = np.asarray(v_overtaken, float)[:2]
     h = h / max(float(np.linalg.norm(h)), 1e-9)
@@ -65,7 +71,10 @@ class DetectCollisionCases:
 
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
         own_note = next(n for n in ctx.notifications if n.id == ctx.uas)
-        starting = ctx.t < ctx.start + ctx.cfg.settle or own_note.speed < ctx.cfg.established_speed * own_note.registration.max_cruise
+        starting = (
+            ctx.t < ctx.start + ctx.cfg.settle
+            or own_note.speed < ctx.cfg.established_speed * own_note.registration.max_cruise
+        )
         if starting and not ctx.book.chains:
             return  # start transient: no approach direction to classify yet, peers stay intruders
         opened, closed = ctx.book.update(ctx.notifications, ctx.t)
@@ -91,8 +100,9 @@ class DetectCollisionCases:
         if len(overtakes) > 1:
             speeds = [n.speed for n in ctx.notifications if n.id in {c.other(ctx.uas) for c in overtakes}]
             ctx.record("overtake_speed", speed_mps=overtake_speed(own_note.registration.min_cruise, speeds))
-        ctx.resolve = sorted((c for c in own if c.role_of(ctx.uas) in RESOLVING and c.other(ctx.uas) not in ctx.emergency),
-                             key=_severity)
+        ctx.resolve = sorted(
+            (c for c in own if c.role_of(ctx.uas) in RESOLVING and c.other(ctx.uas) not in ctx.emergency), key=_severity
+        )
         for c in ctx.resolve:
             if c.role_of(ctx.uas) == Role.OVERTAKING and engine.enabled("overtake"):
                 _overtake_goal(ctx, c)
@@ -122,8 +132,11 @@ class ResolveCollisionCase:
         if ctx.disabled is not None and ctx.cfg.widest and points:  # of what is left, the widest berth per cell
             d = ctx.decision
             feasible = ctx.run.fused.node_ok & ~ctx.disabled
-            ctx.disable("widest", widest_per_cell(d.tree, feasible, path_clearance(d.tree, d.pose, np.array(points))),
-                        ctx.resolve[0])
+            ctx.disable(
+                "widest",
+                widest_per_cell(d.tree, feasible, path_clearance(d.tree, d.pose, np.array(points))),
+                ctx.resolve[0],
+            )
 
 
 @dataclass(frozen=True)
@@ -175,13 +188,19 @@ def _overtake_goal(ctx: RuleContext, case: CollisionCase) -> None:
     own = next(n for n in ctx.notifications if n.id == ctx.uas)
     peer = next(n for n in ctx.notifications if n.id == case.other(ctx.uas)).adjusted(ctx.t)
     margin = case.margin + ctx.cfg.bloat * ctx.unit
-    div, conv = overtake_waypoints(own.pos, own.vel, peer.pos, peer.vel, case.collision_point, margin, ctx.frame,
-                                   2.0 * ctx.length)
+    div, conv = overtake_waypoints(
+        own.pos, own.vel, peer.pos, peer.vel, case.collision_point, margin, ctx.frame, 2.0 * ctx.length
+    )
     h = peer.vel[:2] / max(float(np.linalg.norm(peer.vel[:2])), 1e-9)
     past_div = float((own.pos[:2] - div[:2]) @ h) > -ctx.length
     ctx.goal_override = conv if past_div else div
-    ctx.record("overtake_waypoint", case, divergence_enu=div.tolist(), convergence_enu=conv.tolist(),
-               target="convergence" if past_div else "divergence")
+    ctx.record(
+        "overtake_waypoint",
+        case,
+        divergence_enu=div.tolist(),
+        convergence_enu=conv.tolist(),
+        target="convergence" if past_div else "divergence",
+    )
 
 
 @dataclass(frozen=True)
@@ -250,15 +269,27 @@ class CloseCollisionCases:
             if handover:
                 for c in ctx.resolve:
                     ctx.emergency.add(c.other(ctx.uas))
-            ctx.record("deadlock", peers=sorted(c.other(ctx.uas) for c in ctx.resolve), frames=ctx.deadlock_frames,
-                       handover=handover)
-        ctx.record("resolution", mode=d.mode.value, buffer=[int(m) for m in d.buffer],
-                   cases=[c.record() for c in ctx.resolve])
+            ctx.record(
+                "deadlock",
+                peers=sorted(c.other(ctx.uas) for c in ctx.resolve),
+                frames=ctx.deadlock_frames,
+                handover=handover,
+            )
+        ctx.record(
+            "resolution", mode=d.mode.value, buffer=[int(m) for m in d.buffer], cases=[c.record() for c in ctx.resolve]
+        )
 
 
 def make_rules(enabled) -> list:
     """The rule objects of the enabled codes."""
-    every = {"detect": DetectCollisionCases(), "resolve": ResolveCollisionCase(), "close": CloseCollisionCases(),
-             "head_on": Manoeuvre("head_on", Role.ROUNDABOUT), "converging": Manoeuvre("converging", Role.CONVERGING),
-             "overtake": Overtake(), "right_plane_heading": RightPlaneHeading(), "safety_margin": EnforceSafetyMargin()}
+    every = {
+        "detect": DetectCollisionCases(),
+        "resolve": ResolveCollisionCase(),
+        "close": CloseCollisionCases(),
+        "head_on": Manoeuvre("head_on", Role.ROUNDABOUT),
+        "converging": Manoeuvre("converging", Role.CONVERGING),
+        "overtake": Overtake(),
+        "right_plane_heading": RightPlaneHeading(),
+        "safety_margin": EnforceSafetyMargin(),
+    }
     return [every[c] for c in enabled]

@@ -36,8 +36,15 @@ class Chain:
     def case(self) -> CollisionCase:
         """The current case with the head's point, encounter, roles and margin (chaining)."""
         h = self.head
-        return replace(self.last, encounter=h.encounter, alpha_deg=h.alpha_deg, roles=h.roles,
-                       collision_point=h.collision_point, margin=h.margin, head=h.t)
+        return replace(
+            self.last,
+            encounter=h.encounter,
+            alpha_deg=h.alpha_deg,
+            roles=h.roles,
+            collision_point=h.collision_point,
+            margin=h.margin,
+            head=h.t,
+        )
 
 
 @dataclass(frozen=True, slots=True)
@@ -57,7 +64,9 @@ class CaseBook:
     assessed: set[tuple[str, str]] = field(default_factory=set)  # pairs with a case computed this frame
     pending: dict[tuple[str, str], CollisionCase] = field(default_factory=dict)  # flagged once, not yet opened
 
-    def update(self, notifications: list[PositionNotification], t: float) -> tuple[list[CollisionCase], list[CollisionCase]]:
+    def update(
+        self, notifications: list[PositionNotification], t: float
+    ) -> tuple[list[CollisionCase], list[CollisionCase]]:
         """Compute every pair's case at frame time ``t`` [s], chain them; returns the cases
         opened and closed in this frame (:attr:`assessed` holds the pairs computed)."""
         opened, closed = [], []
@@ -65,7 +74,7 @@ class CaseBook:
         last_pending, self.pending = self.pending, {}
         notes = sorted(notifications, key=lambda n: n.id)
         for i, a in enumerate(notes):
-            for b in notes[i + 1:]:
+            for b in notes[i + 1 :]:
                 case = compute_collision_case(a, b, t, self.cfg)
                 if case is None:
                     continue
@@ -112,8 +121,15 @@ class CaseBook:
         groups: dict[str, list[CollisionCase]] = {}
         for c in cases:
             groups.setdefault(find(c.ids[0]), []).append(c)
-        return [Roundabout(frozenset(u for c in g for u in c.ids), np.mean([c.collision_point for c in g], axis=0),
-                           max(c.margin for c in g)) for _, g in sorted(groups.items()) if len(g) >= 2]
+        return [
+            Roundabout(
+                frozenset(u for c in g for u in c.ids),
+                np.mean([c.collision_point for c in g], axis=0),
+                max(c.margin for c in g),
+            )
+            for _, g in sorted(groups.items())
+            if len(g) >= 2
+        ]
 
 
 def as_roundabout(case: CollisionCase, rb: Roundabout) -> CollisionCase:

@@ -89,8 +89,9 @@ def classify(alpha_deg: float, speed1: float, speed2: float, speed_tolerance: fl
 
 def collision_margin(m1: Margins, m2: Margins) -> float:
     """(6.186): the largest sum of both UAS' margins over the situations [m]."""
-    return max(m1.universal + m2.universal, m1.head_on + m2.head_on, m1.converging + m2.converging,
-               m1.overtake + m2.overtake)
+    return max(
+        m1.universal + m2.universal, m1.head_on + m2.head_on, m1.converging + m2.converging, m1.overtake + m2.overtake
+    )
 
 
 def case_margin(encounter: Encounter, m1: Margins, m2: Margins, roles: tuple[Role, Role]) -> float:
@@ -112,7 +113,9 @@ def traffic_on_right(p_own, cp, p_other) -> bool:
     return bool(a[0] * b[1] - a[1] * b[0] < 0.0)
 
 
-def roles(encounter: Encounter, n1: PositionNotification, n2: PositionNotification, cp: np.ndarray) -> tuple[Role, Role]:
+def roles(
+    encounter: Encounter, n1: PositionNotification, n2: PositionNotification, cp: np.ndarray
+) -> tuple[Role, Role]:
     """Roles of UAS 1 and 2 (§7.4 step 6). A different category or maneuverability gives the
     higher-priority UAS the right of way in every encounter but head-on; otherwise converging:
     the UAS with traffic on its right gives way; overtake: the faster one overtakes."""
@@ -159,14 +162,26 @@ class CollisionCase:
 
     def record(self) -> dict:
         """JSON-ready values (GCF ENU point)."""
-        return {"t": self.t, "ids": list(self.ids), "encounter": self.encounter.value, "alpha_deg": self.alpha_deg,
-                "roles": [r.value for r in self.roles], "collision_point_enu": self.collision_point.tolist(),
-                "distance_m": self.distance, "t_cpa_s": self.t_cpa, "margin_m": self.margin, "flagged": self.flagged,
-                "trajectory": self.trajectory, "head_t": self.head, "separation_m": self.separation}
+        return {
+            "t": self.t,
+            "ids": list(self.ids),
+            "encounter": self.encounter.value,
+            "alpha_deg": self.alpha_deg,
+            "roles": [r.value for r in self.roles],
+            "collision_point_enu": self.collision_point.tolist(),
+            "distance_m": self.distance,
+            "t_cpa_s": self.t_cpa,
+            "margin_m": self.margin,
+            "flagged": self.flagged,
+            "trajectory": self.trajectory,
+            "head_t": self.head,
+            "separation_m": self.separation,
+        }
 
 
-def compute_collision_case(n1: PositionNotification, n2: PositionNotification, t: float,
-                           cfg: UtmConfig = UtmConfig()) -> CollisionCase | None:
+def compute_collision_case(
+    n1: PositionNotification, n2: PositionNotification, t: float, cfg: UtmConfig = UtmConfig()
+) -> CollisionCase | None:
     """The case of the pair at frame time ``t`` [s], or None when they cannot meet (different
     flight levels) or one of them hovers (below ``min_speed``). ``flagged`` is set when the closest approach (trajectory intersection when
     both predictions are known, else linear) lies in [0, time_margin] and within the collision
@@ -189,6 +204,18 @@ def compute_collision_case(n1: PositionNotification, n2: PositionNotification, t
     alpha = angle_of_approach(a1.pos, a2.pos, cp)
     enc = classify(alpha, a1.speed, a2.speed, cfg.speed_tolerance)
     rl = roles(enc, a1, a2, cp)
-    return CollisionCase(t, (n1.id, n2.id), enc, alpha, rl, cp, dist, t_cpa, case_margin(enc, m1, m2, rl), flagged,
-                         linear=not trajectory, trajectory=trajectory,
-                         separation=float(np.linalg.norm(a1.pos - a2.pos)))
+    return CollisionCase(
+        t,
+        (n1.id, n2.id),
+        enc,
+        alpha,
+        rl,
+        cp,
+        dist,
+        t_cpa,
+        case_margin(enc, m1, m2, rl),
+        flagged,
+        linear=not trajectory,
+        trajectory=trajectory,
+        separation=float(np.linalg.norm(a1.pos - a2.pos)),
+    )

@@ -55,7 +55,7 @@ class Margins:
     converging: float = 8.0
     overtake: float = 5.0
 
-    def scaled(self, unit: float) -> "Margins":
+    def scaled(self, unit: float) -> Margins:
         """These margins with the thesis' metre scaled to ``unit`` [m]."""
         return Margins(self.universal * unit, self.head_on * unit, self.converging * unit, self.overtake * unit)
 
@@ -116,12 +116,12 @@ class PositionNotification:
     def levels(self) -> tuple[int, frozenset[int]]:
         return flight_levels(float(self.pos[2]), float(self.vel[2]))
 
-    def shares_level(self, other: "PositionNotification") -> bool:
+    def shares_level(self, other: PositionNotification) -> bool:
         """Overlapping flight levels (main or passing) of the two UAS (§7.4 step 3)."""
         (m1, p1), (m2, p2) = self.levels, other.levels
         return bool(({m1} | p1) & ({m2} | p2))
 
-    def adjusted(self, t: float) -> "PositionNotification":
+    def adjusted(self, t: float) -> PositionNotification:
         """Position moved to time ``t`` (6.182/6.183 corrected): along the movement prediction
         when known, else linearly ``p + v Δt``."""
         if self.trajectory is not None and self.trajectory_t is not None and len(self.trajectory_t) > 1:
@@ -133,5 +133,6 @@ class PositionNotification:
 
 def from_track(track: IntruderTrack, registration: Registration) -> PositionNotification:
     """A peer's notification: its received track (NED) in GCF plus its filed registration."""
-    return PositionNotification(track.t, registration, ned_to_enu(track.pos_ned), ned_to_enu(track.vel_ned),
-                                track.cooperative)
+    return PositionNotification(
+        track.t, registration, ned_to_enu(track.pos_ned), ned_to_enu(track.vel_ned), track.cooperative
+    )

@@ -33,9 +33,15 @@ class SearchResult(Generic[N]):
     partial: list[N] = field(default_factory=list)
 
 
-def astar(start: N, expand: Callable[[N], Iterable[tuple[N, float, float]]], is_goal: Callable[[N], bool],
-          key: Callable[[N], Hashable], max_expansions: int, h_start: float = 0.0,
-          partial_ok: Callable[[N], bool] | None = None) -> SearchResult[N]:
+def astar(
+    start: N,
+    expand: Callable[[N], Iterable[tuple[N, float, float]]],
+    is_goal: Callable[[N], bool],
+    key: Callable[[N], Hashable],
+    max_expansions: int,
+    h_start: float = 0.0,
+    partial_ok: Callable[[N], bool] | None = None,
+) -> SearchResult[N]:
     tie = itertools.count()
     k0 = key(start)
     nodes: dict[Hashable, N] = {k0: start}
@@ -69,8 +75,13 @@ def astar(start: N, expand: Callable[[N], Iterable[tuple[N, float, float]]], is_
         closed.add(k)
         expanded += 1
         children = list(expand(node))
-        if (k != k0 and children and partial_ok is not None and (progress is None or best_h[k] < progress[0])
-                and partial_ok(node)):
+        if (
+            k != k0
+            and children
+            and partial_ok is not None
+            and (progress is None or best_h[k] < progress[0])
+            and partial_ok(node)
+        ):
             progress = (best_h[k], k)  # not the start, not a dead end
         for child, cost, h in children:
             kc = key(child)

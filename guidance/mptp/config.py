@@ -106,12 +106,22 @@ class MptpConfig:
     def thesis(cls, **changes) -> MptpConfig:
         """The thesis's chapter-6 aircraft: 80 m/s, bank <= 25 deg, dt 100 s, |dchi| 45 deg,
         margins 10 km at issue growing to 35 km after one hour, eps 0.022 deg (~2.4 km)."""
-        base = cls(tas_mps=80.0, bank_max=math.radians(25.0), course_change_max=math.radians(45.0),
-                   dt_s=100.0, horizon_s=3600.0, replan_period_s=300.0, max_expansions=120,
-                   probability=0.9, sigma_front_mps=25_000.0 / (math.sqrt(-2 * math.log(0.1)) * 3600.0),
-                   sigma_back_mps=12_500.0 / (math.sqrt(-2 * math.log(0.1)) * 3600.0),
-                   prob_margin_max_m=25_000.0, safety_single_m=(10_000.0,) * 3, safety_line_m=(10_000.0,) * 3,
-                   simplify_tol_m=0.022 * math.pi / 180 * 6_371_000.0)
+        base = cls(
+            tas_mps=80.0,
+            bank_max=math.radians(25.0),
+            course_change_max=math.radians(45.0),
+            dt_s=100.0,
+            horizon_s=3600.0,
+            replan_period_s=300.0,
+            max_expansions=120,
+            probability=0.9,
+            sigma_front_mps=25_000.0 / (math.sqrt(-2 * math.log(0.1)) * 3600.0),
+            sigma_back_mps=12_500.0 / (math.sqrt(-2 * math.log(0.1)) * 3600.0),
+            prob_margin_max_m=25_000.0,
+            safety_single_m=(10_000.0,) * 3,
+            safety_line_m=(10_000.0,) * 3,
+            simplify_tol_m=0.022 * math.pi / 180 * 6_371_000.0,
+        )
         return replace(base, **changes)
 
 
@@ -133,7 +143,12 @@ def _track(rows) -> tuple[tuple[float, float, float], ...]:
         arr = np.asarray(rows, float)
     except (TypeError, ValueError):
         arr = np.empty((0, 0))
-    if arr.ndim != 2 or arr.shape[1] != 3 or not len(arr) or not np.isfinite(arr).all() \
-            or np.any(np.diff(arr[:, 0]) <= 0):
+    if (
+        arr.ndim != 2
+        or arr.shape[1] != 3
+        or not len(arr)
+        or not np.isfinite(arr).all()
+        or np.any(np.diff(arr[:, 0]) <= 0)
+    ):
         raise ValueError("goal_track: expected rows [t, north, east] [s, m, m] with increasing t")
     return tuple(map(tuple, arr.tolist()))

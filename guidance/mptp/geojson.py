@@ -29,20 +29,40 @@ def _to_wgs84(geom: BaseGeometry, origin: GeoPoint) -> BaseGeometry:
     return shapely.transform(geom, lambda xy: _lonlat(xy, origin))
 
 
-def plan_geojson(plan: Plan, origin: GeoPoint, margins: BaseGeometry | None = None,
-                 storms: StormSnapshot | None = None) -> str:
+def plan_geojson(
+    plan: Plan, origin: GeoPoint, margins: BaseGeometry | None = None, storms: StormSnapshot | None = None
+) -> str:
     """FeatureCollection (a JSON string) with the plan as a LineString, the margin region valid
     at the plan time and the storm cells of ``storms``."""
-    feats = [{"type": "Feature",
-              "geometry": {"type": "LineString", "coordinates": _lonlat(plan.positions, origin).tolist()},
-              "properties": {"kind": "plan", "t": plan.t, "status": plan.status.value, "planner": plan.planner,
-                             "times": [float(x) for x in plan.times]}}]
+    feats = [
+        {
+            "type": "Feature",
+            "geometry": {"type": "LineString", "coordinates": _lonlat(plan.positions, origin).tolist()},
+            "properties": {
+                "kind": "plan",
+                "t": plan.t,
+                "status": plan.status.value,
+                "planner": plan.planner,
+                "times": [float(x) for x in plan.times],
+            },
+        }
+    ]
     if margins is not None and not margins.is_empty:
         for part in shapely.get_parts(margins):
-            feats.append({"type": "Feature", "geometry": mapping(_to_wgs84(part, origin)),
-                          "properties": {"kind": "margin", "t": plan.t}})
+            feats.append(
+                {
+                    "type": "Feature",
+                    "geometry": mapping(_to_wgs84(part, origin)),
+                    "properties": {"kind": "margin", "t": plan.t},
+                }
+            )
     if storms is not None:
         for cell in storms.cells:
-            feats.append({"type": "Feature", "geometry": mapping(_to_wgs84(cell, origin)),
-                          "properties": {"kind": "storm", "t": storms.t}})
+            feats.append(
+                {
+                    "type": "Feature",
+                    "geometry": mapping(_to_wgs84(cell, origin)),
+                    "properties": {"kind": "storm", "t": storms.t},
+                }
+            )
     return json.dumps({"type": "FeatureCollection", "features": feats})

@@ -45,7 +45,9 @@ class GoalTrack:
         hi = np.concatenate([self.times, [np.inf]])
         tau = np.concatenate([self.times[:1], self.times])
         anchor = np.vstack([self.points[:1], self.points])
-        vel = np.vstack([np.zeros((1, 2)), np.diff(self.points, axis=0) / np.diff(self.times)[:, None], np.zeros((1, 2))])
+        vel = np.vstack(
+            [np.zeros((1, 2)), np.diff(self.points, axis=0) / np.diff(self.times)[:, None], np.zeros((1, 2))]
+        )
         best = np.full(len(p), np.inf)
         for k in range(len(lo)):
             q = anchor[k] + vel[k] * (t[:, None] - tau[k]) - p  # g(t + u) - p = q + v u

@@ -32,8 +32,7 @@ HAPS_TAS_MPS = 26.0
 _LENGTHS = ("prob_margin_max_m", "cluster_eps_m", "simplify_tol_m")
 _TIMES = ("dt_s", "horizon_s", "replan_period_s")
 _SPEEDS = ("sigma_front_mps", "sigma_back_mps")
-_SAME = ("course_change_max", "heuristic", "turning", "max_expansions", "probability", "line_aspect",
-         "ring_segments")
+_SAME = ("course_change_max", "heuristic", "turning", "max_expansions", "probability", "line_aspect", "ring_segments")
 NOWCAST_STEP_S = 300.0  # the thesis's Rad-TRAM step and issue period [s]
 
 
@@ -74,11 +73,20 @@ def scenario_data(sc: Scenario, space_scale: float, seed: int = 1) -> dict:
     if sc.goal.moving:
         options["goal_track"] = np.column_stack([sc.goal.times * tau, sc.goal.points * s]).tolist()
     weather = {
-        "seed": f.seed, "pop_up": f.births_after_t0, "cells": f.n_cells, "size": f.size_m[0] * s,
-        "drift_north": f.mean_velocity[0] * v, "drift_east": f.mean_velocity[1] * v,
-        "drift_spread": f.speed_spread * v, "radius": f.mean_radius_m * s, "split_probability": f.split_prob,
-        "life": f.life_s * tau, "nowcast_period": NOWCAST_STEP_S * tau, "step": NOWCAST_STEP_S * tau,
-        "horizon": cfg.horizon_s * tau, "centres": (np.asarray(f.centres) * s).tolist(),
+        "seed": f.seed,
+        "pop_up": f.births_after_t0,
+        "cells": f.n_cells,
+        "size": f.size_m[0] * s,
+        "drift_north": f.mean_velocity[0] * v,
+        "drift_east": f.mean_velocity[1] * v,
+        "drift_spread": f.speed_spread * v,
+        "radius": f.mean_radius_m * s,
+        "split_probability": f.split_prob,
+        "life": f.life_s * tau,
+        "nowcast_period": NOWCAST_STEP_S * tau,
+        "step": NOWCAST_STEP_S * tau,
+        "horizon": cfg.horizon_s * tau,
+        "centres": (np.asarray(f.centres) * s).tolist(),
     }
     start = sc.start * s
     # legs switch at the fly-by turn's anticipation distance (the follower's acceptance radius)
@@ -87,17 +95,28 @@ def scenario_data(sc: Scenario, space_scale: float, seed: int = 1) -> dict:
     return {
         "name": f"mptp_{sc.name.replace(' ', '_')}_x{s:.3g}",
         "description": f"MPTP thesis {sc.name} ({cfg.heuristic}, {cfg.turning} turns), HAPS, space x{s:.3g}, "
-                       f"time x{tau:.3g}",
+        f"time x{tau:.3g}",
         "seed": seed,
         "duration": duration,
         "origin": {"lat": ORIGIN.lat_deg, "lon": ORIGIN.lon_deg, "altitude": 0.0},
         "weather": weather,
-        "vehicle": [{
-            "name": "haps", "aircraft": "haps",
-            "initial": {"north": float(start[0]), "east": float(start[1]), "altitude": ALTITUDE_M,
-                        "airspeed": HAPS_TAS_MPS, "heading": math.degrees(sc.course) % 360.0},
-            "mission": {"cruise_speed": HAPS_TAS_MPS, "acceptance_radius": round(accept, 1),
-                        "waypoints": [{"north": float(goal0[0]), "east": float(goal0[1]), "altitude": ALTITUDE_M}]},
-            "planner": {"type": "mptp", "rate_hz": 0.1, "options": options},
-        }],
+        "vehicle": [
+            {
+                "name": "haps",
+                "aircraft": "haps",
+                "initial": {
+                    "north": float(start[0]),
+                    "east": float(start[1]),
+                    "altitude": ALTITUDE_M,
+                    "airspeed": HAPS_TAS_MPS,
+                    "heading": math.degrees(sc.course) % 360.0,
+                },
+                "mission": {
+                    "cruise_speed": HAPS_TAS_MPS,
+                    "acceptance_radius": round(accept, 1),
+                    "waypoints": [{"north": float(goal0[0]), "east": float(goal0[1]), "altitude": ALTITUDE_M}],
+                },
+                "planner": {"type": "mptp", "rate_hz": 0.1, "options": options},
+            }
+        ],
     }

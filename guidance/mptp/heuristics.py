@@ -61,8 +61,9 @@ class GoalAvailability:
         return out
 
 
-def edh(points: np.ndarray, times: np.ndarray, goal: GoalTrack, speed: float,
-        availability: GoalAvailability | None = None) -> np.ndarray:
+def edh(
+    points: np.ndarray, times: np.ndarray, goal: GoalTrack, speed: float, availability: GoalAvailability | None = None
+) -> np.ndarray:
     """Time [s] to the goal in a straight line; with ``availability``, at least until the goal
     is first reachable after that arrival."""
     arrival = goal.intercept(points, times, speed)
@@ -79,7 +80,7 @@ class StaticPaths:
         self.fs, self.goal = fs, np.asarray(goal_pt, float)
         n = len(b.verts)
         i, j, w = reduced_graph(b)
-        gi, gv = visible_vertices(self.goal[None], b)
+        _gi, gv = visible_vertices(self.goal[None], b)
         rows = np.concatenate([i, j, np.full(len(gv), n), gv])
         cols = np.concatenate([j, i, gv, np.full(len(gv), n)])
         wg = np.linalg.norm(b.verts[gv] - self.goal, axis=1)

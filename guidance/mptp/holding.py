@@ -25,11 +25,18 @@ from guidance.mptp.visibility import first_hit
 CHECK_STEP_S = 5.0  # spacing of the conflict check along holding legs [s]
 
 
-def holding_orbit(tl: ObstacleTimeline, p0: np.ndarray, t0: float, course0: float, until: float,
-                  cfg: MptpConfig, turning: str = "right") -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+def holding_orbit(
+    tl: ObstacleTimeline,
+    p0: np.ndarray,
+    t0: float,
+    course0: float,
+    until: float,
+    cfg: MptpConfig,
+    turning: str = "right",
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Auxiliary-state orbit from (p0, t0, course0) lasting until ``until`` [s]: positions (N, 2),
     times (N,), courses (N,), or None when a leg would enter the margins (both senses tried)."""
-    n_legs = max(1, int(math.ceil((until - t0) / cfg.dt_s)))
+    n_legs = max(1, math.ceil((until - t0) / cfg.dt_s))
     senses = [turning] + [s for s in SENSES if s not in (turning, "both")]
     for sense in senses:
         pts, times, courses = [np.asarray(p0, float)], [t0], [course0]
@@ -43,7 +50,7 @@ def holding_orbit(tl: ObstacleTimeline, p0: np.ndarray, t0: float, course0: floa
 
 
 def _leg_conflicts(tl: ObstacleTimeline, pts: np.ndarray, times: np.ndarray) -> bool:
-    k = max(2, int(math.ceil((times[1] - times[0]) / CHECK_STEP_S)) + 1)
+    k = max(2, math.ceil((times[1] - times[0]) / CHECK_STEP_S) + 1)
     s = np.linspace(0.0, 1.0, k)[None, :, None]
     dense = (pts[:-1, None] * (1 - s) + pts[1:, None] * s).reshape(-1, 2)
     dt = (times[:-1, None] * (1 - s[..., 0]) + times[1:, None] * s[..., 0]).reshape(-1)

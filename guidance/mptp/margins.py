@@ -57,8 +57,13 @@ def is_line_of_storms(hulls: np.ndarray, aspect: float) -> np.ndarray:
     return out
 
 
-def margin_hulls(cells: list[Polygon] | tuple[Polygon, ...], velocities_ne: np.ndarray | None, lead_s: float,
-                 cfg: MptpConfig, extra_m: float = 0.0) -> np.ndarray:
+def margin_hulls(
+    cells: list[Polygon] | tuple[Polygon, ...],
+    velocities_ne: np.ndarray | None,
+    lead_s: float,
+    cfg: MptpConfig,
+    extra_m: float = 0.0,
+) -> np.ndarray:
     """Convex margin polygon of every cell at lead time ``lead_s`` [s] (array of Polygons)."""
     if len(cells) == 0:
         return np.empty(0, object)

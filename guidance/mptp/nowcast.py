@@ -134,6 +134,7 @@ def dump_nowcast(snapshots: list[StormSnapshot], frame: str = "local_ne", origin
     return json.loads(json.dumps(doc))
 
 
-def save_nowcast(path: str | Path, snapshots: list[StormSnapshot], frame: str = "local_ne",
-                 origin: GeoPoint | None = None) -> None:
+def save_nowcast(
+    path: str | Path, snapshots: list[StormSnapshot], frame: str = "local_ne", origin: GeoPoint | None = None
+) -> None:
     Path(path).write_text(json.dumps(dump_nowcast(snapshots, frame, origin)))

@@ -46,12 +46,14 @@ def state_on(plan: Plan, t: float) -> tuple[np.ndarray, float]:
 
 def vehicle_state(t: float, ne: np.ndarray, course: float, speed: float) -> VehicleState:
     vel = speed * np.array([np.cos(course), np.sin(course), 0.0])
-    return VehicleState(t, np.array([ne[0], ne[1], 0.0]), vel, np.array([0.0, 0.0, course]), np.zeros(3),
-                        0.0, 0.0, 0.0, tas_mps=speed)
+    return VehicleState(
+        t, np.array([ne[0], ne[1], 0.0]), vel, np.array([0.0, 0.0, course]), np.zeros(3), 0.0, 0.0, 0.0, tas_mps=speed
+    )
 
 
-def run_open_loop(sc: Scenario, reactive_goal: bool = False, iterations: int | None = None,
-                  dense_step_s: float = 10.0) -> OpenLoopRun:
+def run_open_loop(
+    sc: Scenario, reactive_goal: bool = False, iterations: int | None = None, dense_step_s: float = 10.0
+) -> OpenLoopRun:
     """Replan ``iterations`` times (default: the scenario's) or until the goal is reached."""
     cfg = sc.cfg
     g0 = sc.goal.at(0.0)

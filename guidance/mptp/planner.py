@@ -68,8 +68,15 @@ class MptpPlanner:
         m = self.mission
         if m.waypoints_done:
             last = m.waypoints[-1:]
-            return Plan(t, last.copy(), np.array([t]), np.array([len(m.waypoints) - 1]), PlanStatus.OK,
-                        planner=self.name, diagnostics={"complete": 1})
+            return Plan(
+                t,
+                last.copy(),
+                np.array([t]),
+                np.array([len(m.waypoints) - 1]),
+                PlanStatus.OK,
+                planner=self.name,
+                diagnostics={"complete": 1},
+            )
         k = m.next_index
         due = self.plan_ is None or k != self._goal_index or t - self._t_plan >= self.cfg.replan_period_s - 1e-9
         if due:
@@ -108,32 +115,50 @@ class MptpPlanner:
         # past a plan's end)
         traj = plan_trajectory(tl, p0, t, course, goal, cfg, turning=turning, min_partial_s=cfg.replan_period_s)
         self.trajectory = traj
-        diag.update(expanded=traj.expanded, trst=max(len(traj.positions) - 1, 0), runtime_s=traj.runtime_s,
-                    turning=turning, search=traj.status)
+        diag.update(
+            expanded=traj.expanded,
+            trst=max(len(traj.positions) - 1, 0),
+            runtime_s=traj.runtime_s,
+            turning=turning,
+            search=traj.status,
+        )
         if traj.start_space is not None:
             diag["vertices"] = len(traj.start_space.boundary.verts)
         if traj.status == "ok":
             holding = traj.holding_turn >= 2 * math.pi - 1e-6
             labels = np.full(len(traj.positions), -1)
             labels[-1] = k
-            diag.update(path_length_m=traj.length_m, eta_s=float(traj.times[-1] - t),
-                        holding_turns=traj.holding_turn / (2 * math.pi))
+            diag.update(
+                path_length_m=traj.length_m,
+                eta_s=float(traj.times[-1] - t),
+                holding_turns=traj.holding_turn / (2 * math.pi),
+            )
             status = PlanStatus.DEGRADED if holding else PlanStatus.OK
             return self._to_plan(t, est, traj.positions, traj.times, labels, status, diag)
         if len(traj.positions) >= 2:  # the search's best progress towards the goal
             diag.update(reason="search " + traj.status + ": partial plan", eta_s=float(traj.times[-1] - t))
-            return self._to_plan(t, est, traj.positions, traj.times, np.full(len(traj.positions), -1),
-                                 PlanStatus.DEGRADED, diag)
-        fs = traj.start_space or free_space(tl, p0, t, default_workspace(p0, goal.at(t), cfg), cfg.tas_mps,
-                                            cfg.ring_segments)
+            return self._to_plan(
+                t, est, traj.positions, traj.times, np.full(len(traj.positions), -1), PlanStatus.DEGRADED, diag
+            )
+        fs = traj.start_space or free_space(
+            tl, p0, t, default_workspace(p0, goal.at(t), cfg), cfg.tas_mps, cfg.ring_segments
+        )
         end, _ = safe_area_leg(fs, course, cfg, cfg.tas_mps * cfg.replan_period_s * 2)
         pts = np.vstack([p0, end])
         times = t + np.r_[0.0, np.linalg.norm(end - p0) / cfg.tas_mps]
         diag["reason"] = "search " + traj.status
         return self._to_plan(t, est, pts, times, np.full(2, -1), PlanStatus.NO_SOLUTION, diag)
 
-    def _to_plan(self, t: float, est: VehicleState, ne: np.ndarray, times: np.ndarray, labels: np.ndarray,
-                 status: PlanStatus, diag: dict) -> Plan:
+    def _to_plan(
+        self,
+        t: float,
+        est: VehicleState,
+        ne: np.ndarray,
+        times: np.ndarray,
+        labels: np.ndarray,
+        status: PlanStatus,
+        diag: dict,
+    ) -> Plan:
         d0 = float(est.pos_ned[2])
         d1 = float(self.mission.waypoints[self._goal_index_for(labels), 2])
         seg = np.linalg.norm(np.diff(ne, axis=0), axis=1)

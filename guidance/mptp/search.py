@@ -67,7 +67,7 @@ class Trajectory:
         or more is a holding pattern (5.4)."""
         dchi = np.angle(np.exp(1j * np.diff(self.courses)))
         run, best = 0.0, 0.0
-        for d, kind in zip(dchi, self.kinds[1:]):
+        for d, kind in zip(dchi, self.kinds[1:], strict=False):
             run = run + d if kind == AUX and run * d >= 0 else (d if kind == AUX else 0.0)
             best = max(best, abs(run))
         return best
@@ -110,8 +110,11 @@ class _Expander:
         times = s.t + leg / v
         h = self._heuristic(fs, g_pt, pts, times, kinds)
         for k in range(len(pts)):
-            yield State((float(pts[k, 0]), float(pts[k, 1])), float(times[k]), float(chi[k]), str(kinds[k])), \
-                float(leg[k] / v), float(h[k])
+            yield (
+                State((float(pts[k, 0]), float(pts[k, 1])), float(times[k]), float(chi[k]), str(kinds[k])),
+                float(leg[k] / v),
+                float(h[k]),
+            )
 
     def _heuristic(self, fs: FreeSpace, g_pt, pts, times, kinds) -> np.ndarray:
         if self.cfg.heuristic == "dijkstra" or not len(pts):
@@ -133,9 +136,17 @@ class _Expander:
         return self.static
 
 
-def plan_trajectory(tl: ObstacleTimeline, p0: np.ndarray, t0: float, course0: float, goal: GoalTrack,
-                    cfg: MptpConfig, workspace: Polygon | None = None, turning: str | None = None,
-                    min_partial_s: float = math.inf) -> Trajectory:
+def plan_trajectory(
+    tl: ObstacleTimeline,
+    p0: np.ndarray,
+    t0: float,
+    course0: float,
+    goal: GoalTrack,
+    cfg: MptpConfig,
+    workspace: Polygon | None = None,
+    turning: str | None = None,
+    min_partial_s: float = math.inf,
+) -> Trajectory:
     """Near-time-optimal, time-monotone, flyable trajectory from (p0, t0, course0) to the goal
     (or a partial one, see Trajectory, lasting at least ``min_partial_s`` [s])."""
     wall = time.perf_counter()
@@ -148,9 +159,17 @@ def plan_trajectory(tl: ObstacleTimeline, p0: np.ndarray, t0: float, course0: fl
         return round(s.p[0] / q_p), round(s.p[1] / q_p), round(s.t / q_t), round(s.course / q_c) % 360, s.kind == GOAL
 
     start = State((float(p0[0]), float(p0[1])), float(t0), float(course0), START)
-    res = astar(start, exp, lambda s: s.kind == GOAL, key, cfg.max_expansions,
-                partial_ok=lambda s: s.t >= t0 + min_partial_s)
+    res = astar(
+        start, exp, lambda s: s.kind == GOAL, key, cfg.max_expansions, partial_ok=lambda s: s.t >= t0 + min_partial_s
+    )
     path = res.path if res.status == "ok" else res.partial
-    return Trajectory(np.array([s.p for s in path]).reshape(-1, 2), np.array([s.t for s in path]),
-                      np.array([s.course for s in path]), np.array([s.kind for s in path]), res.status,
-                      res.expanded, time.perf_counter() - wall, exp.start_space)
+    return Trajectory(
+        np.array([s.p for s in path]).reshape(-1, 2),
+        np.array([s.t for s in path]),
+        np.array([s.course for s in path]),
+        np.array([s.kind for s in path]),
+        res.status,
+        res.expanded,
+        time.perf_counter() - wall,
+        exp.start_space,
+    )

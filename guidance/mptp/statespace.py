@@ -59,8 +59,9 @@ def annuli(p: np.ndarray, radii: np.ndarray, segments: int) -> np.ndarray:
     return np.concatenate([shapely.polygons(shells[:1]), shapely.polygons(shells[1:], holes=holes[:, None])])
 
 
-def obstacle_region(tl: ObstacleTimeline, p_in: np.ndarray, t_in: float, reach_m: float, speed: float,
-                    segments: int) -> BaseGeometry:
+def obstacle_region(
+    tl: ObstacleTimeline, p_in: np.ndarray, t_in: float, reach_m: float, speed: float, segments: int
+) -> BaseGeometry:
     """EX_obs(x_in) out to range ``reach_m`` [m] (beyond the last level the last envelope).
 
     At most about MAX_RINGS annuli: when more planning intervals lie within reach (small dt),
@@ -68,8 +69,8 @@ def obstacle_region(tl: ObstacleTimeline, p_in: np.ndarray, t_in: float, reach_m
     envelopes are shared between expansions) with the envelope over the whole span, a superset
     of the per-interval pieces (conservative)."""
     j0 = int(tl.interval(t_in))
-    n = int(math.ceil(reach_m / (speed * tl.dt))) + 1
-    k = max(1, int(math.ceil(n / MAX_RINGS)))
+    n = math.ceil(reach_m / (speed * tl.dt)) + 1
+    k = max(1, math.ceil(n / MAX_RINGS))
     j_last = min(tl.n_levels - 1, j0 + n)
     first = (j0 // k + 1) * k
     ends = np.arange(first, max(first, j_last) + k, k)  # outer levels of the annuli
@@ -77,16 +78,23 @@ def obstacle_region(tl: ObstacleTimeline, p_in: np.ndarray, t_in: float, reach_m
     radii = radii[np.r_[True, radii[1:] < reach_m]]
     radii = np.append(radii, max(reach_m, radii[-1]) * 1.05 + 1.0)
     rings = annuli(p_in, radii, segments)
-    starts = np.r_[j0, ends][:len(rings)]
-    env = tl.envelopes(starts, np.r_[ends, ends[-1] + k][:len(rings)])
+    starts = np.r_[j0, ends][: len(rings)]
+    env = tl.envelopes(starts, np.r_[ends, ends[-1] + k][: len(rings)])
     hit = shapely.intersects(rings, env)
     if not hit.any():
         return Polygon()
     return shapely.union_all(shapely.intersection(rings[hit], env[hit]))
 
 
-def free_space(tl: ObstacleTimeline, p_in: np.ndarray, t_in: float, workspace: Polygon, speed: float,
-               segments: int, escape_m: float = 0.0) -> FreeSpace:
+def free_space(
+    tl: ObstacleTimeline,
+    p_in: np.ndarray,
+    t_in: float,
+    workspace: Polygon,
+    speed: float,
+    segments: int,
+    escape_m: float = 0.0,
+) -> FreeSpace:
     """EX_free(x_in) = W \\ EX_obs(x_in), the part connected to p_in.
 
     With ``escape_m`` > 0, a p_in inside EX_obs is added to the free space as the thesis does

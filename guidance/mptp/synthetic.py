@@ -86,7 +86,7 @@ class StormField:
         rng = np.random.default_rng(self.seed)
         self.cells: list[Cell] = [self._random_cell(rng) for _ in range(self.n_cells)]
         if self.centres is not None:
-            self.cells = [self._placed(c, np.asarray(x, float)) for c, x in zip(self.cells, self.centres)]
+            self.cells = [self._placed(c, np.asarray(x, float)) for c, x in zip(self.cells, self.centres, strict=False)]
         children = []
         for c in self.cells:
             if c.split_at is not None:
@@ -99,15 +99,31 @@ class StormField:
         born = rng.uniform(self.t0 - 0.6 * life, late)
         r = self.mean_radius_m * rng.uniform(0.5, 1.5)
         split = born + life * rng.uniform(0.4, 0.6) if rng.uniform() < self.split_prob else None
-        return Cell(centre=rng.uniform([0, 0], self.size_m), velocity=np.array(self.mean_velocity) + rng.normal(0, self.speed_spread, 2),
-                    axes=(r, r * rng.uniform(0.5, 1.0)), heading=rng.uniform(0, math.pi),
-                    harmonics=np.stack([rng.uniform(0, 0.12, 3), rng.uniform(0, 2 * math.pi, 3)], 1),
-                    noise=rng.normal(0, 0.03, self.n_vertices), born=born, life=life, split_at=split)
+        return Cell(
+            centre=rng.uniform([0, 0], self.size_m),
+            velocity=np.array(self.mean_velocity) + rng.normal(0, self.speed_spread, 2),
+            axes=(r, r * rng.uniform(0.5, 1.0)),
+            heading=rng.uniform(0, math.pi),
+            harmonics=np.stack([rng.uniform(0, 0.12, 3), rng.uniform(0, 2 * math.pi, 3)], 1),
+            noise=rng.normal(0, 0.03, self.n_vertices),
+            born=born,
+            life=life,
+            split_at=split,
+        )
 
     def _placed(self, c: Cell, centre_at_t0: np.ndarray) -> Cell:
         """The same cell moved so that its centre is at ``centre_at_t0`` at t0."""
-        return Cell(centre_at_t0 - c.velocity * (self.t0 - c.born), c.velocity, c.axes, c.heading, c.harmonics,
-                    c.noise, c.born, c.life, c.split_at)
+        return Cell(
+            centre_at_t0 - c.velocity * (self.t0 - c.born),
+            c.velocity,
+            c.axes,
+            c.heading,
+            c.harmonics,
+            c.noise,
+            c.born,
+            c.life,
+            c.split_at,
+        )
 
     def _split(self, c: Cell, rng: np.random.Generator) -> list[Cell]:
         """Two children continuing from the split time with half the area each."""
@@ -118,11 +134,19 @@ class StormField:
         scale = c.scale(t)
         life = 1.5 * (c.life - (t - c.born))  # born mature: a third of the life has passed at t
         drift = float(np.hypot(*self.mean_velocity))
-        return [Cell(centre=centre + sgn * side * c.axes[1] * 0.5 * scale - (c.velocity + sgn * side * dv) * life / 3,
-                     velocity=c.velocity + sgn * side * dv, axes=(c.axes[0] * k * scale, c.axes[1] * k * scale),
-                     heading=c.heading, harmonics=c.harmonics, noise=rng.normal(0, 0.03, self.n_vertices),
-                     born=t - life / 3, life=life)
-                for sgn, dv in ((1.0, rng.uniform(0.2, 0.5) * drift), (-1.0, rng.uniform(0.2, 0.5) * drift))]
+        return [
+            Cell(
+                centre=centre + sgn * side * c.axes[1] * 0.5 * scale - (c.velocity + sgn * side * dv) * life / 3,
+                velocity=c.velocity + sgn * side * dv,
+                axes=(c.axes[0] * k * scale, c.axes[1] * k * scale),
+                heading=c.heading,
+                harmonics=c.harmonics,
+                noise=rng.normal(0, 0.03, self.n_vertices),
+                born=t - life / 3,
+                life=life,
+            )
+            for sgn, dv in ((1.0, rng.uniform(0.2, 0.5) * drift), (-1.0, rng.uniform(0.2, 0.5) * drift))
+        ]
 
     def cell_shapes(self, t: float) -> tuple[list[Polygon], np.ndarray]:
         """Live cells at time t (before merging) and their velocities (N, 2)."""
@@ -144,7 +168,7 @@ class StormField:
         """Snapshots at t_issue + k step: observed cells extrapolated with their velocities."""
         obs = self.truth(t_issue)
         out = []
-        for k in range(int(round(horizon_s / step_s)) + 1):
+        for k in range(round(horizon_s / step_s) + 1):
             d = k * step_s
             cells = tuple(shapely.affinity.translate(c, *(obs.velocities_ne[i] * d)) for i, c in enumerate(obs.cells))
             out.append(StormSnapshot(t_issue + d, cells, obs.velocities_ne.copy()))

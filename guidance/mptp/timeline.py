@@ -33,6 +33,7 @@ from shapely.geometry.base import BaseGeometry
 from avoidance.threats import StormSnapshot
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.margins import margin_hulls, merge, turn_cut_m
+import itertools
 
 
 def minkowski_sequences(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -85,9 +86,10 @@ class ObstacleTimeline:
         self.snapshots = snaps
         self.times = np.array([s.t for s in snaps])
         hulls = [margin_hulls(s.cells, s.velocities_ne, s.t - self.t_issue, cfg, self.extra_m) for s in snaps]
-        self._pairs = [self._interval_pairs(snaps[k], snaps[k + 1], hulls[k], hulls[k + 1])
-                       for k in range(len(snaps) - 1)] or [self._held_pairs(hulls[0])]
-        self.n_levels = int(math.ceil((max(t_end, self.times[-1]) - self.t_issue) / self.dt)) + 1
+        self._pairs = [
+            self._interval_pairs(snaps[k], snaps[k + 1], hulls[k], hulls[k + 1]) for k in range(len(snaps) - 1)
+        ] or [self._held_pairs(hulls[0])]
+        self.n_levels = math.ceil((max(t_end, self.times[-1]) - self.t_issue) / self.dt) + 1
         self.envelope_span = lru_cache(maxsize=None)(self._envelope_span)
 
     # --- construction -----------------------------------------------------------------------
@@ -96,12 +98,14 @@ class ObstacleTimeline:
         va = _velocities(a)
         moved = np.array([affinity.translate(c, *(va[i] * step)) for i, c in enumerate(a.cells)], object)
         tree = shapely.STRtree(shapely.convex_hull(np.asarray(b.cells, object)))
-        ia, jb = tree.query(shapely.convex_hull(moved), predicate="intersects") if len(moved) else (np.empty(0, int),) * 2
-        pairs = [(ha[i], hb[j]) for i, j in zip(ia, jb)]
+        ia, jb = (
+            tree.query(shapely.convex_hull(moved), predicate="intersects") if len(moved) else (np.empty(0, int),) * 2
+        )
+        pairs = [(ha[i], hb[j]) for i, j in zip(ia, jb, strict=False)]
         lost = np.setdiff1d(np.arange(len(a.cells)), ia)
         if len(lost):
             ext = margin_hulls(list(moved[lost]), va[lost], b.t - self.t_issue, self.cfg, self.extra_m)
-            pairs += list(zip(ha[lost], ext))
+            pairs += list(zip(ha[lost], ext, strict=False))
         pairs += [(hb[j], hb[j]) for j in np.setdiff1d(np.arange(len(b.cells)), jb)]
         return _PairSet(a.t, b.t, [minkowski_sequences(_ring(p), _ring(q)) for p, q in pairs])
 
@@ -129,10 +133,15 @@ class ObstacleTimeline:
         """Envelope over the k planning intervals from level j, [t_j, t_j+k] (beyond the
         nowcast's last step its shapes are held)."""
         t0, t1 = self.level_time(j), self.level_time(j + k)
-        cuts = np.unique(np.clip(np.concatenate([[t0, t1], self.times[(self.times > t0) & (self.times < t1)]]),
-                                 self.times[0], self.times[-1]))
+        cuts = np.unique(
+            np.clip(
+                np.concatenate([[t0, t1], self.times[(self.times > t0) & (self.times < t1)]]),
+                self.times[0],
+                self.times[-1],
+            )
+        )
         hulls = []
-        for a, b in zip(cuts[:-1], cuts[1:]) if len(cuts) > 1 else [(cuts[0], cuts[0])]:
+        for a, b in itertools.pairwise(cuts) if len(cuts) > 1 else [(cuts[0], cuts[0])]:
             ps = self._pairset(0.5 * (a + b))
             hulls.append(ps.swept_hulls(ps.s(a), ps.s(b)))
         return merge(np.concatenate(hulls), self.cfg)
@@ -145,8 +154,13 @@ class ObstacleTimeline:
         """Envelopes over the level spans [starts[i], ends[i]] (object array; levels past the
         end are held)."""
         last = self.n_levels - 1
-        return np.array([self.envelope_span(int(min(a, last)), int(max(1, min(b, last + 1) - min(a, last))))
-                         for a, b in zip(starts, ends)], object)
+        return np.array(
+            [
+                self.envelope_span(int(min(a, last)), int(max(1, min(b, last + 1) - min(a, last))))
+                for a, b in zip(starts, ends, strict=False)
+            ],
+            object,
+        )
 
     def contains(self, points: np.ndarray, times: np.ndarray) -> np.ndarray:
         """True where point (north, east) [m] is strictly inside the margin region at its time."""
@@ -199,7 +213,7 @@ def _extrapolate(snaps: list[StormSnapshot], t_end: float, step: float) -> list[
         return snaps
     v = _velocities(last)
     out = list(snaps)
-    n = int(math.ceil((t_end - last.t) / step))
+    n = math.ceil((t_end - last.t) / step)
     for i in range(1, n + 1):
         d = i * step
         cells = tuple(affinity.translate(c, *(v[k] * d)) for k, c in enumerate(last.cells))

@@ -44,8 +44,9 @@ def min_leg_m(dchi: np.ndarray, cfg: MptpConfig, to_goal: np.ndarray | bool = Fa
     return cfg.turn_radius_m * (np.tan(0.5 * np.abs(dchi)) + reserve)
 
 
-def admissible(p: np.ndarray, course: float, targets: np.ndarray, cfg: MptpConfig,
-               to_goal: np.ndarray | bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def admissible(
+    p: np.ndarray, course: float, targets: np.ndarray, cfg: MptpConfig, to_goal: np.ndarray | bool = False
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Which targets (N, 2) may follow a state at p with ``course``: (mask, course at arrival,
     leg length [m])."""
     leg = np.linalg.norm(targets - p, axis=1)

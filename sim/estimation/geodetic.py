@@ -35,7 +35,7 @@ class LocalGeodetic:
         self.origin = origin
         lat, lon = math.radians(origin.lat_deg), math.radians(origin.lon_deg)
         self._sl, self._cl, self._so, self._co = math.sin(lat), math.cos(lat), math.sin(lon), math.cos(lon)
-        n = _A / math.sqrt(1.0 - _E2 * self._sl ** 2)
+        n = _A / math.sqrt(1.0 - _E2 * self._sl**2)
         h = origin.alt_m
         self._x0 = (n + h) * self._cl * self._co
         self._y0 = (n + h) * self._cl * self._so
@@ -54,15 +54,21 @@ class LocalGeodetic:
         lat, lon, _ = self.ned_to_geodetic(n, e, d)
         la, lo = math.radians(lat), math.radians(lon)
         sl, cl, so, co = math.sin(la), math.cos(la), math.sin(lo), math.cos(lo)
-        ln = (-sl * co, -sl * so, cl)   # local north, east, down in ECEF
+        ln = (-sl * co, -sl * so, cl)  # local north, east, down in ECEF
         le = (-so, co, 0.0)
         ld = (-cl * co, -cl * so, -sl)
         n0, e0 = self._n0, self._e0
-        return np.array((
-            (n0[0] * ln[0] + n0[1] * ln[1] + n0[2] * ln[2], n0[0] * le[0] + n0[1] * le[1],
-             n0[0] * ld[0] + n0[1] * ld[1] + n0[2] * ld[2]),
-            (e0[0] * ln[0] + e0[1] * ln[1], e0[0] * le[0] + e0[1] * le[1], e0[0] * ld[0] + e0[1] * ld[1]),
-            (0.0, 0.0, 1.0)))
+        return np.array(
+            (
+                (
+                    n0[0] * ln[0] + n0[1] * ln[1] + n0[2] * ln[2],
+                    n0[0] * le[0] + n0[1] * le[1],
+                    n0[0] * ld[0] + n0[1] * ld[1] + n0[2] * ld[2],
+                ),
+                (e0[0] * ln[0] + e0[1] * ln[1], e0[0] * le[0] + e0[1] * le[1], e0[0] * ld[0] + e0[1] * ld[1]),
+                (0.0, 0.0, 1.0),
+            )
+        )
 
     def ned_to_geodetic(self, n: float, e: float, d: float) -> tuple[float, float, float]:
         """(lat [deg], lon [deg], alt [m]) of the local NED point (n, e, d) [m]."""
@@ -75,5 +81,5 @@ class LocalGeodetic:
         p = math.hypot(x, y)
         th = math.atan2(z * _A, p * _B)
         st, ct = math.sin(th), math.cos(th)
-        lat = math.atan2(z + _EP2 * _B * st ** 3, p - _E2 * _A * ct ** 3)
+        lat = math.atan2(z + _EP2 * _B * st**3, p - _E2 * _A * ct**3)
         return math.degrees(lat), math.degrees(math.atan2(y, x)), self.origin.alt_m - d

@@ -91,25 +91,39 @@ class InsEkfConfig(StrictConfig):
         """Filter noise taken from the sensor configs (what a well-tuned filter would assume)."""
         f: dict = {}
         if (i := sensors.imu) is not None:
-            f |= dict(accel_noise_density=i.accel_noise_density, gyro_noise_density=i.gyro_noise_density,
-                      accel_bias_rw=i.accel_bias_rw, gyro_bias_rw=i.gyro_bias_rw,
-                      init_accel_bias_std=max(i.accel_bias_init_std, 1e-3),
-                      init_gyro_bias_std=max(i.gyro_bias_init_std, 1e-4))
+            f |= {
+                "accel_noise_density": i.accel_noise_density,
+                "gyro_noise_density": i.gyro_noise_density,
+                "accel_bias_rw": i.accel_bias_rw,
+                "gyro_bias_rw": i.gyro_bias_rw,
+                "init_accel_bias_std": max(i.accel_bias_init_std, 1e-3),
+                "init_gyro_bias_std": max(i.gyro_bias_init_std, 1e-4),
+            }
         if (g := sensors.gnss) is not None:
-            f |= dict(gnss_gm_tau_s=g.gm_tau_s, gnss_gm_std_ne=g.gm_std_ne, gnss_gm_std_d=g.gm_std_d,
-                      gnss_pos_std_ne=_white(g.pos_ne), gnss_pos_std_d=_white(g.pos_d),
-                      gnss_vel_std_ne=_white(g.vel_ne), gnss_vel_std_d=_white(g.vel_d))
+            f |= {
+                "gnss_gm_tau_s": g.gm_tau_s,
+                "gnss_gm_std_ne": g.gm_std_ne,
+                "gnss_gm_std_d": g.gm_std_d,
+                "gnss_pos_std_ne": _white(g.pos_ne),
+                "gnss_pos_std_d": _white(g.pos_d),
+                "gnss_vel_std_ne": _white(g.vel_ne),
+                "gnss_vel_std_d": _white(g.vel_d),
+            }
         if (b := sensors.baro) is not None:
-            f |= dict(baro_noise_pa=_white(b.pressure))
+            f |= {"baro_noise_pa": _white(b.pressure)}
         if (mg := sensors.mag) is not None:
-            f |= dict(mag_noise_ut=1.5 * _white(mg.field), mag_intensity_ut=mg.intensity_ut,
-                      mag_inclination_rad=mg.inclination_rad, mag_declination_rad=mg.declination_rad)
+            f |= {
+                "mag_noise_ut": 1.5 * _white(mg.field),
+                "mag_intensity_ut": mg.intensity_ut,
+                "mag_inclination_rad": mg.inclination_rad,
+                "mag_declination_rad": mg.declination_rad,
+            }
         return cls.build(**(f | overrides))
 
 
 def _white(ch) -> float:
     """Per-sample white std of a channel including its quantisation noise (floor 1e-6)."""
-    return max(math.sqrt(ch.noise_std ** 2 + ch.quantum ** 2 / 12.0), 1e-6)
+    return max(math.sqrt(ch.noise_std**2 + ch.quantum**2 / 12.0), 1e-6)
 
 
 class InsEkf:
@@ -124,35 +138,78 @@ class InsEkf:
         self.origin = origin
         self._geo = LocalGeodetic(origin)
         c = cfg
-        self.nav = m.NavState(np.array(initial.pos_ned, float), np.array(initial.vel_ned, float),
-                              euler_to_quat(*initial.euler), np.zeros(3), np.zeros(3), 0.0, np.zeros(3))
+        self.nav = m.NavState(
+            np.array(initial.pos_ned, float),
+            np.array(initial.vel_ned, float),
+            euler_to_quat(*initial.euler),
+            np.zeros(3),
+            np.zeros(3),
+            0.0,
+            np.zeros(3),
+        )
         kf = self.kf = ExtendedKalmanFilter(dim_x=m.N, dim_z=1)
         kf.x = np.zeros(m.N)
-        kf.P = np.diag(np.concatenate((
-            [c.init_pos_std_m] * 3, [c.init_vel_std_mps] * 3, [c.init_tilt_std_rad] * 2, [c.init_yaw_std_rad],
-            [c.init_accel_bias_std] * 3, [c.init_gyro_bias_std] * 3, [c.init_baro_bias_std_m],
-            [c.gnss_gm_std_ne] * 2, [c.gnss_gm_std_d])) ** 2)
+        kf.P = np.diag(
+            np.concatenate(
+                (
+                    [c.init_pos_std_m] * 3,
+                    [c.init_vel_std_mps] * 3,
+                    [c.init_tilt_std_rad] * 2,
+                    [c.init_yaw_std_rad],
+                    [c.init_accel_bias_std] * 3,
+                    [c.init_gyro_bias_std] * 3,
+                    [c.init_baro_bias_std_m],
+                    [c.gnss_gm_std_ne] * 2,
+                    [c.gnss_gm_std_d],
+                )
+            )
+            ** 2
+        )
         kf.P[6:9, 6:9] = self._tilt_yaw_to_body(kf.P[6:9, 6:9], self.nav.q)
-        self._q_rates = np.concatenate(([0.0] * 3, [c.accel_noise_density ** 2] * 3, [c.gyro_noise_density ** 2] * 3,
-                                        [c.accel_bias_rw ** 2] * 3, [c.gyro_bias_rw ** 2] * 3,
-                                        [c.baro_bias_rw_m ** 2], [0.0] * 3))
+        self._q_rates = np.concatenate(
+            (
+                [0.0] * 3,
+                [c.accel_noise_density**2] * 3,
+                [c.gyro_noise_density**2] * 3,
+                [c.accel_bias_rw**2] * 3,
+                [c.gyro_bias_rw**2] * 3,
+                [c.baro_bias_rw_m**2],
+                [0.0] * 3,
+            )
+        )
         self._gm_var = np.array([c.gnss_gm_std_ne, c.gnss_gm_std_ne, c.gnss_gm_std_d]) ** 2
         self._phi = np.eye(m.N)
         self._Q = np.zeros((m.N, m.N))
         self._diag = np.diag_indices(m.N)
         self._H_gnss = np.zeros((6, m.N))
         self._H_gnss[0:3, 0:3] = self._H_gnss[0:3, 16:19] = self._H_gnss[3:6, 3:6] = np.eye(3)
-        self._R_gnss = np.diag([c.gnss_pos_std_ne, c.gnss_pos_std_ne, c.gnss_pos_std_d,
-                                c.gnss_vel_std_ne, c.gnss_vel_std_ne, c.gnss_vel_std_d]) ** 2
+        self._R_gnss = (
+            np.diag(
+                [
+                    c.gnss_pos_std_ne,
+                    c.gnss_pos_std_ne,
+                    c.gnss_pos_std_d,
+                    c.gnss_vel_std_ne,
+                    c.gnss_vel_std_ne,
+                    c.gnss_vel_std_d,
+                ]
+            )
+            ** 2
+        )
         self._H_baro = np.zeros((1, m.N))
         self._H_baro[0, 2], self._H_baro[0, 15] = -1.0, 1.0
         self._H_mag = np.zeros((3, m.N))
-        self._R_mag = np.eye(3) * c.mag_noise_ut ** 2
+        self._R_mag = np.eye(3) * c.mag_noise_ut**2
         self._R_gnss_diag = np.diag(self._R_gnss).copy()
         self._R_mag_diag = np.diag(self._R_mag).copy()
         hm = c.mag_intensity_ut * math.cos(c.mag_inclination_rad)
-        self._field_ned = np.array([hm * math.cos(c.mag_declination_rad), hm * math.sin(c.mag_declination_rad),
-                                    c.mag_intensity_ut * math.sin(c.mag_inclination_rad)])
+        self._field_ned = np.array(
+            [
+                hm * math.cos(c.mag_declination_rad),
+                hm * math.sin(c.mag_declination_rad),
+                c.mag_intensity_ut * math.sin(c.mag_inclination_rad),
+            ]
+        )
         self._numeric = c.jacobians == "numeric"
         self._gravity = np.array([0.0, 0.0, c.gravity_mps2])
         self._qd = np.empty(m.N)
@@ -281,7 +338,7 @@ class InsEkf:
         qd = np.multiply(self._q_rates, dt, out=self._qd)
         qd[16:19] = self._gm_var * (1.0 - decay * decay)
         P = phi @ self.kf.P @ phi.T
-        P.flat[::m.N + 1] += qd  # the diagonal, without fancy indexing
+        P.flat[:: m.N + 1] += qd  # the diagonal, without fancy indexing
         self.kf.P = P
         self.nav = nav
         self.t = t_end
@@ -330,7 +387,7 @@ class InsEkf:
         P = self.kf.P
         PHt = P @ H.T
         S = H @ PHt
-        S.flat[::len(y) + 1] += np.concatenate(rs)
+        S.flat[:: len(y) + 1] += np.concatenate(rs)
         K = PHt @ np.linalg.inv(S)
         P = P - K @ PHt.T
         self.kf.P = 0.5 * (P + P.T)
@@ -358,8 +415,15 @@ class InsEkf:
         sd = 3.0 * np.sqrt(np.diag(P))
         r = quat_to_dcm(self.nav.q)
         yaw_var = (r @ P[6:9, 6:9] @ r.T)[2, 2]
-        return {"pos": sd[0:3], "vel": sd[3:6], "att": sd[6:9], "heading": np.array([3.0 * math.sqrt(yaw_var)]),
-                "accel": sd[9:12], "gyro": sd[12:15], "baro": sd[15:16]}
+        return {
+            "pos": sd[0:3],
+            "vel": sd[3:6],
+            "att": sd[6:9],
+            "heading": np.array([3.0 * math.sqrt(yaw_var)]),
+            "accel": sd[9:12],
+            "gyro": sd[12:15],
+            "baro": sd[15:16],
+        }
 
     def state(self, t: float) -> VehicleState:
         """Estimate extrapolated from the filter time to ``t`` [s] (constant velocity, moving the
@@ -371,8 +435,18 @@ class InsEkf:
             tas, eas = isa.airspeeds_from_dp(self._dp, self._p_static)
         else:  # no pitot: ground speed, air density from the ISA at the estimated altitude
             tas = float(np.linalg.norm(nav.v))
-            eas = tas * math.sqrt(isa.pressure_at_altitude(float(alt)) / isa.P0
-                                  * isa.T0 / isa.temperature_at_altitude(float(alt)))
-        return VehicleState(t=t, pos_ned=pos, vel_ned=nav.v.copy(), euler=dcm_to_euler(quat_to_dcm(nav.q)),
-                            rates_body=self._rates.copy(), alt_msl_m=float(alt), lat_deg=float(lat),
-                            lon_deg=float(lon), tas_mps=tas, eas_mps=eas)
+            eas = tas * math.sqrt(
+                isa.pressure_at_altitude(float(alt)) / isa.P0 * isa.T0 / isa.temperature_at_altitude(float(alt))
+            )
+        return VehicleState(
+            t=t,
+            pos_ned=pos,
+            vel_ned=nav.v.copy(),
+            euler=dcm_to_euler(quat_to_dcm(nav.q)),
+            rates_body=self._rates.copy(),
+            alt_msl_m=float(alt),
+            lat_deg=float(lat),
+            lon_deg=float(lon),
+            tas_mps=tas,
+            eas_mps=eas,
+        )

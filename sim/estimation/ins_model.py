@@ -32,8 +32,15 @@ import numpy as np
 from sim.sensors.rotations import quat_conj, quat_exp, quat_log, quat_mul, quat_normalize, quat_to_dcm
 
 N = 19
-IDX = {"p": slice(0, 3), "v": slice(3, 6), "th": slice(6, 9), "ba": slice(9, 12), "bg": slice(12, 15),
-       "bb": slice(15, 16), "gm": slice(16, 19)}
+IDX = {
+    "p": slice(0, 3),
+    "v": slice(3, 6),
+    "th": slice(6, 9),
+    "ba": slice(9, 12),
+    "bg": slice(12, 15),
+    "bb": slice(15, 16),
+    "gm": slice(16, 19),
+}
 GRAVITY = np.array([0.0, 0.0, 9.80665])
 _I3 = np.eye(3)
 
@@ -49,29 +56,50 @@ class NavState:
     gm: np.ndarray
 
     def copy(self) -> NavState:
-        return NavState(self.p.copy(), self.v.copy(), self.q, self.ba.copy(), self.bg.copy(), self.bb,
-                        self.gm.copy())
+        return NavState(self.p.copy(), self.v.copy(), self.q, self.ba.copy(), self.bg.copy(), self.bb, self.gm.copy())
 
 
 def boxplus(s: NavState, dx: np.ndarray) -> NavState:
     """``s`` corrected by the error state ``dx`` (19,)."""
-    return NavState(s.p + dx[0:3], s.v + dx[3:6], quat_normalize(quat_mul(s.q, quat_exp(*dx[6:9]))),
-                    s.ba + dx[9:12], s.bg + dx[12:15], s.bb + float(dx[15]), s.gm + dx[16:19])
+    return NavState(
+        s.p + dx[0:3],
+        s.v + dx[3:6],
+        quat_normalize(quat_mul(s.q, quat_exp(*dx[6:9]))),
+        s.ba + dx[9:12],
+        s.bg + dx[12:15],
+        s.bb + float(dx[15]),
+        s.gm + dx[16:19],
+    )
 
 
 def boxminus(a: NavState, b: NavState) -> np.ndarray:
     """Error state ``dx`` with ``a = b [+] dx``."""
-    return np.concatenate((a.p - b.p, a.v - b.v, quat_log(quat_mul(quat_conj(b.q), a.q)), a.ba - b.ba,
-                           a.bg - b.bg, [a.bb - b.bb], a.gm - b.gm))
+    return np.concatenate(
+        (
+            a.p - b.p,
+            a.v - b.v,
+            quat_log(quat_mul(quat_conj(b.q), a.q)),
+            a.ba - b.ba,
+            a.bg - b.bg,
+            [a.bb - b.bb],
+            a.gm - b.gm,
+        )
+    )
 
 
 def skew(v) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
-def propagate(s: NavState, f: np.ndarray, w: np.ndarray, dt: float, gm_decay: float,
-              gravity: np.ndarray = GRAVITY, c_pos: np.ndarray | None = None,
-              ) -> tuple[NavState, np.ndarray, np.ndarray, np.ndarray]:
+def propagate(
+    s: NavState,
+    f: np.ndarray,
+    w: np.ndarray,
+    dt: float,
+    gm_decay: float,
+    gravity: np.ndarray = GRAVITY,
+    c_pos: np.ndarray | None = None,
+) -> tuple[NavState, np.ndarray, np.ndarray, np.ndarray]:
     """Nominal state after ``dt`` [s]; also the mid-interval R and bias-corrected f, w (for F).
     ``gravity``: NED gravity vector [m/s^2] (default: standard gravity, down). ``c_pos``: the
     local-velocity -> scenario-position-rate map ``C`` (module doc; ``None`` = identity)."""
@@ -81,16 +109,30 @@ def propagate(s: NavState, f: np.ndarray, w: np.ndarray, dt: float, gm_decay: fl
     r = quat_to_dcm(quat_mul(s.q, quat_exp(0.5 * wx, 0.5 * wy, 0.5 * wz)))
     dv = (r @ fh + gravity) * dt
     dp = (s.v + 0.5 * dv) * dt
-    nxt = NavState(s.p + (dp if c_pos is None else c_pos @ dp), s.v + dv,
-                   quat_normalize(quat_mul(s.q, quat_exp(wx, wy, wz))), s.ba, s.bg, s.bb, s.gm * gm_decay)
+    nxt = NavState(
+        s.p + (dp if c_pos is None else c_pos @ dp),
+        s.v + dv,
+        quat_normalize(quat_mul(s.q, quat_exp(wx, wy, wz))),
+        s.ba,
+        s.bg,
+        s.bb,
+        s.gm * gm_decay,
+    )
     return nxt, r, fh, wh
 
 
 _CONST_IDX = (np.array([6, 7, 8, 16, 17, 18]), np.array([12, 13, 14, 16, 17, 18]))
 
 
-def transition_analytic(out: np.ndarray, r: np.ndarray, fh: np.ndarray, wh: np.ndarray, dt: float,
-                        gm_decay: float, c_pos: np.ndarray | None = None) -> np.ndarray:
+def transition_analytic(
+    out: np.ndarray,
+    r: np.ndarray,
+    fh: np.ndarray,
+    wh: np.ndarray,
+    dt: float,
+    gm_decay: float,
+    c_pos: np.ndarray | None = None,
+) -> np.ndarray:
     """Error-state transition Phi (19x19) written into ``out`` (an identity the caller reuses:
     only the entries below change); first order in dt except the attitude block and the
     dt^2 terms of dp and dv. ``c_pos``: as in :func:`propagate` (the dp rows are ``C`` times
@@ -111,8 +153,15 @@ def transition_analytic(out: np.ndarray, r: np.ndarray, fh: np.ndarray, wh: np.n
     return out
 
 
-def transition_numeric(s: NavState, f: np.ndarray, w: np.ndarray, dt: float, gm_decay: float,
-                       eps: float = 1e-6, c_pos: np.ndarray | None = None) -> np.ndarray:
+def transition_numeric(
+    s: NavState,
+    f: np.ndarray,
+    w: np.ndarray,
+    dt: float,
+    gm_decay: float,
+    eps: float = 1e-6,
+    c_pos: np.ndarray | None = None,
+) -> np.ndarray:
     """Phi by forward differences of :func:`propagate` over each error-state axis (``C`` held
     fixed, as the filter does over a step)."""
     base = propagate(s, f, w, dt, gm_decay, c_pos=c_pos)[0]
@@ -126,6 +175,7 @@ def transition_numeric(s: NavState, f: np.ndarray, w: np.ndarray, dt: float, gm_
 
 
 # -- measurement models: h(s, ...) and analytic H ------------------------------------------------
+
 
 def h_gnss(s: NavState, lag: float, acc_ned: np.ndarray, c_pos: np.ndarray | None = None) -> np.ndarray:
     """GNSS position and velocity ``lag`` [s] before the filter time (first-order back-shift;

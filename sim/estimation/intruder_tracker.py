@@ -51,7 +51,7 @@ class IntruderTracker:
         self._coop: dict[str, bool] = {}
 
     def _q(self, dt: float) -> np.ndarray:
-        return Q_discrete_white_noise(dim=2, dt=dt, var=self.cfg.accel_std ** 2, block_size=3, order_by_dim=False)
+        return Q_discrete_white_noise(dim=2, dt=dt, var=self.cfg.accel_std**2, block_size=3, order_by_dim=False)
 
     def push(self, reports: Iterable[AdsbReport]) -> None:
         """Fuse reports (each intruder's in time order; older than its track are ignored)."""
@@ -87,7 +87,16 @@ class IntruderTracker:
             f = _transition(dt)
             x = f @ kf.x
             p = f @ kf.P @ f.T + (self._q(dt) if dt > 0 else 0.0)
-            out.append(IntruderTrack(id=iid, t=t, pos_ned=x[:3].copy(), vel_ned=x[3:].copy(),
-                                     radius_m=self.cfg.radius_m, pos_cov=p[:3, :3].copy(),
-                                     vel_cov=p[3:, 3:].copy(), cooperative=self._coop[iid]))
+            out.append(
+                IntruderTrack(
+                    id=iid,
+                    t=t,
+                    pos_ned=x[:3].copy(),
+                    vel_ned=x[3:].copy(),
+                    radius_m=self.cfg.radius_m,
+                    pos_cov=p[:3, :3].copy(),
+                    vel_cov=p[3:, 3:].copy(),
+                    cooperative=self._coop[iid],
+                )
+            )
         return out

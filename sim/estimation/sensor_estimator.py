@@ -48,8 +48,15 @@ from sim.state import VehicleState
 _EPS = 1e-9
 _LBF = 4.4482216152605  # N per lbf
 _SLUG = 14.593902937206364  # kg per slug
-_IMU_PROPS = ("forces/fbx-total-lbs", "forces/fby-total-lbs", "forces/fbz-total-lbs", "inertia/mass-slugs",
-              "velocities/p-rad_sec", "velocities/q-rad_sec", "velocities/r-rad_sec")
+_IMU_PROPS = (
+    "forces/fbx-total-lbs",
+    "forces/fby-total-lbs",
+    "forces/fbz-total-lbs",
+    "inertia/mass-slugs",
+    "velocities/p-rad_sec",
+    "velocities/q-rad_sec",
+    "velocities/r-rad_sec",
+)
 
 
 def normal_gravity(lat_deg: float, alt_m: float) -> float:
@@ -100,8 +107,10 @@ class SensorEstimatorConfig(StrictConfig):
         (the lockstep scheduler samples the plant at multiples of its step only)."""
         bad = []
         rates = {"fusion_hz": self.fusion_hz} | {
-            f"{n}.rate_hz": getattr(self.sensors, n).rate_hz for n in SensorSuiteConfig.model_fields
-            if getattr(self.sensors, n) is not None}
+            f"{n}.rate_hz": getattr(self.sensors, n).rate_hz
+            for n in SensorSuiteConfig.model_fields
+            if getattr(self.sensors, n) is not None
+        }
         for what, hz in rates.items():
             d = plant_hz / hz
             if abs(d - round(d)) > 1e-9:
@@ -118,18 +127,25 @@ class SensorEstimatorConfig(StrictConfig):
           magnetometer 20 Hz, no pitot.
         ``overrides``: fields of this config (e.g. ``fusion_hz=20``, ``sensors=...``)."""
         if kind == "fixed_wing":
-            sensors = SensorSuiteConfig(imu=ImuConfig(rate_hz=60.0), gnss=GnssConfig(rate_hz=5.0),
-                                        baro=BaroConfig(rate_hz=5.0), airspeed=AirspeedConfig(rate_hz=5.0),
-                                        mag=MagnetometerConfig(rate_hz=5.0))
-            base = dict(sensors=sensors, fusion_hz=10.0)
+            sensors = SensorSuiteConfig(
+                imu=ImuConfig(rate_hz=60.0),
+                gnss=GnssConfig(rate_hz=5.0),
+                baro=BaroConfig(rate_hz=5.0),
+                airspeed=AirspeedConfig(rate_hz=5.0),
+                mag=MagnetometerConfig(rate_hz=5.0),
+            )
+            base = {"sensors": sensors, "fusion_hz": 10.0}
         elif kind == "multirotor":
-            sensors = SensorSuiteConfig(imu=ImuConfig(rate_hz=120.0), gnss=GnssConfig(rate_hz=5.0),
-                                        baro=BaroConfig(rate_hz=20.0), airspeed=None,
-                                        mag=MagnetometerConfig(rate_hz=20.0))
-            base = dict(sensors=sensors, fusion_hz=60.0)
+            sensors = SensorSuiteConfig(
+                imu=ImuConfig(rate_hz=120.0),
+                gnss=GnssConfig(rate_hz=5.0),
+                baro=BaroConfig(rate_hz=20.0),
+                airspeed=None,
+                mag=MagnetometerConfig(rate_hz=20.0),
+            )
+            base = {"sensors": sensors, "fusion_hz": 60.0}
         else:
-            raise SensorConfigError(f"SensorEstimatorConfig: unknown airframe kind {kind!r} "
-                                    "(fixed_wing, multirotor)")
+            raise SensorConfigError(f"SensorEstimatorConfig: unknown airframe kind {kind!r} (fixed_wing, multirotor)")
         return cls.build(**(base | overrides))
 
 
@@ -148,8 +164,14 @@ class SensorEstimator:
 
     name = "sensor_ekf"
 
-    def __init__(self, plant: JSBSimPlant, config: SensorEstimatorConfig, rng: np.random.Generator,
-                 origin: GeoPoint, initial: VehicleState):
+    def __init__(
+        self,
+        plant: JSBSimPlant,
+        config: SensorEstimatorConfig,
+        rng: np.random.Generator,
+        origin: GeoPoint,
+        initial: VehicleState,
+    ):
         self.cfg = config
         self.plant = plant
         r_suite, r_init = rng.spawn(2)
@@ -166,7 +188,10 @@ class SensorEstimator:
             init.pos_ned = initial.pos_ned + r_init.normal(0.0, ecfg.init_pos_std_m, 3)
             init.vel_ned = initial.vel_ned + r_init.normal(0.0, ecfg.init_vel_std_mps, 3)
             init.euler = initial.euler + r_init.normal(0.0, 1.0, 3) * [
-                ecfg.init_tilt_std_rad, ecfg.init_tilt_std_rad, ecfg.init_yaw_std_rad]
+                ecfg.init_tilt_std_rad,
+                ecfg.init_tilt_std_rad,
+                ecfg.init_yaw_std_rad,
+            ]
         self.ekf = InsEkf(ecfg, init, origin)
         pm = plant.fdm.get_property_manager()
         self._imu_nodes = [pm.get_node(p, False) for p in _IMU_PROPS]
@@ -273,8 +298,10 @@ class SensorEstimator:
         out: dict[str, list[dict]] = {}
         for name, items in self._log.items():
             if name == "imu":
-                out[name] = [{"t": t, "dt": dt, "accel_body": _floats(mn[:3]), "gyro_body": _floats(mn[3:])}
-                             for t, dt, mn in items]
+                out[name] = [
+                    {"t": t, "dt": dt, "accel_body": _floats(mn[:3]), "gyro_body": _floats(mn[3:])}
+                    for t, dt, mn in items
+                ]
             else:
                 out[name] = [_record(z) for z in items]
         self._log = {}
@@ -288,8 +315,7 @@ class SensorEstimator:
         """Estimated biases: ``accel`` [m/s^2] and ``gyro`` [rad/s] body, ``baro`` height [m],
         ``gnss_gm`` GNSS position error NED [m]."""
         nav = self.ekf.nav
-        return {"accel": _floats(nav.ba), "gyro": _floats(nav.bg), "baro": [float(nav.bb)],
-                "gnss_gm": _floats(nav.gm)}
+        return {"accel": _floats(nav.ba), "gyro": _floats(nav.bg), "baro": [float(nav.bb)], "gnss_gm": _floats(nav.gm)}
 
 
 class _Instant:

@@ -6,13 +6,13 @@ from sim.mavlink.modes import MODES
 from sim.mavlink.pacing import WallClockPacer
 
 __all__ = [
-           "MODES",
-           "Arm",
-           "Command",
-           "LinkConfig",
-           "MissionUpload",
-           "PositionTarget",
-           "SetMode",
-           "VehicleLink",
-           "WallClockPacer",
+    "MODES",
+    "Arm",
+    "Command",
+    "LinkConfig",
+    "MissionUpload",
+    "PositionTarget",
+    "SetMode",
+    "VehicleLink",
+    "WallClockPacer",
 ]

@@ -41,10 +41,21 @@ EventFn = Callable[[str, str], None]  # (text, level in "debug" | "info" | "warn
 
 _MAX_DATAGRAMS_PER_POLL = 256
 _FORCE_ARM_MAGIC = 21196
-_MISSION_MESSAGES = {"MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_REQUEST_LIST",
-                     "MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_CLEAR_ALL", "MISSION_ACK"}
-_ACCEL_BITS = (mav.POSITION_TARGET_TYPEMASK_AX_IGNORE | mav.POSITION_TARGET_TYPEMASK_AY_IGNORE
-               | mav.POSITION_TARGET_TYPEMASK_AZ_IGNORE)
+_MISSION_MESSAGES = {
+    "MISSION_COUNT",
+    "MISSION_ITEM_INT",
+    "MISSION_ITEM",
+    "MISSION_REQUEST_LIST",
+    "MISSION_REQUEST_INT",
+    "MISSION_REQUEST",
+    "MISSION_CLEAR_ALL",
+    "MISSION_ACK",
+}
+_ACCEL_BITS = (
+    mav.POSITION_TARGET_TYPEMASK_AX_IGNORE
+    | mav.POSITION_TARGET_TYPEMASK_AY_IGNORE
+    | mav.POSITION_TARGET_TYPEMASK_AZ_IGNORE
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -78,12 +89,12 @@ class LinkConfig:
             raise ValueError("telemetry and heartbeat rates must be > 0 Hz")
 
     @classmethod
-    def for_vehicle(cls, index: int, vehicle_type: str, *, gcs_host: str = "127.0.0.1",
-                    base_port: int = 14550, **kw) -> LinkConfig:
+    def for_vehicle(
+        cls, index: int, vehicle_type: str, *, gcs_host: str = "127.0.0.1", base_port: int = 14550, **kw
+    ) -> LinkConfig:
         """The default of vehicle number ``index`` (0-based) of a run: system id ``index + 1``,
         GCS port ``base_port + index``."""
-        return cls(system_id=index + 1, vehicle_type=vehicle_type, gcs_host=gcs_host,
-                   gcs_port=base_port + index, **kw)
+        return cls(system_id=index + 1, vehicle_type=vehicle_type, gcs_host=gcs_host, gcs_port=base_port + index, **kw)
 
 
 class _Every:
@@ -116,8 +127,9 @@ def _finite_int(x: float) -> int | None:
 class VehicleLink:
     """The MAVLink endpoint of one vehicle (see the module docstring)."""
 
-    def __init__(self, config: LinkConfig, on_event: EventFn | None = None,
-                 clock: Callable[[], float] = time.monotonic):
+    def __init__(
+        self, config: LinkConfig, on_event: EventFn | None = None, clock: Callable[[], float] = time.monotonic
+    ):
         self.config = config
         self.sysid = config.system_id
         self._on_event = on_event
@@ -135,14 +147,17 @@ class VehicleLink:
         self.packets_rx = 0
         self.packets_tx = 0
         self.gcs_peers: set[tuple[int, int]] = set()
-        self.mission = MissionServer(self._m, self._anomaly, self._event,
-                                     config.mission_timeout_s, config.mission_retries)
+        self.mission = MissionServer(
+            self._m, self._anomaly, self._event, config.mission_timeout_s, config.mission_retries
+        )
         self._heartbeat = _Every(1.0 / config.heartbeat_hz)
         self._telemetry = _Every(1.0 / config.rate_hz)
         self._origin: GeoPoint | None = None
-        self._params = [("SYSID_THISMAV", float(self.sysid)),
-                        ("MAV_TYPE", float(tlm.MAV_TYPES[config.vehicle_type])),
-                        ("TLM_RATE_HZ", float(config.rate_hz))]
+        self._params = [
+            ("SYSID_THISMAV", float(self.sysid)),
+            ("MAV_TYPE", float(tlm.MAV_TYPES[config.vehicle_type])),
+            ("TLM_RATE_HZ", float(config.rate_hz)),
+        ]
         self.closed = False
 
     # -- life cycle -----------------------------------------------------------------------------
@@ -168,8 +183,16 @@ class VehicleLink:
         A completed upload replaces it too."""
         self.mission.mission = [tuple(float(x) for x in wp) for wp in waypoints]
 
-    def publish(self, t: float, state: VehicleState, mission_current: int, armed: bool, mode: str,
-                intruders: Sequence[IntruderTrack], origin: GeoPoint) -> None:
+    def publish(
+        self,
+        t: float,
+        state: VehicleState,
+        mission_current: int,
+        armed: bool,
+        mode: str,
+        intruders: Sequence[IntruderTrack],
+        origin: GeoPoint,
+    ) -> None:
         """Send what is due at sim time ``t`` [s]: HEARTBEAT at ``heartbeat_hz``; SYS_STATUS,
         ATTITUDE, GLOBAL_POSITION_INT, VFR_HUD, MISSION_CURRENT (``mission_current`` = index of
         the waypoint being flown to) and one ADSB_VEHICLE per intruder at ``rate_hz``;
@@ -276,8 +299,9 @@ class VehicleLink:
         peer = (msg.get_srcSystem(), msg.get_srcComponent())
         if peer not in self.gcs_peers:
             self.gcs_peers.add(peer)
-            self._event(f"peer system {peer[0]} component {peer[1]} (MAV_TYPE {msg.type}) "
-                        f"seen at {addr[0]}:{addr[1]}", "info")
+            self._event(
+                f"peer system {peer[0]} component {peer[1]} (MAV_TYPE {msg.type}) seen at {addr[0]}:{addr[1]}", "info"
+            )
 
     def _on_command(self, msg, reply: Reply) -> Command | None:
         cmd = msg.command
@@ -308,9 +332,14 @@ class VehicleLink:
     def _on_set_mode(self, msg, reply: Reply) -> Command | None:
         """SET_MODE (deprecated message) is acknowledged like ArduPilot does: COMMAND_ACK with
         ``command`` = the SET_MODE message id (11)."""
+
         def ack(result: int) -> None:
-            reply(self._m.command_ack_encode(mav.MAVLINK_MSG_ID_SET_MODE, result, 0, 0,
-                                             msg.get_srcSystem(), msg.get_srcComponent()))
+            reply(
+                self._m.command_ack_encode(
+                    mav.MAVLINK_MSG_ID_SET_MODE, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()
+                )
+            )
+
         return self._set_mode(msg.base_mode, msg.custom_mode, ack)
 
     def _set_mode(self, base: int | None, custom: int | None, ack: Callable[[int], None]) -> Command | None:
@@ -324,8 +353,10 @@ class VehicleLink:
 
     def _on_position_target(self, msg) -> Command | None:
         if msg.coordinate_frame != mav.MAV_FRAME_LOCAL_NED:
-            self._anomaly("unsupported_frame", f"SET_POSITION_TARGET_LOCAL_NED in frame {msg.coordinate_frame} "
-                                               "(only MAV_FRAME_LOCAL_NED)")
+            self._anomaly(
+                "unsupported_frame",
+                f"SET_POSITION_TARGET_LOCAL_NED in frame {msg.coordinate_frame} (only MAV_FRAME_LOCAL_NED)",
+            )
             return None
         mask = msg.type_mask
         if ~mask & _ACCEL_BITS:
@@ -335,7 +366,7 @@ class VehicleLink:
             ignored = [(mask >> (shift + i)) & 1 for i in range(3)]
             if all(ignored):
                 return None
-            return np.array([math.nan if ig else v for ig, v in zip(ignored, values)])
+            return np.array([math.nan if ig else v for ig, v in zip(ignored, values, strict=False)])
 
         pos = vector(0, (msg.x, msg.y, msg.z))
         vel = vector(3, (msg.vx, msg.vy, msg.vz))
@@ -349,8 +380,7 @@ class VehicleLink:
     # -- parameters (a small read-only set, so that GCSs finish connecting) ---------------------
     def _param_value(self, index: int) -> mav.MAVLink_message:
         name, value = self._params[index]
-        return self._m.param_value_encode(name.encode(), value, mav.MAV_PARAM_TYPE_REAL32,
-                                          len(self._params), index)
+        return self._m.param_value_encode(name.encode(), value, mav.MAV_PARAM_TYPE_REAL32, len(self._params), index)
 
     def _param_index(self, param_id: str) -> int | None:
         return next((i for i, (n, _) in enumerate(self._params) if n == param_id), None)
@@ -379,4 +409,3 @@ class VehicleLink:
         n = self.stats[kind] = self.stats[kind] + 1
         if str(n).rstrip("0") == "1":  # 1, 10, 100, ...
             self._event(f"{kind} (#{n}): {detail}", level)
-

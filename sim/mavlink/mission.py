@@ -36,8 +36,14 @@ Event = Callable[[str, str], None]  # (text, level)
 
 _MSL_FRAMES = {mav.MAV_FRAME_GLOBAL, mav.MAV_FRAME_GLOBAL_INT}
 _RELATIVE_FRAMES = {mav.MAV_FRAME_GLOBAL_RELATIVE_ALT, mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT}
-_POSITIONAL_NAV = {mav.MAV_CMD_NAV_LOITER_UNLIM, mav.MAV_CMD_NAV_LOITER_TURNS, mav.MAV_CMD_NAV_LOITER_TIME,
-                   mav.MAV_CMD_NAV_LAND, mav.MAV_CMD_NAV_TAKEOFF, mav.MAV_CMD_NAV_LOITER_TO_ALT}
+_POSITIONAL_NAV = {
+    mav.MAV_CMD_NAV_LOITER_UNLIM,
+    mav.MAV_CMD_NAV_LOITER_TURNS,
+    mav.MAV_CMD_NAV_LOITER_TIME,
+    mav.MAV_CMD_NAV_LAND,
+    mav.MAV_CMD_NAV_TAKEOFF,
+    mav.MAV_CMD_NAV_LOITER_TO_ALT,
+}
 _MISSION = mav.MAV_MISSION_TYPE_MISSION
 
 
@@ -62,8 +68,7 @@ class MissionServer:
     """Mission protocol state of one vehicle. ``home_alt_m`` (MSL [m]) must be set before items
     with relative altitude can be accepted; ``mission`` is what a download returns."""
 
-    def __init__(self, encoder: mav.MAVLink, anomaly: Anomaly, event: Event,
-                 timeout_s: float = 1.5, retries: int = 5):
+    def __init__(self, encoder: mav.MAVLink, anomaly: Anomaly, event: Event, timeout_s: float = 1.5, retries: int = 5):
         self._m = encoder
         self._anomaly = anomaly
         self._event = event
@@ -89,8 +94,11 @@ class MissionServer:
         elif kind in ("MISSION_ITEM_INT", "MISSION_ITEM"):
             return self._on_item(msg, src, now)
         elif kind == "MISSION_REQUEST_LIST":
-            reply(self._m.mission_count_encode(*src, len(self.mission) if msg.mission_type == _MISSION else 0,
-                                               msg.mission_type))
+            reply(
+                self._m.mission_count_encode(
+                    *src, len(self.mission) if msg.mission_type == _MISSION else 0, msg.mission_type
+                )
+            )
         elif kind in ("MISSION_REQUEST_INT", "MISSION_REQUEST"):
             self._on_request(msg, src, reply, kind == "MISSION_REQUEST_INT")
         elif kind == "MISSION_CLEAR_ALL":
@@ -112,8 +120,10 @@ class MissionServer:
             self._anomaly("mission_retry", f"no reply for mission item {up.next_seq}, requesting again")
             self._request(up, now)
             return
-        self._anomaly("mission_timeout", f"mission upload cancelled: item {up.next_seq} of {up.count} "
-                                         f"never arrived after {self.retries} retries")
+        self._anomaly(
+            "mission_timeout",
+            f"mission upload cancelled: item {up.next_seq} of {up.count} never arrived after {self.retries} retries",
+        )
         self._finish(mav.MAV_MISSION_OPERATION_CANCELLED)
 
     # -- upload -----------------------------------------------------------------------------
@@ -206,17 +216,47 @@ class MissionServer:
     # -- download ---------------------------------------------------------------------------
     def _on_request(self, msg, src, reply: Reply, as_int: bool) -> None:
         if msg.mission_type != _MISSION or not 0 <= msg.seq < len(self.mission):
-            self._anomaly("mission_bad_request", f"mission item {msg.seq} requested, "
-                                                 f"have {len(self.mission)}")
+            self._anomaly("mission_bad_request", f"mission item {msg.seq} requested, have {len(self.mission)}")
             reply(self._m.mission_ack_encode(*src, mav.MAV_MISSION_INVALID_SEQUENCE, msg.mission_type))
             return
         lat, lon, alt = self.mission[msg.seq]
         current = int(msg.seq == self.current_seq)
         cmd = mav.MAV_CMD_NAV_WAYPOINT
         if as_int:
-            reply(self._m.mission_item_int_encode(*src, msg.seq, mav.MAV_FRAME_GLOBAL_INT, cmd, current, 1,
-                                                  0.0, 0.0, 0.0, math.nan, round(lat * 1e7), round(lon * 1e7),
-                                                  alt, _MISSION))
+            reply(
+                self._m.mission_item_int_encode(
+                    *src,
+                    msg.seq,
+                    mav.MAV_FRAME_GLOBAL_INT,
+                    cmd,
+                    current,
+                    1,
+                    0.0,
+                    0.0,
+                    0.0,
+                    math.nan,
+                    round(lat * 1e7),
+                    round(lon * 1e7),
+                    alt,
+                    _MISSION,
+                )
+            )
         else:
-            reply(self._m.mission_item_encode(*src, msg.seq, mav.MAV_FRAME_GLOBAL, cmd, current, 1,
-                                              0.0, 0.0, 0.0, math.nan, lat, lon, alt, _MISSION))
+            reply(
+                self._m.mission_item_encode(
+                    *src,
+                    msg.seq,
+                    mav.MAV_FRAME_GLOBAL,
+                    cmd,
+                    current,
+                    1,
+                    0.0,
+                    0.0,
+                    0.0,
+                    math.nan,
+                    lat,
+                    lon,
+                    alt,
+                    _MISSION,
+                )
+            )

@@ -22,12 +22,15 @@ class Mode:
 
 
 _STAB = mav.MAV_MODE_FLAG_STABILIZE_ENABLED
-MODES: dict[str, Mode] = {m.name: m for m in (
-    Mode("MANUAL", 0, mav.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED | _STAB),
-    Mode("HOLD", 1, mav.MAV_MODE_FLAG_GUIDED_ENABLED | _STAB),
-    Mode("AUTO", 2, mav.MAV_MODE_FLAG_AUTO_ENABLED | mav.MAV_MODE_FLAG_GUIDED_ENABLED | _STAB),
-    Mode("GUIDED", 3, mav.MAV_MODE_FLAG_GUIDED_ENABLED | _STAB),
-)}
+MODES: dict[str, Mode] = {
+    m.name: m
+    for m in (
+        Mode("MANUAL", 0, mav.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED | _STAB),
+        Mode("HOLD", 1, mav.MAV_MODE_FLAG_GUIDED_ENABLED | _STAB),
+        Mode("AUTO", 2, mav.MAV_MODE_FLAG_AUTO_ENABLED | mav.MAV_MODE_FLAG_GUIDED_ENABLED | _STAB),
+        Mode("GUIDED", 3, mav.MAV_MODE_FLAG_GUIDED_ENABLED | _STAB),
+    )
+}
 _BY_NUMBER = {m.custom_mode: m for m in MODES.values()}
 
 

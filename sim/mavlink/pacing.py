@@ -18,8 +18,13 @@ class WallClockPacer:
     anchor moves, so a slow stretch is not followed by a burst. A jump back in sim time
     re-anchors too (e.g. a replay restarted)."""
 
-    def __init__(self, speed: float = 1.0, max_lag_s: float = 0.25,
-                 clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep):
+    def __init__(
+        self,
+        speed: float = 1.0,
+        max_lag_s: float = 0.25,
+        clock: Callable[[], float] = time.monotonic,
+        sleep: Callable[[float], None] = time.sleep,
+    ):
         if not speed > 0.0:
             raise ValueError(f"pacing speed must be > 0, got {speed}")
         self.speed = float(speed)

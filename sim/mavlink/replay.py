@@ -57,8 +57,10 @@ def _attached_scenario(path: Path, event: EventFn) -> Scenario | None:
     try:
         sc = read_attached_scenario(path)
     except Exception as exc:  # noqa: BLE001 - damaged attachment, bad TOML, stale schema: all optional
-        event(f"replay: attached scenario unusable ({type(exc).__name__}: {exc}); "
-              "origin taken from the first state", "warning")
+        event(
+            f"replay: attached scenario unusable ({type(exc).__name__}: {exc}); origin taken from the first state",
+            "warning",
+        )
         return None
     if sc is None:
         event("replay: the log has no scenario.toml attachment; origin taken from the first state", "warning")
@@ -72,13 +74,20 @@ def _mission(sc: Scenario, name: str, origin: GeoPoint) -> list[Waypoint]:
         return []
     ned = np.array([[w.north, w.east, origin.alt_m - w.altitude] for w in v.mission.waypoints])
     lat, lon, alt = ned_to_geodetic(ned, origin)
-    return [(float(a), float(b), float(c)) for a, b, c in zip(lat, lon, alt)]
+    return [(float(a), float(b), float(c)) for a, b, c in zip(lat, lon, alt, strict=False)]
 
 
-def replay_to_gcs(path: str | Path, *, speed: float | None = 1.0, gcs_host: str = "127.0.0.1",
-                  base_port: int = 14550, rate_hz: float = 4.0, vehicles: Sequence[str] | None = None,
-                  on_event: EventFn | None = None,
-                  should_stop: Callable[[], bool] | None = None) -> ReplayResult:
+def replay_to_gcs(
+    path: str | Path,
+    *,
+    speed: float | None = 1.0,
+    gcs_host: str = "127.0.0.1",
+    base_port: int = 14550,
+    rate_hz: float = 4.0,
+    vehicles: Sequence[str] | None = None,
+    on_event: EventFn | None = None,
+    should_stop: Callable[[], bool] | None = None,
+) -> ReplayResult:
     """Stream the log at ``path`` to the GCS: ``speed`` times wall time (``None``: as fast as
     possible), telemetry at ``rate_hz`` of sim time. ``vehicles`` limits the replay to those
     names (system ids and ports still follow the rank among all vehicles of the log).
@@ -95,18 +104,19 @@ def replay_to_gcs(path: str | Path, *, speed: float | None = 1.0, gcs_host: str 
     sc = _attached_scenario(path, event)
     origin = sc.origin_point if sc is not None else None
     kinds = {v.name: get_airframe(v.aircraft).kind for v in sc.vehicle} if sc is not None else {}
-    result = ReplayResult(states={n: 0 for n in names})
+    result = ReplayResult(states=dict.fromkeys(names, 0))
     links: dict[str, VehicleLink] = {}
     pacer = WallClockPacer(speed) if speed else None
     wall0 = time.monotonic()
     try:
         for n in names:
-            cfg = LinkConfig.for_vehicle(all_names.index(n), kinds.get(n, "fixed_wing"), gcs_host=gcs_host,
-                                         base_port=base_port, rate_hz=rate_hz)
+            cfg = LinkConfig.for_vehicle(
+                all_names.index(n), kinds.get(n, "fixed_wing"), gcs_host=gcs_host, base_port=base_port, rate_hz=rate_hz
+            )
             links[n] = VehicleLink(cfg, on_event)
             if sc is not None:
                 links[n].set_mission(_mission(sc, n, origin))
-        current = {n: 0 for n in names}
+        current = dict.fromkeys(names, 0)
         topics = [f"/{n}/{s}" for n in names for s in ("truth/state", "mission/status")]
         for topic, t, msg in iter_messages(path, topics):
             name = topic.split("/")[1]
@@ -140,8 +150,10 @@ def replay_to_gcs(path: str | Path, *, speed: float | None = 1.0, gcs_host: str 
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m sim.mavlink.replay",
-                                 description="Stream a recorded run to a MAVLink GCS (QGroundControl, MAVProxy).")
+    ap = argparse.ArgumentParser(
+        prog="python -m sim.mavlink.replay",
+        description="Stream a recorded run to a MAVLink GCS (QGroundControl, MAVProxy).",
+    )
     ap.add_argument("log", type=Path, help="run log (.mcap)")
     ap.add_argument("--speed", type=float, default=1.0, help="times wall clock; 0 = as fast as possible")
     ap.add_argument("--host", default="127.0.0.1", help="GCS host (default 127.0.0.1)")
@@ -155,8 +167,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"[{level}] {text}", file=sys.stderr)
 
     try:
-        res = replay_to_gcs(args.log, speed=args.speed or None, gcs_host=args.host, base_port=args.port,
-                            rate_hz=args.rate, vehicles=args.vehicle, on_event=show)
+        res = replay_to_gcs(
+            args.log,
+            speed=args.speed or None,
+            gcs_host=args.host,
+            base_port=args.port,
+            rate_hz=args.rate,
+            vehicles=args.vehicle,
+            on_event=show,
+        )
     except (LogReadError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -165,8 +184,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     for name, n in res.states.items():
         print(f"{name}: {n} states, anomalies {dict(res.stats[name]) or 'none'}")
-    print(f"sim {res.sim_start_s:.1f}..{res.sim_end_s:.1f} s streamed in {res.wall_s:.1f} s wall"
-          + ("" if res.complete else " (stopped early)"))
+    print(
+        f"sim {res.sim_start_s:.1f}..{res.sim_end_s:.1f} s streamed in {res.wall_s:.1f} s wall"
+        + ("" if res.complete else " (stopped early)")
+    )
     return 0
 
 

@@ -25,8 +25,9 @@ class MavlinkSession:
         self.links: list[VehicleLink] = []
         try:
             for k, v in enumerate(vehicles):
-                conf = LinkConfig.for_vehicle(k, v.airframe.kind, gcs_host=cfg.gcs_host, base_port=cfg.base_port,
-                                              rate_hz=cfg.rate_hz)
+                conf = LinkConfig.for_vehicle(
+                    k, v.airframe.kind, gcs_host=cfg.gcs_host, base_port=cfg.base_port, rate_hz=cfg.rate_hz
+                )
                 link = VehicleLink(conf, on_event=self._event_fn(v.name))
                 self.links.append(link)
                 self.publish_mission(k)
@@ -35,19 +36,20 @@ class MavlinkSession:
             raise
 
     def _event_fn(self, name: str):
-        return lambda text, level: self.log.event(self._t, f"{name}: mavlink: {text}", level=level,
-                                                  name=f"mavlink/{name}")
+        return lambda text, level: self.log.event(
+            self._t, f"{name}: mavlink: {text}", level=level, name=f"mavlink/{name}"
+        )
 
     def publish_mission(self, k: int) -> None:
         """Tell link ``k`` the vehicle's current mission (what a GCS download returns)."""
         lat, lon, alt = ned_to_geodetic(self.vehicles[k].mission.waypoints, self.origin)
-        self.links[k].set_mission(list(zip(lat.tolist(), lon.tolist(), alt.tolist())))
+        self.links[k].set_mission(list(zip(lat.tolist(), lon.tolist(), alt.tolist(), strict=False)))
 
     def tick(self, t: float) -> None:
         self._t = t
         if self.pacer is not None:
             self.pacer.pace(t)
-        for k, (v, link) in enumerate(zip(self.vehicles, self.links)):
+        for k, (v, link) in enumerate(zip(self.vehicles, self.links, strict=False)):
             link.publish(t, v.estimate, v.mission.next_index, v.armed, v.mode, v.threats.intruders, self.origin)
             for cmd in link.poll():
                 if v.apply_command(cmd, t):

@@ -32,21 +32,28 @@ class MetricsWorld:
     weather: object | None = None  # sim.weather.WeatherService: the true storm field
 
     @classmethod
-    def from_scenario(cls, scenario) -> "MetricsWorld":
+    def from_scenario(cls, scenario) -> MetricsWorld:
         from sim.environment import geofence, obstacle_prism
-
         from sim.traffic import TrafficObject
         from sim.weather import WeatherService
         from sim.world import seed_streams, weather_seed
 
         alt0 = scenario.origin.altitude
         m = scenario.metrics
-        weather = (WeatherService(scenario.weather, weather_seed(seed_streams(scenario.seed)[2]))
-                   if scenario.weather is not None else None)
-        return cls(tuple(obstacle_prism(o, alt0) for o in scenario.obstacle),
-                   tuple(geofence(g, alt0) for g in scenario.geofence),
-                   tuple(TrafficObject(o, scenario.origin_point) for o in scenario.object),
-                   m.well_clear_horizontal, m.well_clear_vertical, weather)
+        weather = (
+            WeatherService(scenario.weather, weather_seed(seed_streams(scenario.seed)[2]))
+            if scenario.weather is not None
+            else None
+        )
+        return cls(
+            tuple(obstacle_prism(o, alt0) for o in scenario.obstacle),
+            tuple(geofence(g, alt0) for g in scenario.geofence),
+            tuple(TrafficObject(o, scenario.origin_point) for o in scenario.object),
+            m.well_clear_horizontal,
+            m.well_clear_vertical,
+            weather,
+        )
+
 
 # straight flight counts from this long after the last leg capture / carrot stop [s]
 SETTLE_S = {"fixed_wing": 60.0, "multirotor": 2.0}
@@ -64,8 +71,12 @@ def straight_flight_mask(t: np.ndarray, turning: np.ndarray, settle_s: float) ->
 def _stats(x: np.ndarray) -> dict[str, float]:
     if x.size == 0:
         return {"count": 0}
-    return {"count": int(x.size), "mean": float(np.mean(x)), "rms": float(np.sqrt(np.mean(x * x))),
-            "max_abs": float(np.max(np.abs(x)))}
+    return {
+        "count": int(x.size),
+        "mean": float(np.mean(x)),
+        "rms": float(np.sqrt(np.mean(x * x))),
+        "max_abs": float(np.max(np.abs(x))),
+    }
 
 
 def tracking_metrics(tr: VehicleTrace) -> dict:
@@ -98,16 +109,24 @@ def latency_metrics(tr: VehicleTrace) -> dict:
     x = tr.plan_latency_s
     if x.size == 0:
         return {"count": 0}
-    return {"count": int(x.size), "median_ms": float(np.median(x) * 1e3),
-            "p95_ms": float(np.percentile(x, 95) * 1e3), "max_ms": float(np.max(x) * 1e3)}
+    return {
+        "count": int(x.size),
+        "median_ms": float(np.median(x) * 1e3),
+        "p95_ms": float(np.percentile(x, 95) * 1e3),
+        "max_ms": float(np.max(x) * 1e3),
+    }
 
 
 def common_times(a: VehicleTrace, b: VehicleTrace) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Log times [s] two vehicles share and their indices in each. Matched to the microsecond:
     a state's time is its plant's accumulated step, so a 120 Hz and a 240 Hz plant log the same
     tick as e.g. 0.1 and 0.09999999999999999."""
-    _, ia, ib = np.intersect1d(np.round(a.t * 1e6).astype(np.int64), np.round(b.t * 1e6).astype(np.int64),
-                               assume_unique=True, return_indices=True)
+    _, ia, ib = np.intersect1d(
+        np.round(a.t * 1e6).astype(np.int64),
+        np.round(b.t * 1e6).astype(np.int64),
+        assume_unique=True,
+        return_indices=True,
+    )
     return a.t[ia], ia, ib
 
 
@@ -139,8 +158,9 @@ def _min_at(t: np.ndarray, d: np.ndarray) -> dict:
 def obstacle_metrics(tr: VehicleTrace, world: MetricsWorld) -> dict:
     """Closest approach to every obstacle, and the smallest margin inside every keep-in geofence
     (negative: outside) or to every keep-out one, with times."""
-    out = {f"obstacle.{o.id}": _min_at(tr.t, _clearance(tr, o.footprint, o.up_min_m, o.up_max_m))
-           for o in world.obstacles}
+    out = {
+        f"obstacle.{o.id}": _min_at(tr.t, _clearance(tr, o.footprint, o.up_min_m, o.up_max_m)) for o in world.obstacles
+    }
     for g in world.geofences:
         if g.keep_in:
             pts = shapely.points(tr.pos_ned[:, :2])
@@ -151,8 +171,11 @@ def obstacle_metrics(tr: VehicleTrace, world: MetricsWorld) -> dict:
         else:
             margin = _clearance(tr, g.area, g.up_min_m, g.up_max_m)
         m = _min_at(tr.t, margin)
-        out[f"geofence.{g.id}"] = {"margin_m": m["distance_m"], "t": m["t"],
-                                   "violated": bool(m["distance_m"] is not None and m["distance_m"] < 0)}
+        out[f"geofence.{g.id}"] = {
+            "margin_m": m["distance_m"],
+            "t": m["t"],
+            "violated": bool(m["distance_m"] is not None and m["distance_m"] < 0),
+        }
     return out
 
 
@@ -187,8 +210,11 @@ def storm_metrics(tr: VehicleTrace, world: MetricsWorld) -> dict:
             dist[j] = float(np.min(shapely.distance(shapely.points(tr.pos_ned[i, :2]), np.array(cells, dtype=object))))
     k = int(np.argmin(dist))
     spacing = float(np.mean(np.diff(tr.t[idx]))) if len(idx) > 1 else step  # per check [s]
-    return {"min_distance_m": float(dist[k]) if np.isfinite(dist[k]) else None, "t": float(tr.t[idx[k]]),
-            "time_inside_s": float(np.sum(dist == 0.0) * spacing)}
+    return {
+        "min_distance_m": float(dist[k]) if np.isfinite(dist[k]) else None,
+        "t": float(tr.t[idx[k]]),
+        "time_inside_s": float(np.sum(dist == 0.0) * spacing),
+    }
 
 
 def well_clear_losses(a: VehicleTrace, b: VehicleTrace, world: MetricsWorld) -> list[dict]:
@@ -199,14 +225,15 @@ def well_clear_losses(a: VehicleTrace, b: VehicleTrace, world: MetricsWorld) -> 
     inside = (np.hypot(d[:, 0], d[:, 1]) < world.well_clear_h_m) & (np.abs(d[:, 2]) < world.well_clear_v_m)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], inside.astype(int), [0]])))
     dist = np.linalg.norm(d, axis=1)
-    return [{"start": float(common[s]), "end": float(common[e - 1]), "min_distance_m": float(dist[s:e].min())}
-            for s, e in zip(edges[::2], edges[1::2])]
+    return [
+        {"start": float(common[s]), "end": float(common[e - 1]), "min_distance_m": float(dist[s:e].min())}
+        for s, e in zip(edges[::2], edges[1::2], strict=False)
+    ]
 
 
 def control_effort(tr: VehicleTrace) -> dict[str, float]:
     """RMS of each commanded JSBSim property over the run (JSBSim units)."""
-    return {k: float(np.sqrt(np.nanmean(v * v))) for k, v in sorted(tr.commands.items())
-            if np.isfinite(v).any()}
+    return {k: float(np.sqrt(np.nanmean(v * v))) for k, v in sorted(tr.commands.items()) if np.isfinite(v).any()}
 
 
 def estimation_metrics(tr: VehicleTrace) -> dict:
@@ -216,8 +243,10 @@ def estimation_metrics(tr: VehicleTrace) -> dict:
     if tr.est_pos_ned is None or len(tr.est_pos_ned) != len(tr.t) or not len(tr.t):
         return {}
     ep, ev = tr.est_pos_ned - tr.pos_ned, tr.est_vel_ned - _truth_velocity(tr)
-    out = {"pos_rms_m": np.sqrt(np.mean(ep * ep, axis=0)).tolist(),
-           "vel_rms_mps": np.sqrt(np.mean(ev * ev, axis=0)).tolist()}
+    out = {
+        "pos_rms_m": np.sqrt(np.mean(ep * ep, axis=0)).tolist(),
+        "vel_rms_mps": np.sqrt(np.mean(ev * ev, axis=0)).tolist(),
+    }
     if tr.sigma3_pos is not None and len(tr.sigma3_pos) == len(tr.t):
         sp, sv = tr.sigma3_pos, tr.sigma3_vel
         out["pos_within_3sigma"] = np.mean(np.abs(ep) <= sp, axis=0).tolist()
@@ -236,15 +265,21 @@ def run_metrics(traces: list[VehicleTrace], world: MetricsWorld = MetricsWorld()
     out: dict = {"vehicles": {}, "separation": {}}
     for tr in traces:
         out["vehicles"][tr.name] = {
-            "mission": mission_metrics(tr), "tracking": tracking_metrics(tr),
-            "planner_latency": latency_metrics(tr), "clearance": obstacle_metrics(tr, world) | object_metrics(tr, world),
-            "control_effort": control_effort(tr), "estimation": estimation_metrics(tr),
+            "mission": mission_metrics(tr),
+            "tracking": tracking_metrics(tr),
+            "planner_latency": latency_metrics(tr),
+            "clearance": obstacle_metrics(tr, world) | object_metrics(tr, world),
+            "control_effort": control_effort(tr),
+            "estimation": estimation_metrics(tr),
             "storms": storm_metrics(tr, world),
         }
     for a, b in itertools.combinations(traces, 2):
         losses = well_clear_losses(a, b, world)
-        out["separation"][f"{a.name}-{b.name}"] = {**min_separation(a, b), "well_clear_losses": len(losses),
-                                                   "well_clear_loss_events": losses}
+        out["separation"][f"{a.name}-{b.name}"] = {
+            **min_separation(a, b),
+            "well_clear_losses": len(losses),
+            "well_clear_loss_events": losses,
+        }
     return out
 
 

@@ -12,13 +12,13 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from sim.mcap_read import read_attached_scenario  # noqa: E402
-from sim.replay.metrics import MetricsWorld, common_times, flatten, run_metrics  # noqa: E402
-from sim.replay.runlog import RunLog  # noqa: E402
-from sim.replay.trace import VehicleTrace  # noqa: E402
+from sim.mcap_read import read_attached_scenario
+from sim.replay.metrics import MetricsWorld, common_times, flatten, run_metrics
+from sim.replay.runlog import RunLog
+from sim.replay.trace import VehicleTrace
 
 
 def load_traces(log: RunLog) -> list[VehicleTrace]:
@@ -118,11 +118,16 @@ def write_report(log_path: str | Path, out_dir: str | Path) -> tuple[Path, dict]
     run = log.metadata.get("run", {})
     res = log.metadata.get("result", {})
     lines = [
-        f"# Run report: {run.get('scenario', log.path.stem)}", "",
-        f"- log: `{log.path}`", f"- seed: {run.get('seed', '?')}; result: **{res.get('status', '?')}**; "
-        f"sim time {log.info.end_s:.1f} s",
-        f"- versions: cosim {run.get('cosim_version', '?')}, jsbsim {run.get('jsbsim_version', '?')}", "",
-        "## Metrics", "", "| metric | value |", "|---|---|",
+        f"# Run report: {run.get('scenario', log.path.stem)}",
+        "",
+        f"- log: `{log.path}`",
+        f"- seed: {run.get('seed', '?')}; result: **{res.get('status', '?')}**; sim time {log.info.end_s:.1f} s",
+        f"- versions: cosim {run.get('cosim_version', '?')}, jsbsim {run.get('jsbsim_version', '?')}",
+        "",
+        "## Metrics",
+        "",
+        "| metric | value |",
+        "|---|---|",
     ]
     for k, v in flatten(metrics).items():
         lines.append(f"| {k} | {_fmt(v)} |")

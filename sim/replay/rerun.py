@@ -41,11 +41,25 @@ class RerunReport:
 def _threats(d: dict) -> Threats:
     a = np.asarray
     return Threats(
-        intruders=[IntruderTrack(i["id"], i["t"], a(i["pos_ned"]), a(i["vel_ned"]), i["radius_m"], a(i["pos_cov"]),
-                                 a(i["vel_cov"]), i["cooperative"]) for i in d["intruders"]],
-        spheres=[SphereThreat(s["id"], s["t"], a(s["center_ned"]), s["radius_m"], a(s["vel_ned"]), a(s["center_cov"]))
-                 for s in d["spheres"]],
-        storms=[StormSnapshot(s["t"], tuple(Polygon(c) for c in s["cells"])) for s in d["storms"]])
+        intruders=[
+            IntruderTrack(
+                i["id"],
+                i["t"],
+                a(i["pos_ned"]),
+                a(i["vel_ned"]),
+                i["radius_m"],
+                a(i["pos_cov"]),
+                a(i["vel_cov"]),
+                i["cooperative"],
+            )
+            for i in d["intruders"]
+        ],
+        spheres=[
+            SphereThreat(s["id"], s["t"], a(s["center_ned"]), s["radius_m"], a(s["vel_ned"]), a(s["center_cov"]))
+            for s in d["spheres"]
+        ],
+        storms=[StormSnapshot(s["t"], tuple(Polygon(c) for c in s["cells"])) for s in d["storms"]],
+    )
 
 
 def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> RerunReport:
@@ -67,10 +81,13 @@ def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> 
     threats = log.topic(f"/{vehicle}/threats")
     plans = log.topic(f"/{vehicle}/plan")
     prefix = f"{vehicle}: waypoint "
-    reached = sorted((t, int(text[len(prefix):].split("/")[0]) - 1) for t, text in log.events()
-                     if text.startswith(prefix) and text.endswith(" reached"))
+    reached = sorted(
+        (t, int(text[len(prefix) :].split("/")[0]) - 1)
+        for t, text in log.events()
+        if text.startswith(prefix) and text.endswith(" reached")
+    )
     report = RerunReport(vehicle, getattr(planner, "name", type(planner).__name__))
-    for t, rec in zip(plans.t, plans.messages):
+    for t, rec in zip(plans.t, plans.messages, strict=False):
         for tr, k in reached:
             if tr < t:  # at a tick the planner runs before the control that marks a waypoint
                 mission.mark_reached(k, tr)
@@ -105,4 +122,3 @@ def _compare(report: RerunReport, t: float, rec: dict, new) -> None:
             report.differences.append(f"t={t:.2f} s: " + "; ".join(why))
     else:
         report.same += 1
-

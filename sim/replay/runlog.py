@@ -90,4 +90,4 @@ class RunLog:
         if not self.has("/log"):
             return []
         s = self.topic("/log")
-        return [(float(t), m.message) for t, m in zip(s.t, s.messages)]
+        return [(float(t), m.message) for t, m in zip(s.t, s.messages, strict=False)]

@@ -46,7 +46,7 @@ class VehicleTrace:
         return self.complete_t is not None
 
     @classmethod
-    def from_log(cls, log: RunLog, name: str) -> "VehicleTrace":
+    def from_log(cls, log: RunLog, name: str) -> VehicleTrace:
         st = log.topic(f"/{name}/truth/state")
         sp = log.topic(f"/{name}/ctrl/setpoint")
         lat_topic = f"/{name}/plan/latency"
@@ -64,12 +64,27 @@ class VehicleTrace:
         est = log.topic(f"/{name}/est/state")
         sig_topic = f"/{name}/est/sigma3"
         sig = log.topic(sig_topic) if log.has(sig_topic) else None
-        return cls(name, kind, st["t"], st["pos_ned"], st["alt_msl_m"], st["tas_mps"], st["euler"],
-                   {k: sp[k] for k in keys}, latency, total, reached, complete,
-                   {p: np.array([m["properties"].get(p, np.nan) for m in cmd.messages]) for p in props},
-                   est["pos_ned"], est["vel_ned"], None if sig is None else sig["pos"],
-                   None if sig is None else sig["vel"], st["vel_ned"],
-                   log.topic(f"/{name}/truth/tracking")["cross_track_m"])
+        return cls(
+            name,
+            kind,
+            st["t"],
+            st["pos_ned"],
+            st["alt_msl_m"],
+            st["tas_mps"],
+            st["euler"],
+            {k: sp[k] for k in keys},
+            latency,
+            total,
+            reached,
+            complete,
+            {p: np.array([m["properties"].get(p, np.nan) for m in cmd.messages]) for p in props},
+            est["pos_ned"],
+            est["vel_ned"],
+            None if sig is None else sig["pos"],
+            None if sig is None else sig["vel"],
+            st["vel_ned"],
+            log.topic(f"/{name}/truth/tracking")["cross_track_m"],
+        )
 
 
 @dataclass
@@ -116,13 +131,25 @@ class TraceRecorder:
 
     def trace(self) -> VehicleTrace:
         s = {k: np.asarray(v, dtype=float) for k, v in self._state.items()}
-        return VehicleTrace(self.name, self.kind, s["t"], s["pos_ned"], s["alt_msl_m"], s["tas_mps"], s["euler"],
-                            {k: np.asarray(v, dtype=float) for k, v in self._setpoint.items()},
-                            np.asarray(self._latency, dtype=float), self.waypoints_total,
-                            list(self._reached), self._complete_t, self._command_arrays(),
-                            *(np.asarray(self._est[k], dtype=float) for k in ("pos_ned", "vel_ned")),
-                            *((np.asarray(self._sigma[k], dtype=float) if self._sigma[k] else None)
-                              for k in ("pos", "vel")), s["vel_ned"], np.asarray(self._cross, dtype=float))
+        return VehicleTrace(
+            self.name,
+            self.kind,
+            s["t"],
+            s["pos_ned"],
+            s["alt_msl_m"],
+            s["tas_mps"],
+            s["euler"],
+            {k: np.asarray(v, dtype=float) for k, v in self._setpoint.items()},
+            np.asarray(self._latency, dtype=float),
+            self.waypoints_total,
+            list(self._reached),
+            self._complete_t,
+            self._command_arrays(),
+            *(np.asarray(self._est[k], dtype=float) for k in ("pos_ned", "vel_ned")),
+            *((np.asarray(self._sigma[k], dtype=float) if self._sigma[k] else None) for k in ("pos", "vel")),
+            s["vel_ned"],
+            np.asarray(self._cross, dtype=float),
+        )
 
     def _command_arrays(self) -> dict[str, np.ndarray]:
         props = self._commands[-1].keys() if self._commands else ()

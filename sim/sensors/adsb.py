@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 from pydantic import Field
@@ -75,14 +75,18 @@ class AdsbReceiver:
             link.last_t = t
             link.next_t += period * max(1, math.floor((t + _EPS - link.next_t) / period) + 1)
             s = intruders[iid]
-            y = np.concatenate((link.pos_ne.apply(s.pos_ned[:2], dt), link.pos_d.apply(s.pos_ned[2:], dt),
-                                link.vel.apply(s.vel_ned, dt)))
+            y = np.concatenate(
+                (
+                    link.pos_ne.apply(s.pos_ned[:2], dt),
+                    link.pos_d.apply(s.pos_ned[2:], dt),
+                    link.vel.apply(s.vel_ned, dt),
+                )
+            )
             lost = self.rng.random() < self.cfg.dropout_probability
             y = self.faults.apply(t, y)
             if y is None or lost:
                 continue
-            self._pending.append((t + self.cfg.latency_s,
-                                  AdsbReport(t, iid, y[:3], y[3:], self.cfg.cooperative)))
+            self._pending.append((t + self.cfg.latency_s, AdsbReport(t, iid, y[:3], y[3:], self.cfg.cooperative)))
         out = []
         while self._pending and self._pending[0][0] <= t + _EPS:
             out.append(self._pending.popleft()[1])

@@ -30,7 +30,7 @@ class ChannelConfig(StrictConfig):
 class Channel:
     """State of one channel's errors (``dim`` axes) drawing from ``rng``."""
 
-    __slots__ = ("cfg", "dim", "bias", "scale", "_rng")
+    __slots__ = ("_rng", "bias", "cfg", "dim", "scale")
 
     def __init__(self, cfg: ChannelConfig, dim: int, rng: np.random.Generator):
         self.cfg = cfg

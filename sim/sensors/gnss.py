@@ -54,8 +54,14 @@ class Gnss(SampledSensor[GnssFix]):
         self.gm = a * self.gm + self._gm_std * math.sqrt(1.0 - a * a) * self.rng.standard_normal(3)
         p = truth.state.pos_ned + self.gm
         v = truth.state.vel_ned
-        return np.concatenate((self._pos_ne.apply(p[:2], dt), self._pos_d.apply(p[2:], dt),
-                               self._vel_ne.apply(v[:2], dt), self._vel_d.apply(v[2:], dt)))
+        return np.concatenate(
+            (
+                self._pos_ne.apply(p[:2], dt),
+                self._pos_d.apply(p[2:], dt),
+                self._vel_ne.apply(v[:2], dt),
+                self._vel_d.apply(v[2:], dt),
+            )
+        )
 
     def _package(self, t: float, y: np.ndarray) -> GnssFix:
         return GnssFix(t, y[:3], y[3:])

@@ -39,14 +39,22 @@ class ImuConfig(SensorConfig):
     gyro_quantum: float = Field(math.radians(0.04), ge=0.0)
 
     def accel_channel(self) -> ChannelConfig:
-        return ChannelConfig(noise_std=self.accel_noise_density * math.sqrt(self.rate_hz),
-                             bias_init_std=self.accel_bias_init_std, bias_rw=self.accel_bias_rw,
-                             scale_factor_std=self.accel_scale_factor_std, quantum=self.accel_quantum)
+        return ChannelConfig(
+            noise_std=self.accel_noise_density * math.sqrt(self.rate_hz),
+            bias_init_std=self.accel_bias_init_std,
+            bias_rw=self.accel_bias_rw,
+            scale_factor_std=self.accel_scale_factor_std,
+            quantum=self.accel_quantum,
+        )
 
     def gyro_channel(self) -> ChannelConfig:
-        return ChannelConfig(noise_std=self.gyro_noise_density * math.sqrt(self.rate_hz),
-                             bias_init_std=self.gyro_bias_init_std, bias_rw=self.gyro_bias_rw,
-                             scale_factor_std=self.gyro_scale_factor_std, quantum=self.gyro_quantum)
+        return ChannelConfig(
+            noise_std=self.gyro_noise_density * math.sqrt(self.rate_hz),
+            bias_init_std=self.gyro_bias_init_std,
+            bias_rw=self.gyro_bias_rw,
+            scale_factor_std=self.gyro_scale_factor_std,
+            quantum=self.gyro_quantum,
+        )
 
 
 class Imu(SampledSensor[ImuSample]):
@@ -64,8 +72,9 @@ class Imu(SampledSensor[ImuSample]):
         self._pool_i = 0
 
     def _measure(self, truth: TruthSample, dt: float) -> np.ndarray:
-        return np.concatenate((self.accel.apply(truth.specific_force_body, dt),
-                               self.gyro.apply(truth.state.rates_body, dt)))
+        return np.concatenate(
+            (self.accel.apply(truth.specific_force_body, dt), self.gyro.apply(truth.state.rates_body, dt))
+        )
 
     def _package(self, t: float, y: np.ndarray) -> ImuSample:
         return ImuSample(t, y[:3], y[3:])
@@ -82,9 +91,14 @@ class Imu(SampledSensor[ImuSample]):
         if self._blk is None or self._blk[0] != dt:
             a, g = self.accel.cfg, self.gyro.cfg
             q = np.array([a.quantum] * 3 + [g.quantum] * 3)
-            self._blk = (dt, np.array([a.bias_rw] * 3 + [g.bias_rw] * 3) * math.sqrt(dt),
-                         np.array([a.noise_std] * 3 + [g.noise_std] * 3), np.where(q > 0.0, q, 1.0),
-                         q > 0.0, np.concatenate((self.accel.scale, self.gyro.scale)))
+            self._blk = (
+                dt,
+                np.array([a.bias_rw] * 3 + [g.bias_rw] * 3) * math.sqrt(dt),
+                np.array([a.noise_std] * 3 + [g.noise_std] * 3),
+                np.where(q > 0.0, q, 1.0),
+                q > 0.0,
+                np.concatenate((self.accel.scale, self.gyro.scale)),
+            )
             self._pool_i = len(self._walk)  # refill with this dt
         _, rw, noise, quantum, q_mask, scale = self._blk
         i = self._pool_i
@@ -99,8 +113,8 @@ class Imu(SampledSensor[ImuSample]):
         self.accel.bias = b[:3].copy()
         self.gyro.bias = b[3:].copy()
         y = true * scale
-        y += self._walk[i:i + n]
-        y += self._white[i:i + n]
+        y += self._walk[i : i + n]
+        y += self._white[i : i + n]
         if q_mask.all():
             y = np.round(y / quantum) * quantum
         elif q_mask.any():

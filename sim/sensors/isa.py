@@ -10,6 +10,7 @@ barometer conversion below returns geometric altitude (what the NED frame's D me
 from __future__ import annotations
 
 import math
+import itertools
 
 G0 = 9.80665  # standard gravity [m/s^2]
 R_AIR = 287.05287  # specific gas constant of dry air [J/(kg K)]
@@ -19,13 +20,18 @@ RHO0 = P0 / (R_AIR * T0)  # sea-level density [kg/m^3]
 R_GEOPOT = 6_356_766.0  # earth radius of the geopotential conversion [m]
 
 # (base geopotential altitude [m], base temperature [K], lapse rate [K/m])
-_LAYERS = ((0.0, 288.15, -0.0065), (11_000.0, 216.65, 0.0), (20_000.0, 216.65, 0.001),
-           (32_000.0, 228.65, 0.0028), (47_000.0, 270.65, 0.0))
+_LAYERS = (
+    (0.0, 288.15, -0.0065),
+    (11_000.0, 216.65, 0.0),
+    (20_000.0, 216.65, 0.001),
+    (32_000.0, 228.65, 0.0028),
+    (47_000.0, 270.65, 0.0),
+)
 
 
 def _base_pressures() -> tuple[float, ...]:
     out = [P0]
-    for (h0, t0, lapse), (h1, _, _) in zip(_LAYERS[:-1], _LAYERS[1:]):
+    for (h0, t0, lapse), (h1, _, _) in itertools.pairwise(_LAYERS):
         out.append(_layer_pressure(out[-1], t0, lapse, h1 - h0))
     return tuple(out)
 

@@ -22,8 +22,9 @@ a NED :class:`~avoidance.threats.LidarScan` with the *estimated* pose
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal, Sequence
+from typing import Literal
 
 import numpy as np
 import shapely
@@ -64,8 +65,8 @@ class LidarConfig(SensorConfig):
         """Unit ray directions (N, 3) in the sensor frame (x forward, y right, z down).
         A full turn (-180..180) does not repeat the closing azimuth."""
         full = self.azimuth_max_deg - self.azimuth_min_deg >= 360.0 - 1e-9
-        n_az = int(round((self.azimuth_max_deg - self.azimuth_min_deg) / self.azimuth_step_deg)) + (0 if full else 1)
-        n_el = int(round((self.elevation_max_deg - self.elevation_min_deg) / self.elevation_step_deg)) + 1
+        n_az = round((self.azimuth_max_deg - self.azimuth_min_deg) / self.azimuth_step_deg) + (0 if full else 1)
+        n_el = round((self.elevation_max_deg - self.elevation_min_deg) / self.elevation_step_deg) + 1
         az = np.radians(self.azimuth_min_deg + self.azimuth_step_deg * np.arange(n_az))
         el = np.radians(self.elevation_min_deg + self.elevation_step_deg * np.arange(n_el))
         el, az = (a.ravel() for a in np.meshgrid(el, az, indexing="ij"))
@@ -87,10 +88,14 @@ class LidarReturns:
         roll, pitch, yaw = estimate.euler
         r = euler_to_dcm(0.0, 0.0, yaw) if self.frame == "level" else euler_to_dcm(roll, pitch, yaw)
         hit = np.isfinite(self.ranges_m)
-        return LidarScan(t=self.t, origin_ned=np.array(estimate.pos_ned, float),
-                         directions_ned=self.directions_sensor @ r.T,
-                         ranges_m=np.where(hit, self.ranges_m, self.max_range_m), hit=hit,
-                         max_range_m=self.max_range_m)
+        return LidarScan(
+            t=self.t,
+            origin_ned=np.array(estimate.pos_ned, float),
+            directions_ned=self.directions_sensor @ r.T,
+            ranges_m=np.where(hit, self.ranges_m, self.max_range_m),
+            hit=hit,
+            max_range_m=self.max_range_m,
+        )
 
 
 @dataclass(frozen=True, slots=True)
@@ -111,12 +116,17 @@ def _prepare(ob: PrismObstacle) -> _Prism:
         c = shapely.get_coordinates(ring)
         starts.append(c[:-1])
         vecs.append(c[1:] - c[:-1])
-    return _Prism(geom, np.concatenate(starts), np.concatenate(vecs), shapely.get_coordinates(geom),
-                  float(ob.up_min_m), float(ob.up_max_m))
+    return _Prism(
+        geom,
+        np.concatenate(starts),
+        np.concatenate(vecs),
+        shapely.get_coordinates(geom),
+        float(ob.up_min_m),
+        float(ob.up_max_m),
+    )
 
 
-def cast_rays(origin_ned: np.ndarray, dirs_ned: np.ndarray, prisms: Sequence[_Prism],
-              max_range: float) -> np.ndarray:
+def cast_rays(origin_ned: np.ndarray, dirs_ned: np.ndarray, prisms: Sequence[_Prism], max_range: float) -> np.ndarray:
     """Exact first-hit range [m] of each unit ray (N, 3) NED from ``origin_ned``; NaN = no hit
     within ``max_range``."""
     o_n, o_e, o_up = float(origin_ned[0]), float(origin_ned[1]), -float(origin_ned[2])

@@ -31,8 +31,13 @@ class MagnetometerConfig(SensorConfig):
     def earth_field_ned(self) -> np.ndarray:
         """Earth field in NED [uT]."""
         h = self.intensity_ut * math.cos(self.inclination_rad)
-        return np.array([h * math.cos(self.declination_rad), h * math.sin(self.declination_rad),
-                         self.intensity_ut * math.sin(self.inclination_rad)])
+        return np.array(
+            [
+                h * math.cos(self.declination_rad),
+                h * math.sin(self.declination_rad),
+                self.intensity_ut * math.sin(self.inclination_rad),
+            ]
+        )
 
 
 class Magnetometer(SampledSensor[MagSample]):

@@ -29,8 +29,7 @@ class SensorSuiteConfig(StrictConfig):
     mag: MagnetometerConfig | None = MagnetometerConfig()
 
 
-_KINDS = (("imu", Imu), ("gnss", Gnss), ("baro", Barometer), ("airspeed", AirspeedSensor),
-          ("mag", Magnetometer))
+_KINDS = (("imu", Imu), ("gnss", Gnss), ("baro", Barometer), ("airspeed", AirspeedSensor), ("mag", Magnetometer))
 
 
 class SensorSuite:
@@ -39,7 +38,9 @@ class SensorSuite:
         children = rng.spawn(len(_KINDS))
         self.sensors: dict[str, SampledSensor] = {
             name: cls(getattr(cfg, name), child)
-            for (name, cls), child in zip(_KINDS, children) if getattr(cfg, name) is not None}
+            for (name, cls), child in zip(_KINDS, children, strict=False)
+            if getattr(cfg, name) is not None
+        }
 
     def inject(self, sensor: str, fault: SensorFault) -> None:
         """Schedule ``fault`` on sensor ``sensor`` (``imu``, ``gnss``, ``baro``, ...)."""

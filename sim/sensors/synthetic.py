@@ -42,7 +42,7 @@ def _profile(t: np.ndarray, segments: Sequence[Segment], attr: str) -> tuple[np.
         target = getattr(seg, attr)
         m = t >= t0
         x = np.clip((t[m] - t0) / seg.ramp_s, 0.0, 1.0)
-        s = x ** 3 * (10 - 15 * x + 6 * x * x)
+        s = x**3 * (10 - 15 * x + 6 * x * x)
         ds = 30 * x * x * (1 - x) ** 2 / seg.ramp_s
         val[m] = prev + (target - prev) * s
         der[m] = (target - prev) * ds
@@ -80,26 +80,47 @@ class SyntheticFlight:
 
     def state(self, k: int) -> VehicleState:
         return VehicleState(
-            t=float(self.t[k]), pos_ned=self.pos_ned[k], vel_ned=self.vel_ned[k], euler=self.euler[k],
-            rates_body=self.rates_body[k], alt_msl_m=self.origin.alt_m - float(self.pos_ned[k, 2]),
-            lat_deg=float(self.lat_deg[k]), lon_deg=float(self.lon_deg[k]), tas_mps=float(self.tas[k]),
-            eas_mps=float(self.tas[k] * np.sqrt(self.density[k] / isa.RHO0)))
+            t=float(self.t[k]),
+            pos_ned=self.pos_ned[k],
+            vel_ned=self.vel_ned[k],
+            euler=self.euler[k],
+            rates_body=self.rates_body[k],
+            alt_msl_m=self.origin.alt_m - float(self.pos_ned[k, 2]),
+            lat_deg=float(self.lat_deg[k]),
+            lon_deg=float(self.lon_deg[k]),
+            tas_mps=float(self.tas[k]),
+            eas_mps=float(self.tas[k] * np.sqrt(self.density[k] / isa.RHO0)),
+        )
 
     def sample(self, k: int) -> TruthSample:
-        return TruthSample(self.state(k), self.specific_force_body[k], float(self.pressure[k]),
-                           float(self.temperature[k]), float(self.density[k]), self.wind_ned)
+        return TruthSample(
+            self.state(k),
+            self.specific_force_body[k],
+            float(self.pressure[k]),
+            float(self.temperature[k]),
+            float(self.density[k]),
+            self.wind_ned,
+        )
 
     def samples(self) -> Iterator[TruthSample]:
         return (self.sample(k) for k in range(len(self.t)))
 
 
-def generate(segments: Sequence[Segment], vehicle: Literal["fixed_wing", "multirotor"], rate_hz: float,
-             origin: GeoPoint, start_ned=(0.0, 0.0, 0.0), heading_rad: float = 0.0,
-             wind_ned=(0.0, 0.0, 0.0), alpha_rad: float = 0.05, g: float = 9.80665) -> SyntheticFlight:
+def generate(
+    segments: Sequence[Segment],
+    vehicle: Literal["fixed_wing", "multirotor"],
+    rate_hz: float,
+    origin: GeoPoint,
+    start_ned=(0.0, 0.0, 0.0),
+    heading_rad: float = 0.0,
+    wind_ned=(0.0, 0.0, 0.0),
+    alpha_rad: float = 0.05,
+    g: float = 9.80665,
+) -> SyntheticFlight:
     """Sample the flight at ``rate_hz`` from t = 0 to the end of the last segment."""
     total = sum(s.duration_s for s in segments)
     h = 1.0 / rate_hz
-    t = np.arange(int(round(total * rate_hz)) + 1) * h
+    t = np.arange(round(total * rate_hz) + 1) * h
     vh, vh_dot = _profile(t, segments, "speed_mps")
     om, _ = _profile(t, segments, "turn_rate_rps")
     hd, hdd = _profile(t, segments, "climb_rate_mps")
@@ -108,7 +129,8 @@ def generate(segments: Sequence[Segment], vehicle: Literal["fixed_wing", "multir
     vel = np.stack([vh * c, vh * s, -hd], axis=1)
     acc = np.stack([vh_dot * c - vh * om * s, vh_dot * s + vh * om * c, -hdd], axis=1)
     pos = np.asarray(start_ned, float) + np.concatenate(
-        (np.zeros((1, 3)), np.cumsum(0.5 * (vel[1:] + vel[:-1]) * h, axis=0)))
+        (np.zeros((1, 3)), np.cumsum(0.5 * (vel[1:] + vel[:-1]) * h, axis=0))
+    )
     wind = np.asarray(wind_ned, float)
     f_ned = acc - np.array([0.0, 0.0, g])
     if vehicle == "fixed_wing":
@@ -124,14 +146,35 @@ def generate(segments: Sequence[Segment], vehicle: Literal["fixed_wing", "multir
     rot = np.stack([x, y, z], axis=2)  # columns: body axes in NED
     rdot = np.gradient(rot, h, axis=0)
     skew = np.einsum("kji,kjl->kil", rot, rdot)
-    rates = 0.5 * np.stack([skew[:, 2, 1] - skew[:, 1, 2], skew[:, 0, 2] - skew[:, 2, 0],
-                            skew[:, 1, 0] - skew[:, 0, 1]], axis=1)
-    euler = np.stack([np.arctan2(rot[:, 2, 1], rot[:, 2, 2]), -np.arcsin(np.clip(rot[:, 2, 0], -1, 1)),
-                      np.arctan2(rot[:, 1, 0], rot[:, 0, 0])], axis=1)
+    rates = 0.5 * np.stack(
+        [skew[:, 2, 1] - skew[:, 1, 2], skew[:, 0, 2] - skew[:, 2, 0], skew[:, 1, 0] - skew[:, 0, 1]], axis=1
+    )
+    euler = np.stack(
+        [
+            np.arctan2(rot[:, 2, 1], rot[:, 2, 2]),
+            -np.arcsin(np.clip(rot[:, 2, 0], -1, 1)),
+            np.arctan2(rot[:, 1, 0], rot[:, 0, 0]),
+        ],
+        axis=1,
+    )
     f_body = np.einsum("kji,kj->ki", rot, f_ned)
     alt = origin.alt_m - pos[:, 2]
     pressure = np.array([isa.pressure_at_altitude(a) for a in alt])
     temperature = np.array([isa.temperature_of_pressure(p) for p in pressure])
     lat, lon, _ = ned_to_geodetic(pos, origin)
-    return SyntheticFlight(t, pos, vel, euler, rates, f_body, np.linalg.norm(vel - wind, axis=1), pressure,
-                           temperature, pressure / (isa.R_AIR * temperature), lat, lon, origin, wind)
+    return SyntheticFlight(
+        t,
+        pos,
+        vel,
+        euler,
+        rates,
+        f_body,
+        np.linalg.norm(vel - wind, axis=1),
+        pressure,
+        temperature,
+        pressure / (isa.R_AIR * temperature),
+        lat,
+        lon,
+        origin,
+        wind,
+    )

@@ -43,15 +43,22 @@ class TruthSample:
     @property
     def dynamic_pressure_pa(self) -> float:
         """Incompressible dynamic pressure rho TAS^2 / 2 [Pa] (what a pitot tube measures)."""
-        return 0.5 * self.air_density_kgm3 * self.state.tas_mps ** 2
+        return 0.5 * self.air_density_kgm3 * self.state.tas_mps**2
 
 
 # JSBSim 1.3.3 properties (checked with query_property_catalog on c172p): total body forces
 # exclude the weight, so force / mass is the specific force at the CG.
 _PROPS = (
-    "forces/fbx-total-lbs", "forces/fby-total-lbs", "forces/fbz-total-lbs", "inertia/mass-slugs",
-    "atmosphere/P-psf", "atmosphere/T-R", "atmosphere/rho-slugs_ft3",
-    "atmosphere/total-wind-north-fps", "atmosphere/total-wind-east-fps", "atmosphere/total-wind-down-fps",
+    "forces/fbx-total-lbs",
+    "forces/fby-total-lbs",
+    "forces/fbz-total-lbs",
+    "inertia/mass-slugs",
+    "atmosphere/P-psf",
+    "atmosphere/T-R",
+    "atmosphere/rho-slugs_ft3",
+    "atmosphere/total-wind-north-fps",
+    "atmosphere/total-wind-east-fps",
+    "atmosphere/total-wind-down-fps",
 )
 _LBF = 4.4482216152605  # N per lbf
 _SLUG = 14.593902937206364  # kg per slug

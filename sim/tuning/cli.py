@@ -58,8 +58,18 @@ def cmd_trim(args) -> int:
     for c in ("method", "alt m", "TAS m/s", "ok", "alpha deg", "pitch deg", "elev", "throttle", "res acc", "res rot"):
         t.add_column(c)
     for r in rows:
-        t.add_row(r.method, _f(r.alt_m), _f(r.tas_mps), "yes" if r.ok else "[red]NO[/]", _f(r.alpha_deg),
-                  _f(r.pitch_deg), _f(r.elevator_norm), _f(r.throttle), _f(r.residual_acc), _f(r.residual_rot))
+        t.add_row(
+            r.method,
+            _f(r.alt_m),
+            _f(r.tas_mps),
+            "yes" if r.ok else "[red]NO[/]",
+            _f(r.alpha_deg),
+            _f(r.pitch_deg),
+            _f(r.elevator_norm),
+            _f(r.throttle),
+            _f(r.residual_acc),
+            _f(r.residual_rot),
+        )
     out.print(t)
     bad = [r for r in rows if not r.ok]
     for r in bad:
@@ -81,8 +91,9 @@ def _haps_linear(args):
 
 def cmd_linearize(args) -> int:
     if args.airframe != "haps":
-        raise ValueError("linearize: only the haps has aerodynamic modes (the quadrotor's loops: "
-                         "`tune margins quadrotor`)")
+        raise ValueError(
+            "linearize: only the haps has aerodynamic modes (the quadrotor's loops: `tune margins quadrotor`)"
+        )
     from sim.tuning.modes import all_modes
 
     pt, _, lm = _haps_linear(args)
@@ -92,15 +103,34 @@ def cmd_linearize(args) -> int:
         t.add_column(c)
     for m in modes:
         ev = m.eigenvalue
-        t.add_row(m.name, f"{ev.real:.4f}{'+' if ev.imag >= 0 else '-'}{abs(ev.imag):.4f}j", _f(m.wn_rad_s),
-                  _f(m.zeta), _f(m.period_s), _f(m.time_const_s), _f(m.time_to_double_s))
+        t.add_row(
+            m.name,
+            f"{ev.real:.4f}{'+' if ev.imag >= 0 else '-'}{abs(ev.imag):.4f}j",
+            _f(m.wn_rad_s),
+            _f(m.zeta),
+            _f(m.period_s),
+            _f(m.time_const_s),
+            _f(m.time_to_double_s),
+        )
     out.print(t)
     path = _out_dir(args) / f"linear_haps_{args.alt:.0f}m_{args.tas:.1f}mps.json"
-    path.write_text(json.dumps({
-        "trim": pt.row(), "states": list(lm.states), "state_units": list(lm.state_units),
-        "inputs": list(lm.inputs), "A": lm.A.tolist(), "B": lm.B.tolist(), "x0": lm.x0.tolist(),
-        "u0": lm.u0.tolist(), "modes": [m.row() | {"eig_re": m.eigenvalue.real} for m in modes]},
-        indent=1, default=float))
+    path.write_text(
+        json.dumps(
+            {
+                "trim": pt.row(),
+                "states": list(lm.states),
+                "state_units": list(lm.state_units),
+                "inputs": list(lm.inputs),
+                "A": lm.A.tolist(),
+                "B": lm.B.tolist(),
+                "x0": lm.x0.tolist(),
+                "u0": lm.u0.tolist(),
+                "modes": [m.row() | {"eig_re": m.eigenvalue.real} for m in modes],
+            },
+            indent=1,
+            default=float,
+        )
+    )
     out.print(f"wrote {path}")
     return EXIT_OK
 
@@ -129,21 +159,43 @@ def _loop_rows(args):
         ax = identify_rotor_axis(axis)
         r = getattr(g.rate, axis)
         kp_att = getattr(g.attitude, f"kp_{axis}")
-        l_rate, t_rate, l_att, t_att = quad_axis_loops(ax, RatePid(r.kp, r.ki, r.kd, 2 * math.pi * g.rate.d_cutoff_hz), kp_att)
-        rows += [analyse(f"{axis} rate (K {ax.K:.0f} rad/s2, tau {1000 * ax.tau_s:.0f} ms)", l_rate, t_rate),
-                 analyse(f"{axis} attitude", l_att, t_att)]
+        l_rate, t_rate, l_att, t_att = quad_axis_loops(
+            ax, RatePid(r.kp, r.ki, r.kd, 2 * math.pi * g.rate.d_cutoff_hz), kp_att
+        )
+        rows += [
+            analyse(f"{axis} rate (K {ax.K:.0f} rad/s2, tau {1000 * ax.tau_s:.0f} ms)", l_rate, t_rate),
+            analyse(f"{axis} attitude", l_att, t_att),
+        ]
     return rows
 
 
 def cmd_margins(args) -> int:
     rows = _loop_rows(args)
     t = Table(title=f"{args.airframe} loop margins (python-control)")
-    for c in ("loop", "crossover rad/s", "PM deg", "GM dB", "phase xover rad/s", "BW rad/s", "overshoot %", "rise s", "settle s"):
+    for c in (
+        "loop",
+        "crossover rad/s",
+        "PM deg",
+        "GM dB",
+        "phase xover rad/s",
+        "BW rad/s",
+        "overshoot %",
+        "rise s",
+        "settle s",
+    ):
         t.add_column(c)
     for r in rows:
-        t.add_row(r.name, _f(r.crossover_rad_s), _f(r.phase_margin_deg, 3), _f(r.gain_margin_db, 3),
-                  _f(r.phase_crossover_rad_s), _f(r.bandwidth_rad_s), _f(r.overshoot_pct, 3),
-                  _f(r.rise_time_s, 3), _f(r.settling_time_s, 3))
+        t.add_row(
+            r.name,
+            _f(r.crossover_rad_s),
+            _f(r.phase_margin_deg, 3),
+            _f(r.gain_margin_db, 3),
+            _f(r.phase_crossover_rad_s),
+            _f(r.bandwidth_rad_s),
+            _f(r.overshoot_pct, 3),
+            _f(r.rise_time_s, 3),
+            _f(r.settling_time_s, 3),
+        )
     out.print(t)
     path = _out_dir(args) / f"margins_{args.airframe}.json"
     path.write_text(json.dumps([r.row() for r in rows], indent=1, default=float))
@@ -162,19 +214,24 @@ def cmd_roll_gain(args) -> int:
         raise ValueError("roll-gain: --crossover must be in (0, 100) rad/s")
     p = tune_roll_attitude(args.crossover, args.phase_margin)
     r = p.linear
-    out.print(f"proposed ap/kp-roll = {p.kp_roll:.3f} 1/s: crossover {r.crossover_rad_s:.2f} rad/s, PM "
-              f"{r.phase_margin_deg:.1f} deg, GM {r.gain_margin_db:.1f} dB; overshoot linear "
-              f"{r.overshoot_pct:.1f} %, JSBSim {p.jsbsim_overshoot_pct:.1f} %, 2nd-order estimate "
-              f"{p.second_order_overshoot_pct:.1f} %", highlight=False)
+    out.print(
+        f"proposed ap/kp-roll = {p.kp_roll:.3f} 1/s: crossover {r.crossover_rad_s:.2f} rad/s, PM "
+        f"{r.phase_margin_deg:.1f} deg, GM {r.gain_margin_db:.1f} dB; overshoot linear "
+        f"{r.overshoot_pct:.1f} %, JSBSim {p.jsbsim_overshoot_pct:.1f} %, 2nd-order estimate "
+        f"{p.second_order_overshoot_pct:.1f} %",
+        highlight=False,
+    )
     return EXIT_OK
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="cosim tune", description="Trim, linearise and analyse the controller loops")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for name, fn, helptext in (("trim", cmd_trim, "trim over the flight envelope"),
-                               ("linearize", cmd_linearize, "linear model and modes at a trim point"),
-                               ("margins", cmd_margins, "loop margins of the controllers as implemented")):
+    for name, fn, helptext in (
+        ("trim", cmd_trim, "trim over the flight envelope"),
+        ("linearize", cmd_linearize, "linear model and modes at a trim point"),
+        ("margins", cmd_margins, "loop margins of the controllers as implemented"),
+    ):
         s = sub.add_parser(name, help=helptext)
         s.add_argument("airframe", help=" | ".join(AIRFRAMES))
         s.add_argument("--out", help="output folder (default logs/tuning/<airframe>)")

@@ -28,8 +28,14 @@ from sim.jsbsim_plant import JSBSimPlant
 STATE_NAMES = ("u", "v", "w", "p", "q", "r", "phi", "theta", "psi", "h")
 STATE_UNITS = ("m/s", "m/s", "m/s", "rad/s", "rad/s", "rad/s", "rad", "rad", "rad", "m")
 
-_ACC = ("accelerations/udot-ft_sec2", "accelerations/vdot-ft_sec2", "accelerations/wdot-ft_sec2",
-        "accelerations/pdot-rad_sec2", "accelerations/qdot-rad_sec2", "accelerations/rdot-rad_sec2")
+_ACC = (
+    "accelerations/udot-ft_sec2",
+    "accelerations/vdot-ft_sec2",
+    "accelerations/wdot-ft_sec2",
+    "accelerations/pdot-rad_sec2",
+    "accelerations/qdot-rad_sec2",
+    "accelerations/rdot-rad_sec2",
+)
 
 
 def euler_rates(p: float, q: float, r: float, phi: float, theta: float) -> tuple[float, float, float]:
@@ -41,8 +47,7 @@ def euler_rates(p: float, q: float, r: float, phi: float, theta: float) -> tuple
 def climb_rate(x: np.ndarray) -> float:
     """dh/dt [m/s] of state ``x`` (flat earth, no wind)."""
     u, v, w, _, _, _, phi, theta = x[:8]
-    return (u * math.sin(theta) - v * math.sin(phi) * math.cos(theta)
-            - w * math.cos(phi) * math.cos(theta))
+    return u * math.sin(theta) - v * math.sin(phi) * math.cos(theta) - w * math.cos(phi) * math.cos(theta)
 
 
 class JSBSimEvaluator:
@@ -55,11 +60,20 @@ class JSBSimEvaluator:
     def read_state(self) -> np.ndarray:
         """The plant's current state as ``x`` (SI)."""
         f = self.fdm
-        return np.array([
-            f["velocities/u-fps"] * FT, f["velocities/v-fps"] * FT, f["velocities/w-fps"] * FT,
-            f["velocities/p-rad_sec"], f["velocities/q-rad_sec"], f["velocities/r-rad_sec"],
-            f["attitude/phi-rad"], f["attitude/theta-rad"], f["attitude/psi-rad"],
-            f["position/h-sl-ft"] * FT])
+        return np.array(
+            [
+                f["velocities/u-fps"] * FT,
+                f["velocities/v-fps"] * FT,
+                f["velocities/w-fps"] * FT,
+                f["velocities/p-rad_sec"],
+                f["velocities/q-rad_sec"],
+                f["velocities/r-rad_sec"],
+                f["attitude/phi-rad"],
+                f["attitude/theta-rad"],
+                f["attitude/psi-rad"],
+                f["position/h-sl-ft"] * FT,
+            ]
+        )
 
     def set_state(self, x: np.ndarray, inputs: dict[str, float] | None = None) -> None:
         """Write ``x`` and the input properties, evaluate all models once (twice: alpha-dot)."""
@@ -92,12 +106,16 @@ class JSBSimEvaluator:
         f = self.fdm
         a = [f[k] for k in _ACC]
         dphi, dth, dpsi = euler_rates(x[3], x[4], x[5], x[6], x[7])
-        return np.array([a[0] * FT, a[1] * FT, a[2] * FT, a[3], a[4], a[5], dphi, dth, dpsi,
-                         climb_rate(x)])
+        return np.array([a[0] * FT, a[1] * FT, a[2] * FT, a[3], a[4], a[5], dphi, dth, dpsi, climb_rate(x)])
 
-    def settle_engines(self, x: np.ndarray, inputs: dict[str, float] | None = None,
-                       max_steps: int = 20_000, rtol: float = 1e-10,
-                       trace: str | None = None) -> tuple[int, list[float]]:
+    def settle_engines(
+        self,
+        x: np.ndarray,
+        inputs: dict[str, float] | None = None,
+        max_steps: int = 20_000,
+        rtol: float = 1e-10,
+        trace: str | None = None,
+    ) -> tuple[int, list[float]]:
         """Step only the engines to steady state at ``x`` (state restored before every step).
 
         Converged when every propeller speed changes by less than ``rtol`` (relative) per step
@@ -116,9 +134,8 @@ class JSBSimEvaluator:
                 samples.append(f[trace])
             after = [f[p] for p in names]
             self.set_state(x)
-            ok = all(abs(a - b) <= rtol * max(abs(a), 1.0) for a, b in zip(after, before))
+            ok = all(abs(a - b) <= rtol * max(abs(a), 1.0) for a, b in zip(after, before, strict=False))
             calm = calm + 1 if ok else 0
             if calm >= 20:
                 return k, samples
-        raise RuntimeError(f"engines did not settle in {max_steps} steps "
-                           f"(rpm {[round(f[p], 1) for p in names]})")
+        raise RuntimeError(f"engines did not settle in {max_steps} steps (rpm {[round(f[p], 1) for p in names]})")

@@ -58,16 +58,17 @@ class LinearModel:
 
 def _apply_inputs(names, values) -> dict[str, float]:
     props: dict[str, float] = {}
-    for n, v in zip(names, values):
+    for n, v in zip(names, values, strict=False):
         if n == "throttle":
-            props.update({p: v for p in _THROTTLE_PROPS})
+            props.update(dict.fromkeys(_THROTTLE_PROPS, v))
         else:
             props[n] = v
     return props
 
 
-def linearize(ev: JSBSimEvaluator, inputs=HAPS_INPUTS, x0: np.ndarray | None = None,
-              u0: np.ndarray | None = None) -> LinearModel:
+def linearize(
+    ev: JSBSimEvaluator, inputs=HAPS_INPUTS, x0: np.ndarray | None = None, u0: np.ndarray | None = None
+) -> LinearModel:
     """A, B of the plant behind ``ev`` about its current state (or ``x0``) and current inputs
     (or ``u0``). The plant is left at (x0, u0)."""
     f = ev.fdm

@@ -61,9 +61,17 @@ def analyse(name: str, L, T) -> LoopReport:
     gm, pm, _, wpc, wgc, _ = ct.stability_margins(L)
     info = ct.step_info(T, SettlingTimeThreshold=0.02)
     bw = ct.bandwidth(T)
-    return LoopReport(name, float(wgc), float(pm), 20 * math.log10(gm) if np.isfinite(gm) and gm > 0 else math.inf,
-                      float(wpc), float(bw), float(info["Overshoot"]), float(info["RiseTime"]),
-                      float(info["SettlingTime"]))
+    return LoopReport(
+        name,
+        float(wgc),
+        float(pm),
+        20 * math.log10(gm) if np.isfinite(gm) and gm > 0 else math.inf,
+        float(wpc),
+        float(bw),
+        float(info["Overshoot"]),
+        float(info["RiseTime"]),
+        float(info["SettlingTime"]),
+    )
 
 
 def pade_delay(seconds: float, order: int = 2):
@@ -111,8 +119,9 @@ class RotorAxis:
     delay_s: float
 
 
-def identify_rotor_axis(axis: str = "roll", alt_m: float = 100.0, amplitude: float = 0.01,
-                        seconds: float = 0.3) -> RotorAxis:
+def identify_rotor_axis(
+    axis: str = "roll", alt_m: float = 100.0, amplitude: float = 0.01, seconds: float = 0.3
+) -> RotorAxis:
     """Open-loop step of ``axis`` torque at hover in JSBSim, fitted with
     K (1 - exp(-(t - d)/tau)) on the angular acceleration.
 
@@ -148,8 +157,7 @@ def identify_rotor_axis(axis: str = "roll", alt_m: float = 100.0, amplitude: flo
     def model(tt, k, tau, d):
         return k * (1 - np.exp(-np.clip(tt - d, 0, None) / tau))
 
-    (k, tau, d), _ = curve_fit(model, t, y, p0=[y[-1], 0.05, 0.0],
-                               bounds=([0, 1e-3, -dt], [np.inf, 1.0, 5 * dt]))
+    (k, tau, d), _ = curve_fit(model, t, y, p0=[y[-1], 0.05, 0.0], bounds=([0, 1e-3, -dt], [np.inf, 1.0, 5 * dt]))
     return RotorAxis(float(k), float(tau), float(d))
 
 

@@ -29,9 +29,16 @@ class Mode:
 
     def row(self) -> dict:
         ev = self.eigenvalue
-        return {"mode": self.name, "eig_re": ev.real, "eig_im": abs(ev.imag), "wn_rad_s": self.wn_rad_s,
-                "zeta": self.zeta, "period_s": self.period_s, "time_const_s": self.time_const_s,
-                "time_to_double_s": self.time_to_double_s}
+        return {
+            "mode": self.name,
+            "eig_re": ev.real,
+            "eig_im": abs(ev.imag),
+            "wn_rad_s": self.wn_rad_s,
+            "zeta": self.zeta,
+            "period_s": self.period_s,
+            "time_const_s": self.time_const_s,
+            "time_to_double_s": self.time_to_double_s,
+        }
 
 
 def _mode(name: str, ev: complex) -> Mode:
@@ -59,8 +66,7 @@ def lateral_modes(lm: LinearModel) -> list[Mode]:
     real = sorted([e.real for e in ev if abs(e.imag) <= 1e-9])
     if len(osc) != 1 or len(real) != 2:
         raise ValueError(f"expected one oscillatory and two real lateral roots, got {ev}")
-    return [_mode("roll subsidence", complex(real[0])), _mode("Dutch roll", osc[0]),
-            _mode("spiral", complex(real[1]))]
+    return [_mode("roll subsidence", complex(real[0])), _mode("Dutch roll", osc[0]), _mode("spiral", complex(real[1]))]
 
 
 def all_modes(lm: LinearModel) -> list[Mode]:

@@ -8,9 +8,23 @@ from pathlib import Path
 
 from sim.tuning.trim_haps import TrimPoint
 
-COLUMNS = ("method", "alt_m", "tas_mps", "eas_mps", "ok", "alpha_deg", "pitch_deg", "roll_deg",
-           "elevator_norm", "throttle", "prop_rpm", "residual_acc", "residual_rot", "residual_model",
-           "reason")
+COLUMNS = (
+    "method",
+    "alt_m",
+    "tas_mps",
+    "eas_mps",
+    "ok",
+    "alpha_deg",
+    "pitch_deg",
+    "roll_deg",
+    "elevator_norm",
+    "throttle",
+    "prop_rpm",
+    "residual_acc",
+    "residual_rot",
+    "residual_model",
+    "reason",
+)
 
 
 def _fmt(v) -> str:
@@ -39,9 +53,17 @@ def write_csv(rows: list[TrimPoint], path: Path) -> None:
 def markdown(rows: list[TrimPoint], title: str) -> str:
     """A Markdown table of the trimmed points, then the list of failures with reasons."""
     cols = [c for c in COLUMNS if c != "reason"]
-    lines = [f"# {title}", "", ("Units: m, m/s, deg, normalised surface/throttle, rpm; residuals "
-             "m/s^2 (translational), rad/s^2 (rotational), casadi model residual dimensionless."), "",
-             "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    lines = [
+        f"# {title}",
+        "",
+        (
+            "Units: m, m/s, deg, normalised surface/throttle, rpm; residuals "
+            "m/s^2 (translational), rad/s^2 (rotational), casadi model residual dimensionless."
+        ),
+        "",
+        "| " + " | ".join(cols) + " |",
+        "|" + "---|" * len(cols),
+    ]
     lines += ["| " + " | ".join(_fmt(r.row()[c]) for c in cols) + " |" for r in rows if r.ok]
     bad = [r for r in rows if not r.ok]
     lines += ["", f"## Failures ({len(bad)} of {len(rows)})", ""]
@@ -59,7 +81,7 @@ def plot(rows: list[TrimPoint], path: Path, title: str) -> None:
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
     alts = sorted({r.alt_m for r in rows})
     methods = sorted({r.method for r in rows})
-    styles = {m: s for m, s in zip(methods, ("-o", "--x", ":s"))}
+    styles = dict(zip(methods, ("-o", "--x", ":s"), strict=False))
     cmap = plt.get_cmap("viridis")
     for i, h in enumerate(alts):
         color = cmap(i / max(len(alts) - 1, 1))
@@ -68,10 +90,9 @@ def plot(rows: list[TrimPoint], path: Path, title: str) -> None:
             if not pts:
                 continue
             v = [p.tas_mps for p in pts]
-            for ax, key in zip(axes, ("throttle", "alpha_deg", "pitch_deg")):
-                ax.plot(v, [getattr(p, key) for p in pts], styles[m], color=color, ms=4,
-                        label=f"{h / 1000:.1f} km {m}")
-    for ax, lab in zip(axes, ("throttle [-]", "alpha [deg]", "pitch [deg]")):
+            for ax, key in zip(axes, ("throttle", "alpha_deg", "pitch_deg"), strict=False):
+                ax.plot(v, [getattr(p, key) for p in pts], styles[m], color=color, ms=4, label=f"{h / 1000:.1f} km {m}")
+    for ax, lab in zip(axes, ("throttle [-]", "alpha [deg]", "pitch [deg]"), strict=False):
         ax.set_xlabel("true airspeed [m/s]")
         ax.set_ylabel(lab)
         ax.grid(True, alpha=0.3)

@@ -22,8 +22,13 @@ def overshoot_pct(y: np.ndarray, step: float) -> float:
     return max(0.0, 100.0 * (float(np.max(y / step)) - 1.0))
 
 
-def haps_pitch_step(alt_m: float = 20_000.0, tas_mps: float = 29.7, step_deg: float = 2.0,
-                    seconds: float = 10.0, overrides: dict[str, float] | None = None):
+def haps_pitch_step(
+    alt_m: float = 20_000.0,
+    tas_mps: float = 29.7,
+    step_deg: float = 2.0,
+    seconds: float = 10.0,
+    overrides: dict[str, float] | None = None,
+):
     from sim.tuning.trim_haps import jsbsim_trim
 
     pt, plant = jsbsim_trim(alt_m, tas_mps)
@@ -32,8 +37,7 @@ def haps_pitch_step(alt_m: float = 20_000.0, tas_mps: float = 29.7, step_deg: fl
     plant.set_many(HapsGains.load().fcs_properties())
     plant.set_many(overrides or {})
     theta0 = plant["attitude/theta-rad"]
-    plant.set_many({"ap/engage": 1.0, "ap/roll-cmd-rad": 0.0,
-                    "ap/pitch-cmd-rad": theta0 + math.radians(step_deg)})
+    plant.set_many({"ap/engage": 1.0, "ap/roll-cmd-rad": 0.0, "ap/pitch-cmd-rad": theta0 + math.radians(step_deg)})
     n = round(seconds / plant.dt)
     y = np.empty(n)
     for k in range(n):
@@ -42,8 +46,9 @@ def haps_pitch_step(alt_m: float = 20_000.0, tas_mps: float = 29.7, step_deg: fl
     return plant.dt * np.arange(1, n + 1), y
 
 
-def quad_roll_step(alt_m: float = 100.0, step_deg: float = 5.0, seconds: float = 1.5,
-                   overrides: dict[str, float] | None = None):
+def quad_roll_step(
+    alt_m: float = 100.0, step_deg: float = 5.0, seconds: float = 1.5, overrides: dict[str, float] | None = None
+):
     from sim.tuning.trim_quad import quad_plant, quad_trim
 
     trim = quad_trim(alt_m, 0.0)
@@ -52,8 +57,16 @@ def quad_roll_step(alt_m: float = 100.0, step_deg: float = 5.0, seconds: float =
     plant = quad_plant(alt_m)
     plant.set_many(MultirotorGains.load().fcs_properties())
     plant.set_many(overrides or {})
-    plant.set_many({"ap/armed": 1.0, "ap/landed": 0.0, "ap/thrust-cmd-norm": f_hover,
-                    "ap/roll-cmd-rad": 0.0, "ap/pitch-cmd-rad": 0.0, "ap/yaw-cmd-rad": plant["attitude/psi-rad"]})
+    plant.set_many(
+        {
+            "ap/armed": 1.0,
+            "ap/landed": 0.0,
+            "ap/thrust-cmd-norm": f_hover,
+            "ap/roll-cmd-rad": 0.0,
+            "ap/pitch-cmd-rad": 0.0,
+            "ap/yaw-cmd-rad": plant["attitude/psi-rad"],
+        }
+    )
     plant["forces/hold-down"] = 1.0
     plant.step(int(0.5 / plant.dt))
     plant["forces/hold-down"] = 0.0

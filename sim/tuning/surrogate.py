@@ -104,7 +104,10 @@ class HapsAeroData:
             mass_kg=_si(ac.find("mass_balance/emptywt"), {"KG": 1.0, "LBS": 0.45359237}),
             wing_area_m2=float(area.text) * (1.0 if area.get("unit") == "M2" else _M2_PER_FT2),
             chord_m=_si(ac.find("metrics/chord"), length),
-            cl_alpha_deg=cla, cl_table=clt, cd_stall_alpha_deg=cda, cd_stall_table=cdt,
+            cl_alpha_deg=cla,
+            cl_table=clt,
+            cd_stall_alpha_deg=cda,
+            cd_stall_table=cdt,
             cl_de=_function_value(ac, "aero/coefficient/CL_de"),
             cd0=_function_value(ac, "aero/coefficient/CD_0"),
             k_induced=_function_value(ac, "aero/coefficient/CD_i"),
@@ -114,7 +117,9 @@ class HapsAeroData:
             elevator_max_rad=float(elev.find("gain").text),
             alpha_max_rad=math.radians(float(ac.find("aerodynamics/alphalimits/max").text)),
             prop_diameter_m=_si(prop.find("diameter"), length),
-            prop_j=j, prop_ct=ct, prop_cp=cp,
+            prop_j=j,
+            prop_ct=ct,
+            prop_cp=cp,
             motor_power_w=_si(motor.find("power"), {"WATTS": 1.0, "HP": 745.69987}),
             n_motors=len(ac.findall("propulsion/engine")),
         )
@@ -162,8 +167,9 @@ class HapsTrimModel:
         )
         self.residual = ca.Function("trim_residual", [z, par], [res], ["z", "par"], ["r"])
         self.outputs = ca.Function("trim_outputs", [z, par], [ca.vertcat(j, thrust, lift / qs, drag / qs)])
-        self.solver = ca.rootfinder("haps_trim", "newton", self.residual,
-                                    {"abstol": 1e-12, "max_iter": 50, "error_on_fail": False})
+        self.solver = ca.rootfinder(
+            "haps_trim", "newton", self.residual, {"abstol": 1e-12, "max_iter": 50, "error_on_fail": False}
+        )
 
     def solve(self, h_m: float, tas_mps: float) -> dict:
         """Trim at altitude ``h_m`` [m] MSL and true airspeed ``tas_mps`` [m/s].
@@ -177,8 +183,9 @@ class HapsTrimModel:
         par = [rho, tas_mps, g]
         cl_need = d.mass_kg * g / (0.5 * rho * tas_mps**2 * d.wing_area_m2)
         rising = (d.cl_alpha_deg >= -10.0) & (d.cl_alpha_deg <= d.cl_alpha_deg[np.argmax(d.cl_table)])
-        a0 = float(np.interp(min(cl_need, d.cl_table.max() - 0.02), d.cl_table[rising],
-                             np.radians(d.cl_alpha_deg[rising])))  # pre-stall branch
+        a0 = float(
+            np.interp(min(cl_need, d.cl_table.max() - 0.02), d.cl_table[rising], np.radians(d.cl_alpha_deg[rising]))
+        )  # pre-stall branch
         z0 = [a0, -0.08, 0.3, tas_mps / (1.05 * d.prop_diameter_m)]
         z = np.array(self.solver(z0, par)).ravel()
         stats = self.solver.stats()
@@ -188,14 +195,28 @@ class HapsTrimModel:
         if cl_need > d.cl_table.max():
             reason = f"below the 1-g stall speed: CL {cl_need:.2f} needed > CLmax {d.cl_table.max():.2f}"
         elif not stats.get("success", False) or not np.all(np.isfinite(z)) or np.max(np.abs(r)) > 1e-8:
-            reason = (f"Newton did not converge (residual {np.max(np.abs(r)):.1e}; CL {cl_need:.2f} "
-                      f"needed, CLmax {d.cl_table.max():.2f})")
+            reason = (
+                f"Newton did not converge (residual {np.max(np.abs(r)):.1e}; CL {cl_need:.2f} "
+                f"needed, CLmax {d.cl_table.max():.2f})"
+            )
         elif z[0] > d.alpha_max_rad:
             reason = f"alpha {math.degrees(z[0]):.1f} deg beyond the model's alpha limit"
         elif not 0.0 <= z[2] <= 1.0:
             reason = f"throttle {z[2]:.2f} outside [0, 1]"
         elif abs(z[1]) > 1.0:
             reason = f"elevator {z[1]:.2f} beyond full travel"
-        return {"alpha_rad": z[0], "theta_rad": z[0], "elevator_norm": z[1], "throttle": z[2],
-                "prop_rps": z[3], "J": j, "thrust_n": thrust, "CL": cl, "CD": cd,
-                "residual": float(np.max(np.abs(r))), "rho": rho, "ok": not reason, "reason": reason}
+        return {
+            "alpha_rad": z[0],
+            "theta_rad": z[0],
+            "elevator_norm": z[1],
+            "throttle": z[2],
+            "prop_rps": z[3],
+            "J": j,
+            "thrust_n": thrust,
+            "CL": cl,
+            "CD": cd,
+            "residual": float(np.max(np.abs(r))),
+            "rho": rho,
+            "ok": not reason,
+            "reason": reason,
+        }

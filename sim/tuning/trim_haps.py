@@ -85,24 +85,48 @@ def jsbsim_trim(alt_m: float, tas_mps: float) -> tuple[TrimPoint, JSBSimPlant | 
     acc, rot = _residuals(plant)
     s = plant.truth()
     ok = acc < TOL_ACC and rot < TOL_ROT
-    pt = TrimPoint("haps", "jsbsim", alt_m, tas_mps, ok,
-                   "" if ok else f"residual above tolerance ({acc:.1e} m/s^2, {rot:.1e} rad/s^2)",
-                   eas_mps=s.eas_mps, alpha_deg=math.degrees(s.alpha_rad),
-                   pitch_deg=math.degrees(s.pitch), roll_deg=math.degrees(s.roll),
-                   elevator_norm=plant["fcs/elevator-pos-norm"], throttle=plant["fcs/throttle-cmd-norm[0]"],
-                   prop_rpm=plant["propulsion/engine[0]/propeller-rpm"], residual_acc=acc, residual_rot=rot)
+    pt = TrimPoint(
+        "haps",
+        "jsbsim",
+        alt_m,
+        tas_mps,
+        ok,
+        "" if ok else f"residual above tolerance ({acc:.1e} m/s^2, {rot:.1e} rad/s^2)",
+        eas_mps=s.eas_mps,
+        alpha_deg=math.degrees(s.alpha_rad),
+        pitch_deg=math.degrees(s.pitch),
+        roll_deg=math.degrees(s.roll),
+        elevator_norm=plant["fcs/elevator-pos-norm"],
+        throttle=plant["fcs/throttle-cmd-norm[0]"],
+        prop_rpm=plant["propulsion/engine[0]/propeller-rpm"],
+        residual_acc=acc,
+        residual_rot=rot,
+    )
     return pt, plant
 
 
-def casadi_trim(alt_m: float, tas_mps: float, model: HapsTrimModel | None = None,
-                check_in_jsbsim: bool = False) -> TrimPoint:
+def casadi_trim(
+    alt_m: float, tas_mps: float, model: HapsTrimModel | None = None, check_in_jsbsim: bool = False
+) -> TrimPoint:
     """The casadi trim at one point; with ``check_in_jsbsim`` also JSBSim's accelerations there."""
     model = model or HapsTrimModel()
     s = model.solve(alt_m, tas_mps)
-    pt = TrimPoint("haps", "casadi", alt_m, tas_mps, s["ok"], s["reason"],
-                   eas_mps=tas_mps * math.sqrt(s["rho"] / 1.225), alpha_deg=math.degrees(s["alpha_rad"]),
-                   pitch_deg=math.degrees(s["theta_rad"]), roll_deg=0.0, elevator_norm=s["elevator_norm"],
-                   throttle=s["throttle"], prop_rpm=s["prop_rps"] * 60.0, residual_model=s["residual"])
+    pt = TrimPoint(
+        "haps",
+        "casadi",
+        alt_m,
+        tas_mps,
+        s["ok"],
+        s["reason"],
+        eas_mps=tas_mps * math.sqrt(s["rho"] / 1.225),
+        alpha_deg=math.degrees(s["alpha_rad"]),
+        pitch_deg=math.degrees(s["theta_rad"]),
+        roll_deg=0.0,
+        elevator_norm=s["elevator_norm"],
+        throttle=s["throttle"],
+        prop_rpm=s["prop_rps"] * 60.0,
+        residual_model=s["residual"],
+    )
     if check_in_jsbsim and s["ok"]:
         acc, rot = jsbsim_residual_at(alt_m, tas_mps, s["alpha_rad"], s["elevator_norm"], s["throttle"])
         pt.residual_acc, pt.residual_rot = acc, rot
@@ -112,23 +136,28 @@ def casadi_trim(alt_m: float, tas_mps: float, model: HapsTrimModel | None = None
     return pt
 
 
-def jsbsim_residual_at(alt_m: float, tas_mps: float, alpha: float, elevator_norm: float,
-                       throttle: float) -> tuple[float, float]:
+def jsbsim_residual_at(
+    alt_m: float, tas_mps: float, alpha: float, elevator_norm: float, throttle: float
+) -> tuple[float, float]:
     """JSBSim's accelerations in level flight at ``alpha`` [rad] with the given elevator and
     throttle, propellers settled: (max translational [m/s^2], max rotational [rad/s^2])."""
     plant = haps_plant(alt_m, tas_mps)
     ev = JSBSimEvaluator(plant)
-    x = np.array([tas_mps * math.cos(alpha), 0.0, tas_mps * math.sin(alpha), 0.0, 0.0, 0.0,
-                  0.0, alpha, 0.0, alt_m])
-    inputs = {"fcs/elevator-cmd-norm": elevator_norm, "fcs/pitch-trim-cmd-norm": 0.0,
-              "fcs/throttle-cmd-norm[0]": throttle, "fcs/throttle-cmd-norm[1]": throttle}
+    x = np.array([tas_mps * math.cos(alpha), 0.0, tas_mps * math.sin(alpha), 0.0, 0.0, 0.0, 0.0, alpha, 0.0, alt_m])
+    inputs = {
+        "fcs/elevator-cmd-norm": elevator_norm,
+        "fcs/pitch-trim-cmd-norm": 0.0,
+        "fcs/throttle-cmd-norm[0]": throttle,
+        "fcs/throttle-cmd-norm[1]": throttle,
+    }
     ev.settle_engines(x, inputs, rtol=1e-9)
     ev.set_state(x)
     return _residuals(plant)
 
 
-def envelope(altitudes=DEFAULT_ALTITUDES_M, speeds=DEFAULT_TAS_MPS, check_in_jsbsim: bool = True,
-             progress=None) -> list[TrimPoint]:
+def envelope(
+    altitudes=DEFAULT_ALTITUDES_M, speeds=DEFAULT_TAS_MPS, check_in_jsbsim: bool = True, progress=None
+) -> list[TrimPoint]:
     """Both trims over the grid; rows ordered altitude, speed, method (jsbsim then casadi)."""
     model = HapsTrimModel()
     rows: list[TrimPoint] = []

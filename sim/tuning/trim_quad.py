@@ -44,8 +44,15 @@ MAX_TILT_DEG = 35.0  # controller tilt limit (gains.toml [limits] max_tilt_deg)
 
 def bypass_properties() -> dict[str, float]:
     """Properties that turn the quadrotor FCS into a pass-through of ``ap/motor-health[i]``."""
-    props = {"ap/armed": 1.0, "ap/landed": 1.0, "ap/thrust-cmd-norm": 1.0,
-             "ap/kp-roll": 0.0, "ap/kp-pitch": 0.0, "ap/kp-yaw": 0.0, "ap/yaw-rate-ff-rps": 0.0}
+    props = {
+        "ap/armed": 1.0,
+        "ap/landed": 1.0,
+        "ap/thrust-cmd-norm": 1.0,
+        "ap/kp-roll": 0.0,
+        "ap/kp-pitch": 0.0,
+        "ap/kp-yaw": 0.0,
+        "ap/yaw-rate-ff-rps": 0.0,
+    }
     for ax in ("roll", "pitch", "yaw"):
         for g in ("kp", "ki", "kd"):
             props[f"ap/{g}-{ax}-rate"] = 0.0
@@ -119,12 +126,23 @@ def quad_trim(alt_m: float, speed_mps: float) -> TrimPoint:
     elif abs(math.degrees(z[0])) > MAX_TILT_DEG:
         reason = f"trimmable, but tilt {abs(math.degrees(z[0])):.1f} deg > the controller's {MAX_TILT_DEG} deg limit"
     x = prob.state(z)
-    return TrimPoint("quadrotor", "scipy-root", alt_m, speed_mps, not reason, reason,
-                     eas_mps=speed_mps * math.sqrt(f["atmosphere/rho-slugs_ft3"] / 0.00237689),
-                     alpha_deg=math.degrees(math.atan2(x[2], x[0])) if speed_mps > 0 else math.nan,
-                     pitch_deg=math.degrees(z[0]), roll_deg=math.degrees(z[1]),
-                     elevator_norm=math.nan, throttle=float(np.mean(u)),
-                     prop_rpm=f["propulsion/engine[0]/propeller-rpm"], residual_acc=acc, residual_rot=rot)
+    return TrimPoint(
+        "quadrotor",
+        "scipy-root",
+        alt_m,
+        speed_mps,
+        not reason,
+        reason,
+        eas_mps=speed_mps * math.sqrt(f["atmosphere/rho-slugs_ft3"] / 0.00237689),
+        alpha_deg=math.degrees(math.atan2(x[2], x[0])) if speed_mps > 0 else math.nan,
+        pitch_deg=math.degrees(z[0]),
+        roll_deg=math.degrees(z[1]),
+        elevator_norm=math.nan,
+        throttle=float(np.mean(u)),
+        prop_rpm=f["propulsion/engine[0]/propeller-rpm"],
+        residual_acc=acc,
+        residual_rot=rot,
+    )
 
 
 def envelope(altitudes=DEFAULT_ALTITUDES_M, speeds=DEFAULT_SPEEDS_MPS, progress=None) -> list[TrimPoint]:

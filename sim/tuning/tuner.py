@@ -47,9 +47,12 @@ def _rate_pid(g: MultirotorGains) -> RatePid:
     return RatePid(r.roll.kp, r.roll.ki, r.roll.kd, 2 * math.pi * r.d_cutoff_hz)
 
 
-def propose_roll_attitude_gain(axis: RotorAxis, gains: MultirotorGains | None = None,
-                               crossover_rad_s: float | None = None,
-                               phase_margin_deg: float | None = None) -> Proposal:
+def propose_roll_attitude_gain(
+    axis: RotorAxis,
+    gains: MultirotorGains | None = None,
+    crossover_rad_s: float | None = None,
+    phase_margin_deg: float | None = None,
+) -> Proposal:
     """kp of the roll-attitude loop for a requested crossover *or* phase margin."""
     if (crossover_rad_s is None) == (phase_margin_deg is None):
         raise ValueError("give exactly one of crossover_rad_s, phase_margin_deg")
@@ -62,7 +65,10 @@ def propose_roll_attitude_gain(axis: RotorAxis, gains: MultirotorGains | None = 
 
     if crossover_rad_s is None:
         target = math.radians(-180.0 + phase_margin_deg)
-        phase = lambda w: np.unwrap([np.angle(resp(v)) for v in np.geomspace(1e-3, w, 200)])[-1]
+
+        def phase(w):
+            return np.unwrap([np.angle(resp(v)) for v in np.geomspace(1e-3, w, 200)])[-1]
+
         ws = np.geomspace(0.1, 500, 400)
         ph = np.unwrap([np.angle(resp(v)) for v in ws])
         k = int(np.argmax(ph < target))
@@ -82,8 +88,9 @@ def verify_in_jsbsim(p: Proposal, step_deg: float = 5.0) -> Proposal:
     return p
 
 
-def tune_roll_attitude(crossover_rad_s: float | None = None, phase_margin_deg: float | None = None,
-                       axis: RotorAxis | None = None) -> Proposal:
+def tune_roll_attitude(
+    crossover_rad_s: float | None = None, phase_margin_deg: float | None = None, axis: RotorAxis | None = None
+) -> Proposal:
     """Identify the plant (unless given), propose kp, verify in JSBSim."""
     axis = axis or identify_rotor_axis("roll")
     return verify_in_jsbsim(propose_roll_attitude_gain(axis, None, crossover_rad_s, phase_margin_deg))

@@ -47,10 +47,15 @@ def from_geofence(g: Geofence, margin: float) -> Constraint:
 def from_storm(s: StormSnapshot, margin: float) -> list[Constraint]:
     """Storm cells as moving constraints over all altitudes (the nowcast has no vertical extent)."""
     vel = np.zeros((len(s.cells), 2)) if s.velocities_ne is None else ne_to_gcf_xy(np.asarray(s.velocities_ne, float))
-    return [Constraint(shapely.transform(c, ne_to_gcf_xy), (-np.inf, np.inf), margin, v, s.t) for c, v in zip(s.cells, vel)]
+    return [
+        Constraint(shapely.transform(c, ne_to_gcf_xy), (-np.inf, np.inf), margin, v, s.t)
+        for c, v in zip(s.cells, vel, strict=False)
+    ]
 
 
-def _footprints_gcf(grid: AvoidanceGrid, pose: GridPose, c: Constraint, t_grid: float, uas_leave: np.ndarray) -> np.ndarray:
+def _footprints_gcf(
+    grid: AvoidanceGrid, pose: GridPose, c: Constraint, t_grid: float, uas_leave: np.ndarray
+) -> np.ndarray:
     """Cell footprints expressed in GCF, shifted back by the constraint's motion per cell."""
     coords, idx = shapely.get_coordinates(grid.footprints, return_index=True)
     xy = coords @ pose.rot[:2, :2].T + pose.origin[:2]
@@ -59,8 +64,14 @@ def _footprints_gcf(grid: AvoidanceGrid, pose: GridPose, c: Constraint, t_grid: 
     return shapely.set_coordinates(grid.footprints.copy(), xy)
 
 
-def classify(grid: AvoidanceGrid, pose: GridPose, constraints: list[Constraint], cfg: ConstraintConfig,
-             t_grid: float, uas_leave: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def classify(
+    grid: AvoidanceGrid,
+    pose: GridPose,
+    constraints: list[Constraint],
+    cfg: ConstraintConfig,
+    t_grid: float,
+    uas_leave: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """(hard, soft) boolean masks (n_cells,) over the active constraints (6.110, 6.113-6.115)."""
     hard = np.zeros(grid.n_cells, bool)
     soft = np.zeros(grid.n_cells, bool)
@@ -68,11 +79,18 @@ def classify(grid: AvoidanceGrid, pose: GridPose, constraints: list[Constraint],
     origin = shapely.Point(*pose.origin[:2])
     horizon = float(uas_leave.max(initial=0.0))
     for c in constraints:
-        reach = grid.range + c.margin + 2.0 * float(np.linalg.norm(c.velocity)) * (horizon + abs(t_grid - c.detection_time))
+        reach = (
+            grid.range + c.margin + 2.0 * float(np.linalg.norm(c.velocity)) * (horizon + abs(t_grid - c.detection_time))
+        )
         fp = _footprints_gcf(grid, pose, c, t_grid, uas_leave)
         lo, hi = c.z_band
         if c.keep_in:
-            if shapely.distance(c.body.exterior, origin) > reach and c.body.contains(origin) and lo + c.margin <= z.min() and z.max() <= hi - c.margin:
+            if (
+                shapely.distance(c.body.exterior, origin) > reach
+                and c.body.contains(origin)
+                and lo + c.margin <= z.min()
+                and z.max() <= hi - c.margin
+            ):
                 continue
             out_alt = (z[:, 0] < lo) | (z[:, 1] > hi)
             near_alt = (z[:, 0] < lo + c.margin) | (z[:, 1] > hi - c.margin)

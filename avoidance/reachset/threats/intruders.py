@@ -127,7 +127,9 @@ class IntruderModel:
         disc, w = _unit_disc(cfg.cone_steps, float(ratio), cfg.density)
         dd = speed * tau
         a, b = np.sin(cfg.theta_i) * dd, np.sin(cfg.phi_i) * dd
-        pts = line[:, None, :] + (a[:, None, None] * disc[None, :, 0:1] * e2 + b[:, None, None] * disc[None, :, 1:2] * e3)
+        pts = line[:, None, :] + (
+            a[:, None, None] * disc[None, :, 0:1] * e2 + b[:, None, None] * disc[None, :, 1:2] * e3
+        )
         toa = np.repeat(tau, len(disc))
         mass, i_e, i_l = self._bin(pts.reshape(-1, 3), toa, np.tile(w, len(tau)))
         dt = tau[1] - tau[0]

@@ -24,8 +24,9 @@ def column_of(grid: AvoidanceGrid, theta_phi: np.ndarray) -> np.ndarray:
     return grid.cell_index_polar(np.hstack([d, theta_phi]))
 
 
-def lidar_ratings_polar(grid: AvoidanceGrid, ray_dirs: np.ndarray, hits: np.ndarray, cfg: LidarConfig,
-                        ray_reach: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def lidar_ratings_polar(
+    grid: AvoidanceGrid, ray_dirs: np.ndarray, hits: np.ndarray, cfg: LidarConfig, ray_reach: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Obstacle rating and visibility per cell from ray directions (R, 2) = (θ, φ) and hit points
     (H, 3) = (d, θ, φ) in the grid's polar frame. ``ray_reach`` (R,) [m]: how far each ray saw
     without a return (its end at the sensor's range; inf for rays that hit, their hindrance
@@ -63,7 +64,9 @@ def _ended(grid: AvoidanceGrid, col: np.ndarray, ray_reach: np.ndarray | None, r
     return grid.per_cell(share.T.reshape(-1))
 
 
-def lidar_ratings(grid: AvoidanceGrid, pose: GridPose, scan: LidarScan, cfg: LidarConfig) -> tuple[np.ndarray, np.ndarray]:
+def lidar_ratings(
+    grid: AvoidanceGrid, pose: GridPose, scan: LidarScan, cfg: LidarConfig
+) -> tuple[np.ndarray, np.ndarray]:
     """Ratings of a project LiDAR scan (NED) in a grid placed at ``pose``. The scan may be taken
     at another position than the grid origin (spec §1.2: scan at t_i, grid at t_{i+1}): every ray
     is re-expressed by its end point (return, or the end of the range) seen from the grid origin."""

@@ -34,11 +34,11 @@ class MapObstacle:
     radius: float = 0.0
 
     @staticmethod
-    def from_prism(p: PrismObstacle, margin: float) -> "MapObstacle":
+    def from_prism(p: PrismObstacle, margin: float) -> MapObstacle:
         return MapObstacle(shapely.transform(p.footprint, ne_to_gcf_xy), (p.up_min_m, p.up_max_m), margin)
 
     @staticmethod
-    def from_sphere(s: SphereThreat, margin: float) -> "MapObstacle":
+    def from_sphere(s: SphereThreat, margin: float) -> MapObstacle:
         c = np.asarray(s.center_ned, float)
         return MapObstacle(shapely.Point(c[1], c[0]), (-c[2], -c[2]), margin, s.radius_m)
 
