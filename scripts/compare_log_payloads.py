@@ -20,7 +20,6 @@ from typing import Any
 
 from mcap.reader import make_reader
 
-
 # wall-clock timings [s or ms] inside planner records: ``diagnostics.runtime_ms`` of reach-set
 # plans, ``runtime_s`` of reach-set decisions, ``diagnostics.runtime_s``/``weather_s`` of MPTP plans
 WALLCLOCK_FIELDS = frozenset({"runtime_ms", "runtime_s", "weather_s"})
