@@ -1,11 +1,11 @@
-"""The world around the vehicles: wind and turbulence (in JSBSim), obstacles and geofences.
+"""The world around the vehicles: turbulence and gusts (in JSBSim), obstacles and geofences.
 
-Wind is the velocity of the air mass, NED [m/s]; turbulence is JSBSim's MIL-F-8785C Dryden
-model ("Milspec", turb-type 3) with the milspec reference intensities (light / moderate /
-severe = 15 / 30 / 45 kt at 20 ft with probability-of-exceedance index 3 / 4 / 6), seeded per
-vehicle from the scenario seed so runs repeat bit for bit. Obstacles and geofences become the
-threat types of ``sim.core.threats`` in the scenario's local-level NED frame (heights above
-the origin, ``up = alt - origin alt``).
+The steady wind and its profile are ``sim.wind_field`` (set into JSBSim by the vehicle).
+Turbulence is JSBSim's MIL-F-8785C Dryden model ("Milspec", turb-type 3) with the milspec
+reference intensities (light / moderate / severe = 15 / 30 / 45 kt at 20 ft with
+probability-of-exceedance index 3 / 4 / 6), seeded per vehicle from the scenario seed so runs
+repeat bit for bit. Obstacles and geofences become the threat types of ``sim.core.threats`` in
+the scenario's local-level NED frame (heights above the origin, ``up = alt - origin alt``).
 """
 
 from __future__ import annotations
@@ -22,18 +22,6 @@ from sim.jsbsim_plant import JSBSimPlant
 
 TURBULENCE = {"none": (0.0, 0), "light": (25.0, 3), "moderate": (50.0, 4), "severe": (75.0, 6)}
 _MILSPEC = 3
-
-
-def apply_steady_wind(plant: JSBSimPlant, wind: sc.Wind) -> None:
-    """Steady wind into one JSBSim instance; before its initial conditions and trim, so that
-    the initial airspeed is relative to the moving air."""
-    plant.set_many(
-        {
-            "atmosphere/wind-north-fps": wind.north / FT,
-            "atmosphere/wind-east-fps": wind.east / FT,
-            "atmosphere/wind-down-fps": wind.down / FT,
-        }
-    )
 
 
 def apply_turbulence(plant: JSBSimPlant, wind: sc.Wind, seed: int) -> None:

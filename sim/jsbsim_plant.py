@@ -16,6 +16,7 @@ import jsbsim
 import numpy as np
 
 from sim.core.constants import FT, KT
+from sim.core.frames import euler_to_dcm
 from sim.core.state import VehicleState
 from sim.geodesy import GeoPoint, LocalLevelFrame
 
@@ -183,6 +184,49 @@ class JSBSimPlant:
             self.fdm["simulation/do_simple_trim"] = mode
         except jsbsim.TrimFailureError as exc:
             raise PlantError(self._with_log(f"{self.model}: trim failed ({exc})")) from exc
+
+    def set_wind(self, wind_ned: np.ndarray) -> None:
+        """The steady wind (velocity of the air mass, NED [m/s]) from now on; the vehicle keeps
+        its ground velocity. JSBSim's IC run and trim reset the wind: set it after them."""
+        n, e, d = (float(v) / FT for v in wind_ned)
+        f = self.fdm
+        f["atmosphere/wind-north-fps"] = n
+        f["atmosphere/wind-east-fps"] = e
+        f["atmosphere/wind-down-fps"] = d
+
+    def carry_into_wind(self, wind_ned: np.ndarray) -> None:
+        """Put the vehicle, as initialised (and trimmed), into a steady wind NED [m/s] with its
+        state relative to the air unchanged: attitude, rates and air-relative body velocity stay,
+        the ground velocity gains the wind (in uniform wind the trim is Galilean-invariant)."""
+        f = self.fdm
+        wind = np.asarray(wind_ned, float)
+        att = [f[f"attitude/{a}-rad"] for a in ("phi", "theta", "psi")]
+        uvw_air = np.array([f["velocities/u-fps"], f["velocities/v-fps"], f["velocities/w-fps"]])
+        uvw = uvw_air + euler_to_dcm(*att).T @ (wind / FT)
+        values = {
+            "ic/lat-geod-deg": f["position/lat-geod-deg"],
+            "ic/long-gc-deg": f["position/long-gc-deg"],
+            "ic/h-sl-ft": f["position/h-sl-ft"],
+            "ic/phi-rad": att[0],
+            "ic/theta-rad": att[1],
+            "ic/psi-true-rad": att[2],
+            "ic/u-fps": uvw[0],
+            "ic/v-fps": uvw[1],
+            "ic/w-fps": uvw[2],
+            "ic/p-rad_sec": f["velocities/p-rad_sec"],
+            "ic/q-rad_sec": f["velocities/q-rad_sec"],
+            "ic/r-rad_sec": f["velocities/r-rad_sec"],
+        }
+        self.set_many(values)
+        if not self._guard(f.run_ic, "run the initial conditions in the wind"):
+            raise PlantError(self._with_log(f"{self.model}: run_ic in the wind failed"))
+        self.set_wind(wind)
+        f.suspend_integration()  # one pass without time: air data (vt, alpha, beta) in the new wind
+        ok = self._guard(f.run, "evaluate the state in the wind")
+        f.resume_integration()
+        if not ok:
+            raise PlantError(self._with_log(f"{self.model}: evaluating the state in the wind failed"))
+        self._truth = None
 
     def step(self, n: int = 1) -> None:
         """Advance ``n`` steps of ``dt``."""

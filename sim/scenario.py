@@ -8,6 +8,7 @@ Positions are local NED offsets from ``origin`` (north, east [m]) and altitude M
 
 from __future__ import annotations
 
+import itertools
 import math
 import tomllib
 from datetime import UTC, datetime
@@ -185,14 +186,69 @@ class Mavlink(_Strict):
     pace: Annotated[float, Field(ge=0.0, le=1000.0)] = 1.0
 
 
+class WindLevel(_Strict):
+    """One row of a wind profile: altitude MSL [m] and the horizontal wind there, NED [m/s]."""
+
+    altitude: _Altitude
+    north: Speed = 0.0
+    east: Speed = 0.0
+
+
+def _profile_rows(levels: list[WindLevel], where: str) -> list[WindLevel]:
+    alts = [lv.altitude for lv in levels]
+    if any(b <= a for a, b in itertools.pairwise(alts)):
+        raise ValueError(f"{where}: altitudes must increase strictly, got {[round(a, 1) for a in alts]} m")
+    return levels
+
+
+class WindHour(_Strict):
+    """A wind profile valid at ``time`` [s after the start]; profiles are interpolated in time."""
+
+    time: quantity("time", 0.0, 30 * 86400.0)
+    levels: Annotated[list[WindLevel], Field(min_length=2)]
+
+    @field_validator("levels")
+    @classmethod
+    def _increasing(cls, v: list[WindLevel]) -> list[WindLevel]:
+        return _profile_rows(v, "levels")
+
+
 class Wind(_Strict):
-    """Steady wind: velocity of the air mass, NED [m/s] (``north = 5`` blows towards north),
-    and MIL-F-8785C Dryden turbulence (JSBSim's Milspec model; seeded from the scenario)."""
+    """Wind: velocity of the air mass, NED [m/s] (``north = 5`` blows towards north) = the steady
+    vector (``north``, ``east``, ``down``) + a profile with altitude: ``levels`` (a table,
+    interpolated linearly, held constant beyond its ends), ``hours`` (tables at times, interpolated
+    in time) or ``standard`` (a named profile, ``sim.wind_field``); at most one of the three.
+    Turbulence: MIL-F-8785C Dryden (JSBSim's Milspec model; seeded from the scenario)."""
 
     north: Speed = 0.0
     east: Speed = 0.0
     down: Speed = 0.0
     turbulence: Literal["none", "light", "moderate", "severe"] = "none"
+    levels: list[WindLevel] = []
+    hours: list[WindHour] = []
+    standard: Literal["midlatitude_jet"] | None = None
+
+    @field_validator("levels")
+    @classmethod
+    def _increasing(cls, v: list[WindLevel]) -> list[WindLevel]:
+        if len(v) == 1:
+            raise ValueError("a profile needs at least 2 levels")
+        return _profile_rows(v, "levels") if v else v
+
+    @field_validator("hours")
+    @classmethod
+    def _times(cls, v: list[WindHour]) -> list[WindHour]:
+        times = [h.time for h in v]
+        if any(b <= a for a, b in itertools.pairwise(times)):
+            raise ValueError(f"times must increase strictly, got {times} s")
+        return v
+
+    @model_validator(mode="after")
+    def _one_profile(self) -> Wind:
+        given = [k for k in ("levels", "hours", "standard") if getattr(self, k)]
+        if len(given) > 1:
+            raise ValueError(f"{given[1]}: give one wind profile, not {' and '.join(given)}")
+        return self
 
 
 class Obstacle(_Strict):

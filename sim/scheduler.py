@@ -4,7 +4,7 @@ Time advances in integer ticks of a base rate [Hz]. Every component has an integ
 plant integrates one step every ``divisor`` ticks, a task fires at ticks divisible by its
 divisor. Plants are advanced in bulk between the ticks at which some task fires, so the Python
 loop runs at the task rates, not the integration rate. Tasks at one tick fire in stage order
-(sense -> estimate -> plan -> control -> log), then in registration order. Everything is integer
+(environment -> sense -> estimate -> plan -> control -> log), then in registration order. Everything is integer
 arithmetic: two runs interleave identically.
 """
 
@@ -16,11 +16,12 @@ from enum import IntEnum
 
 
 class Stage(IntEnum):
-    SENSE = 0
-    ESTIMATE = 1
-    PLAN = 2
-    CONTROL = 3
-    LOG = 4
+    ENVIRONMENT = 0
+    SENSE = 1
+    ESTIMATE = 2
+    PLAN = 3
+    CONTROL = 4
+    LOG = 5
 
 
 @dataclass(slots=True)

@@ -29,6 +29,7 @@ from sim.sensors.faults import SensorFault
 from sim.vehicle_commands import apply_command
 from sim.vehicle_log import VehicleLogWriter, setpoint_record
 from sim.vehicle_setup import build_plant, make_estimator, make_follower, mission_from_config
+from sim.wind_field import WindField
 
 
 class SimulationDiverged(RuntimeError):
@@ -45,7 +46,8 @@ class Vehicle:
         self.log = log
         self.logw = VehicleLogWriter(log, cfg.name)
         self.planner_records = RecordSink(log, f"/{cfg.name}/plan", origin)
-        self.plant = build_plant(cfg, af, origin, wind, seed)
+        self.wind = WindField(wind)
+        self.plant = build_plant(cfg, af, origin, wind, self.wind, seed)
         self.mission = mission_from_config(cfg, origin)
         self.estimator = make_estimator(cfg.estimator, self.plant, af, seed, origin)
         self.controller = af.make_controller(cfg.gains)
@@ -106,12 +108,17 @@ class Vehicle:
     def schedule(self, sched: LockstepScheduler, log_hz: float) -> None:
         af, n = self.airframe, self.name
         sched.add_plant(f"{n}.plant", af.plant_hz, self.plant.step)
+        if self.wind.varies:  # error <= max shear * climb rate / control rate (sim.wind_field)
+            sched.add_task(f"{n}.wind", af.control_hz, Stage.ENVIRONMENT, self._wind)
         if isinstance(self.estimator, SensorEstimator):
             sched.add_task(f"{n}.sense", self.estimator.sense_hz, Stage.SENSE, self.estimator.sense)
         sched.add_task(f"{n}.estimator", af.control_hz, Stage.ESTIMATE, self._estimate)
         sched.add_task(f"{n}.planner", self.cfg.planner.rate_hz, Stage.PLAN, self.plan_now)
         sched.add_task(f"{n}.control", af.control_hz, Stage.CONTROL, self._control)
         sched.add_task(f"{n}.log", log_hz, Stage.LOG, self._log)
+
+    def _wind(self, t: float) -> None:
+        self.plant.set_wind(self.wind.at(self.plant.truth().alt_msl_m, t))
 
     def _estimate(self, t: float) -> None:
         self.estimate = self.estimator.update(t)

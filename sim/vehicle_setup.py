@@ -12,11 +12,12 @@ from guidance.l1 import L1Guidance
 from guidance.multirotor_follower import MultirotorPlanFollower
 from sim import scenario as sc
 from sim.core.mission import Mission
-from sim.environment import apply_steady_wind, apply_turbulence
+from sim.environment import apply_turbulence
 from sim.estimation.sensor_estimator import SensorEstimator, SensorEstimatorConfig
 from sim.estimator import PerfectEstimator
 from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
+from sim.wind_field import WindField
 
 
 def ned_of(north: float, east: float, altitude: float, origin: GeoPoint) -> np.ndarray:
@@ -37,11 +38,13 @@ def mission_from_config(cfg: sc.VehicleSpec, origin: GeoPoint) -> Mission:
     )
 
 
-def build_plant(cfg: sc.VehicleSpec, af: Airframe, origin: GeoPoint, wind: sc.Wind, seed: int) -> JSBSimPlant:
-    """The JSBSim plant at the scenario's initial state: steady wind, initial conditions, trim
-    (fixed wing by default) and turbulence seeded with the vehicle's ``seed``."""
+def build_plant(
+    cfg: sc.VehicleSpec, af: Airframe, origin: GeoPoint, wind: sc.Wind, wind_field: WindField, seed: int
+) -> JSBSimPlant:
+    """The JSBSim plant at the scenario's initial state: initial conditions, trim (fixed wing by
+    default), the wind at the start altitude with the initial airspeed relative to the air (on
+    the ground: ground velocity zero), turbulence seeded with the vehicle's ``seed``."""
     plant = JSBSimPlant(af.jsbsim_model, 1.0 / af.plant_hz, origin, af.folder)
-    apply_steady_wind(plant, wind)
     ini = cfg.initial
     lat, lon, alt = ned_to_geodetic(ned_of(ini.north, ini.east, ini.altitude, origin), origin)
     plant.initialise(
@@ -57,6 +60,11 @@ def build_plant(cfg: sc.VehicleSpec, af: Airframe, origin: GeoPoint, wind: sc.Wi
     )
     if ini.trim if ini.trim is not None else af.kind == "fixed_wing":
         plant.trim()
+    w = wind_field.at(float(alt), 0.0)
+    if ini.on_ground:
+        plant.set_wind(w)
+    else:
+        plant.carry_into_wind(w)
     apply_turbulence(plant, wind, seed)
     return plant
 
