@@ -194,10 +194,10 @@ class WindLevel(_Strict):
     east: Speed = 0.0
 
 
-def _profile_rows(levels: list[WindLevel], where: str) -> list[WindLevel]:
+def _profile_rows(levels: list[WindLevel]) -> list[WindLevel]:
     alts = [lv.altitude for lv in levels]
     if any(b <= a for a, b in itertools.pairwise(alts)):
-        raise ValueError(f"{where}: altitudes must increase strictly, got {[round(a, 1) for a in alts]} m")
+        raise ValueError(f"altitudes must increase strictly, got {[round(a, 1) for a in alts]} m")
     return levels
 
 
@@ -210,7 +210,7 @@ class WindHour(_Strict):
     @field_validator("levels")
     @classmethod
     def _increasing(cls, v: list[WindLevel]) -> list[WindLevel]:
-        return _profile_rows(v, "levels")
+        return _profile_rows(v)
 
 
 class Wind(_Strict):
@@ -233,7 +233,7 @@ class Wind(_Strict):
     def _increasing(cls, v: list[WindLevel]) -> list[WindLevel]:
         if len(v) == 1:
             raise ValueError("a profile needs at least 2 levels")
-        return _profile_rows(v, "levels") if v else v
+        return _profile_rows(v) if v else v
 
     @field_validator("hours")
     @classmethod

@@ -53,7 +53,19 @@ def _haps_leg(altitude: float, tas: float, duration: float, wind: dict, estimato
 def _truth(log: RunLog, name: str, after: float) -> dict[str, np.ndarray]:
     tr = log.topic(f"/{name}/truth/state")
     keep = tr.t >= after
-    return {k: np.asarray(tr[k])[keep] for k in ("pos_ned", "vel_ned", "euler", "tas_mps", "alt_msl_m")}
+    keys = ("pos_ned", "vel_ned", "euler", "tas_mps", "alt_msl_m", "alpha_rad", "beta_rad")
+    return {"t": tr.t[keep]} | {k: np.asarray(tr[k])[keep] for k in keys}
+
+
+def _air_wind(s: dict[str, np.ndarray]) -> np.ndarray:
+    """The wind the truth implies, NED [m/s]: ground velocity - air velocity (TAS along the
+    body's air-relative direction given by alpha and beta)."""
+    from sim.core.frames import euler_to_dcm
+
+    a, b, v = s["alpha_rad"], s["beta_rad"], s["tas_mps"]
+    body = np.column_stack([v * np.cos(a) * np.cos(b), v * np.sin(b), v * np.sin(a) * np.cos(b)])
+    air = np.array([euler_to_dcm(*e) @ u for e, u in zip(s["euler"], body, strict=True)])
+    return s["vel_ned"] - air
 
 
 @pytest.mark.closed_loop
@@ -108,3 +120,53 @@ def test_hovering_quadrotor_leans_into_the_wind_by_the_drag_balance_angle(tmp_pa
     angle = math.asin(float(np.linalg.norm(lean)))
     assert angle == pytest.approx(_drag_balance_lean(420.0, 5.0), rel=0.2)
     assert float(lean @ wind) / (np.linalg.norm(lean) * 5.0) < -0.99  # into the wind
+
+
+@pytest.mark.closed_loop
+def test_haps_climbing_through_the_standard_profile_flies_in_its_wind(tmp_path):
+    data = _haps_leg(16500.0, 28.0, 900.0, {"standard": "midlatitude_jet"})
+    data["vehicle"][0]["mission"]["waypoints"] = [{"north": 80000.0, "east": 0.0, "altitude": 19500.0}]
+    s = _truth(_run(tmp_path, data), "haps", 0.0)
+    assert s["alt_msl_m"][-1] - s["alt_msl_m"][0] > 600.0  # it climbs through the profile
+    field = WindField(parse_scenario(data).wind)
+    expected = np.array([field.at(h, t) for h, t in zip(s["alt_msl_m"], s["t"], strict=True)])
+    assert expected[0, 1] - expected[-1, 1] > 2.0  # and the profile's wind changes on the way
+    assert np.abs(_air_wind(s) - expected).max() < 0.05
+
+
+def test_wind_field_interpolates_in_altitude_and_time():
+    levels = [{"altitude": 1000.0, "north": 0.0, "east": 10.0}, {"altitude": 3000.0, "north": 4.0, "east": 0.0}]
+    f = WindField(Wind(north=1.0, levels=levels))
+    assert f.at(2000.0, 0.0) == pytest.approx([3.0, 5.0, 0.0])
+    assert f.at(0.0, 0.0) == pytest.approx([1.0, 10.0, 0.0])  # held below the table
+    assert f.at(9000.0, 0.0) == pytest.approx([5.0, 0.0, 0.0])  # and above it
+    assert f.max_shear() == pytest.approx(math.hypot(4.0, 10.0) / 2000.0)
+    later = [{"altitude": 1000.0, "north": 0.0, "east": 20.0}, {"altitude": 3000.0, "north": 8.0, "east": 0.0}]
+    f = WindField(Wind(hours=[{"time": 0.0, "levels": levels}, {"time": "1 h", "levels": later}]))
+    assert f.at(1000.0, 1800.0) == pytest.approx([0.0, 15.0, 0.0])
+    assert f.at(2000.0, 7200.0) == pytest.approx([4.0, 10.0, 0.0])
+
+
+def test_standard_profile_has_its_jet_maximum_at_11_to_12_km():
+    f = WindField(Wind(standard="midlatitude_jet"))
+    alts = np.arange(0.0, 30001.0, 100.0)
+    speed = np.array([np.linalg.norm(f.at(h, 0.0)) for h in alts])
+    top = alts[speed == speed.max()]
+    assert top.min() >= 11000.0 and top.max() <= 12000.0
+    assert len(STANDARD_PROFILES) == 1
+
+
+@pytest.mark.parametrize(
+    ("wind", "message"),
+    [
+        ({"levels": [{"altitude": 2000.0}, {"altitude": 1000.0}]}, "wind.levels: altitudes must increase"),
+        ({"levels": [{"altitude": 2000.0}]}, "wind.levels: a profile needs at least 2 levels"),
+        ({"standard": "midlatitude_jet", "levels": [{"altitude": 0}, {"altitude": 1}]}, "give one wind profile"),
+        ({"standard": "tropical"}, "wind.standard"),
+        ({"hours": [{"time": 60, "levels": [{"altitude": 0}, {"altitude": 1}]}] * 2}, "times must increase"),
+    ],
+)
+def test_bad_wind_profiles_are_field_named_errors(wind, message):
+    data = _haps_leg(18000.0, 26.0, 10.0, wind)
+    with pytest.raises(ScenarioError, match=message):
+        parse_scenario(data)
