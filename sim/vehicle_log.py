@@ -278,6 +278,7 @@ def write_map(log: McapLog, obstacles: list, fences: list, origin) -> None:
                         "kind": "obstacle" if hasattr(item, "footprint") else "geofence",
                         "up_min_m": item.up_min_m,
                         "up_max_m": item.up_max_m,
+                        "keep_in": getattr(item, "keep_in", False),  # obstacles: keep out
                     },
                     "geometry": {
                         "type": "Polygon",
