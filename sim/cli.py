@@ -7,6 +7,7 @@ batch or log file: one line naming the file and the field), 130 interrupted.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import signal
 import sys
@@ -210,6 +211,17 @@ def cmd_validate(args) -> int:
     return EXIT_OK
 
 
+def _sim_seconds(text: str) -> float:
+    """A sim time [s]: a finite number > 0."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
+    if not math.isfinite(v) or v <= 0.0:
+        raise argparse.ArgumentTypeError(f"must be a finite number of seconds > 0, got {text!r}")
+    return v
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="cosim", description="Closed-loop JSBSim co-simulation harness")
     p.add_argument("--version", action="version", version=f"cosim {__version__}")
@@ -217,7 +229,7 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="fly a scenario and log it to MCAP")
     r.add_argument("scenario", help="scenario TOML file")
     r.add_argument("-o", "--output", help="MCAP log path (default logs/<scenario name>.mcap)")
-    r.add_argument("--duration", type=float, help="sim time to fly [s] (default: the scenario's)")
+    r.add_argument("--duration", type=_sim_seconds, help="sim time to fly [s] (default: the scenario's)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     r.add_argument("--debug", action="store_true", help="print the traceback of a failed run")
     r.set_defaults(fn=cmd_run)

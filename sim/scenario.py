@@ -277,6 +277,8 @@ class Obstacle(_Strict):
             raise ValueError(f"{missing[0]}: a {self.shape} needs {' and '.join(need)}")
         if self.shape == "polygon":
             _simple_polygon(self.points)
+        if self.base is not None and self.top <= self.base:
+            raise ValueError(f"top: {self.top:g} m is not above its base {self.base:g} m")
         return self
 
 
@@ -357,8 +359,9 @@ class StormCell(_Strict):
 class Weather(_Strict):
     """Synthetic convective weather (seeded from the scenario): ``cells`` storm cells over a
     box of ``size`` x ``size`` [m] south-west-cornered at the origin, drifting at
-    (``drift_north``, ``drift_east``) [m/s] +- ``drift_spread``, mean radius ``radius``; a nowcast of the next ``horizon`` in
-    ``step`` slices is issued every ``nowcast_period`` (what the vehicles see). ``seed``: the
+    (``drift_north``, ``drift_east``) [m/s] +- ``drift_spread``, mean radius ``radius``; a
+    nowcast of the next ``horizon`` in ``step`` slices is issued every ``nowcast_period`` (what
+    the vehicles see). ``seed``: the
     field's own seed (default: drawn from the scenario seed); ``pop_up``: cells may be born after
     the start (unforeseen by earlier nowcasts); false = every cell is alive at the start.
     ``storm``: scripted cells added to the generated ones (``[[weather.storm]]``)."""
@@ -482,6 +485,28 @@ class Scenario(_Strict):
         dup = sorted({i for i in ids if ids.count(i) > 1})
         if dup:
             raise ValueError(f"obstacle/geofence ids must be unique, repeated: {', '.join(dup)}")
+        return self
+
+    @model_validator(mode="after")
+    def _above_ground(self) -> Scenario:
+        ground = self.origin.altitude
+        for k, o in enumerate(self.obstacle):
+            if o.base is None and o.top <= ground:
+                raise ValueError(
+                    f"obstacle[{k}].top: {o.top:g} m is not above the ground ({ground:g} m, origin altitude)"
+                )
+        for k, v in enumerate(self.vehicle):
+            if not v.initial.on_ground and v.initial.altitude < ground:
+                raise ValueError(
+                    f"vehicle[{k}].initial.altitude: {v.initial.altitude:g} m is below the ground "
+                    f"({ground:g} m, origin altitude)"
+                )
+            for j, w in enumerate(v.mission.waypoints):
+                if w.altitude < ground:
+                    raise ValueError(
+                        f"vehicle[{k}].mission.waypoints[{j}].altitude: {w.altitude:g} m is below the ground "
+                        f"({ground:g} m, origin altitude)"
+                    )
         return self
 
     @property

@@ -87,7 +87,7 @@ def test_multirotor_mission_in_wind(tmp_path):
     result, log = _run(tmp_path, data)
     assert result.status == "completed"
     assert _mean_air_wind(log, "quad")[:2] == pytest.approx([3.0, 4.0], abs=1.0)  # 2.2, 4.2 m/s
-    # on the EKF in 5 m/s: cross-track max 2.6 m, rms 1.15 m (docs/sensors.md)
+    # on the EKF in 5 m/s: cross-track max 2.6 m, rms 1.15 m (docs/environment.md)
     assert log_metrics(log)["vehicles"]["quad"]["tracking"]["cross_track_m"]["max_abs"] <= 4.0
 
 

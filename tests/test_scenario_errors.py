@@ -99,6 +99,37 @@ CASES = [
     ),
     ("turbulence", {**GOOD, "wind": {"turbulence": "extreme"}}, None, "wind.turbulence: Input should be 'none'"),
     (
+        "obstacle_top_below_base",
+        {**GOOD, "obstacle": [{"id": "t", "shape": "cylinder", "radius": 5, "base": 300, "top": 200}]},
+        None,
+        "obstacle[0]: top: 200 m is not above its base 300 m",
+    ),
+    (
+        "obstacle_below_ground",
+        {
+            **GOOD,
+            "origin": {**GOOD["origin"], "altitude": 400},
+            "obstacle": [{"id": "t", "shape": "cylinder", "radius": 5, "top": 350}],
+        },
+        None,
+        "obstacle[0].top: 350 m is not above the ground (400 m, origin altitude)",
+    ),
+    (
+        "start_below_ground",
+        {
+            **_mutate(["origin", "altitude"], 1000),
+            "vehicle": [{**GOOD["vehicle"][0], "initial": {**GOOD["vehicle"][0]["initial"], "altitude": 900}}],
+        },
+        None,
+        "vehicle[0].initial.altitude: 900 m is below the ground (1000 m, origin altitude)",
+    ),
+    (
+        "waypoint_below_ground",
+        _mutate(["vehicle", 0, "mission", "waypoints", 1, "altitude"], -10),
+        None,
+        "vehicle[0].mission.waypoints[1].altitude: -10 m is below the ground (0 m, origin altitude)",
+    ),
+    (
         "fixed_wing_land",
         _mutate(["vehicle", 0, "mission", "land"], True),
         None,
@@ -112,7 +143,12 @@ def test_bad_scenario_is_one_line_error_exit_2(tmp_path, kind, data, text, expec
     f = tmp_path / f"{kind}.toml"
     f.write_text(text if text is not None else tomli_w.dumps(data))
     proc = subprocess.run(
-        [sys.executable, "-m", "sim.cli", "run", str(f), "-q"], capture_output=True, text=True, cwd=ROOT, timeout=60
+        [sys.executable, "-m", "sim.cli", "run", str(f), "-q"],
+        check=False,
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=60,
     )
     assert proc.returncode == 2, proc.stderr
     lines = proc.stderr.strip().splitlines()
@@ -126,6 +162,7 @@ def test_bad_scenario_is_one_line_error_exit_2(tmp_path, kind, data, text, expec
 def test_missing_file_is_exit_2(tmp_path):
     proc = subprocess.run(
         [sys.executable, "-m", "sim.cli", "run", str(tmp_path / "nope.toml")],
+        check=False,
         capture_output=True,
         text=True,
         cwd=ROOT,
@@ -138,6 +175,7 @@ def test_missing_file_is_exit_2(tmp_path):
 def test_unwritable_log_path_is_exit_2(tmp_path):
     proc = subprocess.run(
         [sys.executable, "-m", "sim.cli", "run", "scenarios/quad_hover_offset.toml", "-o", str(tmp_path)],
+        check=False,
         capture_output=True,
         text=True,
         cwd=ROOT,
@@ -150,9 +188,24 @@ def test_unwritable_log_path_is_exit_2(tmp_path):
 def test_good_scenario_validates():
     proc = subprocess.run(
         [sys.executable, "-m", "sim.cli", "validate", "scenarios/haps_box_mission.toml"],
+        check=False,
         capture_output=True,
         text=True,
         cwd=ROOT,
         timeout=60,
     )
     assert proc.returncode == 0, proc.stderr
+
+
+@pytest.mark.parametrize("value", ["0", "-5", "nan", "inf", "ten"])
+def test_bad_duration_option_is_exit_2(value):
+    proc = subprocess.run(
+        [sys.executable, "-m", "sim.cli", "run", "scenarios/quad_hover_offset.toml", f"--duration={value}", "-q"],
+        check=False,
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=60,
+    )
+    assert proc.returncode == 2
+    assert "argument --duration:" in proc.stderr and "Traceback" not in proc.stderr
