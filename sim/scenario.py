@@ -19,9 +19,17 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 from shapely.geometry import Polygon
 
 from aircraft.registry import get_airframe
+from sim.estimation.sensor_estimator import SensorEstimatorConfig
 from sim.geodesy import GeoPoint
 from sim.planner_registry import PLANNERS, PlannerType
+from sim.sensors.airspeed import AirspeedConfig
+from sim.sensors.baro import BaroConfig
+from sim.sensors.config import SensorConfigError
+from sim.sensors.gnss import GnssConfig
+from sim.sensors.imu import ImuConfig
 from sim.sensors.lidar import LidarConfig
+from sim.sensors.magnetometer import MagnetometerConfig
+from sim.sensors.presets import PRESETS
 from sim.units import Angle, Speed, quantity
 
 SCHEMA_VERSION = 1
@@ -110,6 +118,60 @@ _PLANNER_MODELS = {name: _planner_model(entry) for name, entry in PLANNERS.items
 PlannerConfig = Annotated[Union[tuple(_PLANNER_MODELS.values())], Field(discriminator="type")]  # noqa: UP007
 
 
+class SensorsSpec(_Strict):
+    """``[vehicle.sensors]`` (the ``ekf`` estimator's sensor models): ``preset`` (``consumer``,
+    ``tactical``; ``sim/sensors/presets.py``) and per-sensor tables ``imu``, ``gnss``, ``baro``,
+    ``airspeed``, ``mag`` whose fields override the preset's: ``rate_hz``, ``latency_s``,
+    ``dropout`` (probability a sample is lost) and the sensor's error model — white noise, turn-on
+    bias (``*_bias_init_std``), in-run instability (``*_bias_rw``, a bias random walk), scale
+    factor, quantisation (fields and units: ``sim/sensors/<sensor>.py``). Rates not given are the
+    airframe kind's (``SensorEstimatorConfig.for_kind``)."""
+
+    preset: Literal["consumer", "tactical"] = "consumer"
+    imu: ImuConfig | None = None
+    gnss: GnssConfig | None = None
+    baro: BaroConfig | None = None
+    airspeed: AirspeedConfig | None = None
+    mag: MagnetometerConfig | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _preset_under_tables(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        out = dict(data)
+        for sensor, values in PRESETS.get(data.get("preset", "consumer"), {}).items():
+            out[sensor] = values | dict(data.get(sensor) or {})
+        return out
+
+    def estimator_config(self, kind: Literal["fixed_wing", "multirotor"]) -> SensorEstimatorConfig:
+        """The airframe kind's sensor suite with the given fields (preset and tables) replaced."""
+        base = SensorEstimatorConfig.for_kind(kind)
+        update = {}
+        for name in ("imu", "gnss", "baro", "airspeed", "mag"):
+            given, default = getattr(self, name), getattr(base.sensors, name)
+            if given is not None and default is not None:
+                update[name] = type(default).model_validate(_merged(default.model_dump(), _given(given)))
+        return base.model_copy(update={"sensors": base.sensors.model_copy(update=update)})
+
+
+def _given(model: BaseModel) -> dict[str, Any]:
+    """The fields set explicitly (nested models: their explicitly set fields)."""
+    out: dict[str, Any] = {}
+    for name in model.model_fields_set:
+        value = getattr(model, name)
+        out[name] = _given(value) if isinstance(value, BaseModel) else value
+    return out
+
+
+def _merged(base: dict[str, Any], given: dict[str, Any]) -> dict[str, Any]:
+    """``base`` with ``given`` laid over it, nested tables merged key by key."""
+    out = dict(base)
+    for k, v in given.items():
+        out[k] = _merged(base[k], v) if isinstance(v, dict) and isinstance(base.get(k), dict) else v
+    return out
+
+
 class VehicleSpec(_Strict):
     name: Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$")]
     aircraft: str
@@ -119,6 +181,7 @@ class VehicleSpec(_Strict):
     # a scanning LiDAR for the planners (sim/sensors/lidar.py LidarConfig fields; ~4 ms a
     # 21,960-ray scan, so opt-in)
     lidar: LidarConfig | None = None
+    sensors: SensorsSpec = SensorsSpec()
     initial: Initial
     mission: MissionSpec
     planner: PlannerConfig = Field(default_factory=_PLANNER_MODELS["follow_mission"])
@@ -156,6 +219,13 @@ class VehicleSpec(_Strict):
                     f"({need:g} m at this cruise speed and period); cells beyond the range are Uncertain "
                     "and block every path"
                 )
+        af = get_airframe(self.aircraft)
+        if kind == "multirotor" and self.sensors.airspeed is not None:
+            raise ValueError(f"sensors.airspeed: a multirotor carries no pitot ({self.aircraft})")
+        try:
+            self.sensors.estimator_config(kind).check_rates(af.plant_hz)
+        except SensorConfigError as exc:
+            raise ValueError(f"sensors: {exc}") from None
         if kind == "multirotor":
             if self.initial.trim:
                 raise ValueError(

@@ -49,7 +49,7 @@ class Vehicle:
         self.wind = WindField(wind)
         self.plant = build_plant(cfg, af, origin, wind, self.wind, seed)
         self.mission = mission_from_config(cfg, origin)
-        self.estimator = make_estimator(cfg.estimator, self.plant, af, seed, origin)
+        self.estimator = make_estimator(cfg.estimator, self.plant, af, seed, origin, cfg.sensors)
         self.controller = af.make_controller(cfg.gains)
         self.planner: Planner = self.make_mission_planner()
         self.mode = "AUTO"  # AUTO: the mission; HOLD: hover in place; GUIDED: ground-station targets

@@ -13,7 +13,7 @@ from guidance.multirotor_follower import MultirotorPlanFollower
 from sim import scenario as sc
 from sim.core.mission import Mission
 from sim.environment import apply_turbulence
-from sim.estimation.sensor_estimator import SensorEstimator, SensorEstimatorConfig
+from sim.estimation.sensor_estimator import SensorEstimator
 from sim.estimator import PerfectEstimator
 from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
@@ -69,12 +69,12 @@ def build_plant(
     return plant
 
 
-def make_estimator(kind: str, plant: JSBSimPlant, af: Airframe, seed: int, origin: GeoPoint):
-    """``ekf``: sensor models + INS/GNSS EKF (the default: the loop closes on estimates);
-    ``perfect``: ideal sensors (controller characterisation against the model)."""
+def make_estimator(kind: str, plant: JSBSimPlant, af: Airframe, seed: int, origin: GeoPoint, sensors: sc.SensorsSpec):
+    """``ekf``: the scenario's sensor models + INS/GNSS EKF (the default: the loop closes on
+    estimates); ``perfect``: ideal sensors (controller characterisation against the model)."""
     if kind == "perfect":
         return PerfectEstimator(plant)
-    cfg = SensorEstimatorConfig.for_kind(af.kind)
+    cfg = sensors.estimator_config(af.kind)
     cfg.check_rates(af.plant_hz)
     rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))  # not the turbulence stream
     return SensorEstimator(plant, cfg, rng, origin, plant.truth())

@@ -103,7 +103,7 @@ class _OffsetEstimator(PerfectEstimator):
 
 def test_controllers_and_planners_follow_the_estimate_not_the_truth(tmp_path, monkeypatch):
     monkeypatch.setattr(
-        "sim.vehicle.make_estimator", lambda kind, plant, airframe, seed, origin: _OffsetEstimator(plant)
+        "sim.vehicle.make_estimator", lambda kind, plant, airframe, seed, origin, sensors: _OffsetEstimator(plant)
     )
     data = _hover(20.0)
     _, log = _run(tmp_path, data)

@@ -320,9 +320,49 @@ _LIDAR = {
     "elevation_max_deg": 10.0,
     "elevation_step_deg": 4.0,
     "return_probability": 0.5,
+    "dropout": 0.9,
 }
 for _k, _v in _LIDAR.items():
     EFFECTS[f"vehicle.lidar.{_k}"] = (_QUAD, None, _set(f"vehicle.0.lidar.{_k}", _v))
+
+# sensor fields act on the EKF baseline (the HAPS for the pitot: a multirotor has none); the
+# rates must divide the plant rate (quadrotor 240 Hz, HAPS 120 Hz) and be multiples of the fusion rate
+_SENSOR_RATES = {"imu": 240.0, "gnss": 10.0, "baro": 40.0, "airspeed": 10.0, "mag": 40.0}
+
+
+def _sensor_value(sensor: str, field: str, default: object) -> float:
+    """A valid value different from the default for a sensor config field."""
+    if field == "rate_hz":
+        return _SENSOR_RATES[sensor]
+    if field == "dropout":
+        return 0.3
+    if field == "inclination_rad":
+        return 0.5
+    if field.endswith("scale_factor_std"):
+        return 0.05
+    return 2.0 * float(default) if default else 0.5
+
+
+def _sensor_effects() -> dict[str, Effect]:
+    out: dict[str, Effect] = {"vehicle.sensors.preset": (_QUAD, _on_ekf, _set("vehicle.0.sensors.preset", "tactical"))}
+    for f in schema_fields():
+        if not f.startswith("vehicle.sensors.") or f == "vehicle.sensors.preset" or f in SHOWN_ELSEWHERE:
+            continue
+        parts = f.split(".")[2:]
+        model: typing.Any = sc.SensorsSpec.model_fields[parts[0]].annotation.__args__[0]
+        cfg = model()
+        default = cfg
+        for p in parts[1:]:
+            default = getattr(default, p)
+        base = _HAPS if parts[0] == "airspeed" else _QUAD
+        value = _sensor_value(parts[0], parts[-1], default)
+        out[f] = (base, _on_ekf, _set("vehicle.0.sensors." + ".".join(parts), value))
+    return out
+
+
+def _on_ekf(d: dict) -> None:
+    _quad(d)["estimator"] = "ekf"
+
 
 _RANGE_ERROR = ("noise_std", "bias_init_std", "bias_rw", "scale_factor_std", "quantum")
 _FAULTS = ("GnssLoss", "SensorBias", "SensorStuck", "MotorFailure", "Gust")
@@ -339,12 +379,15 @@ LABELS = {
 }
 
 SHOWN_ELSEWHERE = {
+    "vehicle.sensors.imu.dropout": "only 0 is valid (the IMU drives the filter): tests/test_sensors_config.py",
+    "vehicle.sensors.imu.latency_s": "only 0 is valid (the IMU is the time base): tests/test_sensors_config.py",
     "mavlink.enabled": "tests/test_mavlink_live.py (needs a ground-station socket)",
     "mavlink.gcs_host": "tests/test_mavlink_live.py",
     "mavlink.base_port": "tests/test_mavlink_live.py",
     "mavlink.rate_hz": "tests/test_mavlink_live.py",
     "mavlink.pace": "tests/test_mavlink_live.py",
 }
+EFFECTS |= _sensor_effects()
 
 
 def _planner_fields() -> list[str]:

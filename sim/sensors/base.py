@@ -24,10 +24,12 @@ _EPS = 1e-9
 
 
 class SensorConfig(StrictConfig):
-    """Output rate [Hz] and latency (time of validity to delivery) [s]."""
+    """Output rate [Hz], latency (time of validity to delivery) [s] and ``dropout``, the
+    probability that a sample is lost (drawn per sample from the sensor's own generator)."""
 
     rate_hz: float = Field(gt=0.0)
     latency_s: float = Field(0.0, ge=0.0)
+    dropout: float = Field(0.0, ge=0.0, lt=1.0)
 
 
 class SampledSensor(Generic[M]):
@@ -57,7 +59,8 @@ class SampledSensor(Generic[M]):
             self._last_t = t
             self._next_k = math.floor((t + _EPS) / self._period) + 1
             y = self.faults.apply(t, self._measure(truth, dt))
-            if y is not None:
+            lost = self.cfg.dropout > 0.0 and self.rng.random() < self.cfg.dropout
+            if y is not None and not lost:
                 self._pending.append((t + self.cfg.latency_s, t, y))
         out: list[M] = []
         pending = self._pending

@@ -3,9 +3,9 @@
 Defaults are ADIS16448-class as PX4's SITL IMU plugin simulates it (noise densities and bias
 random walks are twice the datasheet values there; kept): gyro noise density
 3.39e-4 rad/s/sqrt(Hz) (2 x 35/3600 deg/s/sqrt(Hz)), gyro bias random walk 3.88e-5
-rad/s^2/sqrt(Hz) (2 x 4/3600 deg/s^2/sqrt(Hz)), turn-on gyro bias 0.5 deg/s; accel noise density 4e-3 m/s^2/sqrt(Hz), bias random walk 6e-3
-m/s^3/sqrt(Hz), turn-on bias 20 mg. Quantisation: ADIS16448 LSBs (0.04 deg/s, 0.833 mg).
-Per-sample white noise = density * sqrt(rate).
+rad/s^2/sqrt(Hz) (2 x 4/3600 deg/s^2/sqrt(Hz)), turn-on gyro bias 0.5 deg/s; accel noise
+density 4e-3 m/s^2/sqrt(Hz), bias random walk 6e-3 m/s^3/sqrt(Hz), turn-on bias 20 mg.
+Quantisation: ADIS16448 LSBs (0.04 deg/s, 0.833 mg). Per-sample white noise = density * sqrt(rate).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from sim.core.constants import STANDARD_GRAVITY
 from sim.sensors.base import SampledSensor, SensorConfig
@@ -36,6 +36,14 @@ class ImuConfig(SensorConfig):
     gyro_bias_rw: float = Field(math.radians(2 * 4.0 / 3600.0), ge=0.0)
     gyro_scale_factor_std: float = Field(0.0, ge=0.0, lt=0.5)
     gyro_quantum: float = Field(math.radians(0.04), ge=0.0)
+
+    @model_validator(mode="after")
+    def _time_base(self) -> ImuConfig:
+        if self.dropout:
+            raise ValueError("dropout: the filter is IMU-driven, every IMU sample is used")
+        if self.latency_s:
+            raise ValueError("latency_s: the IMU is the filter's time base (samples are used at their time)")
+        return self
 
     def accel_channel(self) -> ChannelConfig:
         return ChannelConfig(
