@@ -52,7 +52,7 @@ class HapsAutopilot:
         self._fcs = {**gains.fcs_properties(), "ap/engage": 1.0}
         self._send_fcs = True
         self._is_reset = False
-        self._h_ref = self._v_ref = self._v_prev = 0.0
+        self._h_ref = self._v_ref = self._v_prev = self._v_filt = 0.0
         self._vdot = self._roll_cmd = self._i_thr = self._i_pitch = 0.0
 
     def reset(self, state: VehicleState, throttle: float | None = None) -> None:
@@ -62,7 +62,7 @@ class HapsAutopilot:
         g = self.gains
         v = max(state.tas_mps, 1.0)
         self._h_ref = state.alt_msl_m
-        self._v_ref = self._v_prev = v
+        self._v_ref = self._v_prev = self._v_filt = v
         self._vdot = 0.0
         self._roll_cmd = state.roll
         gamma = math.asin(_clamp(-float(state.vel_ned[2]) / v, -1.0, 1.0))
@@ -91,9 +91,12 @@ class HapsAutopilot:
         g = self.gains
         h = state.alt_msl_m
         hdot = -float(state.vel_ned[2])
-        v = max(state.tas_mps, 1.0)
-        eas = max(state.eas_mps, 1.0)
-        tas_per_eas = v / eas
+        # measured airspeed low-passed: pitot noise through the clamps and the underspeed switch
+        # below would bias the flown airspeed (+3.4 m/s at 21 km on the EKF without it)
+        tas_per_eas = max(state.tas_mps, 1.0) / max(state.eas_mps, 1.0)
+        self._v_filt += (max(state.tas_mps, 1.0) - self._v_filt) * dt / (g.tas_filter_s + dt)
+        v = self._v_filt
+        eas = v / tas_per_eas
 
         # airspeed rate, low-passed finite difference [m/s^2]
         self._vdot += ((v - self._v_prev) / dt - self._vdot) * dt / (g.vdot_filter_s + dt)

@@ -57,6 +57,7 @@ class HapsGains:
     pitch_damp: float = _in("tecs")
     pitch_integ: float = _in("tecs")
     vdot_filter_s: float = _in("tecs")
+    tas_filter_s: float = _in("tecs")
     # [feedforward]
     mass_kg: float = _in("feedforward")
     wing_area_m2: float = _in("feedforward")
