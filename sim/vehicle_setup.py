@@ -63,7 +63,7 @@ def build_plant(
     w = wind_field.at(float(alt), 0.0)
     if ini.on_ground:
         plant.set_wind(w)
-    else:
+    elif np.any(w):  # calm air: the initialised state stands as it is
         plant.carry_into_wind(w)
     apply_turbulence(plant, wind, seed)
     return plant

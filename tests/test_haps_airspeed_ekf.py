@@ -31,7 +31,7 @@ def test_straight_flight_holds_airspeed_and_altitude_on_the_ekf(tmp_path, altitu
 def test_airspeed_step_at_21_km_has_no_mean_error_on_the_ekf(tmp_path):
     s = _fly(tmp_path, 21000.0, 33.0, 30.0, 0.0, seed=3, duration=600.0, after=300.0)  # after the change settles
     # pitot noise through the TECS clamps gave +3.46 m/s before the autopilot low-passed it
-    assert abs(float(np.mean(s["tas_mps"] - 30.0))) < 0.3  # measured: +0.01 m/s
+    assert abs(float(np.mean(s["tas_mps"] - 30.0))) < 0.3  # measured: +0.02 m/s
 
 
 @pytest.mark.slow
