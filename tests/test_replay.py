@@ -50,6 +50,7 @@ def test_report_and_compare_cli(short_run, tmp_path):
     assert json.loads((tmp_path / "rep" / "metrics.json").read_text()) == json.loads(json.dumps(metrics))
     proc = subprocess.run(
         [sys.executable, "-m", "sim.cli", "compare", str(path), str(path), "--changed"],
+        check=False,
         capture_output=True,
         text=True,
         cwd=ROOT,
@@ -202,3 +203,15 @@ def test_vehicles_of_different_plant_rates_share_their_log_times():
     assert np.intersect1d(t240, t120).size < t240.size  # the bits differ
     t, ia, ib = common_times(SimpleNamespace(t=t240), SimpleNamespace(t=t120))
     assert t.size == t240.size and (ia == np.arange(100)).all() and (ib == np.arange(100)).all()
+
+
+def test_replayed_metrics_equal_live_metrics_for_a_240_hz_quadrotor(tmp_path):
+    """Mission times come from /log events, whose log times are whole nanoseconds: the live
+    metrics keep them as logged (a 240 Hz tick is not a whole nanosecond)."""
+    scenario, text = load_scenario(ROOT / "scenarios" / "quad_square_mission.toml")
+    path = tmp_path / "quad.mcap"
+    result = run_scenario(scenario, path, scenario_text=text, duration=70.0)
+    replayed = log_metrics(RunLog(path))
+    assert differing_keys(result.metrics, replayed) == []
+    mission = result.metrics["vehicles"]["quad"]["mission"]
+    assert mission["complete"] and mission["waypoints_reached"] == mission["waypoints"]

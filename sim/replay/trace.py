@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sim.mcap_log import logged_time
 from sim.replay.runlog import RunLog
 
 # truth-state fields and the setpoint fields every follower logs; tas_mps only for fixed wing
@@ -130,10 +131,12 @@ class TraceRecorder:
         self._cache_hits += 1
 
     def reached(self, t: float) -> None:
-        self._reached.append(t)
+        """A waypoint reached at ``t`` [s]: kept as its ``/log`` event's time reads back."""
+        self._reached.append(logged_time(t))
 
     def complete(self, t: float) -> None:
-        self._complete_t = t
+        """The mission completed at ``t`` [s]: kept as its ``/log`` event's time reads back."""
+        self._complete_t = logged_time(t)
 
     def trace(self) -> VehicleTrace:
         s = {k: np.asarray(v, dtype=float) for k, v in self._state.items()}
