@@ -24,6 +24,7 @@ from sim.state import VehicleState
 @dataclass
 class OpenLoopRun:
     plans: list[Plan] = field(default_factory=list)
+    start_courses: list[float] = field(default_factory=list)  # the course each plan starts from [rad]
     flown_ne: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))  # (M, 2) [m]
     flown_t: np.ndarray = field(default_factory=lambda: np.empty(0))  # (M,) [s]
     arrived_s: float = float("nan")
@@ -68,6 +69,7 @@ def run_open_loop(
         threats = Threats(storms=sc.storms.nowcast(t, cfg.horizon_s))
         plan = planner.plan(vehicle_state(t, ne, course, cfg.tas_mps), threats, t)
         run.plans.append(plan)
+        run.start_courses.append(course)
         t_next = t + cfg.replan_period_s
         arrive = plan.status != PlanStatus.NO_SOLUTION and (plan.labels >= 0).any() and plan.times[-1] <= t_next
         t_end = plan.times[-1] if arrive else t_next

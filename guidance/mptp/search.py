@@ -100,12 +100,12 @@ class _Expander:
         t_goal = float(self.goal.intercept(p, np.array([s.t]), v)[0])
         g_pt = self.goal.at(t_goal) if np.isfinite(t_goal) else self.goal.points[-1]
         _, vi = visible_vertices(p[None], b)
-        aux_p, _ = aux_states(p, s.course, cfg, self.turning)
+        aux_p, _ = aux_states(p, s.course, cfg, self.turning, from_start=s.kind == START)
         aux_p = aux_p[~blocked(np.repeat(p[None], len(aux_p), 0), aux_p, b)]
         goal_ok = np.isfinite(t_goal) and not blocked(p[None], g_pt[None], b)[0]
         pts = np.vstack([g_pt[None] if goal_ok else np.empty((0, 2)), b.verts[vi], aux_p])
         kinds = np.array([GOAL] * int(goal_ok) + [VERTEX] * len(vi) + [AUX] * len(aux_p))
-        ok, chi, leg = admissible(p, s.course, pts, cfg, to_goal=kinds == GOAL)
+        ok, chi, leg = admissible(p, s.course, pts, cfg, to_goal=kinds == GOAL, from_start=s.kind == START)
         pts, chi, leg, kinds = pts[ok], chi[ok], leg[ok], kinds[ok]
         times = s.t + leg / v
         h = self._heuristic(fs, g_pt, pts, times, kinds)
