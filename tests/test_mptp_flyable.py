@@ -10,12 +10,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from shapely.geometry import box
 
-from avoidance.threats import StormSnapshot
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
 from guidance.mptp.search import plan_trajectory
 from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.turning import admissible, aux_states, flyby_path, start_turn, wrap
+from sim.core.threats import StormSnapshot
 
 CFG = MptpConfig()
 R = CFG.turn_radius_m
