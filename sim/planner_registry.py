@@ -161,8 +161,11 @@ def make_planner(
     airframe_kind: str = "multirotor",
     options: dict | None = None,
     bank_limit_rad: float = np.radians(20.0),
+    wind_ne_mps: tuple[float, float] = (0.0, 0.0),
 ) -> Planner:
-    """The planner called ``kind`` for ``mission`` flown by an ``airframe_kind`` vehicle."""
+    """The planner called ``kind`` for ``mission`` flown by an ``airframe_kind`` vehicle;
+    ``wind_ne_mps``: the scenario's steady wind (north, east) [m/s], the MPTP's forecast (plus
+    its ``wind_error_ne_mps``) unless its ``wind_forecast`` is "none"."""
     options = dict(options or {})
     check_planner(kind, airframe_kind, options)
     if kind == "follow_mission":
@@ -188,5 +191,8 @@ def make_planner(
 
         return RulesAvoider(mission, sma, _rules_config(options), _reachset_config(options))
     from guidance.mptp.planner import MptpPlanner
+    from guidance.mptp.wind import WindForecast
 
-    return MptpPlanner(mission, _config(kind, options, tas_mps=mission.cruise_speed, bank_max=bank_limit_rad))
+    cfg = _config(kind, options, tas_mps=mission.cruise_speed, bank_max=bank_limit_rad)
+    forecast = np.add(wind_ne_mps, cfg.wind_error_ne_mps)
+    return MptpPlanner(mission, cfg, wind=None if cfg.wind_forecast == "none" else WindForecast.steady(*forecast))

@@ -75,6 +75,7 @@ class Vehicle:
         self.planner_log = PlannerLogger(log, cfg.name, origin)
         self.plant = JSBSimPlant(af.jsbsim_model, 1.0 / af.plant_hz, origin, af.folder)
         apply_steady_wind(self.plant, wind)
+        self.wind_ne = (wind.north, wind.east)  # the scenario's steady wind, the planners' forecast [m/s]
         ini = cfg.initial
         start = _ned(ini.north, ini.east, ini.altitude, origin)
         lat, lon, alt = ned_to_geodetic(start, origin)
@@ -132,6 +133,7 @@ class Vehicle:
             self.airframe.kind,
             self.cfg.planner.options,
             getattr(self.controller.gains, "roll_limit_rad", np.radians(20.0)),
+            self.wind_ne,
         )
 
     def _make_estimator(self, kind: str, seed: int):
