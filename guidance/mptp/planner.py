@@ -2,8 +2,9 @@
 
 Frames/units: the estimate and the plan in local-level NED [m], storms in (north, east) [m],
 times in sim seconds [s]. The planner keeps its last plan and replans at a fixed cadence
-(``replan_period_s``), at the first call and whenever the mission's goal waypoint changes; in
-between it returns the same plan. A replan (Algorithm 2 of seed 002):
+(``replan_period_s``), at the first call, whenever the mission's goal waypoint changes and
+whenever a new nowcast arrives (the thesis replans at every nowcast update); in between it
+returns the same plan. A replan (Algorithm 2 of seed 002):
 
 1. the storm nowcast (``threats.storms``) becomes an ObstacleTimeline (cached per nowcast);
 2. if the goal stays covered over the whole horizon: a holding orbit (status DEGRADED);
@@ -79,6 +80,7 @@ class MptpPlanner:
         self._t_plan = -math.inf
         self._goal_index = -1
         self._nowcast_key: tuple | None = None
+        self._issue: tuple = ()  # identity of the last nowcast seen
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         m = self.mission
@@ -94,7 +96,14 @@ class MptpPlanner:
                 diagnostics={"complete": 1},
             )
         k = m.next_index
-        due = self.plan_ is None or k != self._goal_index or t - self._t_plan >= self.cfg.replan_period_s - 1e-9
+        issue = tuple((id(s), s.t) for s in threats.storms)
+        due = (
+            self.plan_ is None
+            or k != self._goal_index
+            or issue != self._issue
+            or t - self._t_plan >= self.cfg.replan_period_s - 1e-9
+        )
+        self._issue = issue
         if due:
             self.plan_ = self._replan(estimate, threats.storms or [StormSnapshot(t, ())], t, k)
             self._t_plan, self._goal_index = t, k
