@@ -19,7 +19,7 @@ from guidance.mptp.goal import GoalTrack
 from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.wind import WindForecast, air_goal, to_air, to_ground
 from sim.core.threats import StormSnapshot
-from sim.planner_registry import PlannerConfigError, make_planner
+from sim.planner_registry import make_planner
 from sim.scenario import load_scenario, parse_scenario
 from sim.testbeds.mptp_openloop import flown_times, ground_speed, run_open_loop
 from sim.testbeds.mptp_thesis import Scenario
@@ -86,14 +86,14 @@ def test_the_forecast_comes_from_the_scenario_wind_and_its_options_act():
     p = make_planner("mptp", m, "fixed_wing", {"wind_error_ne_mps": [2.0, -3.0]}, wind_ne_mps=wind)
     assert np.allclose(p.wind.at(18_000.0), [11.0, 9.0])
     assert make_planner("mptp", m, "fixed_wing", {"wind_forecast": "none"}, wind_ne_mps=wind).wind is None
-    with pytest.raises(PlannerConfigError, match="wind_error_ne_mps"):
+    with pytest.raises(ValueError, match="wind_error_ne_mps"):
         make_planner("mptp", m, "fixed_wing", {"wind_error_ne_mps": [1.0]})
 
 
 def _open_loop_world() -> tuple[Scenario, np.ndarray]:
     scenario, _ = load_scenario(SCENARIO)
     field = WeatherService(scenario.weather, scenario.seed).field
-    cfg = MptpConfig(**scenario.vehicle[0].planner.options)
+    cfg = scenario.vehicle[0].planner.options.config()
     sc = Scenario("wind crossing", np.zeros(2), math.pi / 2, GoalTrack.fixed([0.0, 50_000.0]), cfg, field, 20)
     return sc, np.array([scenario.wind.north, scenario.wind.east])
 
