@@ -11,9 +11,11 @@ Measured in this run on this machine (one core, single-threaded numpy/GEOS):
   the expansion cap raised to ``mptp_tables.HEURISTICS_CAP`` so that each search can finish;
 - closed loop (``--closed-loop SCALE``): the thesis's scenarios flown by the JSBSim HAPS on its
   EKF (guidance/mptp/haps_scenarios.py; SCALE "matched" or a space scale, 1 = full size):
-  arrival, flown length, closest true storm, worst replan (wall clock, from the log).
+  arrival, flown length, closest true storm, worst replan (wall clock, from the log);
+- wind (``--wind N,E``): the per-cycle replans calm and in a steady wind (the planner in the
+  air-mass frame), worst replan and its ratio to calm in the same run.
 
-    python benchmarks/bench_mptp.py [--quick] [--closed-loop matched|1]
+    python benchmarks/bench_mptp.py [--quick] [--closed-loop matched|1] [--wind N,E]
 
 Writes benchmarks/results/mptp.json and prints Markdown tables.
 """
@@ -34,19 +36,23 @@ sys.path.insert(0, str(ROOT))
 
 from guidance.mptp.search import plan_trajectory  # noqa: E402
 from guidance.mptp.timeline import ObstacleTimeline  # noqa: E402
+from guidance.mptp.wind import WindForecast  # noqa: E402
 from sim.core.threats import StormSnapshot  # noqa: E402
 from sim.testbeds import mptp_thesis as S  # noqa: E402
 from sim.testbeds.mptp_openloop import run_open_loop  # noqa: E402
 from sim.testbeds.mptp_tables import closed_loop_row, heuristics_row  # noqa: E402
 
 
-def per_cycle(make) -> dict:
+def per_cycle(make, wind: np.ndarray | None = None) -> dict:
+    """Open-loop replans of one thesis scenario; with ``wind`` (north, east) [m/s] the aircraft
+    flies in that true wind and the planner is given it as its forecast (air-mass frame)."""
     sc = make()
-    run = run_open_loop(sc)
+    forecast = None if wind is None else WindForecast.steady(*wind)
+    run = run_open_loop(sc, wind_true=wind, wind_forecast=forecast)
     w = np.array([p.diagnostics.get("weather_s", 0.0) for p in run.plans])
     s = np.array([p.diagnostics.get("runtime_s", 0.0) for p in run.plans])
     return {
-        "scenario": sc.name,
+        "scenario": sc.name + ("" if wind is None else f" in wind {wind[0]:g}/{wind[1]:g} m/s"),
         "cycles": len(run.plans),
         "weather_mean_s": w.mean(),
         "search_mean_s": s.mean(),
@@ -124,6 +130,12 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="fewer repeats and multipliers")
     ap.add_argument("--closed-loop", metavar="SCALE", help="only the closed-loop HAPS runs: 'matched' or a space scale")
+    ap.add_argument(
+        "--wind",
+        metavar="N,E",
+        help="only the per-cycle replans, calm and in this true (and forecast) wind [m/s], with the ratio of the "
+        "worst replan in wind to calm in the same run",
+    )
     args = ap.parse_args()
     out = ROOT / "benchmarks" / "results"
     out.mkdir(parents=True, exist_ok=True)
@@ -141,6 +153,21 @@ def main() -> None:
                 f"| {r['scenario']} | {r['space_scale']:.3g} | {r['time_scale']:.3g} | {r['status']} | "
                 f"{r['arrival_min']:.1f} | {r['flown_km']:.1f} | {r['storm_min_m']:.0f} | {r['inside_s']:.0f} | "
                 f"{', '.join(r['degraded']) or '-'} | {r['replans']} | {r['replan_max_s']:.2f} | {r['wall_s']:.0f} |"
+            )
+        return
+    if args.wind:
+        wind = np.array([float(x) for x in args.wind.split(",")])
+        print(
+            "| scenario | cycles | worst replan calm [s] | worst replan in wind [s] | ratio "
+            "| arrival calm / wind [min] |"
+        )
+        print("|---|---|---|---|---|---|")
+        for make in thesis:
+            calm, windy = per_cycle(make), per_cycle(make, wind)
+            print(
+                f"| {calm['scenario']} | {calm['cycles']} / {windy['cycles']} | {calm['total_max_s']:.2f} | "
+                f"{windy['total_max_s']:.2f} | {windy['total_max_s'] / calm['total_max_s']:.2f} | "
+                f"{calm['arrival_min']:.1f} / {windy['arrival_min']:.1f} |"
             )
         return
     mult = (1, 3) if args.quick else (1, 2, 3, 4, 6)
