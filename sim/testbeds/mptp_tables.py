@@ -37,7 +37,7 @@ def openloop_row(make: Callable[[], S.Scenario]) -> dict:
     return {
         "scenario": sc.name,
         "plans": len(run.plans),
-        "first_tl_km": first.get("path_length_m", float("nan")) / 1000,
+        "first_tl_km": float(first.get("path_length_m", float("nan"))) / 1000,
         "first_exst": int(first.get("expanded", 0)),
         "flown_km": run.length_m / 1000,
         "arrival_min": run.arrived_s / 60,
