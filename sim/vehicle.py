@@ -46,6 +46,7 @@ class Vehicle:
         self.logw = VehicleLogWriter(log, cfg.name)
         self.planner_records = RecordSink(log, f"/{cfg.name}/plan", origin)
         self.plant = build_plant(cfg, af, origin, wind, seed)
+        self.wind_ne = (wind.north, wind.east)  # the scenario's steady wind, the planners' forecast [m/s]
         self.mission = mission_from_config(cfg, origin)
         self.estimator = make_estimator(cfg.estimator, self.plant, af, seed, origin)
         self.controller = af.make_controller(cfg.gains)
@@ -68,7 +69,7 @@ class Vehicle:
 
     def make_mission_planner(self) -> Planner:
         """The scenario's planner for the current mission."""
-        return scenario_planner(self.cfg, self.mission, self.airframe, self.controller.gains)
+        return scenario_planner(self.cfg, self.mission, self.airframe, self.controller.gains, self.wind_ne)
 
     def inject_sensor_fault(self, fault) -> None:
         """A scenario sensor fault (gnss_loss, sensor_bias, sensor_stuck) into the sensor models."""

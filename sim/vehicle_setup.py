@@ -39,11 +39,14 @@ def mission_from_config(cfg: sc.VehicleSpec, origin: GeoPoint) -> Mission:
     )
 
 
-def scenario_planner(cfg: sc.VehicleSpec, mission: Mission, af: Airframe, gains: object) -> Planner:
+def scenario_planner(
+    cfg: sc.VehicleSpec, mission: Mission, af: Airframe, gains: object, wind_ne_mps: tuple[float, float]
+) -> Planner:
     """The scenario's planner for ``mission``; a fixed-wing planner turns within the controller's
-    roll limit (``gains.roll_limit_rad`` [rad], 20 deg for gains without one)."""
+    roll limit (``gains.roll_limit_rad`` [rad], 20 deg for gains without one); ``wind_ne_mps``:
+    the scenario's steady wind (north, east) [m/s], the planners' forecast."""
     roll_limit = getattr(gains, "roll_limit_rad", np.radians(20.0))
-    return make_planner(cfg.planner.type, mission, af.kind, cfg.planner.options, roll_limit)
+    return make_planner(cfg.planner.type, mission, af.kind, cfg.planner.options, roll_limit, wind_ne_mps)
 
 
 def build_plant(cfg: sc.VehicleSpec, af: Airframe, origin: GeoPoint, wind: sc.Wind, seed: int) -> JSBSimPlant:
