@@ -48,16 +48,18 @@ def _assert_reproduced(path: Path, vehicle: str) -> RunLog:
 
 
 @pytest.mark.parametrize(
-    ("scenario", "vehicle", "duration", "records"),
+    ("scenario", "vehicle", "duration", "records", "sensed"),
     [
-        ("geometric/s3b_moving_main.toml", "quad", 25.0, "candidates"),
-        ("reachset/s6_converging.toml", "uas1", 20.0, "decision"),
-        ("rules/s9_converging.toml", "uas1", 30.0, "rules"),
+        ("geometric/s3b_moving_main.toml", "quad", 25.0, "candidates", "intruders"),
+        ("reachset/s6_converging.toml", "uas1", 20.0, "decision", "intruders"),
+        ("reachset/building_lidar.toml", "quad", 20.0, "decision", "lidar_hits"),
+        ("rules/s9_converging.toml", "uas1", 30.0, "rules", "intruders"),
     ],
 )
-def test_avoidance_planner_rerun_reproduces_every_plan(tmp_path_factory, scenario, vehicle, duration, records):
+def test_avoidance_planner_rerun_reproduces_every_plan(tmp_path_factory, scenario, vehicle, duration, records, sensed):
     log = _assert_reproduced(_fly(tmp_path_factory, scenario, duration), vehicle)
-    assert len(log.topic(f"/{vehicle}/threats")["intruders"][-1]) > 0  # it planned around traffic
+    threats = log.topic(f"/{vehicle}/threats").messages
+    assert any(m[sensed] for m in threats)  # it planned on sensed traffic or LiDAR returns
     assert log.has(f"/{vehicle}/plan/{records}")  # the planner's own logic ran (rules: rule decisions)
 
 
