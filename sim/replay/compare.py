@@ -19,12 +19,18 @@ def compare_logs(a: str | Path, b: str | Path) -> list[Row]:
     """Rows (metric, value in A, value in B, B - A where both are numbers)."""
     fa = flatten(log_metrics(RunLog(a)))
     fb = flatten(log_metrics(RunLog(b)))
-    rows = []
+    rows: list[Row] = []
     for k in sorted(set(fa) | set(fb)):
         x, y = fa.get(k), fb.get(k)
-        numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (x, y))
-        rows.append((k, x, y, (y - x) if numeric else None))
+        rows.append((k, x, y, _difference(x, y)))
     return rows
+
+
+def _difference(x: object, y: object) -> float | None:
+    """y - x for two numbers (not flags), else None."""
+    if isinstance(x, bool) or isinstance(y, bool) or not isinstance(x, int | float) or not isinstance(y, int | float):
+        return None
+    return y - x
 
 
 def write_json(rows: list[Row], out: TextIO) -> None:

@@ -86,7 +86,7 @@ class VehicleTrace:
             None if sig is None else sig["vel"],
             st["vel_ned"],
             log.topic(f"/{name}/truth/tracking")["cross_track_m"],
-            sum(not m["new_plan"] for m in log.topic(inp_topic).messages) if log.has(inp_topic) else 0,
+            plan_cache_hits=sum(not m["new_plan"] for m in log.topic(inp_topic).messages) if log.has(inp_topic) else 0,
         )
 
 
@@ -154,12 +154,17 @@ class TraceRecorder:
             list(self._reached),
             self._complete_t,
             self._command_arrays(),
-            *(np.asarray(self._est[k], dtype=float) for k in ("pos_ned", "vel_ned")),
-            *((np.asarray(self._sigma[k], dtype=float) if self._sigma[k] else None) for k in ("pos", "vel")),
+            np.asarray(self._est["pos_ned"], dtype=float),
+            np.asarray(self._est["vel_ned"], dtype=float),
+            self._sigma_array("pos"),
+            self._sigma_array("vel"),
             s["vel_ned"],
             np.asarray(self._cross, dtype=float),
-            self._cache_hits,
+            plan_cache_hits=self._cache_hits,
         )
+
+    def _sigma_array(self, key: str) -> np.ndarray | None:
+        return np.asarray(self._sigma[key], dtype=float) if self._sigma[key] else None
 
     def _command_arrays(self) -> dict[str, np.ndarray]:
         props = self._commands[-1].keys() if self._commands else ()
