@@ -37,10 +37,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import avoidance.reachset.situation as situation  # noqa: E402
 from avoidance.factory import make_planner  # noqa: E402
 from avoidance.planner import Planner, Threats  # noqa: E402
-from avoidance.reachset.grid import AvoidanceGrid  # noqa: E402
 from avoidance.reachset.threats.intruders import IntruderModel  # noqa: E402
 from avoidance.threats import IntruderTrack  # noqa: E402
 from aircraft.registry import get_airframe  # noqa: E402
@@ -121,9 +119,10 @@ class LatticeIntruderModel:
         return np.maximum(out, self._rate(*self._bin(pts, toa), speed))
 
 
-def lattice_intruder_ratings(grid: AvoidanceGrid, motion: np.ndarray, model: IntruderModel) -> np.ndarray:
+def lattice_ratings(model: IntruderModel, motion: np.ndarray) -> np.ndarray:
+    """``IntruderModel.ratings`` as it was: every intruder rated by the lattices."""
     old = LatticeIntruderModel(model)
-    out = np.zeros((len(motion), grid.n_cells))
+    out = np.zeros((len(motion), model.grid.n_cells))
     for n, m in enumerate(motion):
         out[n] = old.rating(m[:3], m[3:6], float(m[6]))
     return out
@@ -135,12 +134,12 @@ def code_path(name: str) -> Iterator[None]:
     if name == "current":
         yield
         return
-    saved = situation.intruder_ratings
-    situation.intruder_ratings = lattice_intruder_ratings
+    saved = IntruderModel.ratings
+    IntruderModel.ratings = lattice_ratings
     try:
         yield
     finally:
-        situation.intruder_ratings = saved
+        IntruderModel.ratings = saved
 
 
 # --- scenes ----------------------------------------------------------------------------------------

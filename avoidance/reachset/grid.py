@@ -59,6 +59,38 @@ class AvoidanceGrid:
         """Flat cell index of Cartesian LCF points (..., 3), -1 outside the grid."""
         return self.cell_index_polar(to_polar(p_lcf))
 
+    def distance(self, p_lcf: np.ndarray) -> np.ndarray:
+        """Exact Euclidean distance [m] of LCF points (M, 3) to every cell (M, n_cells) (0 inside).
+
+        A cell is the set of ``s·a`` with ``s`` in its distance band [d0, d1] and ``a`` a unit
+        direction in its angular rectangle A = [θ0, θ1] × [φ0, φ1]. The distance of a point at range
+        ρ to the segment s·a grows with the angle α between them, so the nearest direction of A is
+        the one of least angle: its meridian is the circularly nearest θ of [θ0, θ1] (for every
+        elevation ψ, cos α = cos φ cos ψ cos Δθ + sin φ sin ψ grows with cos Δθ), and on that
+        meridian cos α = R cos(ψ − ψ*) is largest at ψ* clipped to [φ0, φ1] when ψ* lies inside,
+        else at an end. Then s = clip(ρ cos α, d0, d1) and |p − s·a|² = ρ² + s² − 2ρ s cos α."""
+        rho, th, ph = to_polar(np.asarray(p_lcf, float).reshape(-1, 3)).T
+        cfg = self.cfg
+        th_lo = self.starts[1] + self.steps[1] * np.arange(cfg.n_h)  # (J,)
+        ph_lo = self.starts[2] + self.steps[2] * np.arange(cfg.n_v)  # (K,)
+        d_lo = self.starts[0] + self.steps[0] * np.arange(cfg.n_layers)  # (I,)
+        th_hi, ph_hi, d_hi = th_lo + self.steps[1], ph_lo + self.steps[2], d_lo + self.steps[0]
+        inside = (th[:, None] >= th_lo) & (th[:, None] <= th_hi)
+        cos_dth = np.where(inside, 1.0, np.maximum(np.cos(th[:, None] - th_lo), np.cos(th[:, None] - th_hi)))  # (M, J)
+        a = (np.cos(ph)[:, None] * cos_dth)[:, :, None]  # (M, J, 1)
+        b = np.sin(ph)[:, None, None]
+        psi = np.arctan2(b, a)
+        best = np.where(
+            (psi >= ph_lo) & (psi <= ph_hi),
+            np.hypot(a, b),
+            np.maximum(a * np.cos(ph_lo) + b * np.sin(ph_lo), a * np.cos(ph_hi) + b * np.sin(ph_hi)),
+        )  # (M, J, K): cos α
+        cos_a = np.clip(best, -1.0, 1.0)[:, None, :, :]  # (M, 1, J, K)
+        r = rho[:, None, None, None]
+        s = np.clip(r * cos_a, d_lo[:, None, None], d_hi[:, None, None])  # (M, I, J, K)
+        d2 = r * r + s * s - 2.0 * r * s * cos_a
+        return np.sqrt(np.maximum(d2, 0.0)).reshape(len(rho), self.n_cells)
+
     def wall_distance(self, p_lcf: np.ndarray, cells: np.ndarray) -> np.ndarray:
         """Distance of points to the 4 side walls (constant θ, constant φ) of their cells (§4.5)."""
         d, th, ph = to_polar(p_lcf).T
