@@ -37,11 +37,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from aircraft.registry import get_airframe  # noqa: E402
 from avoidance.factory import make_planner  # noqa: E402
 from avoidance.planner import Planner, Threats  # noqa: E402
 from avoidance.reachset.threats.intruders import IntruderModel  # noqa: E402
 from avoidance.threats import IntruderTrack  # noqa: E402
-from aircraft.registry import get_airframe  # noqa: E402
 from sim.scenario import load_scenario  # noqa: E402
 from sim.state import VehicleState  # noqa: E402
 from sim.vehicle import mission_from_config  # noqa: E402

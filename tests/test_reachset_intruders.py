@@ -10,18 +10,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from avoidance.planner import Threats
-from avoidance.reachset.cache import reach_set
-from avoidance.reachset.config import AvoidanceConfig, GridConfig, MovementConfig
+from avoidance.reachset.config import AvoidanceConfig
 from avoidance.reachset.frames import from_polar
 from avoidance.reachset.grid import AvoidanceGrid
 from avoidance.reachset.mission import MissionControl
-from avoidance.reachset.movement import KinState, build_primitive_table, thesis_automaton
+from avoidance.reachset.movement import KinState, thesis_automaton
 from avoidance.reachset.threats.intruders import IntruderModel
 from avoidance.threats import IntruderTrack
 
 CFG = AvoidanceConfig()
 GRID = AvoidanceGrid(CFG.grid.scaled(5.0))  # the shipped scale: L = 5 m, range 50 m
-TREE = reach_set(AvoidanceGrid(CFG.grid), build_primitive_table(MovementConfig()), CFG.avoidance)
 
 
 def cell_lattice(grid: AvoidanceGrid, n: int) -> np.ndarray:

@@ -17,11 +17,13 @@ import shapely
 from avoidance.reachset.config import GridConfig
 from avoidance.reachset.frames import from_polar, to_polar
 
+DEFAULT_GRID = GridConfig()
+
 
 class AvoidanceGrid:
     """Geometry only; ratings live in per-decision arrays of length ``n_cells``."""
 
-    def __init__(self, cfg: GridConfig = GridConfig()):
+    def __init__(self, cfg: GridConfig = DEFAULT_GRID):
         self.cfg = cfg
         self.shape = (cfg.n_layers, cfg.n_h, cfg.n_v)
         self.n_cells = cfg.n_layers * cfg.n_h * cfg.n_v
