@@ -38,12 +38,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from aircraft.registry import get_airframe  # noqa: E402
-from avoidance.factory import make_planner  # noqa: E402
-from avoidance.planner import Planner, Threats  # noqa: E402
 from avoidance.reachset.threats.intruders import IntruderModel  # noqa: E402
-from avoidance.threats import IntruderTrack  # noqa: E402
+from sim.core.plan import Planner, Threats  # noqa: E402
+from sim.core.state import VehicleState  # noqa: E402
+from sim.core.threats import IntruderTrack  # noqa: E402
+from sim.planner_registry import make_planner  # noqa: E402
 from sim.scenario import load_scenario  # noqa: E402
-from sim.state import VehicleState  # noqa: E402
 from sim.vehicle import mission_from_config  # noqa: E402
 
 SCENARIOS = {"reachset": "scenarios/reachset/s7_head_on.toml", "rules": "scenarios/rules/s10_head_on.toml"}

@@ -9,14 +9,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from avoidance.planner import Threats
 from avoidance.reachset.config import AvoidanceConfig
 from avoidance.reachset.frames import from_polar
 from avoidance.reachset.grid import AvoidanceGrid
 from avoidance.reachset.mission import MissionControl
 from avoidance.reachset.movement import KinState, thesis_automaton
 from avoidance.reachset.threats.intruders import IntruderModel
-from avoidance.threats import IntruderTrack
+from sim.core.plan import Threats
+from sim.core.threats import IntruderTrack
 
 CFG = AvoidanceConfig()
 GRID = AvoidanceGrid(CFG.grid.scaled(5.0))  # the shipped scale: L = 5 m, range 50 m
