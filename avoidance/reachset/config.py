@@ -200,3 +200,6 @@ class AvoidanceConfig:
     intruders: IntruderModelConfig = field(default_factory=IntruderModelConfig.cooperative)
     fusion: FusionConfig = field(default_factory=FusionConfig)
     mission: MissionConfig = field(default_factory=MissionConfig)
+
+
+DEFAULT_AVOIDANCE = AvoidanceConfig()  # shared default of the planners (frozen)
