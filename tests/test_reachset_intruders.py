@@ -112,6 +112,26 @@ def test_far_intruders_are_culled_and_near_ones_not():
     assert not r[:2].any() and r[2].any()
 
 
+@settings(max_examples=150, deadline=None)
+@given(
+    ahead=st.floats(-0.8, 0.8),
+    up=st.floats(-0.5, 0.5),
+    gap=st.floats(-8.0, 40.0),
+    vel=st.tuples(st.floats(-6, 6), st.floats(-6, 6), st.floats(-2, 2)),
+    radius=st.floats(0.0, 8.0),
+)
+def test_culled_ratings_equal_the_full_ratings_near_the_grid_boundary(ahead, up, gap, vel, radius):
+    """Intruders placed just around the grid's bounding ball (``gap`` beyond the range, in the
+    directions of the grid's front): culling leaves every rating as without it."""
+    m = model(GRID)
+    direction = np.array([np.cos(up) * np.cos(ahead), np.cos(up) * np.sin(ahead), np.sin(up)])
+    motion = np.array([[*(direction * (GRID.range + radius + gap)), *vel, radius]])
+    culled = m.ratings(motion)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(IntruderModel, "reachable", lambda self, motion: np.ones(len(motion), bool))
+        np.testing.assert_array_equal(culled, m.ratings(motion))
+
+
 @st.composite
 def intruder_states(draw):
     """Intruders around the thesis-scale grid (range 10 m): positions within 40 m, speeds up to

@@ -70,7 +70,7 @@ class AvoidanceGrid:
         the one of least angle: its meridian is the circularly nearest θ of [θ0, θ1] (for every
         elevation ψ, cos α = cos φ cos ψ cos Δθ + sin φ sin ψ grows with cos Δθ), and on that
         meridian cos α = R cos(ψ − ψ*) is largest at ψ* clipped to [φ0, φ1] when ψ* lies inside,
-        else at an end. Then s = clip(ρ cos α, d0, d1) and |p − s·a|² = ρ² + s² − 2ρ s cos α."""
+        else at an end. Then s = clip(ρ cos α, d0, d1) and |p − s·a|² = (ρ cos α − s)² + ρ² sin² α."""
         rho, th, ph = to_polar(np.asarray(p_lcf, float).reshape(-1, 3)).T
         cfg = self.cfg
         th_lo = self.starts[1] + self.steps[1] * np.arange(cfg.n_h)  # (J,)
@@ -90,7 +90,7 @@ class AvoidanceGrid:
         cos_a = np.clip(best, -1.0, 1.0)[:, None, :, :]  # (M, 1, J, K)
         r = rho[:, None, None, None]
         s = np.clip(r * cos_a, d_lo[:, None, None], d_hi[:, None, None])  # (M, I, J, K)
-        d2 = r * r + s * s - 2.0 * r * s * cos_a
+        d2 = (r * cos_a - s) ** 2 + r * r * (1.0 - cos_a * cos_a)  # along + across the direction
         return np.sqrt(np.maximum(d2, 0.0)).reshape(len(rho), self.n_cells)
 
     def wall_distance(self, p_lcf: np.ndarray, cells: np.ndarray) -> np.ndarray:

@@ -120,7 +120,7 @@ class IntruderModel:
         with np.errstate(invalid="ignore", divide="ignore"):
             tau = np.clip(np.where(vv > 0, -np.einsum("ij,ij->i", x, v) / vv, 0.0), 0.0, self.horizon)
         gap = np.linalg.norm(x + tau[:, None] * v, axis=1)
-        return gap <= self.grid.range + self.reach(motion)
+        return gap <= self.grid.range + self.reach(motion) + 1e-9 * (1.0 + self.grid.range)  # rounding
 
     def ratings(self, motion: np.ndarray) -> np.ndarray:
         """(n_intruders, n_cells) P_OI of the linear predictions ``motion`` (:func:`intruder_motion`);
