@@ -14,11 +14,12 @@ INS/GNSS EKF the scenarios use by default (``ekf``):
   reach-set planner (four head-on pairs 500 m apart), vs bare ``run()`` of eight F450s. Target:
   >= 8x real time.
 Both numbers come from this machine in this run, so the ratio carries across machines.
-``--intruder-rating baseline`` flies the reach-set cases with the previous intruder rating
-(``bench_reachset.LatticeIntruderModel``) as well, in the same run.
+``--paths baseline,current`` flies the reach-set cases as before issue #16 as well, in the same
+run: the previous intruder rating (``bench_reachset.LatticeIntruderModel``) and no broad phase
+(every vehicle senses every other body).
 
     python benchmarks/bench_closed_loop.py [--case haps|multirotor|mixed_reachset|fleet8_reachset|all]
-        [--repeat 3] [--intruder-rating current|baseline,current]
+        [--repeat 3] [--paths current|baseline,current]
 """
 
 from __future__ import annotations
@@ -29,14 +30,18 @@ import sys
 import tempfile
 import time
 import tomllib
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
+import numpy as np  # noqa: E402
 from bench_reachset import code_path  # noqa: E402
 
+import sim.world as world  # noqa: E402
 from aircraft.registry import get_airframe  # noqa: E402
 from sim.geodesy import GeoPoint  # noqa: E402
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant  # noqa: E402
@@ -77,6 +82,22 @@ def closed_loop_rtf(scenario_name: str, sim_seconds: float, estimator: str) -> f
     return r.sim_time_s / r.wall_time_s
 
 
+@contextmanager
+def broad_phase(path: str) -> Iterator[None]:
+    """``baseline``: ``World.sense`` without the broad phase (every other body to every vehicle)."""
+    if path == "current":
+        yield
+        return
+    saved = world.relevant
+    world.relevant = lambda pos, speed, radius, awareness, *a: [
+        np.flatnonzero(np.arange(len(pos)) != i) for i in range(len(awareness))
+    ]
+    try:
+        yield
+    finally:
+        world.relevant = saved
+
+
 def measure(case: str, repeat: int, ratings: list[str]) -> dict:
     """Real-time factors of the closed loop and of bare stepping of the same plants: the bare
     wall time of one sim second is the sum over the plants of count x rate / steps per second."""
@@ -95,7 +116,7 @@ def measure(case: str, repeat: int, ratings: list[str]) -> dict:
     reachset = "reachset" in case
     for rating in ratings if reachset else ["current"]:
         tag = "" if rating == "current" else f"{rating}_"
-        with code_path(rating):
+        with code_path(rating), broad_phase(rating):
             for estimator in estimators:
                 rtf = max(closed_loop_rtf(scenario, sim_s, estimator) for _ in range(repeat))
                 out[f"{tag}{estimator}_real_time_factor"] = round(rtf, 1)
@@ -108,12 +129,12 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--case", choices=[*CASES, "all"], default="all")
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--intruder-rating", default="current", help="comma-separated: baseline, current")
+    ap.add_argument("--paths", default="current", help="comma-separated: baseline (before issue #16), current")
     args = ap.parse_args()
     out = ROOT / "benchmarks" / "results"
     out.mkdir(exist_ok=True)
     for case in CASES if args.case == "all" else [args.case]:
-        res = measure(case, args.repeat, args.intruder_rating.split(","))
+        res = measure(case, args.repeat, args.paths.split(","))
         (out / f"closed_loop_{case}.json").write_text(json.dumps(res, indent=2))
         print(f"[{case}]")
         for k, v in res.items():
