@@ -98,7 +98,7 @@ def broad_phase(path: str) -> Iterator[None]:
         world.relevant = saved
 
 
-def measure(case: str, repeat: int, ratings: list[str]) -> dict:
+def measure(case: str, repeat: int, paths: list[str]) -> dict:
     """Real-time factors of the closed loop and of bare stepping of the same plants: the bare
     wall time of one sim second is the sum over the plants of count x rate / steps per second."""
     scenario, sim_s, plants, target, estimators = CASES[case]
@@ -114,9 +114,9 @@ def measure(case: str, repeat: int, ratings: list[str]) -> dict:
         "sim_seconds": sim_s,
     }
     reachset = "reachset" in case
-    for rating in ratings if reachset else ["current"]:
-        tag = "" if rating == "current" else f"{rating}_"
-        with code_path(rating), broad_phase(rating):
+    for path in paths if reachset else ["current"]:
+        tag = "" if path == "current" else f"{path}_"
+        with code_path(path), broad_phase(path):
             for estimator in estimators:
                 rtf = max(closed_loop_rtf(scenario, sim_s, estimator) for _ in range(repeat))
                 out[f"{tag}{estimator}_real_time_factor"] = round(rtf, 1)
