@@ -51,6 +51,7 @@ def test_distance_is_exact_against_a_dense_lattice_of_every_cell():
     inside = cells >= 0
     assert inside.sum() >= 20
     assert (d[np.flatnonzero(inside), cells[inside]] == 0.0).all()
+    np.testing.assert_allclose(GRID.envelope_distance(pts), d.min(axis=1), atol=1e-9)  # the union's distance
 
 
 def test_body_rating_covers_the_swept_body_and_stays_within_one_sample_of_it():

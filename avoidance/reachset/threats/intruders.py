@@ -141,8 +141,9 @@ class IntruderModel:
 
     def _body(self, motion: np.ndarray, speed: np.ndarray):
         """Hit indicator and hit-time hull [i_e, i_l] per (intruder, cell) of the swept bodies:
-        the centre samples of all intruders are stacked and their distances to every cell
-        evaluated in blocks of at most :attr:`max_block` entries, reduced per intruder."""
+        the centre samples of all intruders are stacked, those farther from the whole grid than
+        their bound dropped, and the distances of the rest to every cell evaluated in blocks of at
+        most :attr:`max_block` entries, reduced per intruder."""
         n, n_cells = len(motion), self.grid.n_cells
         n_t = np.array([self._samples(s) for s in speed])
         owner = np.repeat(np.arange(n), n_t)
@@ -153,6 +154,8 @@ class IntruderModel:
         hit = np.zeros((n, n_cells))
         i_e = np.full((n, n_cells), np.inf)
         i_l = np.full((n, n_cells), -np.inf)
+        keep = self.grid.envelope_distance(centres) <= bound  # samples that can touch any cell
+        owner, tau, centres, bound = owner[keep], tau[keep], centres[keep], bound[keep]
         per_block = max(1, self.max_block // n_cells)
         for lo in range(0, len(owner), per_block):
             sl = slice(lo, lo + per_block)
