@@ -44,7 +44,7 @@ from sim.core.state import VehicleState  # noqa: E402
 from sim.core.threats import IntruderTrack  # noqa: E402
 from sim.planner_registry import make_planner  # noqa: E402
 from sim.scenario import load_scenario  # noqa: E402
-from sim.vehicle import mission_from_config  # noqa: E402
+from sim.vehicle_setup import mission_from_config  # noqa: E402
 
 SCENARIOS = {"reachset": "scenarios/reachset/s7_head_on.toml", "rules": "scenarios/rules/s10_head_on.toml"}
 TARGETS_MS = {"5_intruders": 20.0, "20_intruders": 80.0}

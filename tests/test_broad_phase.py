@@ -13,7 +13,7 @@ from sim.broad_phase import relevant
 from sim.mcap_log import McapLog
 from sim.planner_registry import make_planner
 from sim.scenario import load_scenario
-from sim.vehicle import mission_from_config
+from sim.vehicle_setup import mission_from_config
 from sim.world import World
 
 
