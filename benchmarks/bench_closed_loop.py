@@ -19,7 +19,7 @@ run: the previous intruder rating (``bench_reachset.LatticeIntruderModel``) and 
 (every vehicle senses every other body).
 
     python benchmarks/bench_closed_loop.py [--case haps|multirotor|mixed_reachset|fleet8_reachset|all]
-        [--repeat 3] [--paths current|baseline,current]
+        [--repeat 3] [--paths current|baseline,current] [--sim-seconds S]
 """
 
 from __future__ import annotations
@@ -98,10 +98,12 @@ def broad_phase(path: str) -> Iterator[None]:
         world.relevant = saved
 
 
-def measure(case: str, repeat: int, paths: list[str]) -> dict:
+def measure(case: str, repeat: int, paths: list[str], sim_seconds: float | None = None) -> dict:
     """Real-time factors of the closed loop and of bare stepping of the same plants: the bare
-    wall time of one sim second is the sum over the plants of count x rate / steps per second."""
+    wall time of one sim second is the sum over the plants of count x rate / steps per second.
+    ``sim_seconds`` overrides the case's flight time."""
     scenario, sim_s, plants, target, estimators = CASES[case]
+    sim_s = sim_seconds or sim_s
     steps = {m: max(bare_steps_per_s(m, a, r, int(sim_s * r)) for _ in range(repeat)) for m, a, r, _ in plants}
     bare_rtf = 1.0 / sum(n * r / steps[m] for m, _, r, n in plants)
     out = {
@@ -129,12 +131,13 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--case", choices=[*CASES, "all"], default="all")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--sim-seconds", type=float, default=None, help="override the cases' flight time [s]")
     ap.add_argument("--paths", default="current", help="comma-separated: baseline (before issue #16), current")
     args = ap.parse_args()
     out = ROOT / "benchmarks" / "results"
     out.mkdir(exist_ok=True)
     for case in CASES if args.case == "all" else [args.case]:
-        res = measure(case, args.repeat, args.paths.split(","))
+        res = measure(case, args.repeat, args.paths.split(","), args.sim_seconds)
         (out / f"closed_loop_{case}.json").write_text(json.dumps(res, indent=2))
         print(f"[{case}]")
         for k, v in res.items():
