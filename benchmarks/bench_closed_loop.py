@@ -121,7 +121,7 @@ def measure(case: str, repeat: int, paths: list[str], sim_seconds: float | None 
         with code_path(path), broad_phase(path):
             for estimator in estimators:
                 rtf = max(closed_loop_rtf(scenario, sim_s, estimator) for _ in range(repeat))
-                out[f"{tag}{estimator}_real_time_factor"] = round(rtf, 1)
+                out[f"{tag}{estimator}_real_time_factor"] = round(rtf, 2)
                 out[f"{tag}{estimator}_ratio_to_bare"] = round(rtf / bare_rtf, 3)
     out["meets_target"] = out[f"{estimators[-1]}_real_time_factor"] >= target
     return out
