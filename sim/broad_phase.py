@@ -38,12 +38,13 @@ def relevant(
     if pos.shape != (n, 3) or speed.shape != (n,) or radius.shape != (n,) or len(awareness) > n:
         raise ValueError("broad phase: pos must be (N, 3), speed and radius (N,), at most N vehicles")
     everyone = np.arange(n)
-    aware = [i for i, a in enumerate(awareness) if a is not None]
+    declared = [(i, a) for i, a in enumerate(awareness) if a is not None]
     out = [everyone[everyone != i] for i in range(len(awareness))]
-    if not aware:
+    if not declared:
         return out
-    reach = np.array([awareness[i][0] for i in aware])
-    look = np.array([awareness[i][1] for i in aware]) + settle_s
+    aware = [i for i, _ in declared]
+    reach = np.array([a[0] for _, a in declared])
+    look = np.array([a[1] for _, a in declared]) + settle_s
     query = reach + speed[aware] * look + (speed.max() * look + radius.max())
     tree = cKDTree(pos)
     for k, (i, cand) in enumerate(zip(aware, tree.query_ball_point(pos[aware], query), strict=True)):

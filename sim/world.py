@@ -57,7 +57,9 @@ class World:
         for v in self.vehicles:
             v.threats.obstacles, v.threats.geofences = self.obstacles, self.fences  # known from the map
         has_traffic = n > 1 or bool(self.objects)
-        self.awareness = [getattr(v.planner, "awareness", lambda: None)() for v in self.vehicles]
+        self.awareness: list[tuple[float, float] | None] = [
+            getattr(v.planner, "awareness", lambda: None)() for v in self.vehicles
+        ]  # what each planner needs sensed (sim/broad_phase.py); None: everything
         self._cruise = np.array([v.mission.cruise_speed for v in self.vehicles])
         self.perception = (
             {

@@ -139,7 +139,7 @@ class IntruderModel:
                     np.maximum(out[r], self._cone(mm[:3], mm[3:6], float(sp)), out=out[r])
         return out
 
-    def _body(self, motion: np.ndarray, speed: np.ndarray):
+    def _body(self, motion: np.ndarray, speed: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Hit indicator and hit-time hull [i_e, i_l] per (intruder, cell) of the swept bodies:
         the centre samples of all intruders are stacked, those farther from the whole grid than
         their bound dropped, and the distances of the rest to every cell evaluated in blocks of at
