@@ -11,6 +11,7 @@ from shapely.geometry import Polygon
 from sim.core.plan import Threats
 from sim.core.threats import IntruderTrack, LidarScan, SphereThreat, StormSnapshot
 from sim.replay import rerun
+from sim.replay.report import log_metrics
 from sim.replay.rerun import rerun_planner
 from sim.replay.runlog import RunLog
 from sim.runner import run_scenario
@@ -70,6 +71,8 @@ def test_mptp_rerun_reproduces_every_plan_and_needs_the_storm_velocities(mptp_lo
     assert sum(not m["new_plan"] for m in inputs) == len(inputs) - 3
     m = RunLog(mptp_log)
     assert m.topic("/haps/plan/latency").t.tolist() == [0.0, 300.0, 600.0]  # latency of real replans only
+    latency = log_metrics(m)["vehicles"]["haps"]["planner_latency"]
+    assert latency["count"] == 3 and latency["cache_hits"] == len(inputs) - 3
     # the cell velocities act: without them the nowcast's storms do not move and the plans differ
     still = rerun.storms_from_dicts
     monkeypatch.setattr(rerun, "storms_from_dicts", lambda d: still([{**s, "velocities_ne": None} for s in d]))
