@@ -399,6 +399,7 @@ def _planner_fields() -> list[str]:
 NOT_YET_SHOWN = {
     "metrics.well_clear_horizontal": "acts on the report's metrics, not on the log",
     "metrics.well_clear_vertical": "acts on the report's metrics, not on the log",
+    "weather.nowcast_files": "nowcast GeoJSON files from disk (new on main): needs a nowcast-file fixture",
     **{
         f"vehicle.lidar.{k}": "acts on the reach-set planner's occupancy grid; follow_mission logs only hit counts"
         for k in ("rate_hz", "frame", *(f"range_error.{e}" for e in _RANGE_ERROR))
