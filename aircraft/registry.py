@@ -39,13 +39,16 @@ class Airframe:
     controller: str  # "module:Class" with a ctor taking the gains object
     gains: str  # "module:Class" with ``load(path=None)``
     description: str
+    # "module:function(plant)" trimming where JSBSim's own trim cannot (None: JSBSim's trim only)
+    level_trim: str | None = None
 
     def make_controller(self, gains_path: Path | None = None) -> FlightController:
-        gains = _resolve(self.gains).load(gains_path)
-        return _resolve(self.controller)(gains)
+        gains = resolve(self.gains).load(gains_path)
+        return resolve(self.controller)(gains)
 
 
-def _resolve(ref: str):
+def resolve(ref: str):
+    """The object named by ``"module:attr"``."""
     module, _, attr = ref.partition(":")
     return getattr(importlib.import_module(module), attr)
 
@@ -64,6 +67,7 @@ AIRFRAMES: dict[str, Airframe] = {
             controller="aircraft.haps.autopilot:HapsAutopilot",
             gains="aircraft.haps.autopilot:HapsGains",
             description="Zephyr-class solar-electric HAPS, 25 m span, 75 kg (aircraft/haps/README.md)",
+            level_trim="sim.tuning.trim_haps:level_trim",
         ),
         Airframe(
             name="quadrotor",

@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from aircraft.registry import get_airframe
+from aircraft.registry import get_airframe, resolve
 from avoidance.factory import make_planner
 from avoidance.planner import Plan, Threats
 from avoidance.position_planners import GotoPlanner, HoldPositionPlanner
@@ -28,7 +28,7 @@ from sim.environment import apply_steady_wind, apply_turbulence
 from sim.estimation.sensor_estimator import SensorEstimator, SensorEstimatorConfig
 from sim.estimator import PerfectEstimator
 from sim.frames import GeoPoint, geodetic_to_ned, ned_to_geodetic
-from sim.jsbsim_plant import InitialConditions, JSBSimPlant
+from sim.jsbsim_plant import InitialConditions, JSBSimPlant, PlantError
 from sim.mavlink.commands import Arm, MissionUpload, PositionTarget, SetMode
 from sim.mcap_log import McapLog
 from sim.planner_log import PlannerLogger
@@ -90,7 +90,7 @@ class Vehicle:
             )
         )
         if ini.trim if ini.trim is not None else af.kind == "fixed_wing":
-            self.plant.trim()
+            self._trim(log)
         apply_turbulence(self.plant, wind, seed)
         m = cfg.mission
         self.mission = mission_from_config(cfg, origin)
@@ -124,6 +124,17 @@ class Vehicle:
         self._setpoint: dict = {}
         self._commands: dict[str, float] = {}
         self._mission_logged: tuple[int, bool] | None = None
+
+    def _trim(self, log: McapLog) -> None:
+        """JSBSim's trim; where it fails (the HAPS below ~12 km, see sim/tuning/trim_haps.py) the
+        airframe's own level-flight trim, noted as an event."""
+        try:
+            self.plant.trim()
+        except PlantError as exc:
+            if self.airframe.level_trim is None:
+                raise
+            resolve(self.airframe.level_trim)(self.plant)
+            log.event(0.0, f"{self.name}: JSBSim trim failed ({exc}); level-flight trim used", name=self.name)
 
     def _make_planner(self):
         return make_planner(
