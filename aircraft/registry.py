@@ -41,6 +41,12 @@ class Airframe:
     description: str
     # "module:function(plant)" trimming where JSBSim's own trim cannot (None: JSBSim's trim only)
     level_trim: str | None = None
+    # electrical power system (solar array, battery, loads): ``energy.toml`` in the airframe folder
+    energy: bool = False
+
+    @property
+    def energy_file(self) -> Path | None:
+        return self.folder / "energy.toml" if self.energy and self.folder is not None else None
 
     def make_controller(self, gains_path: Path | None = None) -> FlightController:
         gains = resolve(self.gains).load(gains_path)
@@ -68,6 +74,7 @@ AIRFRAMES: dict[str, Airframe] = {
             gains="aircraft.haps.autopilot:HapsGains",
             description="Zephyr-class solar-electric HAPS, 25 m span, 75 kg (aircraft/haps/README.md)",
             level_trim="sim.tuning.trim_haps:level_trim",
+            energy=True,
         ),
         Airframe(
             name="quadrotor",

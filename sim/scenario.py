@@ -84,6 +84,15 @@ class Initial(_Strict):
     on_ground: bool = False
 
 
+class EnergyOptions(_Strict):
+    """Electrical power system of an airframe that has one (``aircraft/<name>/energy.toml``):
+    ``enabled`` false flies without it; ``initial_soc`` overrides the file's starting state of
+    charge [0..1]."""
+
+    enabled: bool = True
+    initial_soc: Annotated[float, Field(ge=0.0, le=1.0)] | None = None
+
+
 class PlannerConfig(_Strict):
     """``type``: follow_mission (no avoidance), geometric (candidate paths, multirotor),
     reachset (avoidance grid), mptp (weather, fixed wing), pursuit (flies at another vehicle, the
@@ -107,6 +116,7 @@ class Vehicle(_Strict):
     initial: Initial
     mission: Mission
     planner: PlannerConfig = PlannerConfig()
+    energy: EnergyOptions = EnergyOptions()
 
     @field_validator("aircraft")
     @classmethod
@@ -124,6 +134,8 @@ class Vehicle(_Strict):
             check_planner(self.planner.type, kind, self.planner.options)
         except PlannerConfigError as exc:
             raise ValueError(f"planner: {exc}") from None
+        if self.energy.initial_soc is not None and get_airframe(self.aircraft).energy_file is None:
+            raise ValueError(f"energy.initial_soc: {self.aircraft} has no power-system model (energy.toml)")
         if self.lidar is not None and self.planner.type == "reachset":
             need = reachset_grid_range(kind, self.mission.cruise_speed, self.planner.options)
             if self.lidar.max_range_m < need:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import time
+from datetime import UTC, datetime
 
 import numpy as np
 
@@ -24,6 +25,8 @@ from guidance.multirotor_follower import MultirotorPlanFollower
 from guidance.setpoints import MultirotorSetpoint
 from sim import log_schemas as S
 from sim import scenario as sc
+from sim.energy.params import EnergyParams
+from sim.energy.power_system import PowerSystem
 from sim.environment import apply_steady_wind, apply_turbulence
 from sim.estimation.sensor_estimator import SensorEstimator, SensorEstimatorConfig
 from sim.estimator import PerfectEstimator
@@ -118,6 +121,7 @@ class Vehicle:
             )
             self.controller.reset(self.estimate, landed=ini.on_ground)
             self._setpoint_schema = S.MULTIROTOR_SETPOINT
+        self.power = self._make_power_system(log)
         self.recorder = TraceRecorder(cfg.name, af.kind, len(self.mission.waypoints))
         self.threats = Threats()
         self._control_dt = 1.0 / af.control_hz
@@ -135,6 +139,13 @@ class Vehicle:
                 raise
             resolve(self.airframe.level_trim)(self.plant)
             log.event(0.0, f"{self.name}: JSBSim trim failed ({exc}); level-flight trim used", name=self.name)
+
+    def _make_power_system(self, log: McapLog) -> PowerSystem | None:
+        path = self.airframe.energy_file
+        if path is None or not self.cfg.energy.enabled:
+            return None
+        epoch = datetime.fromtimestamp(log.epoch_ns / 1e9, tz=UTC)
+        return PowerSystem(EnergyParams.load(path), epoch, self.cfg.energy.initial_soc)
 
     def _make_planner(self):
         return make_planner(
@@ -234,6 +245,8 @@ class Vehicle:
         sched.add_task(f"{n}.estimator", af.control_hz, Stage.ESTIMATE, self._estimate)
         sched.add_task(f"{n}.planner", self.cfg.planner.rate_hz, Stage.PLAN, self._plan)
         sched.add_task(f"{n}.control", af.control_hz, Stage.CONTROL, self._control)
+        if self.power is not None:
+            sched.add_task(f"{n}.energy", af.control_hz, Stage.CONTROL, self._energy)
         sched.add_task(f"{n}.log", log_hz, Stage.LOG, self._log)
 
     def _estimate(self, t: float) -> None:
@@ -274,6 +287,18 @@ class Vehicle:
         self._setpoint = self._setpoint_record(sp)
         self._commands = cmds
 
+    def _energy(self, t: float) -> None:
+        """Step the power system over the coming control period; an empty battery stops the
+        motors (motor health 0) for the rest of the run."""
+        was_depleted = self.power.depleted
+        shaft = [self.plant[f"propulsion/engine[{i}]/power-hp"] for i in range(self.plant.engine_count)]
+        rec = self.power.step(self.plant.truth(), shaft, self._control_dt)
+        if rec.depleted and not was_depleted:
+            self.plant.set_many({f"ap/motor-health[{i}]": 0.0 for i in range(self.plant.engine_count)})
+            self.log.event(
+                t, f"{self.name}: energy_depleted (battery empty), motors stopped", level="warning", name=self.name
+            )
+
     def _setpoint_record(self, sp) -> dict:
         f = self.follower
         common = {"leg": f.leg, "cross_track_m": f.cross_track_m, "turning": f.turning}
@@ -304,6 +329,8 @@ class Vehicle:
             self.logw.sensors(t, est.measurements(), sigma3, est.biases())
         self.recorder.estimate(est_logged, sigma3)
         self.logw.control(t, self._setpoint, self._setpoint_schema, self._commands, dict(self.controller.debug))
+        if self.power is not None:
+            self.logw.energy(t, self.power.record.as_dict())
         m = self.mission
         status = (m.next_index, m.complete)
         if status != self._mission_logged:

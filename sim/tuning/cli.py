@@ -53,7 +53,7 @@ def _altitudes(spec: str) -> tuple[float, ...]:
         raise ValueError(f"--altitudes wants START:STOP:STEP in metres, got {spec!r}") from None
     if step <= 0 or stop < start:
         raise ValueError(f"--altitudes {spec!r}: needs STEP > 0 and STOP >= START")
-    n = int(math.floor((stop - start) / step + 1e-9)) + 1
+    n = math.floor((stop - start) / step + 1e-9) + 1
     return tuple(start + k * step for k in range(n))
 
 

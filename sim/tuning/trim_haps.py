@@ -163,8 +163,13 @@ def casadi_trim(
 
 
 def _trim_inputs(elevator_norm: float, throttle: float) -> dict[str, float]:
-    """Surface and throttle properties of a trim (elevator as the trim command, as JSBSim's trim)."""
+    """Surface and throttle properties of a wings-level trim (elevator as the trim command, as
+    JSBSim's trim; lateral commands and trims zeroed, also those a failed JSBSim trim left)."""
     return {
+        "fcs/aileron-cmd-norm": 0.0,
+        "fcs/rudder-cmd-norm": 0.0,
+        "fcs/roll-trim-cmd-norm": 0.0,
+        "fcs/yaw-trim-cmd-norm": 0.0,
         "fcs/elevator-cmd-norm": 0.0,
         "fcs/pitch-trim-cmd-norm": elevator_norm,
         "fcs/throttle-cmd-norm[0]": throttle,
