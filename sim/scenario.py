@@ -68,6 +68,9 @@ class Mission(_Strict):
     # multirotor guidance: "path" flies the legs at cruise speed; "step" jumps the position
     # setpoint to each waypoint in turn (step-response tests, position-mode "go to")
     guidance: Literal["path", "step"] = "path"
+    # fixed wing: after the last waypoint fly the waypoints again from the first (station
+    # keeping); the mission then never completes and the run lasts its duration
+    repeat: bool = False
 
 
 class Initial(_Strict):
@@ -150,7 +153,11 @@ class Vehicle(_Strict):
                     "initial.trim: JSBSim cannot trim a multirotor; it starts in hover "
                     "(or on the ground) and its controller holds it"
                 )
+            if self.mission.repeat:
+                raise ValueError(f"mission.repeat: for fixed wing ({self.aircraft} is {kind})")
             return self
+        if self.mission.repeat and self.planner.type != "follow_mission":
+            raise ValueError("mission.repeat: only with the follow_mission planner")
         if self.mission.land:
             raise ValueError(f"mission.land: only multirotors land at the end of a mission ({self.aircraft} is {kind})")
         if self.initial.on_ground:

@@ -272,6 +272,8 @@ class Vehicle:
             if label >= 0 and m.mark_reached(label, t):
                 self._event(t, f"waypoint {label + 1}/{len(m.waypoints)} reached")
                 self.recorder.reached(t)
+        if self.cfg.mission.repeat and m.waypoints_done:
+            m = self._repeat_mission(t)
         if m.land and m.waypoints_done:  # descend, and stay down once landed
             last = m.waypoints[-1]
             descent = self.controller.gains.limits.max_descent
@@ -298,6 +300,15 @@ class Vehicle:
             self.log.event(
                 t, f"{self.name}: energy_depleted (battery empty), motors stopped", level="warning", name=self.name
             )
+
+    def _repeat_mission(self, t: float) -> Mission:
+        """The same waypoints again, the first leg from the last waypoint (mission.repeat)."""
+        m = self.mission
+        self.mission = Mission(m.waypoints, m.cruise_speed, m.acceptance_radius, start=m.waypoints[-1].copy())
+        self.planner = self._make_planner()
+        self._event(t, "mission repeated")
+        self._plan(t)
+        return self.mission
 
     def _setpoint_record(self, sp) -> dict:
         f = self.follower
