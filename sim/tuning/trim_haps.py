@@ -188,8 +188,8 @@ def level_trim(plant: JSBSimPlant, model: HapsTrimModel | None = None) -> dict:
     altitude, true airspeed and heading with the casadi trim, propellers settled by stepping
     JSBSim (see the module docstring for why JSBSim's own trim cannot below ~12 km).
 
-    Leaves the plant at the trim state with the elevator in ``fcs/pitch-trim-cmd-norm`` and both
-    throttles set, like JSBSim's trim. Returns the casadi solution; raises PlantError with the
+    Leaves the plant at the trim state, at its sim time from before, with the elevator in
+    ``fcs/pitch-trim-cmd-norm`` and both throttles set, like JSBSim's trim. Returns the casadi solution; raises PlantError with the
     reason if the point does not trim (below the stall speed, throttle beyond 1).
     """
     tas = plant["velocities/vt-fps"] * FT
@@ -200,7 +200,9 @@ def level_trim(plant: JSBSimPlant, model: HapsTrimModel | None = None) -> dict:
         raise PlantError(f"{plant.model}: level trim at {alt:.0f} m, TAS {tas:.1f} m/s failed: {s['reason']}")
     ev = JSBSimEvaluator(plant)
     x = _level_state(alt, tas, s["alpha_rad"], heading)
+    t0 = plant.fdm.get_sim_time()
     ev.settle_engines(x, _trim_inputs(s["elevator_norm"], s["throttle"]), rtol=1e-9)
+    plant.fdm.set_sim_time(t0)  # settling steps JSBSim: its clock must not run ahead of the scenario's
     ev.set_state(x)
     return s
 
