@@ -5,10 +5,12 @@ resident memory is its own):
 - ``june``: ``scenarios/haps_station_june_47n.toml`` — state of charge at dawn (first sunrise
   at the vehicle after the night) and its minimum.
 - ``december``: ``scenarios/haps_station_december_60n.toml`` — time of ``energy_depleted``.
+- ``june_schedule``: the June flight with the altitude schedule (climb to 21 km on a full
+  battery, glide to the 18 km floor): state of charge at dawn against ``june``.
 Speed is reported as the real-time factor and against bare ``run()`` steps of the trimmed HAPS
 model measured in the same run (so the ratio carries across machines).
 
-    python benchmarks/bench_haps_24h.py [--case june|december|all] [--hours 24]
+    python benchmarks/bench_haps_24h.py [--case june|december|june_schedule|all] [--hours 24]
 """
 
 from __future__ import annotations
@@ -30,7 +32,11 @@ from sim.frames import GeoPoint  # noqa: E402
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant  # noqa: E402
 from sim.mcap_read import read_topic  # noqa: E402
 
-CASES = {"june": "haps_station_june_47n", "december": "haps_station_december_60n"}
+CASES = {
+    "june": "haps_station_june_47n",
+    "december": "haps_station_december_60n",
+    "june_schedule": "haps_station_june_47n_altitude_schedule",
+}
 
 
 def bare_steps_per_s(steps: int = 200_000) -> float:
@@ -90,6 +96,8 @@ def energy_outcome(path: Path) -> dict:
     out["solar_wh"] = rec[-1]["cumulative_wh"]["solar"]
     out["propulsion_wh"] = rec[-1]["cumulative_wh"]["propulsion"]
     out["capacity_wh"] = rec[0]["energy_wh"] / max(rec[0]["state_of_charge"], 1e-9)
+    alt = [m["alt_msl_m"] for _, m in read_topic(path, "/haps/truth/state")]
+    out["alt_min_m"], out["alt_max_m"] = min(alt), max(alt)
     return out
 
 

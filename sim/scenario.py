@@ -87,13 +87,33 @@ class Initial(_Strict):
     on_ground: bool = False
 
 
+class AltitudeScheduleConfig(_Strict):
+    """Energy management by altitude (sim/energy/altitude_schedule.py): climb to ``ceiling`` once
+    the battery reaches ``soc_high``, glide down to ``floor`` once it falls to ``soc_low``; the
+    mission's waypoint altitudes are replaced by this demand (fixed wing)."""
+
+    floor: _Altitude
+    ceiling: _Altitude
+    soc_high: Annotated[float, Field(ge=0.0, le=1.0)] = 0.95
+    soc_low: Annotated[float, Field(ge=0.0, le=1.0)] = 0.90
+
+    @model_validator(mode="after")
+    def _ordered(self) -> AltitudeScheduleConfig:
+        if not self.floor < self.ceiling:
+            raise ValueError("floor must be below ceiling")
+        if not self.soc_low < self.soc_high:
+            raise ValueError("soc_low must be below soc_high")
+        return self
+
+
 class EnergyOptions(_Strict):
     """Electrical power system of an airframe that has one (``aircraft/<name>/energy.toml``):
     ``enabled`` false flies without it; ``initial_soc`` overrides the file's starting state of
-    charge [0..1]."""
+    charge [0..1]; ``altitude_schedule`` turns on energy management by altitude."""
 
     enabled: bool = True
     initial_soc: Annotated[float, Field(ge=0.0, le=1.0)] | None = None
+    altitude_schedule: AltitudeScheduleConfig | None = None
 
 
 class PlannerConfig(_Strict):
@@ -137,8 +157,11 @@ class Vehicle(_Strict):
             check_planner(self.planner.type, kind, self.planner.options)
         except PlannerConfigError as exc:
             raise ValueError(f"planner: {exc}") from None
-        if self.energy.initial_soc is not None and get_airframe(self.aircraft).energy_file is None:
-            raise ValueError(f"energy.initial_soc: {self.aircraft} has no power-system model (energy.toml)")
+        e = self.energy
+        if (e.initial_soc is not None or e.altitude_schedule is not None) and (
+            get_airframe(self.aircraft).energy_file is None or not e.enabled
+        ):
+            raise ValueError(f"energy: {self.aircraft} flies without a power-system model here (energy.toml, enabled)")
         if self.lidar is not None and self.planner.type == "reachset":
             need = reachset_grid_range(kind, self.mission.cruise_speed, self.planner.options)
             if self.lidar.max_range_m < need:

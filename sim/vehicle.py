@@ -25,6 +25,7 @@ from guidance.multirotor_follower import MultirotorPlanFollower
 from guidance.setpoints import MultirotorSetpoint
 from sim import log_schemas as S
 from sim import scenario as sc
+from sim.energy.altitude_schedule import AltitudeManager, AltitudeSchedule
 from sim.energy.params import EnergyParams
 from sim.energy.power_system import PowerSystem
 from sim.environment import apply_steady_wind, apply_turbulence
@@ -122,6 +123,14 @@ class Vehicle:
             self.controller.reset(self.estimate, landed=ini.on_ground)
             self._setpoint_schema = S.MULTIROTOR_SETPOINT
         self.power = self._make_power_system(log)
+        sched = cfg.energy.altitude_schedule
+        self.altitude_manager = (
+            AltitudeManager(
+                AltitudeSchedule(sched.floor, sched.ceiling, sched.soc_high, sched.soc_low), self.power.battery.soc
+            )
+            if sched is not None and self.power is not None
+            else None
+        )
         self.recorder = TraceRecorder(cfg.name, af.kind, len(self.mission.waypoints))
         self.threats = Threats()
         self._control_dt = 1.0 / af.control_hz
@@ -278,6 +287,8 @@ class Vehicle:
             last = m.waypoints[-1]
             descent = self.controller.gains.limits.max_descent
             sp = MultirotorSetpoint(np.array([last[0], last[1], np.nan]), np.array([0.0, 0.0, descent]), float("nan"))
+        if self.altitude_manager is not None:
+            sp.altitude_m = self.altitude_manager.altitude(self.power.battery.soc)
         cmds = self.controller.update(self.estimate, sp, self._control_dt)
         if m.land and m.waypoints_done and m.landed_t is None and self.controller.landed:
             m.landed_t = t
