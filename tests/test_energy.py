@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 
 from aircraft.registry import get_airframe
+from sim.energy.altitude_schedule import AltitudeManager, AltitudeSchedule
 from sim.energy.battery import Battery
 from sim.energy.params import EnergyConfigError, EnergyParams
 from sim.energy.solar import SunTracker, array_power
 from sim.mcap_read import read_topic
 from sim.runner import run_scenario
-from sim.scenario import load_scenario
+from sim.scenario import ScenarioError, load_scenario, parse_scenario
 from sim.sensors import isa
 
 PARAMS = EnergyParams.load(get_airframe("haps").energy_file)
@@ -137,3 +138,73 @@ def test_energy_balance_of_a_flight_within_one_percent(tmp_path):
     # propulsion power is JSBSim's: on average the trim's shaft power over the motor efficiency
     assert col["propulsion_w"].mean() == pytest.approx(746.0 / PARAMS.loads.motor_efficiency, rel=0.15)
     assert 0.0 < rec[-1]["state_of_charge"] <= 1.0 and not rec[-1]["depleted"]
+
+
+def test_altitude_schedule_climbs_on_a_full_battery_and_glides_down_below_the_low_mark():
+    s = AltitudeSchedule(floor_m=18_000.0, ceiling_m=21_000.0, soc_high=0.95, soc_low=0.90)
+    m = AltitudeManager(s, soc=0.5)
+    assert m.altitude(0.5) == 18_000.0
+    assert m.altitude(0.94) == 18_000.0  # charging: not yet
+    assert m.altitude(0.95) == 21_000.0  # full: store the surplus as height
+    assert m.altitude(0.92) == 21_000.0  # hysteresis: keeps climbing/holding
+    assert m.altitude(0.90) == 18_000.0  # the sun no longer covers it: glide down to the floor
+    assert m.altitude(0.93) == 18_000.0
+    assert AltitudeManager(s, soc=1.0).altitude(0.97) == 21_000.0
+    with pytest.raises(ValueError, match="floor"):
+        AltitudeSchedule(floor_m=21_000.0, ceiling_m=18_000.0)
+
+
+def _vehicle_with(**energy) -> dict:
+    return {
+        "name": "x",
+        "seed": 1,
+        "duration": 10.0,
+        "origin": {"lat": 47.0, "lon": 8.0},
+        "vehicle": [
+            {
+                "name": "haps",
+                "aircraft": "haps",
+                "initial": {"altitude": 18_000.0, "airspeed": 26.0},
+                "mission": {"cruise_speed": 26.0, "waypoints": [{"north": 1e4, "east": 0.0, "altitude": 18_000.0}]},
+                "energy": energy,
+            }
+        ],
+    }
+
+
+def test_scenario_energy_options_are_checked():
+    ok = parse_scenario(_vehicle_with(initial_soc=0.3, altitude_schedule={"floor": 18_000.0, "ceiling": 21_000.0}))
+    assert ok.vehicle[0].energy.altitude_schedule.ceiling == 21_000.0
+    for bad, msg in (
+        ({"initial_soc": 1.5}, "initial_soc"),
+        ({"altitude_schedule": {"floor": 21_000.0, "ceiling": 18_000.0}}, "floor must be below ceiling"),
+        ({"enabled": False, "initial_soc": 0.5}, "without a power-system model"),
+    ):
+        with pytest.raises(ScenarioError, match=msg):
+            parse_scenario(_vehicle_with(**bad))
+
+
+def test_initial_state_of_charge_acts(tmp_path):
+    soc = {}
+    for s0 in (0.3, 0.8):
+        path = tmp_path / f"{s0}.mcap"
+        run_scenario(parse_scenario(_vehicle_with(initial_soc=s0)), path)
+        soc[s0] = read_topic(path, "/haps/energy")[0][1]["state_of_charge"]
+    assert soc[0.3] == pytest.approx(0.3, abs=1e-3) and soc[0.8] == pytest.approx(0.8, abs=1e-3)
+
+
+def test_empty_battery_is_an_event_and_stops_the_motors(tmp_path):
+    """Night (21 December 18:00 UTC at 47 N), battery almost empty: energy_depleted within
+    seconds, the motors' shaft power drops to zero and stays there."""
+    data = _vehicle_with(initial_soc=0.0005)
+    data["start_time"] = "2026-12-21T18:00:00Z"
+    data["duration"] = 60.0
+    path = tmp_path / "empty.mcap"
+    run_scenario(parse_scenario(data), path)
+    events = [(t, m.message) for t, m in read_topic(path, "/log")]
+    depleted = [t for t, msg in events if "energy_depleted" in msg]
+    assert len(depleted) == 1 and depleted[0] < 30.0
+    rec = [m for _, m in read_topic(path, "/haps/energy")]
+    after = [r for r in rec if r["t"] > depleted[0] + 1.0]
+    assert after and all(r["propulsion_w"] == 0.0 and r["depleted"] for r in after)
+    assert all(r["solar_w"] == 0.0 for r in rec)

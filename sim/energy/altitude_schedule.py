@@ -26,7 +26,9 @@ class AltitudeSchedule:
         if not self.floor_m < self.ceiling_m:
             raise ValueError(f"altitude schedule: floor {self.floor_m} m must be below ceiling {self.ceiling_m} m")
         if not 0.0 <= self.soc_low < self.soc_high <= 1.0:
-            raise ValueError(f"altitude schedule: need 0 <= soc_low < soc_high <= 1, got {self.soc_low}, {self.soc_high}")
+            raise ValueError(
+                f"altitude schedule: need 0 <= soc_low < soc_high <= 1, got {self.soc_low}, {self.soc_high}"
+            )
 
 
 class AltitudeManager:
