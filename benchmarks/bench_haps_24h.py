@@ -52,14 +52,15 @@ def bare_steps_per_s(steps: int = 200_000) -> float:
 
 def fly(scenario: str, hours: float, out: Path) -> dict:
     """Run the scenario in a child interpreter; wall time [s] and its peak RSS [MiB]."""
+    toml = str(ROOT / "scenarios" / f"{scenario}.toml")
     code = (
-        "import sys; sys.path.insert(0, %r)\n"
+        f"import sys; sys.path.insert(0, {str(ROOT)!r})\n"
         "from sim.runner import run_scenario\n"
         "from sim.scenario import load_scenario\n"
-        "s, text = load_scenario(%r)\n"
-        "r = run_scenario(s, %r, scenario_text=text, duration=%r)\n"
+        f"s, text = load_scenario({toml!r})\n"
+        f"r = run_scenario(s, {str(out)!r}, scenario_text=text, duration={hours * 3600.0!r})\n"
         "print(r.status, r.sim_time_s, r.wall_time_s)\n"
-    ) % (str(ROOT), str(ROOT / "scenarios" / f"{scenario}.toml"), str(out), hours * 3600.0)
+    )
     t0 = time.perf_counter()
     before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)

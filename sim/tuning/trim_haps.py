@@ -189,8 +189,9 @@ def level_trim(plant: JSBSimPlant, model: HapsTrimModel | None = None) -> dict:
     JSBSim (see the module docstring for why JSBSim's own trim cannot below ~12 km).
 
     Leaves the plant at the trim state, at its sim time from before, with the elevator in
-    ``fcs/pitch-trim-cmd-norm`` and both throttles set, like JSBSim's trim. Returns the casadi solution; raises PlantError with the
-    reason if the point does not trim (below the stall speed, throttle beyond 1).
+    ``fcs/pitch-trim-cmd-norm`` and both throttles set, like JSBSim's trim. Returns the casadi
+    solution; raises PlantError with the reason if the point does not trim (below the stall
+    speed, throttle beyond 1).
     """
     tas = plant["velocities/vt-fps"] * FT
     alt = plant["position/h-sl-ft"] * FT
