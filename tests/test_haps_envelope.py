@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from aircraft import airframe_dir
-from sim.frames import GeoPoint
+from sim.geodesy import GeoPoint
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant, PlantError
 from sim.mcap_read import read_topic
 from sim.runner import run_scenario

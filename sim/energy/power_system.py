@@ -20,7 +20,7 @@ from datetime import datetime
 from sim.energy.battery import Battery
 from sim.energy.params import EnergyParams
 from sim.energy.solar import SunTracker, array_power
-from sim.state import VehicleState
+from sim.core.state import VehicleState
 
 _HP_TO_W = 745.69987
 

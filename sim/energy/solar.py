@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 import pvlib
 
+from sim.core.frames import euler_to_dcm
 from sim.energy.params import ArrayParams, AtmosphereParams
 from sim.sensors import isa
 
@@ -121,32 +122,13 @@ class SunTracker:
         )
 
 
-def body_to_ned(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """Rotation matrix body FRD -> NED of Euler angles 3-2-1 [rad]."""
-    cr, sr, cp, sp, cy, sy = (
-        math.cos(roll),
-        math.sin(roll),
-        math.cos(pitch),
-        math.sin(pitch),
-        math.cos(yaw),
-        math.sin(yaw),
-    )
-    return np.array(
-        [
-            [cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy],
-            [cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy],
-            [-sp, sr * cp, cr * cp],
-        ]
-    )
-
-
 def array_power(array: ArrayParams, sun: SunSample, euler: np.ndarray) -> tuple[float, float]:
     """(electrical power [W] delivered by the array after the MPPT, cosine of the beam's
     incidence on the cells) for the wing at ``euler`` (roll, pitch, yaw [rad]).
 
     Beam: DNI x max(0, n . s); sky diffuse: isotropic, DHI (1 + cos tilt) / 2 with tilt the
     angle of the cell normal from the zenith (no ground-reflected light on an upper surface)."""
-    n = body_to_ned(*(float(x) for x in euler)) @ np.asarray(array.normal_body)
+    n = euler_to_dcm(*(float(x) for x in euler)) @ np.asarray(array.normal_body)
     cos_inc = max(0.0, float(n @ sun.direction_ned))
     cos_tilt = -float(n[2])
     irradiance = sun.dni_w_m2 * cos_inc + sun.dhi_w_m2 * max(0.0, 1.0 + cos_tilt) / 2.0
