@@ -17,10 +17,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from datetime import datetime
 
+from sim.core.state import VehicleState
 from sim.energy.battery import Battery
 from sim.energy.params import EnergyParams
 from sim.energy.solar import SunTracker, array_power
-from sim.core.state import VehicleState
 
 _HP_TO_W = 745.69987
 
