@@ -129,3 +129,21 @@ def test_altitude_and_airspeed_hold_on_the_ekf(tmp_path, alt_m):
     late = t >= 150.0
     assert np.abs(alt[late] - (alt_m + 30.0)).max() < 3.0
     assert np.abs(eas[late] - 9.0).max() < 0.3
+
+
+@pytest.mark.slow
+@pytest.mark.closed_loop
+@pytest.mark.parametrize("alt_m", [1000.0, 5000.0, 10_000.0, 15_000.0])
+def test_holds_across_seeds(tmp_path, alt_m):
+    """The hold above over 20 seeds (sensor noise and EKF per seed)."""
+    worst_alt = worst_eas = 0.0
+    for seed in range(20):
+        path = tmp_path / f"{seed}.mcap"
+        result = run_scenario(parse_scenario(_hold_scenario(alt_m, seed)), path)
+        assert result.status == "duration_elapsed", (seed, result)
+        states = [m for _, m in read_topic(path, "/haps/truth/state")]
+        late = [m for m in states if m["t"] >= 150.0]
+        worst_alt = max(worst_alt, max(abs(m["alt_msl_m"] - alt_m - 30.0) for m in late))
+        worst_eas = max(worst_eas, max(abs(m["eas_mps"] - 9.0) for m in late))
+        path.unlink()
+    assert worst_alt < 3.0 and worst_eas < 0.3, (worst_alt, worst_eas)
