@@ -287,7 +287,7 @@ class Vehicle:
             last = m.waypoints[-1]
             descent = self.controller.gains.limits.max_descent
             sp = MultirotorSetpoint(np.array([last[0], last[1], np.nan]), np.array([0.0, 0.0, descent]), float("nan"))
-        if self.altitude_manager is not None:
+        if self.altitude_manager is not None and self.power is not None:
             sp.altitude_m = self.altitude_manager.altitude(self.power.battery.soc)
         cmds = self.controller.update(self.estimate, sp, self._control_dt)
         if m.land and m.waypoints_done and m.landed_t is None and self.controller.landed:
@@ -303,9 +303,12 @@ class Vehicle:
     def _energy(self, t: float) -> None:
         """Step the power system over the coming control period; an empty battery stops the
         motors (motor health 0) for the rest of the run."""
-        was_depleted = self.power.depleted
+        power = self.power
+        if power is None:
+            return
+        was_depleted = power.depleted
         shaft = [self.plant[f"propulsion/engine[{i}]/power-hp"] for i in range(self.plant.engine_count)]
-        rec = self.power.step(self.plant.truth(), shaft, self._control_dt)
+        rec = power.step(self.plant.truth(), shaft, self._control_dt)
         if rec.depleted and not was_depleted:
             self.plant.set_many({f"ap/motor-health[{i}]": 0.0 for i in range(self.plant.engine_count)})
             self.log.event(

@@ -104,7 +104,7 @@ def _section(p: Path, name: str, kind, table: dict):
     if set(table) != want:
         missing, extra = sorted(want - set(table)), sorted(set(table) - want)
         raise EnergyConfigError(f"{p}: [{name}] missing {missing}, unknown {extra}")
-    values = {}
+    values: dict[str, float | tuple[float, ...]] = {}
     for k, v in table.items():
         if k == "normal_body":
             if not (isinstance(v, list) and len(v) == 3):

@@ -88,7 +88,9 @@ class SunTracker:
         self._t0 = -math.inf
         self._ends: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
 
-    def _refresh(self, t: float, lat_deg: float, lon_deg: float, alt_m: float) -> None:
+    def _refresh(
+        self, t: float, lat_deg: float, lon_deg: float, alt_m: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         h = max(alt_m, 0.0)
         times = pd.DatetimeIndex(
             [self.epoch + timedelta(seconds=t), self.epoch + timedelta(seconds=t + self.refresh_s)]
@@ -107,11 +109,13 @@ class SunTracker:
         direction = sun_direction_ned(90.0 - zen, pos["azimuth"].to_numpy())
         self._t0 = t
         self._ends = (direction, 90.0 - zen, dni, dhi)
+        return self._ends
 
     def sample(self, t: float, lat_deg: float, lon_deg: float, alt_m: float) -> SunSample:
-        if self._ends is None or not self._t0 <= t <= self._t0 + self.refresh_s:
-            self._refresh(t, lat_deg, lon_deg, alt_m)
-        direction, elev, dni, dhi = self._ends
+        ends = self._ends
+        if ends is None or not self._t0 <= t <= self._t0 + self.refresh_s:
+            ends = self._refresh(t, lat_deg, lon_deg, alt_m)
+        direction, elev, dni, dhi = ends
         w = (t - self._t0) / self.refresh_s
         d = (1.0 - w) * direction[0] + w * direction[1]
         return SunSample(
