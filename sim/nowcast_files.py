@@ -12,7 +12,7 @@ Format (documented in docs/mptp.md)::
                                   "cell_id": "c7"}}]}        # optional, informative
 
 "wgs84" coordinates are RFC 7946 [lon, lat] degrees, converted to the scenario's local-level NED
-through sim.frames; "local_ne" coordinates are [north, east] metres from the scenario origin.
+through sim.geodesy; "local_ne" coordinates are [north, east] metres from the scenario origin.
 A MultiPolygon is several cells with the same properties. Within one time step either every
 cell has a velocity or none has.
 """
@@ -45,6 +45,20 @@ def load_nowcast(path: str | Path, origin: GeoPoint | None = None) -> list[Storm
     except (OSError, json.JSONDecodeError) as e:
         raise NowcastError(f"{path}: not readable as JSON ({e})") from e
     return parse_nowcast(doc, origin, str(path))
+
+
+def load_series(paths: list[str] | list[Path], origin: GeoPoint | None = None) -> list[list[StormSnapshot]]:
+    """A series of nowcast files, one per issue, in the given order: issue times (first steps)
+    must increase and no file may be empty."""
+    series = [load_nowcast(p, origin) for p in paths]
+    for p, nc in zip(paths, series, strict=True):
+        if not nc:
+            raise NowcastError(f"{p}: no features")
+    issued = [nc[0].t for nc in series]
+    bad = [i for i in range(1, len(issued)) if issued[i] <= issued[i - 1]]
+    if bad:
+        raise NowcastError(f"{paths[bad[0]]}: issued at t={issued[bad[0]]} s, not after the previous file")
+    return series
 
 
 def parse_nowcast(doc: dict, origin: GeoPoint | None = None, where: str = "nowcast") -> list[StormSnapshot]:

@@ -12,14 +12,23 @@ import math
 import tomllib
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    create_model,
+    field_validator,
+    model_validator,
+)
 from shapely.geometry import Polygon
 
 from aircraft.registry import get_airframe
 from sim.geodesy import GeoPoint
-from sim.planner_registry import PlannerConfigError, check_planner, reachset_grid_range
+from sim.planner_registry import PLANNERS, PlannerType
 from sim.sensors.lidar import LidarConfig
 from sim.units import Angle, Speed, quantity
 
@@ -58,7 +67,7 @@ class Waypoint(_Strict):
     yaw: Angle | None = None  # multirotor heading at this waypoint (default: along the path)
 
 
-class Mission(_Strict):
+class MissionSpec(_Strict):
     """Waypoints flown in order at ``cruise_speed`` (true airspeed for fixed wing)."""
 
     cruise_speed: quantity("speed", 0.0, 120.0, lo_open=True)
@@ -116,18 +125,32 @@ class EnergyOptions(_Strict):
     altitude_schedule: AltitudeScheduleConfig | None = None
 
 
-class PlannerConfig(_Strict):
-    """``type``: follow_mission (no avoidance), geometric (candidate paths, multirotor),
-    reachset (avoidance grid), mptp (weather, fixed wing), pursuit (flies at another vehicle, the
-    rules-of-the-air negative test). ``options``: fields of the planner's
-    own configuration, in its units (SI)."""
-
-    type: Literal["follow_mission", "geometric", "reachset", "mptp", "pursuit"] = "follow_mission"
+class _PlannerBase(_Strict):
     rate_hz: Annotated[float, Field(gt=0.0, le=100.0)] = 1.0
-    options: dict[str, float | int | str | bool | list | dict] = {}
 
 
-class Vehicle(_Strict):
+def _planner_model(entry: PlannerType) -> type[_PlannerBase]:
+    """``[vehicle.planner]`` of one planner type: ``type``, ``rate_hz`` [Hz] and ``options``,
+    the type's own options model (``sim.planner_registry``)."""
+    try:
+        entry.options.model_validate({})
+        options: object = Field(default_factory=entry.options)
+    except ValidationError:
+        options = ...  # the type has required options
+    return create_model(
+        f"{entry.name.title().replace('_', '')}Planner",
+        __base__=_PlannerBase,
+        type=(Literal[entry.name], entry.name),  # type: ignore[valid-type]
+        options=(entry.options, options),
+    )
+
+
+_PLANNER_MODELS = {name: _planner_model(entry) for name, entry in PLANNERS.items()}
+# ``type`` picks the model (follow_mission when not given); errors name the options' fields
+PlannerConfig = Annotated[Union[tuple(_PLANNER_MODELS.values())], Field(discriminator="type")]  # noqa: UP007
+
+
+class VehicleSpec(_Strict):
     name: Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$")]
     aircraft: str
     gains: Path | None = None
@@ -137,9 +160,17 @@ class Vehicle(_Strict):
     # 21,960-ray scan, so opt-in)
     lidar: LidarConfig | None = None
     initial: Initial
-    mission: Mission
-    planner: PlannerConfig = PlannerConfig()
+    mission: MissionSpec
+    planner: PlannerConfig = Field(default_factory=_PLANNER_MODELS["follow_mission"])
     energy: EnergyOptions = EnergyOptions()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _default_planner_type(cls, data: Any) -> Any:
+        planner = data.get("planner") if isinstance(data, dict) else None
+        if isinstance(planner, dict) and "type" not in planner:
+            data = {**data, "planner": {"type": "follow_mission", **planner}}
+        return data
 
     @field_validator("aircraft")
     @classmethod
@@ -151,19 +182,20 @@ class Vehicle(_Strict):
         return v
 
     @model_validator(mode="after")
-    def _fits_airframe(self) -> Vehicle:
+    def _fits_airframe(self) -> VehicleSpec:
         kind = get_airframe(self.aircraft).kind
-        try:
-            check_planner(self.planner.type, kind, self.planner.options)
-        except PlannerConfigError as exc:
-            raise ValueError(f"planner: {exc}") from None
+        entry = PLANNERS[self.planner.type]
+        if kind not in entry.airframes:
+            raise ValueError(
+                f"planner: {entry.name} planner does not fly a {kind} (it flies: {', '.join(entry.airframes)})"
+            )
         e = self.energy
         if (e.initial_soc is not None or e.altitude_schedule is not None) and (
             get_airframe(self.aircraft).energy_file is None or not e.enabled
         ):
             raise ValueError(f"energy: {self.aircraft} flies without a power-system model here (energy.toml, enabled)")
-        if self.lidar is not None and self.planner.type == "reachset":
-            need = reachset_grid_range(kind, self.mission.cruise_speed, self.planner.options)
+        if self.lidar is not None and entry.sensing_range is not None:
+            need = entry.sensing_range(self.planner.options, kind, self.mission.cruise_speed)
             if self.lidar.max_range_m < need:
                 raise ValueError(
                     f"lidar.max_range_m: {self.lidar.max_range_m:g} m does not cover the reach-set grid "
@@ -243,7 +275,7 @@ class Obstacle(_Strict):
         return self
 
 
-class Geofence(_Strict):
+class GeofenceSpec(_Strict):
     """An area with an altitude band (MSL [m]) the vehicles must stay in (``keep_in``) or out of."""
 
     id: Annotated[str, Field(min_length=1)]
@@ -320,11 +352,16 @@ class StormCell(_Strict):
 class Weather(_Strict):
     """Synthetic convective weather (seeded from the scenario): ``cells`` storm cells over a
     box of ``size`` x ``size`` [m] south-west-cornered at the origin, drifting at
-    (``drift_north``, ``drift_east``) [m/s] +- ``drift_spread``, mean radius ``radius``; a nowcast of the next ``horizon`` in
-    ``step`` slices is issued every ``nowcast_period`` (what the vehicles see). ``seed``: the
+    (``drift_north``, ``drift_east``) [m/s] +- ``drift_spread``, mean radius ``radius``; a
+    nowcast of the next ``horizon`` in ``step`` slices is issued every ``nowcast_period`` (what
+    the vehicles see). ``seed``: the
     field's own seed (default: drawn from the scenario seed); ``pop_up``: cells may be born after
     the start (unforeseen by earlier nowcasts); false = every cell is alive at the start.
-    ``storm``: scripted cells added to the generated ones (``[[weather.storm]]``)."""
+    ``storm``: scripted cells added to the generated ones (``[[weather.storm]]``).
+    ``nowcast_files``: nowcast GeoJSON files (format in docs/mptp.md; paths relative to the
+    scenario file), one per issue, instead of the synthetic and scripted cells: each is issued
+    to the vehicles at its first step's time, and the truth (log and metrics) is the latest
+    issued nowcast's first step (its analysis) moved by its cell velocities."""
 
     cells: Annotated[int, Field(ge=0, le=500)] = 12
     size: quantity("length", 1000.0, 2e6) = 250_000.0
@@ -341,6 +378,26 @@ class Weather(_Strict):
     seed: Annotated[int, Field(ge=0)] | None = None
     pop_up: bool = True
     storm: list[StormCell] = []
+    nowcast_files: list[str] = []
+
+    @field_validator("nowcast_files")
+    @classmethod
+    def _resolved(cls, v: list[str], info: ValidationInfo) -> list[str]:
+        base = Path((info.context or {}).get("base_dir", "."))
+        paths = [base / p for p in v]
+        missing = [str(p) for p in paths if not p.is_file()]
+        if missing:
+            raise ValueError(f"no such file: {missing[0]}")
+        return [str(p.resolve()) for p in paths]
+
+    @model_validator(mode="after")
+    def _one_source(self) -> Weather:
+        mixed = self.nowcast_files and ({"cells", "storm", "centres"} & self.model_fields_set)
+        if mixed:
+            raise ValueError(
+                f"nowcast_files replace the synthetic and scripted cells: remove {', '.join(sorted(mixed))}"
+            )
+        return self
 
 
 class _Fault(_Strict):
@@ -415,9 +472,9 @@ class Scenario(_Strict):
     weather: Weather | None = None
     object: list[TrafficObject] = []
     obstacle: list[Obstacle] = []
-    geofence: list[Geofence] = []
+    geofence: list[GeofenceSpec] = []
     fault: list[Fault] = []
-    vehicle: Annotated[list[Vehicle], Field(min_length=1)]
+    vehicle: Annotated[list[VehicleSpec], Field(min_length=1)]
 
     @field_validator("start_time")
     @classmethod
@@ -445,6 +502,13 @@ class Scenario(_Strict):
         dup = sorted({i for i in ids if ids.count(i) > 1})
         if dup:
             raise ValueError(f"obstacle/geofence ids must be unique, repeated: {', '.join(dup)}")
+        if self.weather is not None and self.weather.nowcast_files:
+            from sim.nowcast_files import NowcastError, load_series
+
+            try:
+                load_series(self.weather.nowcast_files, self.origin_point)
+            except NowcastError as exc:
+                raise ValueError(f"weather.nowcast_files: {exc}") from None
         return self
 
     @property
@@ -461,7 +525,9 @@ class Scenario(_Strict):
 
 def _field_path(loc: tuple) -> str:
     out = ""
-    for part in loc:
+    for prev, part in zip((None, *loc), loc, strict=False):
+        if prev == "planner" and part in PLANNERS:  # the planner type's tag in its union
+            continue
         if isinstance(part, int):
             out += f"[{part}]"
         else:
@@ -476,6 +542,9 @@ def _describe(err: dict) -> str:
         return f"{path}: unknown key"
     if kind == "missing":
         return f"{path}: missing required field"
+    if kind == "union_tag_invalid":
+        field, ctx = err["ctx"]["discriminator"].strip("'"), err["ctx"]
+        return f"{path}.{field}: unknown {field} {ctx['tag']!r} (known: {ctx['expected_tags']})"
     msg = err["msg"]
     for prefix in ("Value error, ", "Assertion failed, "):
         msg = msg.removeprefix(prefix)
@@ -485,9 +554,11 @@ def _describe(err: dict) -> str:
 
 
 def parse_scenario(data: dict, source: str = "<scenario>") -> Scenario:
-    """Validate a scenario mapping; ScenarioError names ``source`` and the first bad field."""
+    """Validate a scenario mapping; ScenarioError names ``source`` and the first bad field.
+    Files the scenario names are relative to ``source``'s folder (when it is a file)."""
+    base = Path(source).parent if Path(source).is_file() else Path.cwd()
     try:
-        return Scenario.model_validate(data)
+        return Scenario.model_validate(data, context={"base_dir": str(base)})
     except ValidationError as exc:
         errors = exc.errors(include_url=False)
         more = f" (+{len(errors) - 1} more)" if len(errors) > 1 else ""

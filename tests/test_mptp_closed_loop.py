@@ -66,7 +66,7 @@ def test_an_opening_corridor_is_waited_for_in_closed_loop(tmp_path):
     assert log_metrics(log)["vehicles"]["haps"]["storms"]["time_inside_s"] == 0.0
     assert all(m["status"] != "no_solution" for m in log.topic("/haps/plan").messages)
     wall, plug = np.array(scenario.weather.storm[0].points), scenario.weather.storm[2]
-    margin = scenario.vehicle[0].planner.options["safety_single_m"][0]
+    margin = scenario.vehicle[0].planner.options.safety_single_m[0]
     # the plug's margin leaves the walls' margin band (the corridor opens) at
     opens_s = (np.max(np.array(plug.points)[:, 0]) + margin - (wall[:, 0].min() - margin)) / abs(plug.drift_north)
     truth = log.topic("/haps/truth/state")
@@ -80,9 +80,9 @@ def test_an_opening_corridor_is_waited_for_in_closed_loop(tmp_path):
     "options, message",
     [
         ({"goal_track": [[0, 1, 2], [0, 3, 4]]}, "goal_track: expected rows [t, north, east]"),
-        ({"goal_track": "x"}, "goal_track: expected rows [t, north, east]"),
+        ({"goal_track": "x"}, "planner.options.goal_track: Input should be a valid tuple"),
         ({"mission_area": [[0, 0], [1, 1]]}, "mission_area: expected >= 3 vertices"),
-        ({"heuristic": "astar"}, "unknown heuristic 'astar'"),
+        ({"heuristic": "astar"}, "planner.options.heuristic: Input should be 'dijkstra', 'edh' or 'ssph'"),
     ],
 )
 def test_bad_mptp_options_are_one_line_scenario_errors(options, message):

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from avoidance.reachset.config import AvoidanceConfig
+from avoidance.reachset.config import DEFAULT_AVOIDANCE, AvoidanceConfig
 from avoidance.reachset.gridrun import GridRun
 from avoidance.reachset.mission import Decision
 from avoidance.reachset.movement import KinState, SegmentedMovementAutomaton
@@ -50,7 +50,7 @@ class RulesAvoider(ReachSetAvoider):
         mission: Mission,
         sma: SegmentedMovementAutomaton,
         rules: RulesConfig,
-        cfg: AvoidanceConfig = AvoidanceConfig(),
+        cfg: AvoidanceConfig = DEFAULT_AVOIDANCE,
         cache_dir: Path | None = None,
     ):
         """``cfg``'s navigation reach set is replaced by the rules' ACAS-like one."""
@@ -66,10 +66,13 @@ class RulesAvoider(ReachSetAvoider):
         self.emergency: set[str] = set()
         self.rules_record: dict | None = None
         self._ctx: RuleContext | None = None
-        self._mission_waypoints = self.control.waypoints
         self._deadlock_frames = 0
         self._unresolved: set = set()
         self._start: float | None = None
+
+    def awareness(self) -> None:
+        """Every track matters: the rules negotiate with each cooperative peer they hear."""
+        return None
 
     def notifications(self, estimate: VehicleState, threats: Threats, t: float) -> list[PositionNotification]:
         own = PositionNotification(t, self.registration, ned_to_enu(estimate.pos_ned), ned_to_enu(estimate.vel_ned))
@@ -101,15 +104,9 @@ class RulesAvoider(ReachSetAvoider):
             threats, intruders=[tr for tr in threats.intruders if tr.id not in ctx.managed or tr.id in ctx.emergency]
         )
         ctl = self.control
-        self._mission_waypoints = ctl.waypoints
         goal = max(ctl.goal, self.mission.next_index)
-        if ctx.goal_override is not None and goal < len(ctl.waypoints):  # overtake: fly to the rule's waypoint
-            ctl.waypoints = ctl.waypoints.copy()
-            ctl.waypoints[goal] = ctx.goal_override
-        try:
-            plan = super().plan(estimate, sensed, t)
-        finally:
-            ctl.waypoints = self._mission_waypoints
+        override = ctx.goal_override if goal < len(ctl.waypoints) else None  # overtake: the rule's waypoint
+        plan = self.decide(estimate, sensed, t, override)
         d = self.last_decision
         ctx.decision = d
         self.engine.invoke(DecisionPoint.AFTER_AVOIDANCE_RUN, ctx)
@@ -130,15 +127,6 @@ class RulesAvoider(ReachSetAvoider):
         }
         self._ctx = None
         return plan
-
-    def _vertices(self, d: Decision, estimate: VehicleState, *rest):
-        """The plan's vertices labelled against the mission's own waypoints (never against an
-        overtake waypoint flown in their place)."""
-        flown, self.control.waypoints = self.control.waypoints, self._mission_waypoints
-        try:
-            return super()._vertices(d, estimate, *rest)
-        finally:
-            self.control.waypoints = flown
 
     def _restrict(self, d: Decision, run: GridRun) -> np.ndarray | None:
         """Decision point *trajectory restrictions* on the navigation run."""
