@@ -140,7 +140,11 @@ class MissionControl:
     def complete(self) -> bool:
         return self.goal >= len(self.waypoints)
 
-    def step(self, s_now: KinState, threats: Threats) -> Decision:
+    def step(self, s_now: KinState, threats: Threats, emergency_threats: Threats | None = None) -> Decision:
+        """One decision frame from ``s_now``. ``threats`` decide the mode and feed navigation runs;
+        in emergency mode the runs see ``emergency_threats`` when given (a superset: the rules of
+        the air resolve cooperative peers by restricting navigation runs, which emergency runs do
+        not have, so there the peers must be intruders again)."""
         t0 = time.perf_counter()
         seg_index = self.sma.active_index(s_now)
         ma = self.sma.automata[seg_index]
@@ -191,6 +195,9 @@ class MissionControl:
                 self.buffer = []  # drop the rest of the avoidance path
             self.mode = new_mode
             parts = plan.assessors[self.mode].assess(pose, s_next.t, threats)
+        if self.mode == Mode.EMERGENCY and emergency_threats is not None:
+            parts = plan.assessors[self.mode].assess(pose, s_next.t, emergency_threats)
+            threat_events = situation_events(parts, self.cfg.fusion.threshold)
         events += threat_events
         d = Decision(
             s_now.t,

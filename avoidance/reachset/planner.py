@@ -90,9 +90,15 @@ class ReachSetAvoider:
         until the frame is due (:meth:`frame_due`)."""
         if not self.frame_due(t):
             return self._last
+        return self.decide(estimate, threats, t)
+
+    def decide(
+        self, estimate: VehicleState, threats: Threats, t: float, emergency_threats: Threats | None = None
+    ) -> Plan:
+        """A decision frame now (``emergency_threats``: see :meth:`MissionControl.step`)."""
         ctl = self.control
         ctl.goal = max(ctl.goal, self.mission.next_index)  # progress marked by the plan follower
-        d = ctl.step(self.kin_state(estimate, t), threats)
+        d = ctl.step(self.kin_state(estimate, t), threats, emergency_threats)
         self.last_decision = d
         pos, times, labels = self._vertices(d, estimate, threats)
         vel = (

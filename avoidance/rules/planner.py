@@ -9,7 +9,9 @@ Per decision frame (one per movement period):
 3. the mission-control run sees as intruders the non-cooperative traffic, cooperative peers the
    rules cannot assess (hovering, no common flight level) and peers handed to the emergency
    avoidance (unresolved cases, deadlocks); the other cooperative peers are not (they are
-   resolved by the rules in navigation mode, spec §6.2 step 5b);
+   resolved by the rules in navigation mode, spec §6.2 step 5b) — unless another threat holds
+   the vehicle in emergency mode, whose runs have no rule restrictions: there every peer is an
+   intruder;
 4. decision point *trajectory restrictions* (``MissionControl(restrict=...)``): the manoeuvre
    rules disable navigation trajectories; an overtake flies its divergence / convergence waypoint
    in place of the mission goal for that run;
@@ -107,7 +109,7 @@ class RulesAvoider(ReachSetAvoider):
             ctl.waypoints = ctl.waypoints.copy()
             ctl.waypoints[goal] = ctx.goal_override
         try:
-            plan = super().plan(estimate, sensed, t)
+            plan = self.decide(estimate, sensed, t, emergency_threats=threats)
         finally:
             ctl.waypoints = self._mission_waypoints
         d = self.last_decision
