@@ -153,6 +153,8 @@ def outcome(row: dict, kind: str) -> dict:
         "status": row.get("status"),
         "min_horizontal_m": m.get(f"{sep}.min_horizontal_m"),
         "min_vertical_m": m.get(f"{sep}.min_vertical_m"),
+        "vertical_at_min_horizontal_m": m.get(f"{sep}.vertical_at_min_horizontal_m"),
+        "cpa_t": m.get(f"{sep}.t"),
         "nmac": bool(m.get(f"{sep}.nmac")),
         "lowc": bool(m.get(f"{sep}.lowc")),
         "complete": all(bool(m.get(f"vehicles.{v}.mission.complete")) for v in vehicles),
@@ -189,12 +191,12 @@ def tabulate(c: Campaign, rows: list[dict]) -> tuple[list[dict], list[Pair]]:
 
 
 def keep_logs(c: Campaign, table: list[dict]) -> set[str]:
-    """Run ids whose MCAP is kept: both runs of an encounter with a failed run, an NMAC in either
-    mode or an incomplete mitigated mission (every run with ``keep_mcaps = "all"``)."""
+    """Run ids whose MCAP is kept: both runs of an encounter with a failed run, a mitigated NMAC
+    (induced or not) or an incomplete mitigated mission (every run with ``keep_mcaps = "all"``)."""
     keep = set()
-    for k, enc in enumerate(c.encounters):
+    for k in range(len(c.encounters)):
         mit, unm = table[2 * k], table[2 * k + 1]
-        bad = "failed" in (mit["status"], unm["status"]) or mit["nmac"] or unm["nmac"] or not mit["complete"]
+        bad = "failed" in (mit["status"], unm["status"]) or mit["nmac"] or not mit["complete"]
         if bad or c.keep_mcaps == "all":
             keep |= {c.runs[2 * k].run_id, c.runs[2 * k + 1].run_id}
     return keep

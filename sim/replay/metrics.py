@@ -155,11 +155,14 @@ def min_separation(a: VehicleTrace, b: VehicleTrace, world: MetricsWorld = Metri
 
 def cylinder_separation(rel_ned: np.ndarray, world: MetricsWorld) -> dict:
     """From relative positions (N, 3) NED [m] at common times: the smallest horizontal and
-    vertical separations [m] (each over the whole run), whether the pair was ever inside the NMAC
-    cylinder (``nmac``) and inside the well-clear volume (``lowc``), both at one same time."""
+    vertical separations [m] (each over the whole run), the vertical separation at the smallest
+    horizontal one [m], whether the pair was ever inside the NMAC cylinder (``nmac``) and inside
+    the well-clear volume (``lowc``), each horizontally and vertically at one same time."""
     h, v = np.hypot(rel_ned[:, 0], rel_ned[:, 1]), np.abs(rel_ned[:, 2])
+    k = int(np.argmin(h))
     return {
-        "min_horizontal_m": float(h.min()),
+        "min_horizontal_m": float(h[k]),
+        "vertical_at_min_horizontal_m": float(v[k]),
         "min_vertical_m": float(v.min()),
         "nmac": bool(((h < world.nmac_h_m) & (v < world.nmac_v_m)).any()),
         "lowc": bool(((h < world.well_clear_h_m) & (v < world.well_clear_v_m)).any()),
