@@ -206,7 +206,7 @@ def cmd_encounters(args) -> int:
     from sim.encounters.campaign import load_campaign, run_campaign
 
     out_dir = Path(args.output) if args.output else Path("logs") / "encounters" / Path(args.campaign).stem
-    campaign = load_campaign(args.campaign, out_dir)
+    campaign = load_campaign(args.campaign, out_dir, args.limit)
     executor = None
     client = None
     if args.dask:
@@ -300,6 +300,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="local worker processes")
     e.add_argument("--dask", metavar="ADDRESS", help="run on a Dask distributed scheduler instead")
     e.add_argument("--no-resume", action="store_true", help="re-run runs that already finished")
+    e.add_argument("--limit", type=int, help="fly only the first N draws (the full campaign resumes them)")
     e.add_argument("-q", "--quiet", action="store_true")
     e.set_defaults(fn=cmd_encounters)
     sub.add_parser("tune", help="trim, linearise, loop margins, gain proposals (cosim tune --help)")

@@ -187,7 +187,8 @@ def test_ci_campaign_outcomes_match_hand_computed_geometry(tmp_path):
     c = load_campaign(path, out)
     assert len(c.runs) == 40 and c.planner == "geometric"
     summary = run_campaign(c, out, workers=2)["geometric"]
-    rows = list(csv.DictReader(open(out / "encounters.csv")))
+    with open(out / "encounters.csv") as f:
+        rows = list(csv.DictReader(f))
     assert len(rows) == 40 and {r["mode"] for r in rows} == {"mitigated", "unmitigated"}
     unm = [r for r in rows if r["mode"] == "unmitigated"]
     zero = [r for r in unm if float(r["hmd"]) == 0.0]

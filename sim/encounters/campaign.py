@@ -12,6 +12,7 @@ A campaign file (TOML)::
     after_cpa = 10                 # flown past the CPA to the mission's end [s]
     slack = 30                     # extra sim time for detours [s]
     keep_mcaps = "failures"        # or "all": MCAPs of every run
+    min_relative_speed = 0.5       # [m/s] draws closing slower are skipped (counted in summary.json)
     [metrics]                      # the scenarios' [metrics]: NMAC cylinder, well clear [m]
     nmac_horizontal = 5
     [ownship]
@@ -41,7 +42,15 @@ import numpy as np
 
 from sim.batch import RunSpec, run_batch
 from sim.encounters.aggregate import Pair, by_bin, geometry_bins, summarise
-from sim.encounters.geometry import INTRUDER, INTRUDER_KINDS, MODES, OWN, EncounterSetup, build_scenario
+from sim.encounters.geometry import (
+    INTRUDER,
+    INTRUDER_KINDS,
+    MODES,
+    OWN,
+    EncounterSetup,
+    build_scenario,
+    relative_speed,
+)
 from sim.encounters.model import PARAMETERS, CampaignError, parse_distributions, sample
 from sim.scenario import ScenarioError, parse_scenario
 
@@ -51,6 +60,7 @@ FT = 0.3048
 NMAC_DO365 = {"nmac_horizontal": 500 * FT, "nmac_vertical": 100 * FT}
 NMAC_SMALL_UAS = {"nmac_horizontal": 5.0, "nmac_vertical": 2.5}
 TOP_KEYS = {"name", "seed", "encounters", "latin_hypercube", "altitude", "after_cpa", "slack", "keep_mcaps"}
+TOP_KEYS |= {"min_relative_speed"}
 TOP_KEYS |= {"surveillance_rate_hz", "origin", "metrics", "ownship", "intruder", "parameters"}
 
 
@@ -65,9 +75,10 @@ class Encounter:
 class Campaign:
     name: str
     setup: EncounterSetup
-    encounters: list[Encounter]
+    encounters: list[Encounter]  # flown: draws closing at min_relative_speed or faster
     runs: list[RunSpec]  # per encounter: mitigated, unmitigated
     keep_mcaps: str
+    skipped: int = 0  # draws closing slower than min_relative_speed
 
     @property
     def planner(self) -> str:
@@ -79,8 +90,9 @@ def run_seed(master: int, index: int) -> int:
     return int(np.random.SeedSequence([master, index]).generate_state(1, dtype=np.uint64)[0] >> 1)
 
 
-def load_campaign(path: str | Path, out_dir: str | Path) -> Campaign:
-    """Parse, sample and expand a campaign file into validated paired runs logged under ``out_dir``."""
+def load_campaign(path: str | Path, out_dir: str | Path, limit: int | None = None) -> Campaign:
+    """Parse, sample and expand a campaign file into validated paired runs logged under ``out_dir``.
+    ``limit``: only the first draws (the same runs as in the full campaign, which resumes them)."""
     path = Path(path)
     src = str(path)
     try:
@@ -119,9 +131,12 @@ def load_campaign(path: str | Path, out_dir: str | Path) -> Campaign:
     master = int(cfg.get("seed", 0))
     dists = parse_distributions(cfg.get("parameters", {}), f"{src}: parameters")
     draws = sample(dists, n, master, bool(cfg.get("latin_hypercube", False)))
+    min_rel = float(cfg.get("min_relative_speed", 0.5))
     out = Path(out_dir)
     encounters, runs = [], []
-    for i, params in enumerate(draws):
+    for i, params in enumerate(draws[:limit]):
+        if relative_speed(params) < min_rel:
+            continue
         enc = Encounter(i, run_seed(master, i), params)
         encounters.append(enc)
         for mode in MODES:
@@ -141,7 +156,7 @@ def load_campaign(path: str | Path, out_dir: str | Path) -> Campaign:
                     {"encounter": i, "mode": mode, "seed": enc.seed, **params},
                 )
             )
-    return Campaign(name, setup, encounters, runs, keep)
+    return Campaign(name, setup, encounters, runs, keep, len(draws[:limit]) - len(encounters))
 
 
 def outcome(row: dict, kind: str) -> dict:
@@ -224,7 +239,8 @@ def run_campaign(
             log.unlink(missing_ok=True)
         row["mcap"] = str(log.relative_to(out)) if log.exists() else ""
     write_table(out / "encounters.csv", table)
-    summary = {c.planner: summarise(pairs) | {"failed_runs": sum(r["status"] == "failed" for r in table)}}
+    failed = sum(r["status"] == "failed" for r in table)
+    summary = {c.planner: summarise(pairs) | {"failed_runs": failed, "skipped_draws": c.skipped}}
     summary[c.planner]["bins"] = by_bin(pairs)
     (out / "summary.json").write_text(json.dumps(summary, indent=2, sort_keys=True))
     write_report(out, c, table, summary)

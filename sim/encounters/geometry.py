@@ -29,9 +29,11 @@ FOLLOW = {"type": "follow_mission"}
 @dataclass(frozen=True, slots=True)
 class EncounterSetup:
     """What every encounter of a campaign shares. ``ownship``: ``aircraft``, ``planner`` (a
-    scenario planner table), optional ``acceptance_radius`` [m] and ``estimator``; ``intruder``:
+    scenario planner table), optional ``acceptance_radius`` [m], ``estimator`` and ``initial``
+    (scenario initial-state fields over the generated ones, e.g. ``trim = false``); ``intruder``:
     ``kind`` (:data:`INTRUDER_KINDS`; ``cooperative``: a quadrotor running the ownship's planner
-    when mitigated), ``radius`` [m] of an object, optional ``acceptance_radius``. ``metrics``: the
+    when mitigated), ``radius`` [m] of an object, optional ``acceptance_radius``, ``estimator``,
+    ``initial``. ``metrics``: the
     scenario's ``[metrics]`` table (NMAC cylinder, well clear)."""
 
     ownship: dict
@@ -55,20 +57,30 @@ class Leg:
         return self.start + self.velocity * t
 
 
-def legs(p: dict[str, float], setup: EncounterSetup) -> tuple[Leg, Leg]:
-    """Ownship and intruder legs of parameters ``p`` (see :mod:`sim.encounters.model`)."""
+def velocities(p: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Ownship and intruder velocities NED [m/s] of parameters ``p``."""
     psi_o = math.radians(p["own_heading"])
     psi_i = psi_o + math.radians(p["approach_angle"])
     v_o = np.array([p["own_speed"] * math.cos(psi_o), p["own_speed"] * math.sin(psi_o), -p["own_vertical_rate"]])
     v_i = np.array(
         [p["intruder_speed"] * math.cos(psi_i), p["intruder_speed"] * math.sin(psi_i), -p["intruder_vertical_rate"]]
     )
+    return v_o, v_i
+
+
+def relative_speed(p: dict[str, float]) -> float:
+    """Horizontal speed of the intruder relative to the ownship [m/s]."""
+    v_o, v_i = velocities(p)
+    return float(np.hypot(*(v_i[:2] - v_o[:2])))
+
+
+def legs(p: dict[str, float], setup: EncounterSetup) -> tuple[Leg, Leg]:
+    """Ownship and intruder legs of parameters ``p`` (see :mod:`sim.encounters.model`)."""
+    v_o, v_i = velocities(p)
     rel = v_i[:2] - v_o[:2]
     n = float(np.hypot(*rel))
-    if n < 0.1:
-        raise CampaignError(
-            f"encounter {p}: intruder and ownship horizontal velocities (nearly) equal: no closest approach"
-        )
+    if n < 1e-6:
+        raise CampaignError(f"encounter {p}: equal horizontal velocities: no closest approach")
     right = np.array([-rel[1], rel[0]]) / n
     down_cpa = -(setup.altitude - setup.origin["altitude"])
     cpa_o = np.array([0.0, 0.0, down_cpa])
@@ -90,6 +102,7 @@ def _vehicle(name: str, aircraft: str, leg: Leg, setup: EncounterSetup, end_t: f
             "altitude": alt0 - float(leg.start[2]),
             "airspeed": horizontal,
             "heading": math.degrees(math.atan2(leg.velocity[1], leg.velocity[0])),
+            **cfg.get("initial", {}),
         },
         "mission": {
             "cruise_speed": float(np.linalg.norm(leg.velocity)) if aircraft != "haps" else horizontal,
