@@ -208,3 +208,74 @@ def test_ci_campaign_outcomes_match_hand_computed_geometry(tmp_path):
     flown = []
     run_campaign(c, out, workers=1, progress=lambda k, n, row: flown.append(row))
     assert flown == []  # resumed: nothing re-flown
+
+
+def _campaign_file(tmp_path, text: str = CAMPAIGN, **replace: str):
+    body = textwrap.dedent(text)
+    for old, new in replace.items():
+        body = body.replace(old, new)
+    path = tmp_path / "c.toml"
+    path.write_text(body)
+    return path
+
+
+def test_limit_takes_the_first_draws_and_slow_closing_draws_are_skipped(tmp_path):
+    full = load_campaign(_campaign_file(tmp_path), tmp_path / "o")
+    part = load_campaign(_campaign_file(tmp_path), tmp_path / "o", limit=5)
+    assert [r.run_id for r in part.runs] == [r.run_id for r in full.runs[:10]]
+    assert [r.scenario for r in part.runs] == [r.scenario for r in full.runs[:10]]
+    # overtaking at equal speed: no closing speed, every draw skipped (and counted)
+    same = _campaign_file(
+        tmp_path,
+        **{
+            "approach_angle = { choice = [180, 180, 90] }": "approach_angle = 0",
+            "intruder_speed = 3": "intruder_speed = 5",
+        },
+    )
+    with pytest.raises(CampaignError, match="no encounter closes"):
+        load_campaign(same, tmp_path / "o")
+    slow = _campaign_file(
+        tmp_path,
+        **{
+            "approach_angle = { choice = [180, 180, 90] }": "approach_angle = { choice = [0, 180] }",
+            "intruder_speed = 3": "intruder_speed = 5",
+        },
+    )
+    c = load_campaign(slow, tmp_path / "o")
+    assert c.skipped > 0 and len(c.encounters) + c.skipped == 20
+    assert all(e.params["approach_angle"] == 180.0 for e in c.encounters)
+
+
+@pytest.mark.parametrize(
+    ("replace", "message"),
+    [
+        ({'kind = "object"': 'kind = "blimp"'}, "intruder.kind: one of"),
+        ({"encounters = 20": "encounters = 0"}, "encounters: a positive integer"),
+        ({"seed = 5": "seed = 5\nfoo = 1"}, "foo: unknown key"),
+        ({"hmd = { choice = [0, 500] }": "hmd = { choice = [0, 500] }\nspeed = 3"}, "speed: unknown parameter"),
+        ({'type = "geometric"': 'type = "warp"'}, "planner.type"),
+    ],
+)
+def test_bad_campaign_files_are_one_line_errors(tmp_path, replace, message):
+    with pytest.raises(CampaignError, match=message) as err:
+        load_campaign(_campaign_file(tmp_path, **replace), tmp_path / "o")
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.closed_loop
+def test_campaign_same_outputs_on_process_pool_and_dask(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    path = _campaign_file(tmp_path, **{"encounters = 20": "encounters = 3"})
+    pool = run_campaign(load_campaign(path, tmp_path / "pool"), tmp_path / "pool", workers=2)
+    with (
+        distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster,
+        distributed.Client(cluster) as client,
+    ):
+        dask = run_campaign(load_campaign(path, tmp_path / "dask"), tmp_path / "dask", executor=client.get_executor())
+    assert pool == dask
+
+    def table(folder: str) -> list[dict]:
+        with open(tmp_path / folder / "encounters.csv") as f:
+            return [{k: v for k, v in r.items() if k != "latency_p95_ms"} for r in csv.DictReader(f)]  # wall clock
+
+    assert table("pool") == table("dask") and len(table("pool")) == 6

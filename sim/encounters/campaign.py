@@ -156,6 +156,8 @@ def load_campaign(path: str | Path, out_dir: str | Path, limit: int | None = Non
                     {"encounter": i, "mode": mode, "seed": enc.seed, **params},
                 )
             )
+    if not encounters:
+        raise CampaignError(f"{src}: no encounter closes at min_relative_speed ({min_rel:g} m/s) or faster")
     return Campaign(name, setup, encounters, runs, keep, len(draws[:limit]) - len(encounters))
 
 
