@@ -43,6 +43,7 @@ import numpy as np
 from sim.batch import RunSpec, run_batch
 from sim.encounters.aggregate import Pair, by_bin, geometry_bins, summarise
 from sim.encounters.geometry import (
+    DEFAULT_ORIGIN,
     INTRUDER,
     INTRUDER_KINDS,
     MODES,
@@ -123,7 +124,7 @@ def load_campaign(path: str | Path, out_dir: str | Path, limit: int | None = Non
     setup = EncounterSetup(
         own,
         intruder,
-        origin=cfg.get("origin", EncounterSetup.__dataclass_fields__["origin"].default_factory()),
+        origin=cfg.get("origin", dict(DEFAULT_ORIGIN)),
         metrics=default_nmac | cfg.get("metrics", {}),
         **setup_kw,
     )
@@ -189,11 +190,12 @@ def tabulate(c: Campaign, rows: list[dict]) -> tuple[list[dict], list[Pair]]:
     """encounters.csv rows (one per encounter and mode: parameters, outcome, extra time and path
     of the mitigated run) and the pairs of encounters whose two runs did not fail."""
     kind = c.setup.intruder["kind"]
-    table, pairs = [], []
+    table: list[dict] = []
+    pairs: list[Pair] = []
     for k, enc in enumerate(c.encounters):
         mit, unm = (outcome(r, kind) for r in rows[2 * k : 2 * k + 2])
         for mode, o in zip(MODES, (mit, unm), strict=True):
-            extra = {"extra_time_s": None, "extra_path_m": None}
+            extra: dict[str, float | None] = {"extra_time_s": None, "extra_path_m": None}
             if mode == "mitigated":
                 extra = {
                     "extra_time_s": _extra(mit["time_s"], unm["time_s"]),

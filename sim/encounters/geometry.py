@@ -24,6 +24,7 @@ INTRUDER_KINDS = ("object", "quadrotor", "haps", "cooperative")
 MODES = ("mitigated", "unmitigated")
 OWN, INTRUDER = "own", "intruder"
 FOLLOW = {"type": "follow_mission"}
+DEFAULT_ORIGIN = {"lat": 47.0, "lon": 8.0, "altitude": 400.0}  # [deg, deg, m MSL]
 
 
 @dataclass(frozen=True, slots=True)
@@ -41,7 +42,7 @@ class EncounterSetup:
     altitude: float = 420.0
     after_cpa: float = 10.0
     slack: float = 30.0
-    origin: dict = field(default_factory=lambda: {"lat": 47.0, "lon": 8.0, "altitude": 400.0})
+    origin: dict = field(default_factory=lambda: dict(DEFAULT_ORIGIN))
     surveillance_rate_hz: float = 2.0
     metrics: dict = field(default_factory=dict)
 
@@ -89,7 +90,8 @@ def legs(p: dict[str, float], setup: EncounterSetup) -> tuple[Leg, Leg]:
     return Leg(cpa_o - v_o * t, v_o), Leg(cpa_i - v_i * t, v_i)
 
 
-def _vehicle(name: str, aircraft: str, leg: Leg, setup: EncounterSetup, end_t: float, cfg: dict, planner: dict):
+def _vehicle(name: str, aircraft: str, leg: Leg, setup: EncounterSetup, end_t: float, cfg: dict, planner: dict) -> dict:
+    """A scenario ``[[vehicle]]`` flying ``leg`` from t = 0 to its waypoint at ``end_t`` [s]."""
     alt0 = setup.origin["altitude"]
     end = leg.at(end_t)
     horizontal = float(np.hypot(*leg.velocity[:2]))
