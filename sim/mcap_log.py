@@ -17,6 +17,7 @@ the caller's script; ``background=False`` writes the same records in-process.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import pickle
@@ -30,7 +31,6 @@ from foxglove_schemas_protobuf.Log_pb2 import Log
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from sim.mcap_writer import RecordWriter
-import contextlib
 
 LEVELS = {"debug": Log.DEBUG, "info": Log.INFO, "warning": Log.WARNING, "error": Log.ERROR, "fatal": Log.FATAL}
 _BATCH = 128  # records per hand-over to the writer process (a few log ticks)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from foxglove_schemas_protobuf.GeoJSON_pb2 import GeoJSON
 
-from sim.frames import GeoPoint
+from sim.geodesy import GeoPoint
 from sim.mcap_log import McapLog
 
 _ANY = {"title": "cosim.PlannerRecord", "type": "object", "additionalProperties": True}
@@ -42,7 +42,7 @@ class PlannerLogger:
             if rules is not None and rules["t"] == t:
                 self.log.write_json(f"{self.prefix}/rules", t, rules, {**_ANY, "title": "cosim.RulesOfAir"})
         elif name == "mptp":
-            from guidance.mptp.geojson import plan_geojson
+            from sim.plan_geojson import plan_geojson
 
             timeline = getattr(planner, "timeline", None)
             margins = timeline.shape_at(t) if timeline is not None else None  # margin-grown storms now

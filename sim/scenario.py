@@ -18,8 +18,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from shapely.geometry import Polygon
 
 from aircraft.registry import get_airframe
-from avoidance.factory import PlannerConfigError, check_planner, reachset_grid_range
-from sim.frames import GeoPoint
+from sim.geodesy import GeoPoint
+from sim.planner_registry import PlannerConfigError, check_planner, reachset_grid_range
 from sim.sensors.lidar import LidarConfig
 from sim.units import Angle, Speed, quantity
 

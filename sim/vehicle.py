@@ -14,24 +14,24 @@ import time
 import numpy as np
 
 from aircraft.registry import get_airframe
-from avoidance.factory import make_planner
-from avoidance.planner import Plan, Threats
-from avoidance.position_planners import GotoPlanner, HoldPositionPlanner
 from guidance.fixed_wing_follower import FixedWingPlanFollower
 from guidance.l1 import L1Guidance
-from guidance.mission import Mission
 from guidance.multirotor_follower import MultirotorPlanFollower
-from guidance.setpoints import MultirotorSetpoint
 from sim import log_schemas as S
 from sim import scenario as sc
+from sim.core.mission import Mission
+from sim.core.plan import Plan, Threats
+from sim.core.setpoints import MultirotorSetpoint
 from sim.environment import apply_steady_wind, apply_turbulence
 from sim.estimation.sensor_estimator import SensorEstimator, SensorEstimatorConfig
 from sim.estimator import PerfectEstimator
-from sim.frames import GeoPoint, geodetic_to_ned, ned_to_geodetic
+from sim.geodesy import GeoPoint, geodetic_to_ned, ned_to_geodetic
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
 from sim.mavlink.commands import Arm, MissionUpload, PositionTarget, SetMode
 from sim.mcap_log import McapLog
 from sim.planner_log import PlannerLogger
+from sim.planner_registry import make_planner
+from sim.position_planners import GotoPlanner, HoldPositionPlanner
 from sim.replay.trace import TraceRecorder
 from sim.scheduler import LockstepScheduler, Stage
 from sim.sensors.faults import SensorFault

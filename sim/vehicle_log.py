@@ -9,6 +9,7 @@ Topics (``<v>`` = vehicle name): ``/<v>/truth/state`` (cosim.VehicleState), ``/<
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 
@@ -20,12 +21,12 @@ from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
 from foxglove_schemas_protobuf.LocationFix_pb2 import LocationFix
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
-from avoidance.planner import Plan
 from sim import log_schemas as S
-from sim.frames import euler_to_quaternion, ned_to_geodetic
+from sim.core.frames import euler_to_quat
+from sim.core.plan import Plan
+from sim.core.state import VehicleState
+from sim.geodesy import ned_to_geodetic
 from sim.mcap_log import McapLog
-from sim.state import VehicleState
-import itertools
 
 NED_FRAME = "ned"
 WORLD_FRAME = "world"
@@ -136,7 +137,7 @@ class VehicleLogWriter:
         fix = LocationFix(frame_id=self.name, latitude=s.lat_deg, longitude=s.lon_deg, altitude=s.alt_msl_m)
         fix.timestamp.FromNanoseconds(ns)
         log.write_proto(self.t_loc, t, fix)
-        qx, qy, qz, qw = euler_to_quaternion(*s.euler)
+        qw, qx, qy, qz = euler_to_quat(*s.euler)
         n, e, d = s.pos_ned.tolist()
         tf = FrameTransform(parent_frame_id=NED_FRAME, child_frame_id=self.name)
         tf.timestamp.FromNanoseconds(ns)

@@ -13,7 +13,7 @@ import pytest
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mav
 
-from sim.frames import GeoPoint, ned_to_geodetic
+from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.log_schemas import MISSION_STATUS, VEHICLE_STATE
 from sim.mavlink.pacing import WallClockPacer
 from sim.mavlink.replay import replay_to_gcs

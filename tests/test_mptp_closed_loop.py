@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 import tomli_w
 
-from guidance.mptp import scenarios as S
-from guidance.mptp.haps_scenarios import matched_scale, scenario_data
+from sim.testbeds import mptp_thesis as S
 from sim.replay.report import log_metrics
 from sim.replay.runlog import RunLog
 from sim.runner import run_scenario
 from sim.scenario import ScenarioError, parse_scenario
+from sim.testbeds.mptp_haps import matched_scale, scenario_data
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "scenarios" / "mptp" / "storm_crossing.toml"

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from avoidance.geometric.frames import unit
-from sim.frames import enu_to_ned, ned_to_enu
+from sim.core.frames import enu_to_ned, ned_to_enu
 
 
 @dataclass(frozen=True, slots=True)

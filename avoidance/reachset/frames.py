@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.frames import enu_to_ned, ned_to_enu, wrap_pi
+from sim.core.frames import enu_to_ned, ned_to_enu, wrap_pi
 
 
 def heading_from_yaw_ned(yaw_ned: float) -> float:

@@ -23,7 +23,6 @@ from pathlib import Path
 
 import numpy as np
 
-from avoidance.planner import Threats
 from avoidance.reachset.cache import reach_set
 from avoidance.reachset.config import AvoidanceConfig
 from avoidance.reachset.costtogo import CostToGo
@@ -44,6 +43,7 @@ from avoidance.reachset.reference import ReferenceTrajectory, reference_trajecto
 from avoidance.reachset.situation import Assessor, situation_events
 from avoidance.reachset.threats.constraints import from_geofence
 from avoidance.reachset.tree import ReachSetTree
+from sim.core.plan import Threats
 
 
 class Mode(str, Enum):

@@ -1,5 +1,5 @@
 """``ReachSetAvoider``: the reach-set avoidance behind the shared planner protocol
-(``avoidance.planner.Planner``).
+(``sim.core.plan.Planner``).
 
 Boundary of frames (converted here, once): the estimate and the threats are NED [m] from the
 scenario origin; mission control works in the z-up GCF (ENU). The plan returned is NED: the end
@@ -20,15 +20,15 @@ from pathlib import Path
 
 import numpy as np
 
-from avoidance.planner import Plan, PlanStatus, Threats
 from avoidance.reachset.config import AvoidanceConfig
 from avoidance.reachset.frames import GridPose, heading_from_yaw_ned
 from avoidance.reachset.fusion import SpaceClass, fuse_cells
 from avoidance.reachset.mission import Decision, MissionControl, Restriction
 from avoidance.reachset.movement import KinState, SegmentedMovementAutomaton
-from guidance.mission import Mission
-from sim.frames import enu_to_ned, ned_to_enu
-from sim.state import VehicleState
+from sim.core.frames import enu_to_ned, ned_to_enu
+from sim.core.mission import Mission
+from sim.core.plan import Plan, PlanStatus, Threats
+from sim.core.state import VehicleState
 
 
 class ReachSetAvoider:

@@ -28,7 +28,6 @@ from pathlib import Path
 
 import numpy as np
 
-from avoidance.planner import Plan, Threats
 from avoidance.reachset.config import AvoidanceConfig
 from avoidance.reachset.gridrun import GridRun
 from avoidance.reachset.mission import Decision
@@ -39,9 +38,10 @@ from avoidance.rules.engine import DecisionPoint, RuleContext, RuleEngine
 from avoidance.rules.rules_of_air import make_rules
 from avoidance.utm.cases import CaseBook
 from avoidance.utm.notification import PositionNotification, from_track
-from guidance.mission import Mission
-from sim.frames import ned_to_enu
-from sim.state import VehicleState
+from sim.core.frames import ned_to_enu
+from sim.core.mission import Mission
+from sim.core.plan import Plan, Threats
+from sim.core.state import VehicleState
 
 OWN = "self"  # the own UAS' id in its case book (peers are named by their track ids)
 

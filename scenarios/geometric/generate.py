@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from avoidance.geometric.scenarios import scenario3
+from sim.testbeds.geometric_encounters import scenario3
 
 HERE = Path(__file__).resolve().parent
 S0 = 40.0  # along-track position of the thesis' τ = 0 [m]

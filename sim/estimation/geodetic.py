@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from sim.frames import GeoPoint
+from sim.geodesy import GeoPoint
 
 _A = 6378137.0
 _F = 1.0 / 298.257223563

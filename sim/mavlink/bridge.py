@@ -27,14 +27,14 @@ from typing import Self
 import numpy as np
 from pymavlink.dialects.v20 import common as mav
 
-from avoidance.threats import IntruderTrack
-from sim.frames import GeoPoint
+from sim.core.state import VehicleState
+from sim.core.threats import IntruderTrack
+from sim.geodesy import GeoPoint
 from sim.mavlink import telemetry as tlm
 from sim.mavlink.commands import Arm, Command, MissionUpload, PositionTarget, SetMode
 from sim.mavlink.datagram import DECODE_ERRORS, decode_datagram
 from sim.mavlink.mission import MissionServer, Reply, Waypoint
 from sim.mavlink.modes import MODES, decode_mode
-from sim.state import VehicleState
 
 COMPONENT_ID = mav.MAV_COMP_ID_AUTOPILOT1
 EventFn = Callable[[str, str], None]  # (text, level in "debug" | "info" | "warning" | "error")

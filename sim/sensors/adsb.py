@@ -18,11 +18,11 @@ from collections.abc import Mapping
 import numpy as np
 from pydantic import Field
 
+from sim.core.state import VehicleState
 from sim.sensors.channel import Channel, ChannelConfig
 from sim.sensors.config import StrictConfig
 from sim.sensors.faults import FaultSchedule, SensorFault
 from sim.sensors.measurements import AdsbReport
-from sim.state import VehicleState
 
 _EPS = 1e-9
 

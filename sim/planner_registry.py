@@ -20,9 +20,9 @@ import importlib
 import numpy as np
 
 from avoidance.follow_mission import FollowMissionPlanner
-from avoidance.planner import Planner
 from avoidance.rules.config import RULES_FIELDS, RulesConfig
-from guidance.mission import Mission
+from sim.core.mission import Mission
+from sim.core.plan import Planner
 
 # planner -> (airframe kinds it flies, its config dataclass "module:Class" or the option names)
 _PLANNERS: dict[str, tuple[tuple[str, ...], str | tuple[str, ...]]] = {

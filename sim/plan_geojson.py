@@ -15,9 +15,9 @@ import shapely
 from shapely.geometry import mapping
 from shapely.geometry.base import BaseGeometry
 
-from avoidance.planner import Plan
-from avoidance.threats import StormSnapshot
-from sim.frames import GeoPoint, ned_to_geodetic
+from sim.core.plan import Plan
+from sim.core.threats import StormSnapshot
+from sim.geodesy import GeoPoint, ned_to_geodetic
 
 
 def _lonlat(ne: np.ndarray, origin: GeoPoint) -> np.ndarray:

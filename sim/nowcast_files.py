@@ -27,8 +27,8 @@ import numpy as np
 import shapely
 from shapely.geometry import Polygon, mapping, shape
 
-from avoidance.threats import StormSnapshot
-from sim.frames import GeoPoint, geodetic_to_ned, ned_to_geodetic
+from sim.core.threats import StormSnapshot
+from sim.geodesy import GeoPoint, geodetic_to_ned, ned_to_geodetic
 
 FRAMES = ("wgs84", "local_ne")
 
