@@ -421,12 +421,12 @@ def test_managed_peer_is_an_intruder_while_another_threat_holds_the_emergency_mo
     cooperative head-on peer's case is open. Emergency runs have no rule restrictions, so the peer
     must be an intruder there: the run's feasible trajectories are those with a non-cooperative
     peer in its place (it used to be dropped from the run: more trajectories, some through it)."""
-    from avoidance.planner import Threats
     from avoidance.reachset.movement import thesis_automaton
     from avoidance.rules.planner import RulesAvoider
-    from avoidance.threats import IntruderTrack
-    from guidance.mission import Mission
-    from sim.state import VehicleState
+    from sim.core.mission import Mission
+    from sim.core.plan import Threats
+    from sim.core.state import VehicleState
+    from sim.core.threats import IntruderTrack
 
     def decisions(cooperative: bool) -> list:
         mission = Mission(np.array([[60.0, 0.0, -5.0]]), cruise_speed=1.0, acceptance_radius=2.0)
