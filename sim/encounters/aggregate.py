@@ -38,7 +38,7 @@ def ratio_interval(k1: int, n1: int, k2: int, n2: int, z: float = Z95) -> tuple[
     hi_rad = (p1 * p2) ** 2 - u1 * l2 * (2 * p1 - u1) * (2 * p2 - l2)
     lo = (p1 * p2 - math.sqrt(max(lo_rad, 0.0))) / (u2 * (2 * p2 - u2))
     hi = (p1 * p2 + math.sqrt(max(hi_rad, 0.0))) / (l2 * (2 * p2 - l2)) if l2 > 0 else math.inf
-    return max(lo, 0.0), hi
+    return (lo if lo > 0.0 else 0.0), hi
 
 
 @dataclass(frozen=True, slots=True)
