@@ -279,3 +279,43 @@ def test_campaign_same_outputs_on_process_pool_and_dask(tmp_path):
             return [{k: v for k, v in r.items() if k != "latency_p95_ms"} for r in csv.DictReader(f)]  # wall clock
 
     assert table("pool") == table("dask") and len(table("pool")) == 6
+
+
+def test_every_parameter_and_setup_field_reaches_the_scenario():
+    """Sensor quality, wind, planners per mode and intruder kind, initial overrides, NMAC metrics."""
+    p = BASE | {
+        "surveillance_noise_h": 1.5,
+        "surveillance_noise_v": 2.5,
+        "surveillance_latency": 0.3,
+        "surveillance_dropout": 0.1,
+        "wind_speed": 4.0,
+        "wind_direction": 90.0,
+        "own_speed": 4.0,
+        "own_vertical_rate": 1.0,
+    }
+    coop = EncounterSetup(
+        {"aircraft": "quadrotor", "planner": {"type": "geometric"}, "estimator": "perfect"},
+        {"kind": "cooperative", "initial": {"roll": 1.0}},
+        surveillance_rate_hz=5.0,
+        metrics={"nmac_horizontal": 7.0},
+    )
+    s = build_scenario(p, coop, 9, "mitigated", "x")
+    assert s["surveillance"] == {
+        "rate_hz": 5.0,
+        "latency": 0.3,
+        "dropout": 0.1,
+        "position_noise_horizontal": 1.5,
+        "position_noise_vertical": 2.5,
+    }
+    assert s["wind"]["north"] == pytest.approx(0.0, abs=1e-12) and s["wind"]["east"] == pytest.approx(4.0)
+    own, intr = s["vehicle"]
+    assert own["planner"] == intr["planner"] == {"type": "geometric"} and own["estimator"] == "perfect"
+    assert intr["initial"]["roll"] == 1.0 and s["metrics"] == {"nmac_horizontal": 7.0} and s["seed"] == 9
+    assert own["mission"]["cruise_speed"] == pytest.approx(math.hypot(4.0, 1.0))  # 3-D leg speed
+    assert own["initial"]["airspeed"] == pytest.approx(4.0)
+    unm = build_scenario(p, coop, 9, "unmitigated", "x")
+    assert [v["planner"] for v in unm["vehicle"]] == [{"type": "follow_mission"}] * 2
+    haps = build_scenario(p, EncounterSetup(coop.ownship, {"kind": "haps"}), 9, "mitigated", "x")
+    assert haps["vehicle"][1]["aircraft"] == "haps" and haps["vehicle"][1]["planner"] == {"type": "follow_mission"}
+    with pytest.raises(ValueError, match="mode must be one of"):
+        build_scenario(p, coop, 9, "both", "x")
