@@ -4,9 +4,11 @@ Frames: local-level NED from the scenario origin [m]; altitudes MSL [m]."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
-from aircraft.registry import Airframe
+from aircraft.registry import Airframe, resolve
 from guidance.fixed_wing_follower import FixedWingPlanFollower
 from guidance.l1 import L1Guidance
 from guidance.multirotor_follower import MultirotorPlanFollower
@@ -17,7 +19,7 @@ from sim.environment import apply_turbulence
 from sim.estimation.sensor_estimator import SensorEstimator
 from sim.estimator import PerfectEstimator
 from sim.geodesy import GeoPoint, ned_to_geodetic
-from sim.jsbsim_plant import InitialConditions, JSBSimPlant
+from sim.jsbsim_plant import InitialConditions, JSBSimPlant, PlantError
 from sim.planner_registry import make_planner
 from sim.wind_field import WindField
 
@@ -50,12 +52,31 @@ def scenario_planner(
     return make_planner(cfg.planner.type, mission, af.kind, cfg.planner.options, roll_limit, wind_ne_mps)
 
 
+def trim_plant(plant: JSBSimPlant, af: Airframe, note: Callable[[str], None]) -> None:
+    """JSBSim's trim; where it fails (the HAPS below ~13 km, see sim/tuning/trim_haps.py) the
+    airframe's own level-flight trim, told to ``note``."""
+    try:
+        plant.trim()
+    except PlantError as exc:
+        if af.level_trim is None:
+            raise
+        resolve(af.level_trim)(plant)
+        note(f"JSBSim trim failed ({exc}); level-flight trim used")
+
+
 def build_plant(
-    cfg: sc.VehicleSpec, af: Airframe, origin: GeoPoint, wind: sc.Wind, wind_field: WindField, seed: int
+    cfg: sc.VehicleSpec,
+    af: Airframe,
+    origin: GeoPoint,
+    wind: sc.Wind,
+    wind_field: WindField,
+    seed: int,
+    note: Callable[[str], None] = lambda text: None,
 ) -> JSBSimPlant:
     """The JSBSim plant at the scenario's initial state: initial conditions, trim (fixed wing by
-    default), the wind at the start altitude with the initial airspeed relative to the air (on
-    the ground: ground velocity zero), turbulence seeded with the vehicle's ``seed``."""
+    default; ``note`` hears of a fallback trim), the wind at the start altitude with the initial
+    airspeed relative to the air (on the ground: ground velocity zero), turbulence seeded with
+    the vehicle's ``seed``."""
     plant = JSBSimPlant(af.jsbsim_model, 1.0 / af.plant_hz, origin, af.folder)
     ini = cfg.initial
     lat, lon, alt = ned_to_geodetic(ned_of(ini.north, ini.east, ini.altitude, origin), origin)
@@ -71,7 +92,7 @@ def build_plant(
         )
     )
     if ini.trim if ini.trim is not None else af.kind == "fixed_wing":
-        plant.trim()
+        trim_plant(plant, af, note)
     w = wind_field.at(float(alt), 0.0)
     if ini.on_ground:
         plant.set_wind(w)
