@@ -107,7 +107,7 @@ def run_scenario(
         if scenario.mavlink.enabled:
             from sim.mavlink.session import MavlinkSession
 
-            session = MavlinkSession(scenario.mavlink, world.vehicles, world.origin, log)
+            session = MavlinkSession(scenario.mavlink, world.vehicles, world.origin, log, world.fences)
             sched.add_task("mavlink", scenario.logging.rate_hz, Stage.LOG, session.tick)
         if progress is not None:
             sched.add_task("progress", progress_hz, Stage.LOG, lambda t: progress(t, end))
@@ -121,7 +121,7 @@ def run_scenario(
     except KeyboardInterrupt:
         result.status = "interrupted"
         result.error = "interrupted by the user"
-    except Exception as exc:  # recorded in the log, then re-raised as RunFailed
+    except Exception as exc:  # noqa: BLE001 - recorded in the log, then re-raised as RunFailed
         result.status = "failed"
         result.error = f"{type(exc).__name__}: {exc}"
         failure = exc

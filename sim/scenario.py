@@ -153,13 +153,24 @@ class Vehicle(_Strict):
 class Mavlink(_Strict):
     """MAVLink to a ground station during the run (vehicle k: system id k+1, GCS port
     ``base_port + k``). ``pace``: at most this many times the wall clock (0: sim time, no
-    waiting)."""
+    waiting). Only the ground station ``gcs_system_id`` (component ``gcs_component_id``, any if
+    unset) is obeyed, after its heartbeat. ``bind_host``: local interface (default loopback; a
+    non-loopback ``gcs_host`` needs it set). ``signing_key_file``: a file holding the MAVLink 2
+    signing passphrase (signing off if unset). ``max_height`` above the ground and ``max_range``
+    from the origin bound the mission items and position targets a GCS may send (defaults by
+    airframe kind, ``sim/mavlink/envelope.py``)."""
 
     enabled: bool = False
     gcs_host: str = "127.0.0.1"
     base_port: Annotated[int, Field(ge=1024, le=65000)] = 14550
     rate_hz: Annotated[float, Field(gt=0.0, le=50.0)] = 4.0
     pace: Annotated[float, Field(ge=0.0, le=1000.0)] = 1.0
+    gcs_system_id: Annotated[int, Field(ge=1, le=255)] = 255
+    gcs_component_id: Annotated[int, Field(ge=0, le=255)] | None = None
+    bind_host: str | None = None
+    signing_key_file: Path | None = None
+    max_height: quantity("length", 0.0, 30500.0, lo_open=True) | None = None
+    max_range: quantity("length", 0.0, 3.0e6, lo_open=True) | None = None
 
 
 class Wind(_Strict):
@@ -278,8 +289,8 @@ class StormCell(_Strict):
 class Weather(_Strict):
     """Synthetic convective weather (seeded from the scenario): ``cells`` storm cells over a
     box of ``size`` x ``size`` [m] south-west-cornered at the origin, drifting at
-    (``drift_north``, ``drift_east``) [m/s] +- ``drift_spread``, mean radius ``radius``; a nowcast of the next ``horizon`` in
-    ``step`` slices is issued every ``nowcast_period`` (what the vehicles see). ``seed``: the
+    (``drift_north``, ``drift_east``) [m/s] +- ``drift_spread``, mean radius ``radius``; a nowcast
+    of the next ``horizon`` in ``step`` slices is issued every ``nowcast_period`` (what the vehicles see). ``seed``: the
     field's own seed (default: drawn from the scenario seed); ``pop_up``: cells may be born after
     the start (unforeseen by earlier nowcasts); false = every cell is alive at the start.
     ``storm``: scripted cells added to the generated ones (``[[weather.storm]]``)."""
