@@ -46,15 +46,15 @@ class Envelope:
         if not math.isfinite(d):
             return Refusal(mav.MAV_MISSION_INVALID_PARAM7, "altitude not finite")
         up, r = -d, math.hypot(n, e)
-        if r > self.max_range_m:
-            return Refusal(
-                mav.MAV_MISSION_INVALID_PARAM5_X, f"{r:.4g} m from the origin (at most {self.max_range_m:g} m)"
-            )
         if up < 0.0:
             return Refusal(mav.MAV_MISSION_INVALID_PARAM7, f"{-up:.4g} m below the ground")
         if up > self.max_height_m:
             return Refusal(
                 mav.MAV_MISSION_INVALID_PARAM7, f"{up:.4g} m above the ground (at most {self.max_height_m:g} m)"
+            )
+        if r > self.max_range_m:
+            return Refusal(
+                mav.MAV_MISSION_INVALID_PARAM5_X, f"{r:.4g} m from the origin (at most {self.max_range_m:g} m)"
             )
         for f in self.fences:
             inside = bool(contains_xy(f.area, n, e)) and f.up_min_m <= up <= f.up_max_m
