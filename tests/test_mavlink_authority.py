@@ -336,3 +336,45 @@ def test_fuzz_from_the_ground_station_stays_in_the_envelope(datagrams):
             assert ENVELOPE.check(c.pos_ned) is None
         if isinstance(c, PositionTarget):
             assert all(x is None or math.isfinite(x) for x in (c.yaw, c.yaw_rate))
+
+
+# -- scenario wiring -----------------------------------------------------------------------------
+def test_scenario_mavlink_settings_reach_every_link(tmp_path):
+    from types import SimpleNamespace
+
+    from sim.mavlink.session import MavlinkSession
+    from sim.scenario import Mavlink
+
+    (tmp_path / "key").write_text("s3cret")
+    cfg = Mavlink(
+        enabled=True,
+        base_port=free_port(),
+        gcs_system_id=200,
+        gcs_component_id=7,
+        bind_host="127.0.0.1",
+        signing_key_file=tmp_path / "key",
+        max_height=300.0,
+        max_range=5000.0,
+    )
+    quad = SimpleNamespace(
+        name="q", airframe=SimpleNamespace(kind="multirotor"), mission=SimpleNamespace(waypoints=np.zeros((1, 3)))
+    )
+    haps = SimpleNamespace(name="h", airframe=SimpleNamespace(kind="fixed_wing"), mission=quad.mission)
+    session = MavlinkSession(cfg, [quad, haps], ORIGIN, SimpleNamespace(event=lambda *a, **k: None), (KEEP_OUT,))
+    try:
+        for link in session.links:
+            c = link.config
+            assert (c.gcs_system_id, c.gcs_component_id, c.bind_host) == (200, 7, "127.0.0.1")
+            assert c.signing_key == hashlib.sha256(b"s3cret").digest()
+            assert link.envelope == Envelope(300.0, 5000.0, (KEEP_OUT,))
+    finally:
+        session.close()
+    default = MavlinkSession(Mavlink(base_port=free_port()), [quad, haps], ORIGIN, SimpleNamespace(), ())
+    try:
+        assert [(lk.envelope.max_height_m, lk.envelope.max_range_m) for lk in default.links] == [
+            (1000.0, 20_000.0),
+            (25_000.0, 500_000.0),
+        ]
+        assert all(lk.config.signing_key is None and lk.config.gcs_component_id is None for lk in default.links)
+    finally:
+        default.close()
