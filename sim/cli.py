@@ -39,12 +39,13 @@ def _fmt_duration(s: float) -> str:
 
 
 def cmd_run(args) -> int:
+    from sim.output_paths import path_under
     from sim.scenario import load_scenario
 
     scenario, text = load_scenario(args.scenario)
     from sim.runner import RunFailed, run_scenario
 
-    path = Path(args.output) if args.output else Path("logs") / f"{scenario.name}.mcap"
+    path = Path(args.output) if args.output else path_under(Path("logs"), f"{scenario.name}.mcap")
     duration = args.duration if args.duration is not None else scenario.duration
     signal.signal(signal.SIGTERM, _raise_interrupt)
     progress = Progress(
@@ -163,7 +164,7 @@ def cmd_batch(args) -> int:
     from sim.batch import load_batch, run_batch
 
     name, runs = load_batch(args.batch, args.output)
-    out_dir = Path(args.output) if args.output else Path("logs") / "batch" / name
+    out_dir = Path(args.output) if args.output else Path("logs") / "batch" / name  # name checked by load_batch
     executor = None
     client = None
     if args.dask:
@@ -172,6 +173,7 @@ def cmd_batch(args) -> int:
         client = Client(args.dask)
         executor = client.get_executor()
     failures = 0
+    signal.signal(signal.SIGTERM, _raise_interrupt)
     progress = Progress(
         TextColumn("[bold]{task.description}"),
         BarColumn(),
@@ -198,8 +200,14 @@ def cmd_batch(args) -> int:
         if client is not None:
             client.close()
     failed = sum(r.get("status") == "failed" for r in rows)
-    out.print(f"{len(rows)} runs, {failed} failed; results: {out_dir / 'results.csv'}", soft_wrap=True, highlight=False)
-    return EXIT_OK if failed == 0 else EXIT_FAILED
+    cut = sum(r.get("status") == "interrupted" for r in rows)
+    out.print(
+        f"{len(rows)} runs, {failed} failed, {cut} interrupted (flown again on resume); "
+        f"results: {out_dir / 'results.csv'}",
+        soft_wrap=True,
+        highlight=False,
+    )
+    return EXIT_INTERRUPTED if cut else EXIT_OK if failed == 0 else EXIT_FAILED
 
 
 def cmd_validate(args) -> int:
@@ -265,12 +273,16 @@ def main(argv: list[str] | None = None) -> int:
     from sim.batch import BatchError
     from sim.mcap_log import LogWriteError
     from sim.mcap_read import LogReadError
+    from sim.output_paths import OutputPathError
     from sim.scenario import ScenarioError
 
     try:
         return args.fn(args)
-    except (ScenarioError, LogReadError, LogWriteError, BatchError) as exc:  # bad input: one line, exit 2
+    except (ScenarioError, LogReadError, LogWriteError, BatchError, OutputPathError) as exc:  # bad input: exit 2
         _error(exc)
+        return EXIT_BAD_INPUT
+    except OSError as exc:  # an output folder that cannot be written, a file that vanished: one line
+        _error(OSError(f"{exc.filename or ''}: {exc.strerror or exc}".lstrip(": ")))
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         err.print("interrupted")

@@ -9,7 +9,6 @@ Positions are local NED offsets from ``origin`` (north, east [m]) and altitude M
 from __future__ import annotations
 
 import math
-import tomllib
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Annotated, Literal
@@ -20,10 +19,13 @@ from shapely.geometry import Polygon
 from aircraft.registry import get_airframe
 from avoidance.factory import PlannerConfigError, check_planner, reachset_grid_range
 from sim.frames import GeoPoint
+from sim.input_files import parse_toml, read_text
 from sim.sensors.lidar import LidarConfig
 from sim.units import Angle, Speed, quantity
 
 SCHEMA_VERSION = 1
+# a scenario/batch name: it names files (logs/<name>.mcap), so no path separators, no leading dot
+NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$"
 
 
 class ScenarioError(ValueError):
@@ -369,7 +371,7 @@ class Scenario(_Strict):
     """A validated scenario. ``seed`` fixes every random draw of the run."""
 
     schema_version: Literal[1] = SCHEMA_VERSION
-    name: Annotated[str, Field(min_length=1)]
+    name: Annotated[str, Field(pattern=NAME_PATTERN, max_length=128)]
     description: str = ""
     seed: Annotated[int, Field(ge=0, lt=2**63)]
     duration: quantity("time", 0.0, 30 * 86400.0, lo_open=True)
@@ -438,7 +440,8 @@ def _field_path(loc: tuple) -> str:
     return out or "(top level)"
 
 
-def _describe(err: dict) -> str:
+def describe_error(err: dict) -> str:
+    """One line for a pydantic error: the field path and what is wrong."""
     path = _field_path(err["loc"])
     kind = err["type"]
     if kind == "extra_forbidden":
@@ -448,6 +451,8 @@ def _describe(err: dict) -> str:
     msg = err["msg"]
     for prefix in ("Value error, ", "Assertion failed, "):
         msg = msg.removeprefix(prefix)
+    if kind == "string_pattern_mismatch" and err["ctx"]["pattern"] == NAME_PATTERN:
+        msg = f"{err['input']!r} is not a name: letters, digits, '_', '-', '.' (no path separators, no leading dot)"
     if kind in ("greater_than_equal", "less_than_equal", "greater_than", "less_than"):
         msg = f"out of range: {msg.lower()} (got {err.get('input')!r})"
     return f"{path}: {msg}"
@@ -460,18 +465,11 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> Scenario:
     except ValidationError as exc:
         errors = exc.errors(include_url=False)
         more = f" (+{len(errors) - 1} more)" if len(errors) > 1 else ""
-        raise ScenarioError(f"{source}: {_describe(errors[0])}{more}") from None
+        raise ScenarioError(f"{source}: {describe_error(errors[0])}{more}") from None
 
 
 def load_scenario(path: str | Path) -> tuple[Scenario, str]:
     """Read and validate a TOML scenario; returns it with the file's text (kept in the log)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ScenarioError(f"{path}: cannot read scenario file ({exc.strerror})") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
-    return parse_scenario(data, str(path)), text
+    text = read_text(path, ScenarioError, "scenario")
+    return parse_scenario(parse_toml(text, str(path), ScenarioError), str(path)), text

@@ -15,7 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from sim.mcap_read import read_attached_scenario
+from sim.mcap_read import log_content, read_attached_scenario
 from sim.replay.metrics import MetricsWorld, common_times, flatten, run_metrics
 from sim.replay.runlog import RunLog
 from sim.replay.trace import VehicleTrace
@@ -32,8 +32,9 @@ def load_world(log: RunLog) -> MetricsWorld:
 
 
 def log_metrics(log: RunLog) -> dict:
-    """The run's metrics recomputed from its log."""
-    return run_metrics(load_traces(log), load_world(log))
+    """The run's metrics recomputed from its log (LogReadError if its messages are not cosim's)."""
+    with log_content(log.path):
+        return run_metrics(load_traces(log), load_world(log))
 
 
 def _map_plot(traces: list[VehicleTrace], log: RunLog, path: Path) -> None:
@@ -108,8 +109,14 @@ def write_report(log_path: str | Path, out_dir: str | Path) -> tuple[Path, dict]
     log = RunLog(log_path)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    with log_content(log.path):
+        return _write_report(log, out)
+
+
+def _write_report(log: RunLog, out: Path) -> tuple[Path, dict]:
     traces = load_traces(log)
     metrics = run_metrics(traces, load_world(log))
+    events = log.events()
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True))
     _map_plot(traces, log, out / "map.png")
     for tr in traces:
@@ -136,7 +143,6 @@ def write_report(log_path: str | Path, out_dir: str | Path) -> tuple[Path, dict]
         lines += [f"## {tr.name}", "", f"![{tr.name}]({tr.name}_timeseries.png)", ""]
     if has_sep:
         lines += ["## Separation", "", "![separation](separation.png)", ""]
-    events = log.events()
     if events:
         lines += ["## Events", "", "| sim time [s] | event |", "|---|---|"]
         lines += [f"| {t:.1f} | {text} |" for t, text in events]

@@ -87,6 +87,14 @@ class VehicleTrace:
         )
 
 
+_VECTORS = ("pos_ned", "vel_ned", "euler")
+
+
+def _array(key: str, values: list) -> np.ndarray:
+    a = np.asarray(values, dtype=float)
+    return a.reshape(-1, 3) if key in _VECTORS else a
+
+
 @dataclass
 class TraceRecorder:
     """Collects the values a vehicle logs, as they are logged (the live side)."""
@@ -95,7 +103,7 @@ class TraceRecorder:
     kind: str
     waypoints_total: int
     _state: dict[str, list] = field(default_factory=lambda: {k: [] for k in _STATE})
-    _setpoint: dict[str, list] = field(default_factory=dict)
+    _setpoint: dict[str, list] = field(default_factory=lambda: {k: [] for k in _SETPOINT})
     _latency: list[float] = field(default_factory=list)
     _reached: list[float] = field(default_factory=list)
     _complete_t: float | None = None
@@ -130,7 +138,8 @@ class TraceRecorder:
         self._complete_t = t
 
     def trace(self) -> VehicleTrace:
-        s = {k: np.asarray(v, dtype=float) for k, v in self._state.items()}
+        """The series so far; vectors are (N, 3) also when nothing was logged (N = 0)."""
+        s = {k: _array(k, v) for k, v in self._state.items()}
         return VehicleTrace(
             self.name,
             self.kind,
@@ -145,7 +154,7 @@ class TraceRecorder:
             list(self._reached),
             self._complete_t,
             self._command_arrays(),
-            *(np.asarray(self._est[k], dtype=float) for k in ("pos_ned", "vel_ned")),
+            *(_array(k, self._est[k]) for k in ("pos_ned", "vel_ned")),
             *((np.asarray(self._sigma[k], dtype=float) if self._sigma[k] else None) for k in ("pos", "vel")),
             s["vel_ned"],
             np.asarray(self._cross, dtype=float),
