@@ -25,7 +25,9 @@ out = Console()
 
 
 def _error(exc: Exception) -> None:
-    err.print(f"[red]error:[/] {escape(str(exc))}", highlight=False)
+    """One line on stderr (line breaks in the message shown as ``\\n``)."""
+    text = str(exc).replace("\n", "\\n")
+    err.print(f"[red]error:[/] {escape(text)}", highlight=False)
 
 
 def _raise_interrupt(signum, frame):

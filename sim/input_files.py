@@ -30,16 +30,17 @@ def read_text(path: Path, error: type[Exception], what: str, max_bytes: int = MA
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     except OSError as exc:
         raise error(f"{path}: cannot read {what} file ({exc.strerror})") from None
-    with os.fdopen(fd, "rb") as f:
+    try:
         info = os.fstat(fd)
         if not stat.S_ISREG(info.st_mode):
             raise error(f"{path}: {what} file is not a regular file")
         if info.st_size > max_bytes:
             raise error(f"{path}: {what} file is {info.st_size} bytes, more than the {max_bytes} allowed")
-        try:
-            data = f.read(max_bytes + 1)
-        except OSError as exc:
-            raise error(f"{path}: cannot read {what} file ({exc.strerror})") from None
+        data = _read_at_most(fd, max_bytes + 1)
+    except OSError as exc:
+        raise error(f"{path}: cannot read {what} file ({exc.strerror})") from None
+    finally:
+        os.close(fd)
     if len(data) > max_bytes:
         raise error(f"{path}: {what} file grew over the {max_bytes} bytes allowed while being read")
     for bom, name in _WIDE_BOMS.items():
@@ -50,6 +51,14 @@ def read_text(path: Path, error: type[Exception], what: str, max_bytes: int = MA
     except UnicodeDecodeError as exc:
         line = data[: exc.start].count(b"\n") + 1
         raise error(f"{path}: {what} file is not UTF-8 (byte {exc.start}, line {line})") from None
+
+
+def _read_at_most(fd: int, n: int) -> bytes:
+    parts, left = [], n
+    while left > 0 and (part := os.read(fd, min(left, 1 << 20))):
+        parts.append(part)
+        left -= len(part)
+    return b"".join(parts)
 
 
 def parse_toml(text: str, source: str, error: type[Exception]) -> dict:

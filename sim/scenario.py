@@ -436,7 +436,8 @@ def _field_path(loc: tuple) -> str:
         if isinstance(part, int):
             out += f"[{part}]"
         else:
-            out += ("." if out else "") + str(part)
+            shown = part if part and part.isprintable() and not any(c.isspace() for c in part) else repr(part)
+            out += ("." if out else "") + shown
     return out or "(top level)"
 
 
