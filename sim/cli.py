@@ -107,6 +107,8 @@ def cmd_info(args) -> int:
     head.add_row("result", res.get("status", "? (no result metadata)"))
     head.add_row("sim time", f"{info.start_s:.2f} .. {info.end_s:.2f} s")
     head.add_row("messages", str(info.messages))
+    if not info.finished:
+        head.add_row("file", "[yellow]unfinished (its writer never closed it): read up to its last complete chunk[/]")
     head.add_row("versions", f"cosim {run.get('cosim_version', '?')}, jsbsim {run.get('jsbsim_version', '?')}")
     head.add_row("attachments", ", ".join(info.attachments) or "-")
     out.print(head)

@@ -12,11 +12,16 @@ without it (a crash of the flight model, SIGKILL), the writer process sees the p
 finishes the file with every message it received, so the log stays readable. The writer is a
 fresh interpreter (``python -m sim.mcap_writer``, which imports only ``mcap``) fed pickled
 batches on its stdin, so it also starts inside daemonic workers (a Dask nanny's) and never re-runs
-the caller's script; ``background=False`` writes the same records in-process.
+the caller's script; ``background=False`` writes the same records in-process. The writer runs in
+its own session, so a signal to the whole process group (a terminal hang-up, ``kill -- -PGID``,
+SIGKILL included) kills the simulation but not the writer, which then finishes the file. A log
+whose writer died anyway (killed on its own, full disk) keeps every complete chunk:
+:mod:`sim.mcap_read` reads it up to there.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import pickle
@@ -30,7 +35,6 @@ from foxglove_schemas_protobuf.Log_pb2 import Log
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from sim.mcap_writer import RecordWriter
-import contextlib
 
 LEVELS = {"debug": Log.DEBUG, "info": Log.INFO, "warning": Log.WARNING, "error": Log.ERROR, "fatal": Log.FATAL}
 _BATCH = 128  # records per hand-over to the writer process (a few log ticks)
@@ -62,12 +66,14 @@ class McapLog:
                 stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE,
                 env=env,
+                start_new_session=True,  # a signal to our process group (hang-up, kill) spares it
             )
         else:
-            self._inline = RecordWriter(open(self.path, "wb"), chunk_size)
+            self._inline = RecordWriter(open(self.path, "wb"), chunk_size)  # noqa: SIM115 - RecordWriter closes it
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._seq: dict[int, int] = {}
+        self._failure: str | None = None  # why the writer stopped: every later write says so
         self.closed = False
 
     # -- registration --------------------------------------------------------------------
@@ -85,6 +91,8 @@ class McapLog:
         return cid
 
     def _record(self, rec: tuple) -> None:
+        if self._failure is not None:
+            raise LogWriteError(self._failure)
         if self.closed:
             raise LogWriteError(f"{self.path}: the log is closed")
         self._pending.append(rec)
@@ -100,7 +108,8 @@ class McapLog:
             pickle.dump(batch, self._proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
             self._proc.stdin.flush()  # handed over now: a crash after this loses none of it
         except OSError:
-            raise LogWriteError(f"{self.path}: {self._writer_error()}") from None
+            self._failure = f"{self.path}: {self._writer_error()}"
+            raise LogWriteError(self._failure) from None
 
     def _writer_error(self) -> str:
         """Why the writer process stopped (its stdout line), after waiting for it."""
@@ -158,6 +167,8 @@ class McapLog:
         if self.closed:
             return
         self.closed = True
+        if self._failure is not None:
+            raise LogWriteError(self._failure)
         if self._inline is not None:
             try:
                 self._inline.apply(self._pending)

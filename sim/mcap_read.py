@@ -8,13 +8,18 @@ foreign or hand-edited log) surfaces as one :class:`LogReadError` naming the fil
 from __future__ import annotations
 
 import json
+import struct
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from mcap.reader import make_reader
+from mcap.exceptions import McapError
+from mcap.reader import SeekingReader
+from mcap.records import Attachment, Channel, McapRecord, Message, Metadata, Schema
+from mcap.stream_reader import MAGIC_SIZE, StreamReader
+from mcap.summary import Summary
 from mcap_protobuf.decoder import DecoderFactory
 
 
@@ -58,6 +63,9 @@ class TopicInfo:
 
 @dataclass(frozen=True, slots=True)
 class LogInfo:
+    """``finished``: the file has its summary; ``False`` for a log whose writer never closed it
+    (power loss, a killed writer, a full disk), read up to its last complete chunk."""
+
     path: Path
     profile: str
     library: str
@@ -67,6 +75,10 @@ class LogInfo:
     topics: list[TopicInfo]
     metadata: dict[str, dict[str, str]]
     attachments: list[str]
+    finished: bool = True
+
+
+_RECORD_LIMIT = 256 * 2**20  # no cosim record is near this; a corrupt length must not allocate GiBs
 
 
 def _open(path: str | Path):
@@ -76,15 +88,40 @@ def _open(path: str | Path):
     return path, open(path, "rb")
 
 
+def _summary(reader: SeekingReader) -> Summary | None:
+    """The file's summary, or None when the file was never finished (no footer or summary)."""
+    try:
+        return reader.get_summary()
+    except (McapError, struct.error, EOFError, ValueError):
+        return None
+
+
+def _recovered_records(f) -> Iterator[McapRecord]:
+    """The records of an unfinished file in order, up to the last complete chunk: the stream
+    ends at the first record cut short or failing its CRC (the tail the writer never finished)."""
+    f.seek(0)
+    records = StreamReader(f, validate_crcs=True, record_size_limit=_RECORD_LIMIT).records
+    while True:
+        try:
+            yield next(records)
+        except StopIteration:
+            return
+        except (McapError, struct.error, EOFError, ValueError, OSError, MemoryError) as exc:
+            if f.tell() <= MAGIC_SIZE:  # not even an MCAP header
+                raise LogReadError(f"not an MCAP file ({type(exc).__name__})") from None
+            return
+
+
 def read_info(path: str | Path) -> LogInfo:
-    """Summary of a finished log (topics, counts, time span, metadata)."""
+    """Summary of a log (topics, counts, time span, metadata); an unfinished log is read up to
+    its last complete chunk (``finished`` False)."""
     path, f = _open(path)
     with f, _reading(path, "not a readable MCAP file"):
-        reader = make_reader(f)
+        reader = SeekingReader(f, record_size_limit=_RECORD_LIMIT)
         header = reader.get_header()
-        summary = reader.get_summary()
+        summary = _summary(reader)
         if summary is None:
-            raise LogReadError(f"{path}: the MCAP has no summary (the run was killed before it could finish the file)")
+            return _recovered_info(path, f, header)
         meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
         attachments = [a.name for a in reader.iter_attachments()]
     epoch = _epoch(path, meta)
@@ -116,12 +153,61 @@ def read_info(path: str | Path) -> LogInfo:
     )
 
 
+def _recovered_info(path: Path, f, header) -> LogInfo:
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    meta: dict[str, dict[str, str]] = {}
+    attachments: list[str] = []
+    for rec in _recovered_records(f):
+        if isinstance(rec, Channel):
+            channels[rec.id] = rec
+        elif isinstance(rec, Schema):
+            schemas[rec.id] = rec
+        elif isinstance(rec, Metadata):
+            meta[rec.name] = dict(rec.metadata)
+        elif isinstance(rec, Attachment):
+            attachments.append(rec.name)
+    counts: dict[int, int] = {}
+    times = []
+    for _, ch, msg in _recovered_messages(f, None):
+        counts[ch.id] = counts.get(ch.id, 0) + 1
+        times.append(msg.log_time)
+    epoch = _epoch(path, meta)
+    topics = sorted(
+        (
+            TopicInfo(
+                ch.topic,
+                schemas[ch.schema_id].name if ch.schema_id in schemas else "",
+                ch.message_encoding,
+                counts.get(cid, 0),
+                dict(ch.metadata),
+            )
+            for cid, ch in channels.items()
+        ),
+        key=lambda ti: ti.topic,
+    )
+    return LogInfo(
+        path=path,
+        profile=header.profile,
+        library=header.library,
+        start_s=(min(times) - epoch) / 1e9 if times else 0.0,
+        end_s=(max(times) - epoch) / 1e9 if times else 0.0,
+        messages=len(times),
+        topics=topics,
+        metadata=meta,
+        attachments=attachments,
+        finished=False,
+    )
+
+
 def read_attachment(path: str | Path, name: str) -> bytes | None:
     """The data of the attachment called ``name`` (e.g. ``scenario.toml``), or None."""
     path, f = _open(path)
     with f, _reading(path, "damaged MCAP"):
-        for a in make_reader(f).iter_attachments():
-            if a.name == name:
+        reader = SeekingReader(f, record_size_limit=_RECORD_LIMIT)
+        found = reader.iter_attachments() if _summary(reader) is not None else _recovered_records(f)
+        for a in found:
+            if isinstance(a, Attachment) and a.name == name:
                 return a.data
     return None
 
@@ -148,12 +234,17 @@ def iter_messages(path: str | Path, topics: list[str] | None = None) -> Iterator
     protobuf to message objects."""
     path, f = _open(path)
     with f, _reading(path, "damaged MCAP"):
-        reader = make_reader(f)
-        meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+        reader = SeekingReader(f, record_size_limit=_RECORD_LIMIT)
+        if _summary(reader) is not None:
+            meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+            found = reader.iter_messages(topics=topics, log_time_order=True)
+        else:
+            meta = {r.name: dict(r.metadata) for r in _recovered_records(f) if isinstance(r, Metadata)}
+            found = _recovered_messages(f, topics)
         epoch = _epoch(path, meta)
         factory = DecoderFactory()  # per file: it caches decoders by schema id
         decoders: dict[int, Any] = {}
-        for schema, channel, message in reader.iter_messages(topics=topics, log_time_order=True):
+        for schema, channel, message in found:
             if channel.message_encoding == "json":
                 decoded = json.loads(message.data)
             else:
@@ -165,6 +256,33 @@ def iter_messages(path: str | Path, topics: list[str] | None = None) -> Iterator
                     decoders[schema.id] = dec
                 decoded = dec(message.data)
             yield channel.topic, (message.log_time - epoch) / 1e9, decoded
+
+
+def _recovered_messages(f, topics: list[str] | None) -> Iterator[tuple[Schema | None, Channel, Message]]:
+    """(schema, channel, message) of an unfinished file in file order (the writer's time order),
+    without the messages of the last log time: the tick the file was cut in may be partial."""
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    tick: list[tuple[Schema | None, Channel, Message]] = []  # messages of the latest log time
+    for rec in _recovered_records(f):
+        if isinstance(rec, Message):
+            ch = channels.get(rec.channel_id)
+            if ch is None:
+                raise LogReadError(f"message on unknown channel {rec.channel_id}")
+            if tick and rec.log_time > tick[-1][2].log_time:
+                yield from tick
+                tick = []
+            item = (schemas.get(ch.schema_id), ch, rec)
+            if topics is not None and ch.topic not in topics:
+                continue
+            if tick and rec.log_time < tick[-1][2].log_time:
+                yield item  # an earlier time than the tick in progress: complete
+            else:
+                tick.append(item)
+        elif isinstance(rec, Channel):
+            channels[rec.id] = rec
+        elif isinstance(rec, Schema):
+            schemas[rec.id] = rec
 
 
 def _epoch(path: Path, meta: dict[str, dict[str, str]]) -> int:

@@ -130,6 +130,11 @@ def _write_report(log: RunLog, out: Path) -> tuple[Path, dict]:
         f"- log: `{log.path}`",
         f"- seed: {run.get('seed', '?')}; result: **{res.get('status', '?')}**; sim time {log.info.end_s:.1f} s",
         f"- versions: cosim {run.get('cosim_version', '?')}, jsbsim {run.get('jsbsim_version', '?')}",
+        *(
+            []
+            if log.info.finished
+            else ["- **unfinished log** (its writer never closed it): read up to its last complete chunk"]
+        ),
         "",
         "## Metrics",
         "",
