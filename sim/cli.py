@@ -120,11 +120,14 @@ def cmd_info(args) -> int:
 
 
 def cmd_replay(args) -> int:
+    from sim.mcap_read import read_info
     from sim.replay.report import write_report
 
     log = Path(args.log)
     out_dir = Path(args.output) if args.output else log.with_name(f"{log.stem}_report")
     report, metrics = write_report(log, out_dir)
+    if not read_info(log).finished:
+        err.print("[yellow]warning:[/] unfinished log, read up to its last complete chunk", highlight=False)
     if args.rerun_planner:
         from sim.replay.rerun import rerun_planner
 

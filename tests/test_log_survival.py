@@ -105,6 +105,7 @@ def test_log_of_a_killed_writer_is_recovered_by_info_and_replay(tmp_path):
         check=False,
     )
     assert rep.returncode == 0, rep.stderr
+    assert "unfinished log" in rep.stderr
     assert "unfinished log" in (tmp_path / "rep" / "report.md").read_text()
     assert len(RunLog(log).topic("/quad/truth/state")) > 10
 
