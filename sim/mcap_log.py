@@ -2,7 +2,8 @@
 
 Log time of a message = scenario epoch + sim time [ns]; publish time = log time, so that two runs
 of the same scenario and seed write byte-identical messages. Channels whose content is wall-clock
-time (planner latency) carry the channel metadata ``wallclock=true`` and are the only exception.
+time (planner latency, planner runtimes) carry the channel metadata ``wallclock=true`` and
+``wallclock_fields`` (the dotted paths of those fields) and are the only exception.
 
 Writing: the simulation process only serialises messages (JSON with orjson, protobuf) and hands
 them in batches to a writer process that owns the file and the ``mcap`` writer (record framing,

@@ -17,6 +17,28 @@ from sim.mcap_log import McapLog
 
 _ANY = {"title": "cosim.PlannerRecord", "type": "object", "additionalProperties": True}
 
+# The wall-clock fields (dotted paths) of each planner's records, by channel suffix after
+# /<v>/plan: their channels carry metadata wallclock=true and wallclock_fields=<the paths>; every
+# other field repeats bit for bit with the scenario and seed.
+WALLCLOCK_FIELDS: dict[str, dict[str, tuple[str, ...]]] = {
+    "geometric": {
+        "": tuple(
+            f"diagnostics.t_{step}_s"
+            for step in ("total", "generation", "kinematics", "collision", "cost", "selection")
+        ),
+        "/candidates": ("timings_s",),
+    },
+    "reachset": {"": ("diagnostics.runtime_ms",), "/decision": ("runtime_s",)},
+    "mptp": {"": ("diagnostics.runtime_s", "diagnostics.weather_s")},
+}
+
+
+def wallclock_metadata(planner: str, suffix: str) -> dict[str, str]:
+    """Channel metadata marking the wall-clock fields of ``planner``'s records on
+    ``/<v>/plan<suffix>`` (empty when they have none)."""
+    fields = WALLCLOCK_FIELDS.get(planner, {}).get(suffix)
+    return {"wallclock": "true", "wallclock_fields": ",".join(fields)} if fields else {}
+
 
 class PlannerLogger:
     def __init__(self, log: McapLog, vehicle: str, origin: GeoPoint):
@@ -29,13 +51,23 @@ class PlannerLogger:
             c = planner.candidate_log()
             if c is not None and c["t"] != self._last_candidates_t:
                 self._last_candidates_t = c["t"]
-                self.log.write_json(f"{self.prefix}/candidates", t, c, {**_ANY, "title": "cosim.GeometricCandidates"})
+                self.log.write_json(
+                    f"{self.prefix}/candidates",
+                    t,
+                    c,
+                    {**_ANY, "title": "cosim.GeometricCandidates"},
+                    wallclock_metadata(name, "/candidates"),
+                )
         elif name == "reachset" and planner.last_decision is not None:
             from avoidance.reachset.record import decision_record, scene_update
 
             d = planner.last_decision
             self.log.write_json(
-                f"{self.prefix}/decision", t, decision_record(d), {**_ANY, "title": "cosim.ReachSetDecision"}
+                f"{self.prefix}/decision",
+                t,
+                decision_record(d),
+                {**_ANY, "title": "cosim.ReachSetDecision"},
+                wallclock_metadata(name, "/decision"),
             )
             self.log.write_proto(f"{self.prefix}/grid", t, scene_update(d, self.log.epoch_ns / 1e9 + t))
             rules = getattr(planner, "rules_record", None)

@@ -2,8 +2,9 @@
 
 The log is finished in a ``finally``: a run that raises, is interrupted (Ctrl-C, SIGTERM) or
 diverges leaves a readable file with every message up to its last tick, and metadata ``result``
-saying how it ended. Nothing wall-clock goes into the messages except channels marked
-``wallclock=true``, so the same scenario and seed give the same message payloads.
+saying how it ended. Nothing wall-clock goes into the messages except the fields a channel lists
+in its ``wallclock_fields`` metadata (with ``wallclock=true``), so the same scenario and seed give
+the same message payloads otherwise.
 """
 
 from __future__ import annotations

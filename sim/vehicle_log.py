@@ -9,6 +9,7 @@ Topics (``<v>`` = vehicle name): ``/<v>/truth/state`` (cosim.VehicleState), ``/<
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 
@@ -24,8 +25,8 @@ from avoidance.planner import Plan
 from sim import log_schemas as S
 from sim.frames import euler_to_quaternion, ned_to_geodetic
 from sim.mcap_log import McapLog
+from sim.planner_log import wallclock_metadata
 from sim.state import VehicleState
-import itertools
 
 NED_FRAME = "ned"
 WORLD_FRAME = "world"
@@ -213,9 +214,15 @@ class VehicleLogWriter:
                 "diagnostics": plan.diagnostics,
             },
             S.PLAN,
-            {"frame": "local-level NED from the scenario origin"},
+            {"frame": "local-level NED from the scenario origin", **wallclock_metadata(plan.planner, "")},
         )
-        self.log.write_json(self.t_latency, t, {"t": t, "seconds": latency_s}, S.WALL_TIMING, {"wallclock": "true"})
+        self.log.write_json(
+            self.t_latency,
+            t,
+            {"t": t, "seconds": latency_s},
+            S.WALL_TIMING,
+            {"wallclock": "true", "wallclock_fields": "seconds"},
+        )
 
 
 def _prism_lines(footprint, d_top: float, d_bottom: float) -> list[tuple[float, float, float]]:
