@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Literal, Protocol
 
 from aircraft import airframe_dir
-from sim.state import VehicleState
+from sim.core.state import VehicleState
 
 
 class FlightController(Protocol):

@@ -1,1 +1,2 @@
-"""Planners: the common planner interface, reach-set avoidance grid, geometric avoider."""
+"""Avoidance planners: the reach-set avoidance grid with the rules of the air and UTM, the geometric
+candidate-path avoider (the planner protocol and Plan are sim.core.plan)."""

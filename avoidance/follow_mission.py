@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from avoidance.planner import Plan, PlanStatus, Threats
-from guidance.mission import Mission
-from sim.state import VehicleState
+from sim.core.mission import Mission
+from sim.core.plan import Plan, PlanStatus, Threats
+from sim.core.state import VehicleState
 
 
 class FollowMissionPlanner:

@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from aircraft.registry import get_airframe  # noqa: E402
-from sim.frames import GeoPoint  # noqa: E402
+from sim.geodesy import GeoPoint  # noqa: E402
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant  # noqa: E402
 from sim.runner import run_scenario  # noqa: E402
 from sim.scenario import parse_scenario  # noqa: E402

@@ -36,7 +36,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from sim.estimation.ins_ekf import InsEkf, InsEkfConfig  # noqa: E402
-from sim.frames import GeoPoint  # noqa: E402
+from sim.geodesy import GeoPoint  # noqa: E402
 from sim.sensors.measurements import BaroSample, GnssFix, ImuSample, MagSample  # noqa: E402
 from sim.sensors.suite import SensorSuite, SensorSuiteConfig  # noqa: E402
 from sim.sensors.synthetic import Segment, generate  # noqa: E402
@@ -93,7 +93,7 @@ def closed_loop(kind: str, seconds: float, with_estimator: bool) -> dict:
     from aircraft.quadrotor.controller import MultirotorController
     from aircraft.registry import get_airframe
     from guidance.l1 import L1Guidance
-    from guidance.setpoints import FixedWingSetpoint, MultirotorSetpoint
+    from sim.core.setpoints import FixedWingSetpoint, MultirotorSetpoint
     from sim.estimation.sensor_estimator import SensorEstimator, SensorEstimatorConfig
     from sim.estimator import PerfectEstimator
     from sim.jsbsim_plant import InitialConditions, JSBSimPlant
@@ -118,7 +118,7 @@ def closed_loop(kind: str, seconds: float, with_estimator: bool) -> dict:
         ctrl = HapsAutopilot(HapsGains.load())
         l1 = L1Guidance.for_airframe(ctrl)
         ctrl.reset(s0, throttle=plant["fcs/throttle-cmd-norm[0]"])
-        a, b = s0.pos_ned.copy(), [*s0.pos_ned, 100000.0, 0.0, 0.0]
+        a, b = s0.pos_ned.copy(), s0.pos_ned + [100_000.0, 0.0, 0.0]
 
         def control(t):
             e = est.update(t)
@@ -126,7 +126,7 @@ def closed_loop(kind: str, seconds: float, with_estimator: bool) -> dict:
     else:
         ctrl = MultirotorController()
         ctrl.reset(s0, landed=False)
-        sp = MultirotorSetpoint(pos_ned=[*s0.pos_ned, 10.0, 5.0, -5.0], yaw_rad=0.5)
+        sp = MultirotorSetpoint(pos_ned=s0.pos_ned + [10.0, 5.0, -5.0], yaw_rad=0.5)
 
         def control(t):
             plant.set_many(ctrl.update(est.update(t), sp, dt))

@@ -7,7 +7,7 @@ for closeness), which also serves the tests as a loop reference. Target: >= 20x 
 thesis.
 
 Environments (spec §7.3): N = 1 one static threat; N = 2 plus one moving; N = 3 plus two moving,
-drawn from the Table 4.1 sweep geometry (``avoidance.geometric.sweep``); l = 4, n = 3, symmetric
+drawn from the Table 4.1 sweep geometry (``sim.testbeds.geometric_sweep``); l = 4, n = 3, symmetric
 paths (L = 16), thesis collision rules (swept) and the default time-synchronised check.
 
     python benchmarks/bench_geometric.py [--envs 60] [--repeat 5]
@@ -40,9 +40,9 @@ from avoidance.geometric.config import PATH_TYPES, GeometricConfig, VehicleParam
 from avoidance.geometric.conflict import main_threat  # noqa: E402
 from avoidance.geometric.frames import plane_angles, plane_elevation, uav_frame  # noqa: E402
 from avoidance.geometric.generation import omega_grid, shape_abscissae  # noqa: E402
-from avoidance.geometric.scenarios import Encounter  # noqa: E402
-from avoidance.geometric.sweep import N_ENVIRONMENTS, sweep_encounter  # noqa: E402
 from avoidance.geometric.threats import Threat, ThreatArrays  # noqa: E402
+from sim.testbeds.geometric_encounters import Encounter  # noqa: E402
+from sim.testbeds.geometric_sweep import N_ENVIRONMENTS, sweep_encounter  # noqa: E402
 
 THESIS_MEAN_S = {1: 0.0837, 2: 0.1527, 3: 0.2319}
 

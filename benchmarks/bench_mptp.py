@@ -32,11 +32,11 @@ import shapely
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from avoidance.threats import StormSnapshot  # noqa: E402
-from guidance.mptp import scenarios as S  # noqa: E402
-from guidance.mptp.openloop import run_open_loop  # noqa: E402
+from sim.testbeds import mptp_thesis as S  # noqa: E402
 from guidance.mptp.search import plan_trajectory  # noqa: E402
 from guidance.mptp.timeline import ObstacleTimeline  # noqa: E402
+from sim.core.threats import StormSnapshot  # noqa: E402
+from sim.testbeds.mptp_openloop import run_open_loop  # noqa: E402
 
 HEURISTICS_CAP = 2000  # expansions for the heuristics comparison (the planner's default is 120)
 
@@ -66,11 +66,11 @@ def closed_loop(make, scale: str) -> dict:
 
     import tomli_w
 
-    from guidance.mptp.haps_scenarios import matched_scale, scenario_data, time_scale
     from sim.replay.report import log_metrics
     from sim.replay.runlog import RunLog
     from sim.runner import run_scenario
     from sim.scenario import parse_scenario
+    from sim.testbeds.mptp_haps import matched_scale, scenario_data, time_scale
 
     sc = make()
     s = matched_scale(sc) if scale == "matched" else float(scale)

@@ -20,7 +20,6 @@ from pathlib import Path
 
 import numpy as np
 
-from avoidance.planner import Threats
 from avoidance.reachset.cache import reach_set
 from avoidance.reachset.config import AvoidanceConfig, MovementConfig
 from avoidance.reachset.frames import GridPose
@@ -28,7 +27,8 @@ from avoidance.reachset.grid import AvoidanceGrid
 from avoidance.reachset.gridrun import emergency_runs
 from avoidance.reachset.movement import build_primitive_table
 from avoidance.reachset.situation import Assessor
-from avoidance.threats import IntruderTrack, LidarScan
+from sim.core.plan import Threats
+from sim.core.threats import IntruderTrack, LidarScan
 
 
 def intruders(n: int) -> list[IntruderTrack]:

@@ -13,11 +13,11 @@ import math
 
 import numpy as np
 
-from avoidance.planner import Plan
 from guidance.l1 import L1Guidance
 from guidance.path import leg_progress
-from guidance.setpoints import FixedWingSetpoint
-from sim.state import VehicleState
+from sim.core.plan import Plan
+from sim.core.setpoints import FixedWingSetpoint
+from sim.core.state import VehicleState
 
 _STRAIGHT_HEADING_ERR = math.radians(10.0)
 _STRAIGHT_CROSS_M = 30.0

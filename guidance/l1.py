@@ -19,9 +19,9 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from sim.state import VehicleState
+from sim.core.constants import STANDARD_GRAVITY
+from sim.core.state import VehicleState
 
-G = 9.80665  # [m/s^2]
 _SIN_45 = math.sqrt(0.5)
 _INDECISION_NU = 0.9 * math.pi
 
@@ -91,7 +91,7 @@ class L1Guidance:
         nu = max(-0.5 * math.pi, min(0.5 * math.pi, nu))
 
         lat_acc = self._k_l1 * gs * gs / l1 * math.sin(nu)
-        roll = math.atan(lat_acc / G)
+        roll = math.atan(lat_acc / STANDARD_GRAVITY)
         roll = max(-self.roll_limit_rad, min(self.roll_limit_rad, roll))
         return L1Output(roll, cross)
 

@@ -18,9 +18,9 @@ import math
 
 import numpy as np
 
-from avoidance.planner import Plan
-from guidance.setpoints import MultirotorSetpoint
-from sim.state import VehicleState
+from sim.core.plan import Plan
+from sim.core.setpoints import MultirotorSetpoint
+from sim.core.state import VehicleState
 
 
 def _project(points: np.ndarray, cum: np.ndarray, p: np.ndarray) -> float:

@@ -1,6 +1,6 @@
 """Recalibrate the geometric avoider's time/energy normalisation caps with the thesis sweep.
 
-Runs the Table 4.1 sweep (16 200 environments, spec §7.1; ``avoidance.geometric.sweep``) for a
+Runs the Table 4.1 sweep (16 200 environments, spec §7.1; ``sim.testbeds.geometric_sweep``) for a
 vehicle, keeps the raw cost terms of every collision-free candidate and prints:
 - the caps (G20): lower = min, upper = 99.5 % value, time upper × 1.15 — paste them into
   ``CostCaps`` defaults when the vehicle or the discretisation changes;
@@ -27,7 +27,7 @@ sys.path.insert(0, str(ROOT))
 
 from avoidance.geometric.config import VehicleParams  # noqa: E402
 from avoidance.geometric.normalization import caps_from_samples, clip_minmax  # noqa: E402
-from avoidance.geometric.sweep import LOWER_CAP_ENV, N_ENVIRONMENTS, UPPER_CAP_ENV, run_sweep, sweep_config  # noqa: E402
+from sim.testbeds.geometric_sweep import LOWER_CAP_ENV, N_ENVIRONMENTS, UPPER_CAP_ENV, run_sweep, sweep_config  # noqa: E402
 
 THESIS_CAPS = {"time_lo": 1.2530, "time_hi": 8.1436, "energy_lo": 249.59, "energy_hi": 1759.0}
 

@@ -4,7 +4,7 @@ Wind is the velocity of the air mass, NED [m/s]; turbulence is JSBSim's MIL-F-87
 model ("Milspec", turb-type 3) with the milspec reference intensities (light / moderate /
 severe = 15 / 30 / 45 kt at 20 ft with probability-of-exceedance index 3 / 4 / 6), seeded per
 vehicle from the scenario seed so runs repeat bit for bit. Obstacles and geofences become the
-threat types of ``avoidance.threats`` in the scenario's local-level NED frame (heights above
+threat types of ``sim.core.threats`` in the scenario's local-level NED frame (heights above
 the origin, ``up = alt - origin alt``).
 """
 
@@ -15,9 +15,9 @@ import math
 from shapely.affinity import rotate
 from shapely.geometry import Point, Polygon
 
-from avoidance.threats import Geofence, PrismObstacle
 from sim import scenario as sc
-from sim.frames import FT
+from sim.core.constants import FT
+from sim.core.threats import Geofence, PrismObstacle
 from sim.jsbsim_plant import JSBSimPlant
 
 TURBULENCE = {"none": (0.0, 0), "light": (25.0, 3), "moderate": (50.0, 4), "severe": (75.0, 6)}
@@ -93,5 +93,5 @@ def obstacle_prism(o: sc.Obstacle, origin_alt_m: float) -> PrismObstacle:
     return PrismObstacle(o.id, fp, base - origin_alt_m, o.top - origin_alt_m)
 
 
-def geofence(g: sc.Geofence, origin_alt_m: float) -> Geofence:
+def geofence(g: sc.GeofenceSpec, origin_alt_m: float) -> Geofence:
     return Geofence(g.id, Polygon(g.points), g.floor - origin_alt_m, g.ceiling - origin_alt_m, g.keep_in)

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from typing import Protocol
 
+from sim.core.state import VehicleState
 from sim.jsbsim_plant import JSBSimPlant
-from sim.state import VehicleState
 
 
 class Estimator(Protocol):

@@ -1,7 +1,7 @@
 """One JSBSim FGFDMExec per vehicle: loading, initial conditions, trim, stepping, properties.
 
-Truth state comes out as a :class:`sim.state.VehicleState` in the scenario's NED frame [m, m/s,
-rad]. JSBSim's own units (ft, kt, slug) stay inside this module and ``sim.frames``.
+Truth state comes out as a :class:`sim.core.state.VehicleState` in the scenario's NED frame [m, m/s,
+rad]. JSBSim's own units (ft, kt, slug) stay inside this module and ``sim.core.constants``.
 """
 
 from __future__ import annotations
@@ -15,8 +15,9 @@ from pathlib import Path
 import jsbsim
 import numpy as np
 
-from sim.frames import FT, KT, GeoPoint, LocalLevelFrame
-from sim.state import VehicleState
+from sim.core.constants import FT, KT
+from sim.core.state import VehicleState
+from sim.geodesy import GeoPoint, LocalLevelFrame
 
 
 class PlantError(RuntimeError):

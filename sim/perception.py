@@ -11,12 +11,12 @@ import dataclasses
 
 import numpy as np
 
-from avoidance.threats import IntruderTrack
 from sim import scenario as sc
+from sim.core.state import VehicleState
+from sim.core.threats import IntruderTrack
 from sim.estimation.intruder_tracker import IntruderTracker, TrackerConfig
 from sim.sensors.adsb import AdsbConfig, AdsbReceiver
 from sim.sensors.channel import ChannelConfig
-from sim.state import VehicleState
 
 
 class Perception:

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from sim import scenario as sc
-from sim.frames import GeoPoint, ned_to_geodetic
-from sim.state import VehicleState
+from sim.core.state import VehicleState
+from sim.geodesy import GeoPoint, ned_to_geodetic
 
 
 class TrafficObject:

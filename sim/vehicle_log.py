@@ -12,6 +12,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+from typing import Any
 
 import numpy as np
 from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
@@ -21,12 +22,14 @@ from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
 from foxglove_schemas_protobuf.LocationFix_pb2 import LocationFix
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
-from avoidance.planner import Plan
 from sim import log_schemas as S
-from sim.frames import euler_to_quaternion, ned_to_geodetic
+from sim.core.frames import euler_to_quat
+from sim.core.plan import Plan
+from sim.core.setpoints import FixedWingSetpoint, MultirotorSetpoint
+from sim.core.state import VehicleState
+from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.mcap_log import McapLog
-from sim.planner_log import wallclock_metadata
-from sim.state import VehicleState
+from sim.planner_records import wallclock_metadata
 
 NED_FRAME = "ned"
 WORLD_FRAME = "world"
@@ -100,6 +103,26 @@ def threats_dict(t: float, th) -> dict:
     }
 
 
+def _json_num(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def setpoint_record(sp: FixedWingSetpoint | MultirotorSetpoint, follower: Any, origin: GeoPoint) -> dict:
+    """The ``/<v>/ctrl/setpoint`` record of a setpoint with the follower's leg, cross-track [m]
+    and turning flag; NaN (not controlled) components are null."""
+    common = {"leg": follower.leg, "cross_track_m": follower.cross_track_m, "turning": follower.turning}
+    if isinstance(sp, MultirotorSetpoint):
+        d = float(sp.pos_ned[2])
+        return {
+            "pos_ned": [_json_num(x) for x in sp.pos_ned],
+            "vel_ned": [float(x) for x in sp.vel_ned],
+            "yaw_rad": _json_num(sp.yaw_rad),
+            "altitude_m": _json_num(origin.alt_m - d),
+            **common,
+        }
+    return {"roll_rad": sp.roll_rad, "altitude_m": sp.altitude_m, "tas_mps": sp.tas_mps, **common}
+
+
 def write_static_frames(log: McapLog) -> None:
     """``world`` (ENU) -> ``ned``: NED axes expressed in ENU, a 180 deg turn about (1, 1, 0)."""
     tf = FrameTransform(parent_frame_id=WORLD_FRAME, child_frame_id=NED_FRAME)
@@ -137,7 +160,7 @@ class VehicleLogWriter:
         fix = LocationFix(frame_id=self.name, latitude=s.lat_deg, longitude=s.lon_deg, altitude=s.alt_msl_m)
         fix.timestamp.FromNanoseconds(ns)
         log.write_proto(self.t_loc, t, fix)
-        qx, qy, qz, qw = euler_to_quaternion(*s.euler)
+        qw, qx, qy, qz = euler_to_quat(*s.euler)
         n, e, d = s.pos_ned.tolist()
         tf = FrameTransform(parent_frame_id=NED_FRAME, child_frame_id=self.name)
         tf.timestamp.FromNanoseconds(ns)

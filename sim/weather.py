@@ -1,6 +1,6 @@
 """Synthetic convective weather: the true storm field and the nowcasts issued to the vehicles.
 
-The field is MPTP's seeded storm generator (``guidance.mptp.synthetic.StormField``: cells that
+The field is MPTP's seeded storm generator (``sim.storm_synthetic.StormField``: cells that
 drift, grow, decay, split and merge) in the local (north, east) plane [m], plus the scenario's
 scripted cells (fixed polygons drifting at constant velocity). Every
 ``nowcast_period`` a nowcast of the next ``horizon`` is issued: what planners see
@@ -16,9 +16,9 @@ import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
-from avoidance.threats import StormSnapshot
-from guidance.mptp.synthetic import StormField
 from sim import scenario as sc
+from sim.core.threats import StormSnapshot
+from sim.storm_synthetic import StormField
 
 
 @dataclass

@@ -16,7 +16,7 @@ from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from sim import log_schemas as S
 from sim.environment import geofence, obstacle_prism
 from sim.faults import FaultSchedule
-from sim.frames import ned_to_geodetic
+from sim.geodesy import ned_to_geodetic
 from sim.mcap_log import McapLog
 from sim.perception import Perception
 from sim.scenario import Scenario

@@ -13,7 +13,6 @@ from sim.replay.report import log_metrics
 from sim.replay.runlog import RunLog
 from sim.runner import run_scenario
 from sim.scenario import parse_scenario
-from sim.vehicle import Vehicle
 
 ROOT = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.closed_loop
@@ -87,7 +86,9 @@ class _OffsetEstimator(PerfectEstimator):
 
 
 def test_controllers_and_planners_follow_the_estimate_not_the_truth(tmp_path, monkeypatch):
-    monkeypatch.setattr(Vehicle, "_make_estimator", lambda self, kind, seed: _OffsetEstimator(self.plant))
+    monkeypatch.setattr(
+        "sim.vehicle.make_estimator", lambda kind, plant, airframe, seed, origin: _OffsetEstimator(plant)
+    )
     data = _hover(20.0)
     _, log = _run(tmp_path, data)
     truth = log.topic("/quad/truth/state")["pos_ned"]

@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
+from sim.core.frames import euler_to_quat, quat_conj, quat_log, quat_mul
 from sim.estimation import ins_model as m
 from sim.estimation.ins_ekf import InsEkf, InsEkfConfig
-from sim.frames import GeoPoint
+from sim.geodesy import GeoPoint
 from sim.sensors.faults import SensorFault
-from sim.sensors.rotations import euler_to_quat, quat_conj, quat_log, quat_mul
 from sim.sensors.suite import SensorSuite, SensorSuiteConfig
 from sim.sensors.synthetic import Segment, generate
 

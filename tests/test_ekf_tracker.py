@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sim.core.state import VehicleState
 from sim.estimation.intruder_tracker import IntruderTracker, TrackerConfig
 from sim.sensors.adsb import AdsbConfig, AdsbReceiver
 from sim.sensors.faults import SensorFault
-from sim.state import VehicleState
 
 P0 = np.array([500.0, -300.0, -120.0])
 V = np.array([-12.0, 8.0, 0.5])

@@ -57,7 +57,7 @@ def test_vectorised_check_equals_loop_reference(mode):
     agree = 0
     for trial in range(25):
         K, N, J = 12, int(rng.integers(3, 12)), int(rng.integers(1, 5))
-        pts = np.cumsum([*rng.normal(0, 1.5, (K, N, 3)), 2.0, 0, 0], axis=1)
+        pts = np.cumsum(rng.normal(0, 1.5, (K, N, 3)) + [2.0, 0, 0], axis=1)
         n_pts = rng.integers(2, N + 1, K)
         pts = np.where(np.arange(N)[None, :, None] < n_pts[:, None, None], pts, pts[np.arange(K), n_pts - 1][:, None])
         kin = path_kinematics(pts, n_pts, 5.0, 3.0)

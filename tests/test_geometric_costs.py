@@ -9,7 +9,7 @@ from avoidance.geometric.config import CostCaps, GeometricConfig, VehicleParams
 from avoidance.geometric.costs import closeness, energy, hover_power, rotation_penalty, smoothness
 from avoidance.geometric.kinematics import path_kinematics
 from avoidance.geometric.normalization import caps_from_samples, clip_minmax, log_clip_minmax
-from avoidance.geometric.sweep import (
+from sim.testbeds.geometric_sweep import (
     LOWER_CAP_ENV,
     N_ENVIRONMENTS,
     UPPER_CAP_ENV,
@@ -97,7 +97,7 @@ def test_closeness_terms():
     d = np.array([4, np.sqrt(17), 4]) - 1.0
     f = 1 / (0.5 * d.mean() + 0.5 * d.min())
     assert closeness(pts, np.array([3]), samples, np.array([1.0]), cfg)[0] == pytest.approx(f)
-    two = np.concatenate([samples, [*samples, 0, 10, 0]])
+    two = np.concatenate([samples, samples + [0, 10, 0]])
     d2 = np.array([14, np.sqrt(197), 14]) - 1.0
     f2 = 1 / (0.5 * d2.mean() + 0.5 * d2.min())
     assert closeness(pts, np.array([3]), two, np.array([1.0, 1.0]), cfg)[0] == pytest.approx(

@@ -12,8 +12,8 @@ from avoidance.geometric.config import GeometricConfig
 from avoidance.geometric.frames import plane_angles, plane_elevation, uav_frame
 from avoidance.geometric.generation import SIMPLE, SYMMETRIC, cubic_shape, generate_candidates, omega_grid, path_shape
 from avoidance.geometric.kinematics import capped_velocity, path_kinematics
-from avoidance.geometric.scenarios import Encounter
 from avoidance.geometric.threats import Threat
+from sim.testbeds.geometric_encounters import Encounter
 
 
 @pytest.mark.parametrize("dx, w", [(10.0, 3.2), (7.5, -4.8), (4.0, 1.6)])

@@ -15,9 +15,9 @@ from avoidance.geometric.config import GeometricConfig
 from avoidance.geometric.conflict import find_main_threat
 from avoidance.geometric.planner import GeometricAvoider
 from avoidance.geometric.threats import Threat, ThreatArrays
-from avoidance.planner import Plan, Planner, PlanStatus, Threats
-from avoidance.threats import IntruderTrack, SphereThreat
-from sim.state import VehicleState
+from sim.core.plan import Plan, Planner, PlanStatus, Threats
+from sim.core.state import VehicleState
+from sim.core.threats import IntruderTrack, SphereThreat
 
 REF = np.array([[0.0, 0.0, -20.0], [50.0, 0.0, -20.0], [120.0, 0.0, -20.0]])  # north at 20 m
 
@@ -261,7 +261,7 @@ def test_unsafe_commitment_far_off_the_reference_flies_on_when_holding_is_worse(
     peak, out = peak_of(first)
     here = peak - np.array([2.0, 0, 0]) - out * 0.5
     grazing = SphereThreat("new", 2.0, peak + out * 1.5, 1.0)  # 0.5 m from the path's peak
-    from_above = IntruderTrack("ac", 2.0, [*here, 0, 0, -5.0], np.array([0, 0, 5.0]), 1.0)  # at `here` in 1 s
+    from_above = IntruderTrack("ac", 2.0, here + [0, 0, -5.0], np.array([0, 0, 5.0]), 1.0)  # at `here` in 1 s
     p = av.plan(state(2.0, *here), Threats(spheres=[sphere(25.0), grazing], intruders=[from_above]), 2.0)
     d = p.diagnostics
     assert d["status"] == "committed_unsafe" and np.array_equal(p.positions, first.positions)

@@ -8,7 +8,7 @@ import pytest
 
 from avoidance.geometric.avoider import Status
 from avoidance.geometric.config import GeometricConfig
-from avoidance.geometric.scenarios import scenario1, scenario2, scenario3
+from sim.testbeds.geometric_encounters import scenario1, scenario2, scenario3
 
 THESIS = GeometricConfig.thesis()
 S1_CFG = GeometricConfig.thesis(path_types=("symmetric",))

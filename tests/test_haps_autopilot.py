@@ -11,10 +11,10 @@ from aircraft import airframe_dir
 from aircraft.haps.autopilot import HapsAutopilot
 from aircraft.haps.gains import DEFAULT_PATH, GainsError, HapsGains
 from guidance.l1 import L1Guidance
-from guidance.setpoints import FixedWingSetpoint
-from sim.frames import GeoPoint
+from sim.core.setpoints import FixedWingSetpoint
+from sim.core.state import VehicleState
+from sim.geodesy import GeoPoint
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
-from sim.state import VehicleState
 
 ORIGIN = GeoPoint(47.0, 8.0, 0.0)
 ALT, TAS = 20_000.0, 29.7  # trim at EAS 8 m/s

@@ -1,5 +1,6 @@
 """Closed loop: the HAPS flies the box mission; everything is read back from the MCAP it wrote."""
 
+import itertools
 import math
 import subprocess
 import sys
@@ -14,7 +15,6 @@ from aircraft.haps.autopilot import HapsGains
 from sim.mcap_read import read_info, read_topic
 from sim.runner import RunFailed, run_scenario
 from sim.scenario import load_scenario
-import itertools
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "scenarios" / "haps_box_mission.toml"

@@ -5,7 +5,8 @@ import math
 import pytest
 
 from aircraft import airframe_dir
-from sim.frames import FT, GeoPoint
+from sim.core.constants import FT
+from sim.geodesy import GeoPoint
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
 
 ORIGIN = GeoPoint(47.0, 8.0, 0.0)

@@ -19,8 +19,8 @@ from pymavlink.dialects.v20 import common as mav
 from shapely.geometry import Polygon
 from test_mavlink_bridge import ORIGIN, SYSID, WAYPOINTS, Harness, free_port, upload
 
-from avoidance.threats import Geofence
-from sim.frames import geodetic_to_ned, ned_to_geodetic
+from sim.core.threats import Geofence
+from sim.geodesy import geodetic_to_ned, ned_to_geodetic
 from sim.mavlink import LinkConfig, MissionUpload, PositionTarget, SetMode, VehicleLink
 from sim.mavlink.envelope import Envelope
 from sim.mavlink.signing import SigningKeyError, load_key

@@ -14,8 +14,9 @@ import pytest
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mav
 
-from avoidance.threats import IntruderTrack
-from sim.frames import GeoPoint, ned_to_geodetic
+from sim.core.state import VehicleState
+from sim.core.threats import IntruderTrack
+from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.mavlink import (
     MODES,
     Arm,
@@ -26,7 +27,6 @@ from sim.mavlink import (
     VehicleLink,
 )
 from sim.mavlink.telemetry import icao_address
-from sim.state import VehicleState
 
 SYSID = 7
 ORIGIN = GeoPoint(47.0, 8.0, 400.0)

@@ -16,7 +16,7 @@ os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mav
 
-from sim.frames import GeoPoint, ned_to_geodetic
+from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.replay.runlog import RunLog
 from sim.runner import run_scenario
 from sim.scenario import parse_scenario

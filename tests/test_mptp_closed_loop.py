@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 import tomli_w
 
-from guidance.mptp import scenarios as S
-from guidance.mptp.haps_scenarios import matched_scale, scenario_data
+from sim.testbeds import mptp_thesis as S
 from sim.replay.report import log_metrics
 from sim.replay.runlog import RunLog
 from sim.runner import run_scenario
 from sim.scenario import ScenarioError, parse_scenario
+from sim.testbeds.mptp_haps import matched_scale, scenario_data
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "scenarios" / "mptp" / "storm_crossing.toml"
@@ -66,7 +66,7 @@ def test_an_opening_corridor_is_waited_for_in_closed_loop(tmp_path):
     assert log_metrics(log)["vehicles"]["haps"]["storms"]["time_inside_s"] == 0.0
     assert all(m["status"] != "no_solution" for m in log.topic("/haps/plan").messages)
     wall, plug = np.array(scenario.weather.storm[0].points), scenario.weather.storm[2]
-    margin = scenario.vehicle[0].planner.options["safety_single_m"][0]
+    margin = scenario.vehicle[0].planner.options.safety_single_m[0]
     # the plug's margin leaves the walls' margin band (the corridor opens) at
     opens_s = (np.max(np.array(plug.points)[:, 0]) + margin - (wall[:, 0].min() - margin)) / abs(plug.drift_north)
     truth = log.topic("/haps/truth/state")

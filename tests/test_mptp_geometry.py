@@ -7,7 +7,6 @@ import pytest
 import shapely
 from shapely.geometry import Point, Polygon, box
 
-from avoidance.threats import StormSnapshot
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.margins import (
     close_gaps,
@@ -17,6 +16,7 @@ from guidance.mptp.margins import (
     safety_margin_m,
 )
 from guidance.mptp.timeline import ObstacleTimeline, minkowski_sequences
+from sim.core.threats import StormSnapshot
 
 CFG = MptpConfig(
     simplify_tol_m=0.0,

@@ -10,17 +10,17 @@ import pytest
 import shapely
 from shapely.geometry import box
 
-from avoidance.planner import PlanStatus, Threats
-from avoidance.threats import StormSnapshot
-from guidance.mission import Mission
-from guidance.mptp import scenarios as S
+from sim.testbeds import mptp_thesis as S
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
-from guidance.mptp.openloop import run_open_loop, vehicle_state
 from guidance.mptp.planner import MptpPlanner
 from guidance.mptp.search import plan_trajectory
 from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.turning import flyby_path
+from sim.core.mission import Mission
+from sim.core.plan import PlanStatus, Threats
+from sim.core.threats import StormSnapshot
+from sim.testbeds.mptp_openloop import run_open_loop, vehicle_state
 
 
 def _assert_clear_of_storms(run, field):

@@ -12,26 +12,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from shapely.geometry import box
 
-from avoidance.planner import PlanStatus, Threats
-from avoidance.threats import StormSnapshot
-from guidance.mission import Mission
 from guidance.mptp.astar import astar
 from guidance.mptp.config import MptpConfig
-from guidance.mptp.geojson import plan_geojson
 from guidance.mptp.goal import GoalTrack
 from guidance.mptp.heuristics import GoalAvailability, edh
-from guidance.mptp.nowcast import (
-    NowcastError,
-    dump_nowcast,
-    load_nowcast,
-    parse_nowcast,
-    save_nowcast,
-)
-from guidance.mptp.openloop import vehicle_state
 from guidance.mptp.planner import MptpPlanner
 from guidance.mptp.search import default_workspace, plan_trajectory
 from guidance.mptp.statespace import free_space
-from guidance.mptp.synthetic import StormField
 from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.turning import flyby_path, wrap
 from guidance.mptp.visibility import (
@@ -41,7 +28,20 @@ from guidance.mptp.visibility import (
     tangent,
     visible_vertices,
 )
-from sim.frames import GeoPoint
+from sim.core.mission import Mission
+from sim.core.plan import PlanStatus, Threats
+from sim.core.threats import StormSnapshot
+from sim.geodesy import GeoPoint
+from sim.nowcast_files import (
+    NowcastError,
+    dump_nowcast,
+    load_nowcast,
+    parse_nowcast,
+    save_nowcast,
+)
+from sim.plan_geojson import plan_geojson
+from sim.storm_synthetic import StormField
+from sim.testbeds.mptp_openloop import vehicle_state
 
 
 @st.composite

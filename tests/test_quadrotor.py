@@ -14,8 +14,8 @@ import pytest
 
 from aircraft import airframe_dir
 from aircraft.quadrotor import GainsError, MultirotorController, MultirotorGains
-from guidance.setpoints import MultirotorSetpoint
-from sim.frames import GeoPoint
+from sim.core.setpoints import MultirotorSetpoint
+from sim.geodesy import GeoPoint
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
 
 DT = 1.0 / 240.0

@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from avoidance.planner import PlanStatus, Threats
 from avoidance.reachset.cache import reach_set
 from avoidance.reachset.config import AvoidanceConfig, ExpansionConfig, MovementConfig, ReachSetConfig
 from avoidance.reachset.frames import GridPose
@@ -22,10 +21,11 @@ from avoidance.reachset.movement import MovementType as M
 from avoidance.reachset.planner import ReachSetAvoider
 from avoidance.reachset.record import decision_record, scene_update
 from avoidance.reachset.situation import Assessor
-from avoidance.threats import IntruderTrack, LidarScan
-from guidance.mission import Mission
+from sim.core.mission import Mission
+from sim.core.plan import PlanStatus, Threats
+from sim.core.state import VehicleState
+from sim.core.threats import IntruderTrack, LidarScan
 from sim.scenario import ScenarioError, parse_scenario
-from sim.state import VehicleState
 
 CFG = AvoidanceConfig()
 GRID = AvoidanceGrid(CFG.grid)

@@ -16,7 +16,7 @@ from avoidance.reachset.movement import build_primitive_table
 from avoidance.reachset.threats.constraints import Constraint, classify, from_geofence
 from avoidance.reachset.threats.lidar import lidar_ratings_polar
 from avoidance.reachset.threats.map_obstacles import MapObstacle, map_rating
-from avoidance.threats import Geofence
+from sim.core.threats import Geofence
 
 GRID = AvoidanceGrid()
 TREE = reach_set(GRID, build_primitive_table(MovementConfig()), ReachSetConfig.combined())

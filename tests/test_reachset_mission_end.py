@@ -4,12 +4,12 @@ acceptance radius stopped short of the last waypoint and the mission never compl
 
 import numpy as np
 
-from avoidance.planner import Threats
 from avoidance.reachset.movement import multirotor_automaton
 from avoidance.reachset.planner import ReachSetAvoider
-from guidance.mission import Mission
 from guidance.multirotor_follower import MultirotorPlanFollower
-from sim.state import VehicleState
+from sim.core.mission import Mission
+from sim.core.plan import Threats
+from sim.core.state import VehicleState
 
 
 def fly(waypoints, planner_hz: float, cruise: float = 5.0, acceptance: float = 1.0, t_end: float = 80.0):

@@ -92,7 +92,7 @@ def test_object_clearance_matches_analytic_crossing():
     north along east = 300 m, 50 m higher: closest centre distance 50 m at t = 30 s, so 45 m to
     its surface; before it appears it is not counted."""
     from sim import scenario as sc
-    from sim.frames import GeoPoint
+    from sim.geodesy import GeoPoint
     from sim.replay.metrics import MetricsWorld, object_metrics
     from sim.traffic import TrafficObject
 

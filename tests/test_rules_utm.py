@@ -47,7 +47,7 @@ from avoidance.utm.notification import (
     Registration,
     flight_levels,
 )
-from sim.frames import FT
+from sim.core.constants import FT
 from sim.scenario import ScenarioError, load_scenario
 
 CFG = RulesConfig().avoidance(AvoidanceConfig())
@@ -147,7 +147,7 @@ def test_overtake_roles_and_waypoints_on_the_right():
     assert case.encounter == Encounter.OVERTAKE and case.roles == (Role.OVERTAKING, Role.OVERTAKEN)
     div, conv = overtake_waypoints(fast.pos, fast.vel, slow.pos, slow.vel, case.collision_point, 5.0, 1.0, 2.0)
     # overtaken heads +x: its right is -y; offset = Δv·frame + margin = 6
-    assert div == pytest.approx([*case.collision_point, 0, -6, 0])
+    assert div == pytest.approx(case.collision_point + [0, -6, 0])
     assert conv[0] - div[0] == pytest.approx(
         np.sqrt(40.0**2 + 25.0) + 1 + 2
     )  # |p - cp| = 40 (meet at x = 0) and conv[1] == pytest.approx(div[1])
@@ -227,7 +227,7 @@ def test_restrictions_disable_left_and_inside_the_margin():
     ball = safety_margin_mask(NAV, pose, cp, 5.0)
     dist = np.linalg.norm(NAV.samples[~ball] - cp, axis=-1)
     assert ball.any() and dist.min() >= 5.0 - 1e-9
-    barrel = safety_margin_mask(NAV, pose, [*cp, 0, 0, 10.0], 5.0, barrel_half_height=3.0)
+    barrel = safety_margin_mask(NAV, pose, cp + [0, 0, 10.0], 5.0, barrel_half_height=3.0)
     assert not barrel.any()  # 10 m above the band's half height: nothing disabled
     # already inside the ball: keep what does not get closer than now
     inside = safety_margin_mask(NAV, pose, np.array([3.0, 0, 0]), 5.0)
@@ -338,7 +338,7 @@ def test_moving_margin_follows_the_peer_in_time():
     [
         ('"head_on", "converging"', '"head_on", "converge"', "unknown rule(s) converge"),
         ("rules_settle = 10.0", "rules_settle = -1", "settle must be >= 0"),
-        ("rules_unit = 5.0", "rules_units = 5.0", "unknown option(s) rules_units"),
+        ("rules_unit = 5.0", "rules_units = 5.0", "planner.options.rules_units: unknown key"),
     ],
 )
 def test_bad_rules_options_are_one_line_scenario_errors(old, new, message, tmp_path):
@@ -353,12 +353,12 @@ def test_bad_rules_options_are_one_line_scenario_errors(old, new, message, tmp_p
 def _avoider_with_traffic(cooperative: bool, ahead: float):
     """A thesis-scale RulesAvoider flying north at 1 m/s with one head-on peer ``ahead`` [m];
     its decisions at t = 0, 1, 2 s."""
-    from avoidance.planner import Threats
     from avoidance.reachset.movement import thesis_automaton
     from avoidance.rules.planner import RulesAvoider
-    from avoidance.threats import IntruderTrack
-    from guidance.mission import Mission
-    from sim.state import VehicleState
+    from sim.core.mission import Mission
+    from sim.core.plan import Threats
+    from sim.core.state import VehicleState
+    from sim.core.threats import IntruderTrack
 
     mission = Mission(np.array([[60.0, 0.0, -5.0]]), cruise_speed=1.0, acceptance_radius=2.0)
     av = RulesAvoider(mission, thesis_automaton(), RulesConfig())

@@ -16,14 +16,14 @@ from aircraft.haps.autopilot import HapsAutopilot, HapsGains
 from aircraft.quadrotor.controller import MultirotorController
 from aircraft.registry import get_airframe
 from guidance.l1 import L1Guidance
-from guidance.setpoints import FixedWingSetpoint, MultirotorSetpoint
+from sim.core.frames import euler_to_quat, quat_conj, quat_log, quat_mul
+from sim.core.setpoints import FixedWingSetpoint, MultirotorSetpoint
 from sim.estimation.sensor_estimator import SensorEstimator, SensorEstimatorConfig, normal_gravity
-from sim.frames import GeoPoint
+from sim.geodesy import GeoPoint
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
 from sim.scheduler import LockstepScheduler, Stage
 from sim.sensors.config import SensorConfigError
 from sim.sensors.faults import SensorFault
-from sim.sensors.rotations import euler_to_quat, quat_conj, quat_log, quat_mul
 
 ORIGIN = GeoPoint(47.0, 8.0, 0.0)
 HAPS_ALT, HAPS_TAS = 18_000.0, 26.0
@@ -88,14 +88,14 @@ def _fly_haps(seconds: float, seed: int = 3):
     l1 = L1Guidance.for_airframe(ap)
     ap.reset(est.update(0.0), throttle=plant["fcs/throttle-cmd-norm[0]"])
     start = plant.truth().pos_ned.copy()
-    leg = {"a": start, "b": [*start, 100000.0, 0.0, 0.0]}
+    leg = {"a": start, "b": start + [100_000.0, 0.0, 0.0]}
     dt = 1.0 / af.control_hz
 
     def control(t: float) -> None:
         e = est.update(t)
         if t >= 60.0 and leg["b"][1] == start[1]:  # turn east after a minute
             leg["a"] = e.pos_ned.copy()
-            leg["b"] = [*e.pos_ned, 0.0, 100000.0, 0.0]
+            leg["b"] = e.pos_ned + [0.0, 100_000.0, 0.0]
         roll, _ = l1.update(e, leg["a"], leg["b"])
         plant.set_many(ap.update(e, FixedWingSetpoint(roll, HAPS_ALT, HAPS_TAS), dt))
 
@@ -150,7 +150,7 @@ def _quad_setpoint(t: float, home: np.ndarray) -> MultirotorSetpoint:
     if t < 20.0:
         p = home
     elif t < 100.0:
-        p = [*home, 30.0, 20.0, -10.0]
+        p = home + [30.0, 20.0, -10.0]
     else:
         p = home
     return MultirotorSetpoint(pos_ned=np.array(p, float), yaw_rad=0.0 if t < 40.0 else 0.5)
@@ -198,7 +198,7 @@ def test_multirotor_estimate_within_3_sigma_and_flies_the_setpoints(quad):
     assert frac.min() >= 0.95, f"inside 3 sigma: {np.round(frac, 3)}"
     t, pos = run["t"], run["pos"]
     at_b = (t > 50.0) & (t < GNSS_LOSS[0])
-    assert np.abs(pos[at_b] - ([*home, 30.0, 20.0, -10.0])).max() < 1.5
+    assert np.abs(pos[at_b] - (home + [30.0, 20.0, -10.0])).max() < 1.5
     assert np.linalg.norm(pos[-1] - home) < 1.5  # back home (true position)
     assert np.abs(run["err"][t > 10.0, 12:15]).max() < math.radians(0.1)  # gyro biases
     print(f"multirotor closed loop with sensors + EKF: {rtf:.0f}x real time")
@@ -219,7 +219,7 @@ def test_multirotor_gnss_loss_grows_covariance_stays_controlled_and_recovers(qua
     before = horiz[(t > GNSS_LOSS[0] - 5.0) & (t < GNSS_LOSS[0])].max()
     assert horiz[lost][-1] > 2.0 * before
     # controlled: the true position stays near the held point while blind
-    b = [*home, 30.0, 20.0, -10.0]
+    b = home + [30.0, 20.0, -10.0]
     assert np.abs(pos[lost] - b)[:, :2].max() < 10.0
     assert np.abs(pos[lost, 2] - b[2]).max() < 3.0
     # recovers after the loss: bound back near its value before, errors small
@@ -268,7 +268,7 @@ def test_normal_gravity_matches_jsbsim_at_18_km():
     plant.initialise(InitialConditions(GeoPoint(ORIGIN.lat_deg, ORIGIN.lon_deg, HAPS_ALT), tas_mps=HAPS_TAS))
     plant.trim()
     plant.step(5)
-    from sim.sensors.rotations import euler_to_dcm
+    from sim.core.frames import euler_to_dcm
     from sim.sensors.truth import TruthSampler
 
     s = TruthSampler(plant).sample()

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from sim.estimation.geodetic import LocalGeodetic
-from sim.frames import GeoPoint, LocalLevelFrame
+from sim.geodesy import GeoPoint, LocalLevelFrame
 from sim.replay.runlog import RunLog
 from sim.runner import run_scenario
 from sim.scenario import parse_scenario
@@ -91,7 +91,7 @@ def test_velocity_map_integrates_to_scenario_position():
     pos = np.array([frame.ned(*x) for x in zip(lat, lon, alt, strict=False)])
 
     def local_vel(k: int) -> np.ndarray:  # ECEF velocity at mid-step in the local NED axes
-        from sim.frames import _ecef
+        from sim.geodesy import _ecef
 
         a, b = (
             np.array(_ecef(*np.radians([lat[k], lon[k]]), alt[k])),

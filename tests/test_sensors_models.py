@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 from shapely.geometry import Polygon, box
 
-from avoidance.threats import PrismObstacle
-from sim.frames import GeoPoint
+from sim.core.state import VehicleState
+from sim.core.threats import PrismObstacle
+from sim.geodesy import GeoPoint
 from sim.sensors import isa
 from sim.sensors.adsb import AdsbConfig, AdsbReceiver
 from sim.sensors.baro import BaroConfig, Barometer
@@ -22,7 +23,6 @@ from sim.sensors.imu import Imu, ImuConfig
 from sim.sensors.lidar import Lidar, LidarConfig, _prepare, cast_rays
 from sim.sensors.suite import SensorSuite, SensorSuiteConfig
 from sim.sensors.truth import TruthSample
-from sim.state import VehicleState
 
 
 def _truth(

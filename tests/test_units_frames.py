@@ -7,15 +7,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sim.frames import (
-    GeoPoint,
-    LocalLevelFrame,
-    enu_to_ned,
-    euler_to_quaternion,
-    geodetic_to_ned,
-    ned_to_enu,
-    ned_to_geodetic,
-)
+from sim.core.frames import enu_to_ned, euler_to_quat, ned_to_enu
+from sim.geodesy import GeoPoint, LocalLevelFrame, geodetic_to_ned, ned_to_geodetic
 from sim.units import to_si
 
 
@@ -74,7 +67,7 @@ def test_enu_ned_swap_and_quaternion():
     assert np.allclose(ned_to_enu(v), [2.0, 1.0, -3.0])
     assert np.allclose(enu_to_ned(ned_to_enu(v)), v)
     # yaw 90 deg: body x points east
-    x, y, z, w = euler_to_quaternion(0.0, 0.0, math.pi / 2)
+    w, x, y, z = euler_to_quat(0.0, 0.0, math.pi / 2)
     assert (
         (x, y) == pytest.approx((0.0, 0.0))
         and z == pytest.approx(math.sqrt(0.5))

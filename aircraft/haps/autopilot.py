@@ -1,8 +1,8 @@
 """HAPS outer loops: TECS (altitude and airspeed) and the bank command, run at 10 Hz.
 
-Inputs: the vehicle estimate (:class:`sim.state.VehicleState`: MSL altitude [m], NED velocity
+Inputs: the vehicle estimate (:class:`sim.core.state.VehicleState`: MSL altitude [m], NED velocity
 [m/s], Euler angles [rad], true and equivalent airspeed [m/s]) and a
-:class:`guidance.setpoints.FixedWingSetpoint` (bank [rad], MSL altitude [m], true airspeed [m/s]).
+:class:`sim.core.setpoints.FixedWingSetpoint` (bank [rad], MSL altitude [m], true airspeed [m/s]).
 Output: JSBSim property commands for the inner loops of ``systems/attitude_hold.xml``
 (``ap/roll-cmd-rad``, ``ap/pitch-cmd-rad`` [rad]) and both throttles (``fcs/throttle-cmd-norm[i]``,
 0..1). The first call after :meth:`HapsAutopilot.reset` also carries the inner-loop gains and
@@ -28,12 +28,12 @@ from __future__ import annotations
 import math
 
 from aircraft.haps.gains import RHO0, HapsGains
-from guidance.setpoints import FixedWingSetpoint
-from sim.state import VehicleState
+from sim.core.constants import STANDARD_GRAVITY
+from sim.core.setpoints import FixedWingSetpoint
+from sim.core.state import VehicleState
 
 __all__ = ["HapsAutopilot", "HapsGains"]  # HapsGains re-exported for aircraft.registry
 
-G = 9.80665  # [m/s^2]
 _THROTTLES = ("fcs/throttle-cmd-norm[0]", "fcs/throttle-cmd-norm[1]")
 
 
@@ -79,7 +79,7 @@ class HapsAutopilot:
         power D V / eta over the maximum power (load factor 1/cos(roll) in the induced drag)."""
         g = self.gains
         q_s = 0.5 * RHO0 * max(eas, 1.0) ** 2 * g.wing_area_m2  # dynamic pressure x area [N]
-        cl = g.mass_kg * G / (max(math.cos(roll), 0.5) * q_s)
+        cl = g.mass_kg * STANDARD_GRAVITY / (max(math.cos(roll), 0.5) * q_s)
         power = q_s * (g.cd0 + g.k_induced * cl * cl) * tas / g.prop_efficiency
         return power / g.power_max_w
 
@@ -118,9 +118,9 @@ class HapsAutopilot:
         vdot_dem = _clamp(v_ref_rate + (v_ref - v) / g.spd_time_const_s, -g.accel_max, g.accel_max)
 
         # total energy -> throttle
-        ste_rate_dem = G * hdot_dem + v * vdot_dem
-        ste_rate_err = ste_rate_dem - (G * hdot + v * vdot)
-        ste_err = G * (h_ref - h) + 0.5 * (v_ref * v_ref - v * v)
+        ste_rate_dem = STANDARD_GRAVITY * hdot_dem + v * vdot_dem
+        ste_rate_err = ste_rate_dem - (STANDARD_GRAVITY * hdot + v * vdot)
+        ste_err = STANDARD_GRAVITY * (h_ref - h) + 0.5 * (v_ref * v_ref - v * v)
         k = self._thr_per_power
         thr_ff = self._level_throttle(v, eas, state.roll) + k * ste_rate_dem
         i_thr = _clamp(self._i_thr + k * g.thr_integ * ste_err * dt, -g.thr_integ_limit, g.thr_integ_limit)
@@ -132,10 +132,10 @@ class HapsAutopilot:
         # energy balance -> pitch (speed only when underspeed)
         underspeed = eas < g.eas_underspeed
         w = 2.0 if underspeed else g.spd_weight
-        seb_rate_dem = (2.0 - w) * G * hdot_dem - w * v * vdot_dem
-        seb_rate_err = seb_rate_dem - ((2.0 - w) * G * hdot - w * v * vdot)
-        seb_err = (2.0 - w) * G * (h_ref - h) - w * 0.5 * (v_ref * v_ref - v * v)
-        per_seb_rate = 1.0 / (G * v)  # pitch [rad] per unit energy-balance rate [W/kg]
+        seb_rate_dem = (2.0 - w) * STANDARD_GRAVITY * hdot_dem - w * v * vdot_dem
+        seb_rate_err = seb_rate_dem - ((2.0 - w) * STANDARD_GRAVITY * hdot - w * v * vdot)
+        seb_err = (2.0 - w) * STANDARD_GRAVITY * (h_ref - h) - w * 0.5 * (v_ref * v_ref - v * v)
+        per_seb_rate = 1.0 / (STANDARD_GRAVITY * v)  # pitch [rad] per unit energy-balance rate [W/kg]
         i_pitch = _clamp(self._i_pitch + g.pitch_integ * seb_err * per_seb_rate * dt, g.pitch_min_rad, g.pitch_max_rad)
         pitch_raw = i_pitch + (seb_rate_dem + g.pitch_damp * seb_rate_err) * per_seb_rate
         pitch = _clamp(pitch_raw, g.pitch_min_rad, g.pitch_max_rad)

@@ -10,7 +10,7 @@ The JSBSim FCS (``systems/flight-control.xml``) closes attitude -> body rate -> 
 240 Hz step. Frames and units: NED [m, m/s, m/s^2], Euler 3-2-1 angles [rad], thrust as a
 fraction of the static sea-level maximum collective thrust.
 
-Setpoints (:class:`guidance.setpoints.MultirotorSetpoint`): a NaN position component leaves that
+Setpoints (:class:`sim.core.setpoints.MultirotorSetpoint`): a NaN position component leaves that
 axis to the velocity feed-forward alone (velocity control); a NaN velocity component means no
 feed-forward; a NaN yaw holds the yaw setpoint.
 
@@ -27,10 +27,10 @@ import math
 
 from aircraft.quadrotor.gains import MultirotorGains
 from aircraft.quadrotor.land_detector import LandDetector
-from guidance.setpoints import MultirotorSetpoint
-from sim.state import VehicleState
+from sim.core.constants import STANDARD_GRAVITY
+from sim.core.setpoints import MultirotorSetpoint
+from sim.core.state import VehicleState
 
-G = 9.80665  # standard gravity [m/s^2]
 _TWO_PI = 2.0 * math.pi
 
 
@@ -156,7 +156,7 @@ class MultirotorController:
             asn, ase = acn, ace
 
         # -- acceleration -> thrust vector (NED, fraction of max collective thrust) ---------
-        bzn, bze, bzd = -asn, -ase, G  # body z axis (down) before normalising
+        bzn, bze, bzd = -asn, -ase, STANDARD_GRAVITY  # body z axis (down) before normalising
         nrm = math.sqrt(bzn * bzn + bze * bze + bzd * bzd)
         bzn, bze, bzd = bzn / nrm, bze / nrm, bzd / nrm
         cos_max = math.cos(lim.max_tilt_rad)
@@ -164,7 +164,7 @@ class MultirotorController:
             k = math.sin(lim.max_tilt_rad) / math.hypot(bzn, bze)
             bzn, bze, bzd = bzn * k, bze * k, cos_max
         hover = lim.hover_thrust
-        collective = min((acd * hover / G - hover) / bzd, -lim.thrust_min)
+        collective = min((acd * hover / STANDARD_GRAVITY - hover) / bzd, -lim.thrust_min)
         tn, te, td = bzn * collective, bze * collective, bzd * collective
 
         # vertical anti-windup: stop integrating into a saturated vertical thrust
@@ -181,7 +181,7 @@ class MultirotorController:
             k = t_h_max / t_h
             tn, te = tn * k, te * k
         # horizontal tracking anti-windup against the acceleration actually produced
-        apn, ape = tn * (G / hover), te * (G / hover)
+        apn, ape = tn * (STANDARD_GRAVITY / hover), te * (STANDARD_GRAVITY / hover)
         if acn * acn + ace * ace > apn * apn + ape * ape:
             arw = 2.0 / vg.kp_xy
             en -= arw * (acn - apn)

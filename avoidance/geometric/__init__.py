@@ -2,7 +2,7 @@
 
 ``GeometricAvoider`` is the harness planner (NED in/out); ``plan_avoidance`` the core (ENU z-up).
 Modules: config, frames, generation, kinematics, threats, collision, costs, normalization,
-conflict, avoider, reference, planner, sweep, scenarios.
+conflict, avoider, reference, planner (evaluation encounters and the cost sweep: sim.testbeds).
 """
 
 from avoidance.geometric.avoider import AvoidanceResult, Status, plan_avoidance

@@ -1,5 +1,5 @@
 """``GeometricAvoider``: the geometric candidate-path avoider (seed 001) behind the shared
-planner protocol ``avoidance.planner.Planner``.
+planner protocol ``sim.core.plan.Planner``.
 
 Boundary: estimates, threats and plans are local NED [m, m/s], sim time [s]; the core works in
 local ENU z-up and τ from the evading instant (converted here and in ``reference``).
@@ -32,9 +32,9 @@ from avoidance.geometric.config import PATH_TYPES, GeometricConfig, VehicleParam
 from avoidance.geometric.conflict import find_main_threat
 from avoidance.geometric.reference import ReferenceLine
 from avoidance.geometric.threats import Threat, ThreatArrays, inflate
-from avoidance.planner import Plan, PlanStatus, Threats
-from sim.frames import enu_to_ned, ned_to_enu
-from sim.state import VehicleState
+from sim.core.frames import enu_to_ned, ned_to_enu
+from sim.core.plan import Plan, PlanStatus, Threats
+from sim.core.state import VehicleState
 
 
 @dataclass(frozen=True, slots=True)

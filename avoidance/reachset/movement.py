@@ -17,6 +17,7 @@ from scipy.integrate import solve_ivp
 
 from avoidance.reachset.config import MovementConfig
 from avoidance.reachset.frames import rotation_zyx
+from sim.core.constants import STANDARD_GRAVITY
 
 
 class MovementType(IntEnum):
@@ -234,7 +235,7 @@ def haps_automaton(
     period: float = 1.0,
     bank_max: float = np.radians(20.0),
     climb_rate: float = 1.0,
-    g: float = 9.80665,
+    g: float = STANDARD_GRAVITY,
 ) -> SegmentedMovementAutomaton:
     """Fixed-wing HAPS (spec §2.7): ω = g·tan(bank)/v per airspeed band (slow, cruise, fast)."""
     bands = [

@@ -1,5 +1,5 @@
 """``ReachSetAvoider``: the reach-set avoidance behind the shared planner protocol
-(``avoidance.planner.Planner``).
+(``sim.core.plan.Planner``).
 
 Boundary of frames (converted here, once): the estimate and the threats are NED [m] from the
 scenario origin; mission control works in the z-up GCF (ENU). The plan returned is NED: the end
@@ -20,15 +20,15 @@ from pathlib import Path
 
 import numpy as np
 
-from avoidance.planner import Plan, PlanStatus, Threats
 from avoidance.reachset.config import AvoidanceConfig
 from avoidance.reachset.frames import GridPose, heading_from_yaw_ned
 from avoidance.reachset.fusion import SpaceClass, fuse_cells
 from avoidance.reachset.mission import Decision, MissionControl, Restriction
 from avoidance.reachset.movement import KinState, SegmentedMovementAutomaton
-from guidance.mission import Mission
-from sim.frames import enu_to_ned, ned_to_enu
-from sim.state import VehicleState
+from sim.core.frames import enu_to_ned, ned_to_enu
+from sim.core.mission import Mission
+from sim.core.plan import Plan, PlanStatus, Threats
+from sim.core.state import VehicleState
 
 
 class ReachSetAvoider:
@@ -90,9 +90,16 @@ class ReachSetAvoider:
         until the frame is due (:meth:`frame_due`)."""
         if not self.frame_due(t):
             return self._last
+        return self.decide(estimate, threats, t)
+
+    def decide(
+        self, estimate: VehicleState, threats: Threats, t: float, goal_override: np.ndarray | None = None
+    ) -> Plan:
+        """A decision frame now; ``goal_override`` (ENU [m]) is flown in place of the current goal
+        waypoint (the plan's labels still name the mission's own waypoints)."""
         ctl = self.control
         ctl.goal = max(ctl.goal, self.mission.next_index)  # progress marked by the plan follower
-        d = ctl.step(self.kin_state(estimate, t), threats)
+        d = ctl.step(self.kin_state(estimate, t), threats, goal_override)
         self.last_decision = d
         pos, times, labels = self._vertices(d, estimate, threats)
         vel = (

@@ -23,7 +23,7 @@ from google.protobuf.timestamp_pb2 import Timestamp
 from avoidance.reachset.frames import from_polar
 from avoidance.reachset.fusion import SpaceClass
 from avoidance.reachset.mission import Decision
-from sim.frames import enu_to_ned, euler_to_quaternion
+from sim.core.frames import enu_to_ned, euler_to_quat
 
 NED_FRAME = "ned"
 CLASS_COLORS = {
@@ -104,7 +104,7 @@ def scene_update(d: Decision, t_log: float, entity_id: str = "reachset", show_fr
             centre = enu_to_ned(d.pose.to_gcf(from_polar(mid)))
             yaw_ned = np.pi / 2 - (d.pose.psi + mid[1])  # cell ray heading in NED
             pitch_ned = mid[2]  # nose-up positive in FRD/NED Euler
-            qx, qy, qz, qw = euler_to_quaternion(0.0, pitch_ned, yaw_ned)
+            qw, qx, qy, qz = euler_to_quat(0.0, pitch_ned, yaw_ned)
             q = Quaternion(x=qx, y=qy, z=qz, w=qw)
             ent.cubes.append(
                 CubePrimitive(

@@ -1,5 +1,5 @@
 """Threat collection for one decision (spec §6.2 step 4): the project's sensed threats
-(``avoidance.planner.Threats``, NED) -> per-source cell ratings (``ThreatParts``) of a grid placed
+(``sim.core.plan.Threats``, NED) -> per-source cell ratings (``ThreatParts``) of a grid placed
 at ``pose`` at time ``t_grid`` (the next decision time), and the situation events (step 5).
 
 Mapping of the project's threat types (decision D-5): LiDAR scan -> detected obstacles and
@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from avoidance.planner import Threats
 from avoidance.reachset.config import AvoidanceConfig
 from avoidance.reachset.frames import GridPose
 from avoidance.reachset.fusion import ThreatParts
@@ -24,7 +23,8 @@ from avoidance.reachset.threats.intruders import IntruderModel, intruder_motion,
 from avoidance.reachset.threats.lidar import lidar_ratings
 from avoidance.reachset.threats.map_obstacles import MapObstacle, map_rating
 from avoidance.reachset.tree import ReachSetTree
-from avoidance.threats import IntruderTrack
+from sim.core.plan import Threats
+from sim.core.threats import IntruderTrack
 
 
 class Assessor:

@@ -2,7 +2,7 @@
 
 Frames and units: z-up GCF = ENU [m] from the scenario origin (the reach-set frame), velocity
 [m/s], times sim seconds [s], margins [m]. The kinematic part of a peer's notification is its
-surveillance track (``avoidance.threats.IntruderTrack``: broadcast with the world's latency,
+surveillance track (``sim.core.threats.IntruderTrack``: broadcast with the world's latency,
 dropout and noise, ``sim.perception``); the static part (registration, category,
 maneuverability, margins) is the registration data filed with the UTM before flight
 (:class:`Registration`).
@@ -15,8 +15,9 @@ from enum import IntEnum
 
 import numpy as np
 
-from avoidance.threats import IntruderTrack
-from sim.frames import FT, ned_to_enu
+from sim.core.constants import FT
+from sim.core.frames import ned_to_enu
+from sim.core.threats import IntruderTrack
 
 FLIGHT_LEVEL_STEP_M = 1000 * FT  # flight-level bands used for the level check [m]
 PASSING_BAND_M = 250 * FT  # within this of a level boundary the next level is "passing" (T-UT-5)

@@ -14,7 +14,8 @@ from typing import Literal
 import numpy as np
 from shapely.geometry import Polygon
 
-G0 = 9.80665  # standard gravity [m/s^2]
+from sim.core.constants import STANDARD_GRAVITY
+
 NM = 1852.0  # m per nautical mile
 
 Heuristic = Literal["dijkstra", "edh", "ssph"]
@@ -71,7 +72,7 @@ class MptpConfig:
     ring_segments: int = 72
     mission_area: Polygon | None = None
     goal_track: tuple[tuple[float, float, float], ...] | None = None
-    g: float = G0
+    g: float = STANDARD_GRAVITY
 
     def __post_init__(self) -> None:
         if self.tas_mps <= 0 or self.dt_s <= 0 or self.horizon_s < self.dt_s:

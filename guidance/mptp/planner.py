@@ -1,4 +1,4 @@
-"""The MPTP behind the shared planner interface (avoidance.planner.Planner).
+"""The MPTP behind the shared planner interface (sim.core.plan.Planner).
 
 Frames/units: the estimate and the plan in local-level NED [m], storms in (north, east) [m],
 times in sim seconds [s]. The planner keeps its last plan and replans at a fixed cadence
@@ -26,9 +26,6 @@ import time
 
 import numpy as np
 
-from avoidance.planner import Plan, PlanStatus, Threats
-from avoidance.threats import StormSnapshot
-from guidance.mission import Mission
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
 from guidance.mptp.heuristics import GoalAvailability
@@ -36,7 +33,10 @@ from guidance.mptp.holding import holding_orbit, safe_area_leg
 from guidance.mptp.search import Trajectory, default_workspace, plan_trajectory
 from guidance.mptp.statespace import free_space
 from guidance.mptp.timeline import ObstacleTimeline
-from sim.state import VehicleState
+from sim.core.mission import Mission
+from sim.core.plan import Plan, PlanStatus, Threats
+from sim.core.state import VehicleState
+from sim.core.threats import StormSnapshot
 
 MIN_GROUND_SPEED = 1.0  # below this the course is taken from the yaw [m/s]
 

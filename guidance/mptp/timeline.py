@@ -21,6 +21,7 @@ any time of the interval that is outside the envelope is outside the obstacle at
 
 from __future__ import annotations
 
+import itertools
 import math
 from functools import lru_cache
 
@@ -30,10 +31,9 @@ from shapely import affinity
 from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
 
-from avoidance.threats import StormSnapshot
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.margins import margin_hulls, merge, turn_cut_m
-import itertools
+from sim.core.threats import StormSnapshot
 
 
 def minkowski_sequences(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -42,15 +42,16 @@ import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 from pydantic import Field
 
+from sim.core.constants import STANDARD_GRAVITY
+from sim.core.frames import dcm_to_euler, euler_to_quat, quat_exp, quat_mul, quat_normalize, quat_to_dcm
+from sim.core.state import VehicleState
 from sim.estimation import ins_model as m
 from sim.estimation.geodetic import LocalGeodetic
-from sim.frames import GeoPoint
+from sim.geodesy import GeoPoint
 from sim.sensors import isa
 from sim.sensors.config import StrictConfig
 from sim.sensors.measurements import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample
-from sim.sensors.rotations import dcm_to_euler, euler_to_quat, quat_exp, quat_mul, quat_normalize, quat_to_dcm
 from sim.sensors.suite import SensorSuiteConfig
-from sim.state import VehicleState
 
 _C_REFRESH_M = 10.0  # recompute the velocity map after this much travel [m] (C changes ~2e-6/10 m)
 
@@ -83,7 +84,7 @@ class InsEkfConfig(StrictConfig):
     init_accel_bias_std: float = Field(0.2, gt=0.0)
     init_gyro_bias_std: float = Field(math.radians(0.5), gt=0.0)
     init_baro_bias_std_m: float = Field(30.0, gt=0.0)
-    gravity_mps2: float = Field(9.80665, gt=9.7, lt=9.9)
+    gravity_mps2: float = Field(STANDARD_GRAVITY, gt=9.7, lt=9.9)
     jacobians: Literal["analytic", "numeric"] = "analytic"
 
     @classmethod

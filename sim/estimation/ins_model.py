@@ -29,7 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.sensors.rotations import quat_conj, quat_exp, quat_log, quat_mul, quat_normalize, quat_to_dcm
+from sim.core.constants import STANDARD_GRAVITY
+from sim.core.frames import quat_conj, quat_exp, quat_log, quat_mul, quat_normalize, quat_to_dcm
 
 N = 19
 IDX = {
@@ -41,7 +42,7 @@ IDX = {
     "bb": slice(15, 16),
     "gm": slice(16, 19),
 }
-GRAVITY = np.array([0.0, 0.0, 9.80665])
+GRAVITY = np.array([0.0, 0.0, STANDARD_GRAVITY])
 _I3 = np.eye(3)
 
 

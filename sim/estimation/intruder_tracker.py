@@ -18,7 +18,7 @@ from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import KalmanFilter
 from pydantic import Field
 
-from avoidance.threats import IntruderTrack
+from sim.core.threats import IntruderTrack
 from sim.sensors.config import StrictConfig
 from sim.sensors.measurements import AdsbReport
 

@@ -30,8 +30,9 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
+from sim.core.state import VehicleState
 from sim.estimation.ins_ekf import InsEkf, InsEkfConfig
-from sim.frames import GeoPoint
+from sim.geodesy import GeoPoint
 from sim.jsbsim_plant import JSBSimPlant
 from sim.sensors.airspeed import AirspeedConfig
 from sim.sensors.baro import BaroConfig
@@ -43,7 +44,6 @@ from sim.sensors.magnetometer import MagnetometerConfig
 from sim.sensors.measurements import AirspeedSample, BaroSample, GnssFix, MagSample
 from sim.sensors.suite import SensorSuite, SensorSuiteConfig
 from sim.sensors.truth import TruthSampler
-from sim.state import VehicleState
 
 _EPS = 1e-9
 _LBF = 4.4482216152605  # N per lbf

@@ -36,8 +36,9 @@ from typing import Self
 import numpy as np
 from pymavlink.dialects.v20 import common as mav
 
-from avoidance.threats import IntruderTrack
-from sim.frames import GeoPoint, geodetic_to_ned
+from sim.core.state import VehicleState
+from sim.core.threats import IntruderTrack
+from sim.geodesy import GeoPoint, geodetic_to_ned
 from sim.mavlink import telemetry as tlm
 from sim.mavlink.anomalies import AnomalyCounter, EventFn
 from sim.mavlink.commands import Arm, Command, MissionUpload, PositionTarget, SetMode
@@ -46,7 +47,6 @@ from sim.mavlink.envelope import Envelope, Refusal
 from sim.mavlink.mission import MissionServer, Reply, Waypoint
 from sim.mavlink.modes import MODES, decode_mode
 from sim.mavlink.signing import signing_state
-from sim.state import VehicleState
 
 COMPONENT_ID = mav.MAV_COMP_ID_AUTOPILOT1
 

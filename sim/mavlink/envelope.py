@@ -16,7 +16,7 @@ import numpy as np
 from pymavlink.dialects.v20 import common as mav
 from shapely import contains_xy
 
-from avoidance.threats import Geofence
+from sim.core.threats import Geofence
 
 # (max height above the ground [m], max range from the origin [m]) when the scenario sets none
 DEFAULT_LIMITS = {"fixed_wing": (25_000.0, 500_000.0), "multirotor": (1_000.0, 20_000.0)}

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from aircraft.registry import get_airframe
-from sim.frames import GeoPoint, ned_to_geodetic
+from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.mavlink.bridge import EventFn, LinkConfig, VehicleLink
 from sim.mavlink.mission import Waypoint
 from sim.mavlink.pacing import WallClockPacer

@@ -9,7 +9,7 @@ follow it; 0 runs in sim time, as fast as the simulation goes.
 
 from __future__ import annotations
 
-from sim.frames import GeoPoint, ned_to_geodetic
+from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.mavlink.bridge import LinkConfig, VehicleLink
 from sim.mavlink.envelope import DEFAULT_LIMITS, Envelope
 from sim.mavlink.pacing import WallClockPacer

@@ -16,10 +16,10 @@ import zlib
 import numpy as np
 from pymavlink.dialects.v20 import common as mav
 
-from avoidance.threats import IntruderTrack
-from sim.frames import GeoPoint, ned_to_geodetic
+from sim.core.state import VehicleState
+from sim.core.threats import IntruderTrack
+from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.mavlink.modes import Mode, base_mode
-from sim.state import VehicleState
 
 MAV_TYPES = {"fixed_wing": mav.MAV_TYPE_FIXED_WING, "multirotor": mav.MAV_TYPE_QUADROTOR}
 

@@ -20,7 +20,7 @@ FT = 0.3048
 @dataclass(frozen=True, slots=True)
 class MetricsWorld:
     """What metrics measure against besides the vehicles: map obstacles and geofences
-    (``avoidance.threats`` types), scripted traffic objects (``sim.traffic.TrafficObject``) and
+    (``sim.core.threats`` types), scripted traffic objects (``sim.traffic.TrafficObject``) and
     the well-clear volume (horizontal radius, vertical half height [m]; default ASTM F3442
     small-UAS well clear, 2000 ft / 250 ft)."""
 

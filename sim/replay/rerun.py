@@ -15,11 +15,11 @@ import numpy as np
 from shapely.geometry import Polygon
 
 from aircraft.registry import get_airframe
-from avoidance.factory import make_planner
-from avoidance.planner import Planner, Threats
-from avoidance.threats import IntruderTrack, SphereThreat, StormSnapshot
-from guidance.mission import Mission
+from sim.core.mission import Mission
+from sim.core.plan import Planner, Threats
+from sim.core.threats import IntruderTrack, SphereThreat, StormSnapshot
 from sim.mcap_read import LogReadError, read_attached_scenario
+from sim.planner_registry import make_planner
 from sim.replay.runlog import RunLog
 from sim.vehicle_log import state_from_dict
 
@@ -65,7 +65,7 @@ def _threats(d: dict) -> Threats:
 def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> RerunReport:
     """Re-run ``vehicle``'s planner (``factory(mission)``; default: the scenario's own kind) on
     the log at ``path``."""
-    from sim.vehicle import mission_from_config  # the runner's own mission construction
+    from sim.vehicle_setup import mission_from_config  # the runner's own mission construction
 
     log = RunLog(path)
     scenario = read_attached_scenario(path)

@@ -15,12 +15,11 @@ import math
 import numpy as np
 from pydantic import Field
 
+from sim.core.constants import STANDARD_GRAVITY
 from sim.sensors.base import SampledSensor, SensorConfig
 from sim.sensors.channel import Channel, ChannelConfig
 from sim.sensors.measurements import ImuSample
 from sim.sensors.truth import TruthSample
-
-G0 = 9.80665
 
 
 class ImuConfig(SensorConfig):
@@ -28,10 +27,10 @@ class ImuConfig(SensorConfig):
 
     rate_hz: float = Field(100.0, gt=0.0)
     accel_noise_density: float = Field(4.0e-3, ge=0.0)
-    accel_bias_init_std: float = Field(20e-3 * G0, ge=0.0)
+    accel_bias_init_std: float = Field(20e-3 * STANDARD_GRAVITY, ge=0.0)
     accel_bias_rw: float = Field(6.0e-3, ge=0.0)
     accel_scale_factor_std: float = Field(0.0, ge=0.0, lt=0.5)
-    accel_quantum: float = Field(0.833e-3 * G0, ge=0.0)
+    accel_quantum: float = Field(0.833e-3 * STANDARD_GRAVITY, ge=0.0)
     gyro_noise_density: float = Field(math.radians(2 * 35.0 / 3600.0), ge=0.0)
     gyro_bias_init_std: float = Field(math.radians(0.5), ge=0.0)
     gyro_bias_rw: float = Field(math.radians(2 * 4.0 / 3600.0), ge=0.0)

@@ -9,10 +9,11 @@ barometer conversion below returns geometric altitude (what the NED frame's D me
 
 from __future__ import annotations
 
-import math
 import itertools
+import math
 
-G0 = 9.80665  # standard gravity [m/s^2]
+from sim.core.constants import STANDARD_GRAVITY
+
 R_AIR = 287.05287  # specific gas constant of dry air [J/(kg K)]
 P0 = 101_325.0  # sea-level pressure [Pa]
 T0 = 288.15  # sea-level temperature [K]
@@ -38,8 +39,8 @@ def _base_pressures() -> tuple[float, ...]:
 
 def _layer_pressure(p_base: float, t_base: float, lapse: float, dh: float) -> float:
     if lapse == 0.0:
-        return p_base * math.exp(-G0 * dh / (R_AIR * t_base))
-    return p_base * (1.0 + lapse * dh / t_base) ** (-G0 / (R_AIR * lapse))
+        return p_base * math.exp(-STANDARD_GRAVITY * dh / (R_AIR * t_base))
+    return p_base * (1.0 + lapse * dh / t_base) ** (-STANDARD_GRAVITY / (R_AIR * lapse))
 
 
 _P_BASE = _base_pressures()
@@ -57,8 +58,8 @@ def geopotential_of_pressure(p_pa: float) -> float:
     i = _layer_of_pressure(p_pa)
     h0, t0, lapse = _LAYERS[i]
     if lapse == 0.0:
-        return h0 - R_AIR * t0 / G0 * math.log(p_pa / _P_BASE[i])
-    return h0 + t0 / lapse * ((p_pa / _P_BASE[i]) ** (-R_AIR * lapse / G0) - 1.0)
+        return h0 - R_AIR * t0 / STANDARD_GRAVITY * math.log(p_pa / _P_BASE[i])
+    return h0 + t0 / lapse * ((p_pa / _P_BASE[i]) ** (-R_AIR * lapse / STANDARD_GRAVITY) - 1.0)
 
 
 def altitude_of_pressure(p_pa: float) -> float:
@@ -91,7 +92,7 @@ def temperature_at_altitude(h_m: float) -> float:
 
 def height_per_pascal(p_pa: float) -> float:
     """|dh/dp| of the ISA at pressure ``p_pa``: metres of altitude per pascal [m/Pa]."""
-    return R_AIR * temperature_of_pressure(p_pa) / (p_pa * G0)
+    return R_AIR * temperature_of_pressure(p_pa) / (p_pa * STANDARD_GRAVITY)
 
 
 def airspeeds_from_dp(dp_pa: float, p_static_pa: float) -> tuple[float, float]:

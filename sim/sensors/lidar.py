@@ -7,7 +7,7 @@ from the sensor's x axis, positive to the right (FRD); elevation positive up. Th
 is either ``level`` (rotated by yaw only: a stabilised scanner, the avoidance grid's frame,
 A-12) or ``body`` (strapped down: roll and pitch tilt the scan).
 
-Geometry: a :class:`avoidance.threats.PrismObstacle` is its shapely footprint (north, east)
+Geometry: a :class:`sim.core.threats.PrismObstacle` is its shapely footprint (north, east)
 extruded from ``up_min_m`` to ``up_max_m``; a ray's first entry is the nearest of its crossings
 of the side walls (2-D ray/edge intersections, all rings of the footprint) within the height
 band and of the top/bottom faces inside the footprint. Obstacles whose footprint lies beyond the
@@ -15,7 +15,7 @@ range are skipped, and only rays within an obstacle's azimuth sector are tested.
 an obstacle sees nothing of it.
 
 Ray casting uses the *true* pose; the returns are expressed in the sensor frame and turned into
-a NED :class:`~avoidance.threats.LidarScan` with the *estimated* pose
+a NED :class:`~sim.core.threats.LidarScan` with the *estimated* pose
 (:meth:`LidarReturns.to_scan`), so planners never see truth.
 """
 
@@ -30,12 +30,12 @@ import numpy as np
 import shapely
 from pydantic import Field, model_validator
 
-from avoidance.threats import LidarScan, PrismObstacle
+from sim.core.frames import euler_to_dcm
+from sim.core.state import VehicleState
+from sim.core.threats import LidarScan, PrismObstacle
 from sim.sensors.base import SampledSensor, SensorConfig
 from sim.sensors.channel import Channel, ChannelConfig
-from sim.sensors.rotations import euler_to_dcm
 from sim.sensors.truth import TruthSample
-from sim.state import VehicleState
 
 
 class LidarConfig(SensorConfig):

@@ -14,10 +14,10 @@ import math
 import numpy as np
 from pydantic import Field
 
+from sim.core.frames import euler_to_dcm
 from sim.sensors.base import SampledSensor, SensorConfig
 from sim.sensors.channel import Channel, ChannelConfig
 from sim.sensors.measurements import MagSample
-from sim.sensors.rotations import euler_to_dcm
 from sim.sensors.truth import TruthSample
 
 

@@ -18,10 +18,11 @@ from typing import Literal
 
 import numpy as np
 
-from sim.frames import GeoPoint, ned_to_geodetic
+from sim.core.constants import STANDARD_GRAVITY
+from sim.core.state import VehicleState
+from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.sensors import isa
 from sim.sensors.truth import TruthSample
-from sim.state import VehicleState
 
 
 @dataclass(frozen=True, slots=True)
@@ -115,7 +116,7 @@ def generate(
     heading_rad: float = 0.0,
     wind_ned=(0.0, 0.0, 0.0),
     alpha_rad: float = 0.05,
-    g: float = 9.80665,
+    g: float = STANDARD_GRAVITY,
 ) -> SyntheticFlight:
     """Sample the flight at ``rate_hz`` from t = 0 to the end of the last segment."""
     total = sum(s.duration_s for s in segments)

@@ -1,6 +1,6 @@
 """What the sensors need of the true world at one instant, and how to read it from JSBSim.
 
-``TruthSample`` = :class:`sim.state.VehicleState` (local NED, Euler body FRD->NED, body rates
+``TruthSample`` = :class:`sim.core.state.VehicleState` (local NED, Euler body FRD->NED, body rates
 relative to the earth) + specific force at the CG in body FRD [m/s^2] (non-gravitational force
 over mass: about (0, 0, -9.81) in level flight) + static pressure [Pa], air temperature [K],
 air density [kg/m^3] and the total wind (steady + turbulence) NED [m/s].
@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.frames import FT
+from sim.core.constants import FT
+from sim.core.state import VehicleState
 from sim.jsbsim_plant import JSBSimPlant
-from sim.state import VehicleState
 
 PSF = 47.88025898033584  # Pa per lbf/ft^2
 SLUG_FT3 = 515.3788183931961  # kg/m^3 per slug/ft^3

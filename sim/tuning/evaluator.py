@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from sim.frames import FT
+from sim.core.constants import FT
 from sim.jsbsim_plant import JSBSimPlant
 
 STATE_NAMES = ("u", "v", "w", "p", "q", "r", "phi", "theta", "psi", "h")

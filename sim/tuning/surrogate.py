@@ -34,9 +34,9 @@ import casadi as ca
 import numpy as np
 
 from aircraft import airframe_dir
+from sim.core.constants import STANDARD_GRAVITY
 from sim.sensors import isa
 
-G0 = 9.80665
 R_EARTH = 6_371_000.0
 _M2_PER_FT2 = 0.3048**2
 
@@ -132,7 +132,7 @@ def density(h_m: float) -> float:
 
 def gravity(h_m: float) -> float:
     """Gravity [m/s^2] at altitude ``h_m`` (inverse square from g0 at sea level)."""
-    return G0 * (R_EARTH / (R_EARTH + h_m)) ** 2
+    return STANDARD_GRAVITY * (R_EARTH / (R_EARTH + h_m)) ** 2
 
 
 class HapsTrimModel:

@@ -20,7 +20,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from aircraft import airframe_dir
-from sim.frames import FT, GeoPoint
+from sim.core.constants import FT
+from sim.geodesy import GeoPoint
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant, PlantError
 from sim.tuning.evaluator import JSBSimEvaluator
 from sim.tuning.surrogate import HapsTrimModel

@@ -27,7 +27,8 @@ import numpy as np
 from scipy.optimize import root
 
 from aircraft import airframe_dir
-from sim.frames import GeoPoint
+from sim.core.constants import STANDARD_GRAVITY
+from sim.geodesy import GeoPoint
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
 from sim.tuning.evaluator import JSBSimEvaluator
 from sim.tuning.trim_haps import TrimPoint
@@ -98,7 +99,7 @@ class QuadTrimProblem:
         u = self.throttles(z)
         self.ev.settle_engines(x, {f"ap/motor-health[{i}]": u[i] for i in range(4)}, rtol=1e-11)
         d = self.ev.derivatives(x)
-        return np.concatenate([d[:3] / 9.80665, d[3:6]])
+        return np.concatenate([d[:3] / STANDARD_GRAVITY, d[3:6]])
 
 
 def quad_trim(alt_m: float, speed_mps: float) -> TrimPoint:
@@ -113,7 +114,7 @@ def quad_trim(alt_m: float, speed_mps: float) -> TrimPoint:
     except RuntimeError as exc:  # engines never settled
         return TrimPoint("quadrotor", "scipy-root", alt_m, speed_mps, False, str(exc))
     f = prob.plant
-    acc, rot = float(np.max(np.abs(r[:3]))) * 9.80665, float(np.max(np.abs(r[3:])))
+    acc, rot = float(np.max(np.abs(r[:3]))) * STANDARD_GRAVITY, float(np.max(np.abs(r[3:])))
     u = prob.throttles(z)
     applied = [f[f"fcs/throttle-pos-norm[{i}]"] for i in range(4)]
     reason = ""

@@ -20,7 +20,7 @@ from shapely.geometry import Polygon
 from avoidance.reachset.config import ConstraintConfig
 from avoidance.reachset.frames import GridPose, ne_to_gcf_xy
 from avoidance.reachset.grid import AvoidanceGrid
-from avoidance.threats import Geofence, StormSnapshot
+from sim.core.threats import Geofence, StormSnapshot
 
 
 @dataclass(frozen=True, slots=True)

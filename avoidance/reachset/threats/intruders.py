@@ -16,8 +16,8 @@ import numpy as np
 from avoidance.reachset.config import IntruderModelConfig
 from avoidance.reachset.frames import GridPose
 from avoidance.reachset.grid import AvoidanceGrid
-from avoidance.threats import IntruderTrack
-from sim.frames import ned_to_enu
+from sim.core.frames import ned_to_enu
+from sim.core.threats import IntruderTrack
 
 
 @lru_cache(maxsize=8)

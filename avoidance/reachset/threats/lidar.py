@@ -15,7 +15,7 @@ import numpy as np
 from avoidance.reachset.config import LidarConfig
 from avoidance.reachset.frames import GridPose, to_polar
 from avoidance.reachset.grid import AvoidanceGrid
-from avoidance.threats import LidarScan
+from sim.core.threats import LidarScan
 
 
 def column_of(grid: AvoidanceGrid, theta_phi: np.ndarray) -> np.ndarray:

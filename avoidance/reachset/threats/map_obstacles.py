@@ -20,7 +20,7 @@ from shapely.geometry.base import BaseGeometry
 from avoidance.reachset.config import MapConfig
 from avoidance.reachset.frames import GridPose, ne_to_gcf_xy
 from avoidance.reachset.grid import AvoidanceGrid
-from avoidance.threats import PrismObstacle, SphereThreat
+from sim.core.threats import PrismObstacle, SphereThreat
 
 
 @dataclass(frozen=True, slots=True)

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from avoidance.planner import Plan, PlanStatus, Threats
-from sim.state import VehicleState
+from sim.core.plan import Plan, PlanStatus, Threats
+from sim.core.state import VehicleState
 
 
 class HoldPositionPlanner:

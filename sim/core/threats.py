@@ -8,10 +8,13 @@ shapely geometries in (north, east) [m].
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-from shapely.geometry import Polygon
-from shapely.geometry.base import BaseGeometry
+
+if TYPE_CHECKING:  # the engine builds the shapes; the vocabulary only names their type
+    from shapely.geometry import Polygon
+    from shapely.geometry.base import BaseGeometry
 
 
 @dataclass(frozen=True, slots=True)

@@ -13,8 +13,8 @@ import numpy as np
 
 from avoidance.geometric.avoider import RAW_TERMS, Status
 from avoidance.geometric.config import GeometricConfig, VehicleParams
-from avoidance.geometric.scenarios import Encounter
 from avoidance.geometric.threats import Threat
+from sim.testbeds.geometric_encounters import Encounter
 
 D_MAIN = 3.0 + 1.75 * np.arange(5)
 E_MAIN = -7.0 + 1.75 * np.arange(9)

@@ -18,8 +18,8 @@ from shapely.geometry import Polygon
 
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
-from guidance.mptp.synthetic import StormField
-from sim.frames import GeoPoint, geodetic_to_ned
+from sim.geodesy import GeoPoint, geodetic_to_ned
+from sim.storm_synthetic import StormField
 
 ORIGIN = GeoPoint(47.50, 10.25)
 STORM_COURSE = math.radians(110.0)

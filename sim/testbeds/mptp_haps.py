@@ -24,7 +24,7 @@ import numpy as np
 
 from aircraft.registry import get_airframe
 from guidance.mptp.config import MptpConfig
-from guidance.mptp.scenarios import ORIGIN, Scenario
+from sim.testbeds.mptp_thesis import ORIGIN, Scenario
 
 ALTITUDE_M = 18_000.0
 HAPS_TAS_MPS = 26.0

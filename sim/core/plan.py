@@ -14,8 +14,8 @@ from typing import Protocol
 
 import numpy as np
 
-from avoidance.threats import Geofence, IntruderTrack, LidarScan, PrismObstacle, SphereThreat, StormSnapshot
-from sim.state import VehicleState
+from sim.core.state import VehicleState
+from sim.core.threats import Geofence, IntruderTrack, LidarScan, PrismObstacle, SphereThreat, StormSnapshot
 
 
 class PlanStatus(str, Enum):
@@ -47,7 +47,7 @@ class Plan:
 
 @dataclass(slots=True)
 class Threats:
-    """What the vehicle knows of the world around it at one instant (types: avoidance.threats):
+    """What the vehicle knows of the world around it at one instant (types: sim.core.threats):
     tracked intruders, spherical threats, map obstacles, geofences, the storm nowcast (snapshots
     in time order) and the latest LiDAR scan."""
 

@@ -1,11 +1,9 @@
-"""Frame conversions, in one place.
+"""The scenario frame's geodetic mapping (engine side; the frame itself is ``sim.core.frames``).
 
 - WGS84 geodetic (lat, lon [deg], h [m] above the ellipsoid, which JSBSim calls sea level) <->
   the scenario's *local-level NED* frame [m]: north and east are the tangent-plane projection at
   the origin (through ECEF, pymap3d), down is ``origin.alt - h``. A level flight thus has constant
   D at any range (a pure tangent plane would put it 31 m "higher" after 20 km).
-- JSBSim speaks feet and knots; SI conversions live here too.
-- The seed algorithms are z-up (ENU); ``ned_to_enu`` / ``enu_to_ned`` are the one boundary.
 """
 
 from __future__ import annotations
@@ -15,10 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pymap3d
-
-FT = 0.3048  # m per ft
-KT = 1852.0 / 3600.0  # m/s per knot
-SLUG_FT2 = 1.3558179483314004  # kg m^2 per slug ft^2
 
 
 @dataclass(frozen=True, slots=True)
@@ -79,32 +73,3 @@ def ned_to_geodetic(ned, origin: GeoPoint) -> tuple[np.ndarray, np.ndarray, np.n
     d_tangent = d + (n * n + e * e) / (2.0 * _R_MEAN)
     lat, lon, _ = pymap3d.ned2geodetic(n, e, d_tangent, origin.lat_deg, origin.lon_deg, origin.alt_m)
     return np.asarray(lat, float), np.asarray(lon, float), origin.alt_m - d
-
-
-def ned_to_enu(v) -> np.ndarray:
-    """NED vector(s) to ENU (z-up), last axis."""
-    v = np.asarray(v, float)
-    return np.stack([v[..., 1], v[..., 0], -v[..., 2]], axis=-1)
-
-
-def enu_to_ned(v) -> np.ndarray:
-    """ENU vector(s) to NED, last axis (the map is its own inverse)."""
-    return ned_to_enu(v)
-
-
-def wrap_pi(a):
-    """Angle(s) wrapped to (-pi, pi] [rad]."""
-    return np.pi - np.mod(np.pi - np.asarray(a, float), 2.0 * np.pi)
-
-
-def euler_to_quaternion(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
-    """Quaternion (x, y, z, w) of the 3-2-1 rotation body FRD -> NED [rad in]."""
-    cr, sr = np.cos(roll / 2), np.sin(roll / 2)
-    cp, sp = np.cos(pitch / 2), np.sin(pitch / 2)
-    cy, sy = np.cos(yaw / 2), np.sin(yaw / 2)
-    return (
-        float(sr * cp * cy - cr * sp * sy),
-        float(cr * sp * cy + sr * cp * sy),
-        float(cr * cp * sy - sr * sp * cy),
-        float(cr * cp * cy + sr * sp * sy),
-    )

@@ -26,7 +26,7 @@ import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
-from avoidance.threats import StormSnapshot
+from sim.core.threats import StormSnapshot
 
 
 @dataclass(frozen=True, slots=True)

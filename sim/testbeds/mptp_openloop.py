@@ -13,12 +13,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from avoidance.planner import Plan, PlanStatus, Threats
-from guidance.mission import Mission
 from guidance.mptp.goal import GoalTrack
 from guidance.mptp.planner import MptpPlanner
-from guidance.mptp.scenarios import Scenario
-from sim.state import VehicleState
+from sim.core.mission import Mission
+from sim.core.plan import Plan, PlanStatus, Threats
+from sim.core.state import VehicleState
+from sim.testbeds.mptp_thesis import Scenario
 
 
 @dataclass

@@ -1,7 +1,11 @@
-"""Attitude algebra shared by sensors and estimators (scalar ``math`` for speed in hot paths).
+"""Frames and attitude algebra, in one place (numpy and ``math`` only).
 
-Quaternions are Hamilton, scalar first ``(w, x, y, z)``, rotating body FRD -> NED:
-``v_ned = R(q) v_body``. Euler angles are 3-2-1 (yaw, pitch, roll) [rad].
+- The scenario's *local-level NED* frame [m] (north/east on the tangent plane at the origin, down
+  = origin altitude - altitude); its geodetic (WGS84) mapping lives in the engine (``sim.geodesy``).
+- The seed algorithms are z-up (ENU); :func:`ned_to_enu` / :func:`enu_to_ned` are the one boundary.
+- Quaternions are Hamilton, scalar first ``(w, x, y, z)``, rotating body FRD -> NED:
+  ``v_ned = R(q) v_body`` (consumers that want another order, e.g. Foxglove's named x, y, z, w
+  fields, unpack by name). Euler angles are 3-2-1 (yaw, pitch, roll) [rad].
 """
 
 from __future__ import annotations
@@ -9,6 +13,22 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+
+def ned_to_enu(v) -> np.ndarray:
+    """NED vector(s) to ENU (z-up), last axis."""
+    v = np.asarray(v, float)
+    return np.stack([v[..., 1], v[..., 0], -v[..., 2]], axis=-1)
+
+
+def enu_to_ned(v) -> np.ndarray:
+    """ENU vector(s) to NED, last axis (the map is its own inverse)."""
+    return ned_to_enu(v)
+
+
+def wrap_pi(a):
+    """Angle(s) wrapped to (-pi, pi] [rad]."""
+    return np.pi - np.mod(np.pi - np.asarray(a, float), 2.0 * np.pi)
 
 
 def euler_to_dcm(roll: float, pitch: float, yaw: float) -> np.ndarray:
@@ -38,6 +58,7 @@ def dcm_to_euler(r: np.ndarray) -> np.ndarray:
 
 
 def euler_to_quat(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
+    """Quaternion (w, x, y, z) of 3-2-1 Euler angles [rad], body FRD -> NED."""
     cr, sr = math.cos(roll / 2), math.sin(roll / 2)
     cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
     cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)

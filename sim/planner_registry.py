@@ -1,0 +1,192 @@
+"""The planner registry: every planner type with its typed options, its factory and its own log
+records. The engine knows planners only through this table; adding a planner is one package plus
+one :data:`PLANNERS` entry (the scenario validator takes the options model from here, so a bad
+option is a field-named error like any other).
+
+Options are the fields of the planner's own options model, in SI units: the geometric avoider
+``avoidance.geometric.config.GeometricConfig``, the MPTP ``guidance.mptp.config.MptpConfig``
+(``tas_mps`` and ``bank_max`` default to the mission's cruise speed and the airframe's bank
+limit), the reach-set planner ``avoidance.rules.options.RulesOptions`` (reach-set options plus
+the rules of the air), pursuit ``target``; follow_mission takes none.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import typing
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, create_model, model_validator
+from pydantic.errors import PydanticSchemaGenerationError
+
+from avoidance.geometric.config import GeometricConfig
+from avoidance.rules.options import RulesOptions
+from guidance.mptp.config import MptpConfig
+from sim.core.mission import Mission
+from sim.core.plan import Plan, Planner
+from sim.planner_records import RecordSink, geometric_records, mptp_records, reachset_records
+
+
+@dataclass(frozen=True, slots=True)
+class BuildContext:
+    """What a planner is built for: the mission (NED [m]), the airframe kind
+    (``fixed_wing``/``multirotor``) and its bank limit [rad]."""
+
+    mission: Mission
+    airframe_kind: str
+    bank_limit_rad: float = float(np.radians(20.0))
+
+
+@dataclass(frozen=True, slots=True)
+class PlannerType:
+    """One planner type: the airframe kinds it flies, its options model, its factory, its own
+    log records (beside the common ``/<v>/plan``) and, for planners that need a sensor to see
+    their grid, the range [m] they need (``sensing_range(options, airframe_kind, cruise)``)."""
+
+    name: str
+    airframes: tuple[str, ...]
+    options: type[BaseModel]
+    build: Callable[[Any, BuildContext], Planner]
+    records: Callable[[RecordSink, Any, Plan, float], None] | None = None
+    sensing_range: Callable[[Any, str, float], float] | None = None
+
+
+class PlannerConfigError(ValueError):
+    """A planner is unknown or does not fit the airframe."""
+
+
+class DataclassOptions(BaseModel):
+    """Options model of a planner configured by a frozen dataclass (``config_class``): its fields,
+    types and defaults; validating the options also builds the dataclass, so that the dataclass's
+    own checks surface as the options' error."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    config_class: ClassVar[type]
+
+    def config(self, **fixed: Any) -> Any:
+        """The configuration: ``fixed`` values, overridden by the options the scenario gives."""
+        return self.config_class(**{**fixed, **{k: getattr(self, k) for k in self.model_fields_set}})
+
+    @model_validator(mode="after")
+    def _buildable(self) -> DataclassOptions:
+        self.config()
+        return self
+
+
+def _field_type(hint: Any) -> Any:
+    """``hint`` where pydantic can validate it; ``Any`` for a type it cannot (e.g. a shapely
+    polygon given as a vertex list, which the dataclass converts itself)."""
+    try:
+        TypeAdapter(hint)
+    except PydanticSchemaGenerationError:
+        return Any
+    return hint
+
+
+def dataclass_options(config: type) -> type[DataclassOptions]:
+    """The options model of the frozen dataclass ``config``."""
+    hints = typing.get_type_hints(config)
+    fields: dict[str, Any] = {}
+    for f in dataclasses.fields(config):
+        if f.default_factory is not dataclasses.MISSING:
+            default: Any = Field(default_factory=f.default_factory)
+        else:
+            default = f.default if f.default is not dataclasses.MISSING else ...
+        fields[f.name] = (_field_type(hints[f.name]), default)
+    model = create_model(f"{config.__name__}Options", __base__=DataclassOptions, **fields)
+    model.config_class = config
+    return model
+
+
+class NoOptions(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class PursuitOptions(BaseModel):
+    """``target``: the name of the pursued vehicle."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    target: str
+
+
+def _follow_mission(options: NoOptions, ctx: BuildContext) -> Planner:
+    from avoidance.follow_mission import FollowMissionPlanner
+
+    return FollowMissionPlanner(ctx.mission)
+
+
+def _pursuit(options: PursuitOptions, ctx: BuildContext) -> Planner:
+    from avoidance.pursuit import PursuitPlanner
+
+    return PursuitPlanner(ctx.mission, options.target)
+
+
+def _geometric(options: DataclassOptions, ctx: BuildContext) -> Planner:
+    from avoidance.geometric.planner import GeometricAvoider
+
+    m = ctx.mission
+    start = m.start if m.start is not None else m.waypoints[0]
+    return GeometricAvoider(np.vstack([start, m.waypoints]), m.cruise_speed, options.config(), first_label=-1)
+
+
+def _reachset(options: RulesOptions, ctx: BuildContext) -> Planner:
+    from avoidance.reachset.planner import ReachSetAvoider
+    from avoidance.rules.planner import RulesAvoider
+
+    sma = options.automaton(ctx.airframe_kind, ctx.mission.cruise_speed, ctx.bank_limit_rad)
+    rules = options.rules_config()
+    if rules is None:
+        return ReachSetAvoider(ctx.mission, sma, options.avoidance_config())
+    return RulesAvoider(ctx.mission, sma, rules, options.avoidance_config())
+
+
+def _mptp(options: DataclassOptions, ctx: BuildContext) -> Planner:
+    from guidance.mptp.planner import MptpPlanner
+
+    return MptpPlanner(ctx.mission, options.config(tas_mps=ctx.mission.cruise_speed, bank_max=ctx.bank_limit_rad))
+
+
+def _grid_range(options: RulesOptions, airframe_kind: str, cruise: float) -> float:
+    return options.grid_range(airframe_kind, cruise)
+
+
+_BOTH = ("fixed_wing", "multirotor")
+PLANNERS: dict[str, PlannerType] = {
+    p.name: p
+    for p in (
+        PlannerType("follow_mission", _BOTH, NoOptions, _follow_mission),
+        PlannerType("geometric", ("multirotor",), dataclass_options(GeometricConfig), _geometric, geometric_records),
+        PlannerType("reachset", _BOTH, RulesOptions, _reachset, reachset_records, _grid_range),
+        PlannerType("mptp", ("fixed_wing",), dataclass_options(MptpConfig), _mptp, mptp_records),
+        PlannerType("pursuit", ("multirotor",), PursuitOptions, _pursuit),
+    )
+}
+
+
+def planner_type(name: str) -> PlannerType:
+    try:
+        return PLANNERS[name]
+    except KeyError:
+        raise PlannerConfigError(f"unknown planner {name!r} (known: {', '.join(PLANNERS)})") from None
+
+
+def make_planner(
+    kind: str,
+    mission: Mission,
+    airframe_kind: str = "multirotor",
+    options: BaseModel | dict | None = None,
+    bank_limit_rad: float = float(np.radians(20.0)),
+) -> Planner:
+    """The planner ``kind`` for ``mission`` flown by an ``airframe_kind`` vehicle; ``options`` is
+    the type's options model (a mapping is validated into it)."""
+    entry = planner_type(kind)
+    if airframe_kind not in entry.airframes:
+        raise PlannerConfigError(
+            f"{kind} planner does not fly a {airframe_kind} (it flies: {', '.join(entry.airframes)})"
+        )
+    if not isinstance(options, entry.options):
+        options = entry.options.model_validate(options or {})
+    return entry.build(options, BuildContext(mission, airframe_kind, bank_limit_rad))
