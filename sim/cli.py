@@ -45,6 +45,7 @@ def cmd_run(args) -> int:
     from sim.scenario import load_scenario
 
     scenario, text = load_scenario(args.scenario)
+    scenario = _with_signing_key(scenario, args.mavlink_key)
     from sim.runner import RunFailed, run_scenario
 
     path = Path(args.output) if args.output else path_under(Path("logs"), f"{scenario.name}.mcap")
@@ -75,6 +76,27 @@ def cmd_run(args) -> int:
     return {"completed": EXIT_OK, "duration_elapsed": EXIT_OK, "interrupted": EXIT_INTERRUPTED}.get(
         result.status, EXIT_FAILED
     )
+
+
+def _with_signing_key(scenario, key_file: str | None):
+    """The scenario with ``--mavlink-key`` as its MAVLink signing key file; the key file (from
+    either) is read now, so that a bad one is a one-line error before the run."""
+    from sim.scenario import ScenarioError
+
+    mav = scenario.mavlink
+    if key_file is not None and not mav.enabled:
+        raise ScenarioError("--mavlink-key: the scenario does not enable MAVLink ([mavlink] enabled = true)")
+    if key_file is not None:
+        mav = mav.model_copy(update={"signing_key_file": Path(key_file)})
+        scenario = scenario.model_copy(update={"mavlink": mav})
+    if mav.enabled and mav.signing_key_file is not None:
+        from sim.mavlink.signing import SigningKeyError, load_key
+
+        try:
+            load_key(mav.signing_key_file)
+        except SigningKeyError as exc:
+            raise ScenarioError(str(exc)) from None
+    return scenario
 
 
 def _print_summary(r) -> None:
@@ -235,6 +257,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--duration", type=float, help="sim time to fly [s] (default: the scenario's)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     r.add_argument("--debug", action="store_true", help="print the traceback of a failed run")
+    r.add_argument(
+        "--mavlink-key",
+        metavar="FILE",
+        help="MAVLink 2 signing: a file holding the passphrase (overrides the scenario's signing_key_file)",
+    )
     r.set_defaults(fn=cmd_run)
     i = sub.add_parser("info", help="summarise an MCAP log")
     i.add_argument("log")

@@ -8,11 +8,14 @@ import math
 import os
 import struct
 import time
+import tomllib
+from pathlib import Path
 
 os.environ.setdefault("MAVLINK20", "1")
 
 import numpy as np
 import pytest
+import tomli_w
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import common as mav
@@ -378,3 +381,21 @@ def test_scenario_mavlink_settings_reach_every_link(tmp_path):
         assert all(lk.config.signing_key is None and lk.config.gcs_component_id is None for lk in default.links)
     finally:
         default.close()
+
+
+def test_cli_signing_key_option(tmp_path, capsys):
+    from sim.cli import _with_signing_key, main
+    from sim.scenario import ScenarioError, parse_scenario
+
+    data = tomllib.loads((Path(__file__).resolve().parents[1] / "scenarios" / "quad_hover_offset.toml").read_text())
+    plain = parse_scenario(data, "s")
+    with pytest.raises(ScenarioError, match="does not enable MAVLink"):
+        _with_signing_key(plain, str(tmp_path / "key"))
+    enabled = parse_scenario({**data, "mavlink": {"enabled": True}}, "s")
+    (tmp_path / "key").write_text("pass")
+    assert _with_signing_key(enabled, str(tmp_path / "key")).mavlink.signing_key_file == tmp_path / "key"
+    f = tmp_path / "s.toml"
+    f.write_text(tomli_w.dumps({**data, "mavlink": {"enabled": True}}))
+    assert main(["run", str(f), "-q", "--mavlink-key", str(tmp_path / "missing")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "cannot read the MAVLink signing key" in err
