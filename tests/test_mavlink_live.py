@@ -1,5 +1,6 @@
 """A pymavlink GCS on loopback during a closed-loop run: telemetry, mission upload, garbage."""
 
+import hashlib
 import math
 import os
 import random
@@ -38,11 +39,14 @@ class Gcs(threading.Thread):
     ``source_system``: the id it sends as (255 is the scenario's ground station); ``upload``
     False: it only introduces itself and listens."""
 
-    def __init__(self, port: int, source_system: int = 255, upload: bool = True):
+    def __init__(self, port: int, source_system: int = 255, upload: bool = True, key: bytes | None = None):
         super().__init__(daemon=True)
         self.conn = mavutil.mavlink_connection(
             f"udpin:127.0.0.1:{port}", dialect="common", source_system=source_system, source_component=190
         )
+        if key is not None:  # sign what it sends; first try an unsigned mode switch with the same ids
+            self.conn.setup_signing(key, sign_outgoing=True)
+        self.key = key
         self.upload = upload
         self.heartbeat = None
         self.positions = []
@@ -72,6 +76,10 @@ class Gcs(threading.Thread):
                 return
             # garbage first: the run must survive it and still take the mission
             vehicle = next(iter(self.conn.clients))  # the address the vehicle sends from
+            if self.key is not None:
+                unsigned = mav.MAVLink(None, 255, 190)
+                guided = unsigned.set_mode_encode(1, mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 3)
+                self.conn.port.sendto(guided.pack(unsigned), vehicle)
             self.conn.port.sendto(b"\xfd\x05garbage-not-mavlink", vehicle)
             self.conn.port.sendto(bytes(range(256)), vehicle)
             lat, lon, alt = ned_to_geodetic(TARGETS, ORIGIN)
@@ -250,3 +258,21 @@ def test_fuzz_from_foreign_ids_does_not_change_the_flight(tmp_path, undisturbed)
     assert _truth(log) == undisturbed
     mav_events = [text for _, text in log.events() if "mavlink" in text]
     assert len(mav_events) < 60  # summarised at most once per second (5 s of wall time here)
+
+
+def test_with_signing_the_signed_gcs_is_obeyed_and_unsigned_commands_refused(tmp_path):
+    port = _free_port()
+    (tmp_path / "key").write_text("a passphrase")
+    data = _hover_scenario(port, duration=60.0)
+    data["mavlink"]["signing_key_file"] = str(tmp_path / "key")
+    gcs = Gcs(port, key=hashlib.sha256(b"a passphrase").digest())
+    gcs.start()
+    result = run_scenario(parse_scenario(data, "signed"), tmp_path / "signed.mcap")
+    gcs.join(timeout=5)
+    assert gcs.error is None and gcs.heartbeat is not None and gcs.heartbeat.get_signed()
+    assert gcs.ack is not None and gcs.ack.type == mav.MAV_MISSION_ACCEPTED
+    events = [text for _, text in RunLog(tmp_path / "signed.mcap").events()]
+    assert "quad: mission uploaded: 3 waypoints, mode AUTO" in events
+    assert not any("mode GUIDED" in e for e in events)  # the unsigned SET_MODE was dropped
+    assert any("bad_signature" in e for e in events)
+    assert result.status == "completed"
