@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
@@ -81,11 +81,10 @@ class LogInfo:
 _RECORD_LIMIT = 256 * 2**20  # no cosim record is near this; a corrupt length must not allocate GiBs
 
 
-def _open(path: str | Path):
-    path = Path(path)
+def _open(path: Path) -> BinaryIO:
     if not path.is_file():
         raise LogReadError(f"{path}: no such file")
-    return path, open(path, "rb")
+    return open(path, "rb")
 
 
 def _summary(reader: SeekingReader) -> Summary | None:
@@ -115,7 +114,8 @@ def _recovered_records(f) -> Iterator[McapRecord]:
 def read_info(path: str | Path) -> LogInfo:
     """Summary of a log (topics, counts, time span, metadata); an unfinished log is read up to
     its last complete chunk (``finished`` False)."""
-    path, f = _open(path)
+    path = Path(path)
+    f = _open(path)
     with f, _reading(path, "not a readable MCAP file"):
         reader = SeekingReader(f, record_size_limit=_RECORD_LIMIT)
         header = reader.get_header()
@@ -202,7 +202,8 @@ def _recovered_info(path: Path, f, header) -> LogInfo:
 
 def read_attachment(path: str | Path, name: str) -> bytes | None:
     """The data of the attachment called ``name`` (e.g. ``scenario.toml``), or None."""
-    path, f = _open(path)
+    path = Path(path)
+    f = _open(path)
     with f, _reading(path, "damaged MCAP"):
         reader = SeekingReader(f, record_size_limit=_RECORD_LIMIT)
         found = reader.iter_attachments() if _summary(reader) is not None else _recovered_records(f)
@@ -232,7 +233,8 @@ def read_attached_scenario(path: str | Path):
 def iter_messages(path: str | Path, topics: list[str] | None = None) -> Iterator[tuple[str, float, Any]]:
     """(topic, sim time [s], decoded message) in log-time order; JSON decodes to dicts,
     protobuf to message objects."""
-    path, f = _open(path)
+    path = Path(path)
+    f = _open(path)
     with f, _reading(path, "damaged MCAP"):
         reader = SeekingReader(f, record_size_limit=_RECORD_LIMIT)
         if _summary(reader) is not None:
@@ -248,7 +250,9 @@ def iter_messages(path: str | Path, topics: list[str] | None = None) -> Iterator
             if channel.message_encoding == "json":
                 decoded = json.loads(message.data)
             else:
-                dec = decoders.get(schema.id) if schema is not None else None
+                if schema is None:
+                    raise LogReadError(f"{path}: {channel.topic}: {channel.message_encoding} message without a schema")
+                dec = decoders.get(schema.id)
                 if dec is None:
                     dec = factory.decoder_for(channel.message_encoding, schema)
                     if dec is None:

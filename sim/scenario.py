@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
+from pydantic_core import ErrorDetails
 from shapely.geometry import Polygon
 
 from aircraft.registry import get_airframe
@@ -466,7 +467,7 @@ def _field_path(loc: tuple) -> str:
     return out or "(top level)"
 
 
-def describe_error(err: dict) -> str:
+def describe_error(err: ErrorDetails) -> str:
     """One line for a pydantic error: the field path and what is wrong."""
     path = _field_path(err["loc"])
     kind = err["type"]
