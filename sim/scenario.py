@@ -26,7 +26,7 @@ from sim.units import Angle, Speed, quantity
 
 SCHEMA_VERSION = 1
 # a scenario/batch name: it names files (logs/<name>.mcap), so no path separators, no leading dot
-NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$"
+NAME_PATTERN = r"^[^/\\\x00-\x1f\x7f.][^/\\\x00-\x1f\x7f]*$"
 
 
 class ScenarioError(ValueError):
@@ -482,7 +482,7 @@ def describe_error(err: ErrorDetails) -> str:
     for prefix in ("Value error, ", "Assertion failed, "):
         msg = msg.removeprefix(prefix)
     if kind == "string_pattern_mismatch" and err["ctx"]["pattern"] == NAME_PATTERN:
-        msg = f"{err['input']!r} is not a name: letters, digits, '_', '-', '.' (no path separators, no leading dot)"
+        msg = f"{err['input']!r} is not a name (no path separator, control character or leading dot)"
     if kind in ("greater_than_equal", "less_than_equal", "greater_than", "less_than"):
         msg = f"out of range: {msg.lower()} (got {err.get('input')!r})"
     return f"{path}: {msg}"
