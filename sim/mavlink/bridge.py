@@ -9,7 +9,8 @@ the configured GCS address. Identity: system id from :class:`LinkConfig`, compon
 
 Per tick the runner calls :meth:`VehicleLink.publish` (rate limited inside by sim time) and
 :meth:`VehicleLink.poll` (non-blocking, returns typed commands; at most
-``_MAX_DATAGRAMS_PER_POLL`` datagrams of at most ``_MAX_DATAGRAM_BYTES`` each are read per call).
+at most ``_MAX_DATAGRAMS_PER_POLL`` datagrams and ``_MAX_BYTES_PER_POLL`` bytes to parse are
+read per call, the rest waits for the next tick).
 Nothing a peer sends can make either raise: malformed, unexpected or unauthorised packets are
 counted in :attr:`VehicleLink.stats` by kind and summarised through ``on_event(text, level)`` at
 most once per second of wall time.
@@ -51,7 +52,8 @@ from sim.mavlink.signing import signing_state
 COMPONENT_ID = mav.MAV_COMP_ID_AUTOPILOT1
 
 _MAX_DATAGRAMS_PER_POLL = 32
-_MAX_DATAGRAM_BYTES = 2048  # a MAVLink 2 frame is at most 280 bytes; larger datagrams are dropped unparsed
+_MAX_DATAGRAM_BYTES = 1024  # a MAVLink 2 frame is at most 280 bytes; larger datagrams are dropped unparsed
+_MAX_BYTES_PER_POLL = 8192
 _FORCE_ARM_MAGIC = 21196
 _MISSION_MESSAGES = {
     "MISSION_COUNT",
@@ -304,7 +306,10 @@ class VehicleLink:
         return the commands for the vehicle in arrival order."""
         now = self._clock()
         commands: list[Command] = []
+        parsed = 0
         for _ in range(_MAX_DATAGRAMS_PER_POLL):
+            if parsed >= _MAX_BYTES_PER_POLL:
+                break
             try:
                 data, addr = self._sock.recvfrom(_MAX_DATAGRAM_BYTES + 1)
             except (BlockingIOError, InterruptedError):
@@ -315,6 +320,7 @@ class VehicleLink:
             if len(data) > _MAX_DATAGRAM_BYTES:
                 self._anomaly("oversize", f"datagram over {_MAX_DATAGRAM_BYTES} bytes dropped (from {addr[0]})")
                 continue
+            parsed += len(data)
             decoded = decode_datagram(data, self._signing)
             for kind, detail in decoded.anomalies:
                 self._anomaly(kind, f"{detail} (from {addr[0]}:{addr[1]})")
