@@ -133,7 +133,7 @@ def _mutated_scenarios(draw):
     return doc
 
 
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(_mutated_scenarios())
 def test_fuzz_random_toml_scenarios_raise_only_scenario_errors(tmp_path, doc):
     f = tmp_path / "fuzz.toml"
@@ -214,7 +214,7 @@ def test_fuzz_random_bytes_as_a_log(tmp_path, data):
     _read_everything(f, tmp_path / "rep")
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_fuzz_mutated_real_logs(tmp_path, real_log, data):
     buf = bytearray(real_log.read_bytes())
@@ -263,7 +263,7 @@ def real_messages(real_log) -> dict[str, dict]:
     return {t: log.topic(t).messages[0] for t in log.topics if isinstance(log.topic(t).messages[0], dict)}
 
 
-@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=50, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_fuzz_foreign_logs_with_cosim_topics(tmp_path, real_messages, data):
     """A valid MCAP that is not cosim's: cosim's topic names with messages missing fields or

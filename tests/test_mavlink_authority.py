@@ -311,7 +311,7 @@ def frames(draw, sysid):
     return bytes(buf)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=200, deadline=None)
 @given(st.lists(st.sampled_from([1, 42, 254, 0]).flatmap(frames), min_size=1, max_size=8))
 def test_fuzz_from_foreign_ids_changes_nothing(datagrams):
     h = _harness()
@@ -323,7 +323,7 @@ def test_fuzz_from_foreign_ids_changes_nothing(datagrams):
     assert not h.link.mission.uploading or h.link.mission._upload.src[0] == 255
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=200, deadline=None)
 @given(st.lists(frames(255), min_size=1, max_size=8))
 def test_fuzz_from_the_ground_station_stays_in_the_envelope(datagrams):
     h = _harness()
