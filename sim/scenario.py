@@ -13,7 +13,16 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    create_model,
+    field_validator,
+    model_validator,
+)
 from pydantic_core import ErrorDetails
 from shapely.geometry import Polygon
 
@@ -182,9 +191,9 @@ class Mavlink(_Strict):
     waiting). Only the ground station ``gcs_system_id`` (component ``gcs_component_id``, any if
     unset) is obeyed, after its heartbeat. ``bind_host``: local interface (default loopback; a
     non-loopback ``gcs_host`` needs it set). ``signing_key_file``: a file holding the MAVLink 2
-    signing passphrase (signing off if unset). ``max_height`` above the ground and ``max_range``
-    from the origin bound the mission items and position targets a GCS may send (defaults by
-    airframe kind, ``sim/mavlink/envelope.py``)."""
+    signing passphrase (relative to the scenario file; signing off if unset). ``max_height``
+    above the ground and ``max_range`` from the origin bound the mission items and position
+    targets a GCS may send (defaults by airframe kind, ``sim/mavlink/envelope.py``)."""
 
     enabled: bool = False
     gcs_host: str = "127.0.0.1"
@@ -197,6 +206,11 @@ class Mavlink(_Strict):
     signing_key_file: Path | None = None
     max_height: quantity("length", 0.0, 30500.0, lo_open=True) | None = None
     max_range: quantity("length", 0.0, 3.0e6, lo_open=True) | None = None
+
+    @field_validator("signing_key_file")
+    @classmethod
+    def _relative_to_scenario(cls, v: Path | None, info: ValidationInfo) -> Path | None:
+        return None if v is None else Path((info.context or {}).get("base_dir", ".")) / v
 
 
 class Wind(_Strict):
@@ -315,11 +329,16 @@ class StormCell(_Strict):
 class Weather(_Strict):
     """Synthetic convective weather (seeded from the scenario): ``cells`` storm cells over a
     box of ``size`` x ``size`` [m] south-west-cornered at the origin, drifting at
-    (``drift_north``, ``drift_east``) [m/s] +- ``drift_spread``, mean radius ``radius``; a nowcast
-    of the next ``horizon`` in ``step`` slices is issued every ``nowcast_period`` (what the vehicles see). ``seed``: the
+    (``drift_north``, ``drift_east``) [m/s] +- ``drift_spread``, mean radius ``radius``; a
+    nowcast of the next ``horizon`` in ``step`` slices is issued every ``nowcast_period`` (what
+    the vehicles see). ``seed``: the
     field's own seed (default: drawn from the scenario seed); ``pop_up``: cells may be born after
     the start (unforeseen by earlier nowcasts); false = every cell is alive at the start.
-    ``storm``: scripted cells added to the generated ones (``[[weather.storm]]``)."""
+    ``storm``: scripted cells added to the generated ones (``[[weather.storm]]``).
+    ``nowcast_files``: nowcast GeoJSON files (format in docs/mptp.md; paths relative to the
+    scenario file), one per issue, instead of the synthetic and scripted cells: each is issued
+    to the vehicles at its first step's time, and the truth (log and metrics) is the latest
+    issued nowcast's first step (its analysis) moved by its cell velocities."""
 
     cells: Annotated[int, Field(ge=0, le=500)] = 12
     size: quantity("length", 1000.0, 2e6) = 250_000.0
@@ -336,6 +355,26 @@ class Weather(_Strict):
     seed: Annotated[int, Field(ge=0)] | None = None
     pop_up: bool = True
     storm: list[StormCell] = []
+    nowcast_files: list[str] = []
+
+    @field_validator("nowcast_files")
+    @classmethod
+    def _resolved(cls, v: list[str], info: ValidationInfo) -> list[str]:
+        base = Path((info.context or {}).get("base_dir", "."))
+        paths = [base / p for p in v]
+        missing = [str(p) for p in paths if not p.is_file()]
+        if missing:
+            raise ValueError(f"no such file: {missing[0]}")
+        return [str(p.resolve()) for p in paths]
+
+    @model_validator(mode="after")
+    def _one_source(self) -> Weather:
+        mixed = self.nowcast_files and ({"cells", "storm", "centres"} & self.model_fields_set)
+        if mixed:
+            raise ValueError(
+                f"nowcast_files replace the synthetic and scripted cells: remove {', '.join(sorted(mixed))}"
+            )
+        return self
 
 
 class _Fault(_Strict):
@@ -440,6 +479,13 @@ class Scenario(_Strict):
         dup = sorted({i for i in ids if ids.count(i) > 1})
         if dup:
             raise ValueError(f"obstacle/geofence ids must be unique, repeated: {', '.join(dup)}")
+        if self.weather is not None and self.weather.nowcast_files:
+            from sim.nowcast_files import NowcastError, load_series
+
+            try:
+                load_series(self.weather.nowcast_files, self.origin_point)
+            except NowcastError as exc:
+                raise ValueError(f"weather.nowcast_files: {exc}") from None
         return self
 
     @property
@@ -489,9 +535,11 @@ def describe_error(err: ErrorDetails) -> str:
 
 
 def parse_scenario(data: dict, source: str = "<scenario>") -> Scenario:
-    """Validate a scenario mapping; ScenarioError names ``source`` and the first bad field."""
+    """Validate a scenario mapping; ScenarioError names ``source`` and the first bad field.
+    Files the scenario names are relative to ``source``'s folder (when it is a file)."""
+    base = Path(source).parent if Path(source).is_file() else Path.cwd()
     try:
-        return Scenario.model_validate(data)
+        return Scenario.model_validate(data, context={"base_dir": str(base)})
     except ValidationError as exc:
         errors = exc.errors(include_url=False)
         more = f" (+{len(errors) - 1} more)" if len(errors) > 1 else ""
