@@ -215,35 +215,27 @@ def read_attachment(path: str | Path, name: str) -> bytes | None:
 
 def read_attached_scenario(path: str | Path):
     """The validated scenario attached to a run log (``scenario.toml``), or None if there is
-<<<<<<< HEAD
-    none; ScenarioError if it no longer validates."""
-    from sim.input_files import parse_toml
-    from sim.scenario import ScenarioError, parse_scenario
-=======
     none; ScenarioError if it no longer validates. Nowcast files are taken from where the run
     read them (metadata ``weather.nowcast_files``, absolute paths)."""
-    import tomllib
-
-    from sim.scenario import parse_scenario
->>>>>>> main
+    from sim.input_files import parse_toml
+    from sim.scenario import ScenarioError, parse_scenario
 
     raw = read_attachment(path, "scenario.toml")
     if raw is None:
         return None
-<<<<<<< HEAD
     source = f"{path}:scenario.toml"
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
         raise ScenarioError(f"{source}: not UTF-8") from None
-    return parse_scenario(parse_toml(text, source, ScenarioError), source)
-=======
-    data = tomllib.loads(raw.decode())
+    data = parse_toml(text, source, ScenarioError)
     files = read_info(path).metadata.get("weather", {}).get("nowcast_files")
     if files is not None and isinstance(data.get("weather"), dict):
-        data["weather"]["nowcast_files"] = json.loads(files)
-    return parse_scenario(data, f"{path}:scenario.toml")
->>>>>>> main
+        try:
+            data["weather"]["nowcast_files"] = json.loads(files)
+        except ValueError:
+            raise LogReadError(f"{path}: metadata weather.nowcast_files is not JSON") from None
+    return parse_scenario(data, source)
 
 
 def iter_messages(path: str | Path, topics: list[str] | None = None) -> Iterator[tuple[str, float, Any]]:

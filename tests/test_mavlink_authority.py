@@ -399,3 +399,14 @@ def test_cli_signing_key_option(tmp_path, capsys):
     assert main(["run", str(f), "-q", "--mavlink-key", str(tmp_path / "missing")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "cannot read the MAVLink signing key" in err
+
+
+def test_signing_key_file_is_relative_to_the_scenario_file(tmp_path):
+    from sim.scenario import load_scenario
+
+    data = tomllib.loads((Path(__file__).resolve().parents[1] / "scenarios" / "quad_hover_offset.toml").read_text())
+    (tmp_path / "sub").mkdir()
+    f = tmp_path / "sub" / "s.toml"
+    f.write_text(tomli_w.dumps({**data, "mavlink": {"enabled": True, "signing_key_file": "key.txt"}}))
+    scenario, _ = load_scenario(f)
+    assert scenario.mavlink.signing_key_file == tmp_path / "sub" / "key.txt"
