@@ -173,15 +173,24 @@ def cmd_replay(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from sim.replay.compare import compare_logs
+    from sim.replay.compare import compare_logs, write_csv, write_json
 
-    rows = compare_logs(args.a, args.b)
+    rows = [r for r in compare_logs(args.a, args.b) if not (args.changed and r[1] == r[2])]
+    to_stdout = False
+    for target, write in ((args.json, write_json), (args.csv, write_csv)):
+        if target == "-":
+            write(rows, sys.stdout)
+            to_stdout = True
+        elif target is not None:
+            with open(target, "w", encoding="utf-8", newline="") as fh:
+                write(rows, fh)
+    if to_stdout:
+        return EXIT_OK
     t = Table("metric", "A", "B", "B - A", title=f"A = {args.a}   B = {args.b}", title_justify="left")
     for k, x, y, d in rows:
-        if args.changed and x == y:
-            continue
         t.add_row(k, _cell(x), _cell(y), "" if d is None else f"{d:+.4g}")
-    out.print(t)
+    # off a terminal (a pipe, a file) the table takes its natural width: full metric names
+    (out if out.is_terminal else Console(width=1_000_000)).print(t)
     return EXIT_OK
 
 
@@ -281,6 +290,8 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("a")
     cp.add_argument("b")
     cp.add_argument("--changed", action="store_true", help="only the metrics that differ")
+    cp.add_argument("--json", metavar="FILE", help="write the rows as JSON to FILE ('-': standard output, no table)")
+    cp.add_argument("--csv", metavar="FILE", help="write the rows as CSV to FILE ('-': standard output, no table)")
     cp.set_defaults(fn=cmd_compare)
     b = sub.add_parser("batch", help="sweep / Monte-Carlo runs from a batch file")
     b.add_argument("batch", help="batch TOML file")

@@ -106,11 +106,14 @@ def mission_metrics(tr: VehicleTrace) -> dict:
 
 
 def latency_metrics(tr: VehicleTrace) -> dict:
+    """Wall-clock latency of the planner calls that made a new plan; ``cache_hits``: calls that
+    kept the previous plan (not in the latency figures)."""
     x = tr.plan_latency_s
     if x.size == 0:
-        return {"count": 0}
+        return {"count": 0, "cache_hits": tr.plan_cache_hits}
     return {
         "count": int(x.size),
+        "cache_hits": tr.plan_cache_hits,
         "median_ms": float(np.median(x) * 1e3),
         "p95_ms": float(np.percentile(x, 95) * 1e3),
         "max_ms": float(np.max(x) * 1e3),

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sim.mcap_log import logged_time
 from sim.replay.runlog import RunLog
 
 # truth-state fields and the setpoint fields every follower logs; tas_mps only for fixed wing
@@ -40,6 +41,7 @@ class VehicleTrace:
     sigma3_vel: np.ndarray | None = None  # (N, 3) [m/s]
     truth_vel_ned: np.ndarray | None = None  # (N, 3) true velocity [m/s]
     truth_cross_track_m: np.ndarray | None = None  # (N,) true cross-track to the followed leg [m]
+    plan_cache_hits: int = 0  # planner calls that kept the previous plan
 
     @property
     def mission_complete(self) -> bool:
@@ -49,7 +51,7 @@ class VehicleTrace:
     def from_log(cls, log: RunLog, name: str) -> VehicleTrace:
         st = log.topic(f"/{name}/truth/state")
         sp = log.topic(f"/{name}/ctrl/setpoint")
-        lat_topic = f"/{name}/plan/latency"
+        lat_topic, inp_topic = f"/{name}/plan/latency", f"/{name}/plan/input"
         latency = log.topic(lat_topic)["seconds"] if log.has(lat_topic) else np.zeros(0)
         status = log.topic(f"/{name}/mission/status")
         total = int(status["waypoints"][-1]) if len(status) else 0
@@ -84,6 +86,7 @@ class VehicleTrace:
             None if sig is None else sig["vel"],
             st["vel_ned"],
             log.topic(f"/{name}/truth/tracking")["cross_track_m"],
+            plan_cache_hits=sum(not m["new_plan"] for m in log.topic(inp_topic).messages) if log.has(inp_topic) else 0,
         )
 
 
@@ -105,6 +108,7 @@ class TraceRecorder:
     _state: dict[str, list] = field(default_factory=lambda: {k: [] for k in _STATE})
     _setpoint: dict[str, list] = field(default_factory=lambda: {k: [] for k in _SETPOINT})
     _latency: list[float] = field(default_factory=list)
+    _cache_hits: int = 0
     _reached: list[float] = field(default_factory=list)
     _complete_t: float | None = None
     _commands: list[dict[str, float]] = field(default_factory=list)
@@ -131,11 +135,16 @@ class TraceRecorder:
     def latency(self, seconds: float) -> None:
         self._latency.append(seconds)
 
+    def cache_hit(self) -> None:
+        self._cache_hits += 1
+
     def reached(self, t: float) -> None:
-        self._reached.append(t)
+        """A waypoint reached at ``t`` [s]: kept as its ``/log`` event's time reads back."""
+        self._reached.append(logged_time(t))
 
     def complete(self, t: float) -> None:
-        self._complete_t = t
+        """The mission completed at ``t`` [s]: kept as its ``/log`` event's time reads back."""
+        self._complete_t = logged_time(t)
 
     def trace(self) -> VehicleTrace:
         """The series so far; vectors are (N, 3) also when nothing was logged (N = 0)."""
@@ -154,11 +163,17 @@ class TraceRecorder:
             list(self._reached),
             self._complete_t,
             self._command_arrays(),
-            *(_array(k, self._est[k]) for k in ("pos_ned", "vel_ned")),
-            *((np.asarray(self._sigma[k], dtype=float) if self._sigma[k] else None) for k in ("pos", "vel")),
+            _array("pos_ned", self._est["pos_ned"]),
+            _array("vel_ned", self._est["vel_ned"]),
+            self._sigma_array("pos"),
+            self._sigma_array("vel"),
             s["vel_ned"],
             np.asarray(self._cross, dtype=float),
+            plan_cache_hits=self._cache_hits,
         )
+
+    def _sigma_array(self, key: str) -> np.ndarray | None:
+        return np.asarray(self._sigma[key], dtype=float) if self._sigma[key] else None
 
     def _command_arrays(self) -> dict[str, np.ndarray]:
         props = self._commands[-1].keys() if self._commands else ()
