@@ -8,10 +8,12 @@ import subprocess
 import sys
 import threading
 import time
+import tomllib
 from concurrent.futures import Executor, Future
 from pathlib import Path
 
 import pytest
+import tomli_w
 
 from sim.batch import load_batch, run_batch, scenario_hash
 
@@ -30,10 +32,20 @@ class InlineExecutor(Executor):
         return f
 
 
-def _batch(tmp_path: Path, speeds: str, duration: str = "30 s") -> Path:
+def _batch(tmp_path: Path, speeds: str, duration: str = "30 s", hover: bool = False) -> Path:
+    """A sweep over the quadrotor's cruise speed; ``hover``: over a quadrotor hovering for the
+    whole ``duration`` instead of its short square mission (runs that last)."""
+    base = QUAD
+    if hover:
+        data = tomllib.loads(QUAD.read_text())
+        data["vehicle"][0]["mission"].update(
+            land=False, waypoints=[{"north": 0, "east": 0, "altitude": 415, "hold": "1 h"}]
+        )
+        base = tmp_path / "hover.toml"
+        base.write_text(tomli_w.dumps(data))
     f = tmp_path / "b.toml"
     f.write_text(
-        f'base = "{QUAD}"\nname = "resume"\nduration = "{duration}"\n'
+        f'base = "{base}"\nname = "resume"\nduration = "{duration}"\n'
         f'[sweep]\n"vehicle.0.mission.cruise_speed" = [{speeds}]\n'
     )
     return f
@@ -47,7 +59,7 @@ def _flown(runs, out) -> list[str]:
 
 def test_interrupted_run_is_flown_again_on_resume(tmp_path):
     out = tmp_path / "out"
-    _, runs = load_batch(_batch(tmp_path, "3, 4", duration="240 s"), out)
+    _, runs = load_batch(_batch(tmp_path, "3, 4", duration="240 s", hover=True), out)
     first_log = Path(runs[0].log_path)
 
     def interrupt_the_first_run():
@@ -58,7 +70,7 @@ def test_interrupted_run_is_flown_again_on_resume(tmp_path):
 
     threading.Thread(target=interrupt_the_first_run, daemon=True).start()
     rows = run_batch(runs, out, executor=InlineExecutor())
-    assert [r["status"] for r in rows] == ["interrupted", "completed"]
+    assert [r["status"] for r in rows] == ["interrupted", "duration_elapsed"]
     assert not Path(runs[0].result_path).exists() and Path(runs[1].result_path).exists()
     assert _flown(runs, out) == ["resume_0000"]  # only the interrupted one
     assert _flown(runs, out) == []
@@ -90,7 +102,7 @@ def _children(pid: int) -> list[int]:
 
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
 def test_pool_workers_die_with_the_batch_process(tmp_path, sig):
-    batch = _batch(tmp_path, "3, 4, 5, 6", duration="240 s")
+    batch = _batch(tmp_path, "3, 4, 5, 6", duration="600 s", hover=True)
     proc = subprocess.Popen(
         [sys.executable, "-m", "sim.cli", "batch", str(batch), "-o", str(tmp_path / "out"), "--workers", "2", "-q"],
         cwd=ROOT,

@@ -9,23 +9,36 @@ import signal
 import subprocess
 import sys
 import time
+import tomllib
 from pathlib import Path
 
 import pytest
+import tomli_w
 
 from sim.mcap_read import LogReadError, read_info
 from sim.replay.runlog import RunLog
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENARIO = ROOT / "scenarios" / "quad_square_mission.toml"  # 4 min of sim time: several seconds of wall time
 pytestmark = pytest.mark.closed_loop
 
 
+def _hover(folder: Path) -> Path:
+    """The quadrotor hovering for 10 min of sim time (many seconds of wall time)."""
+    data = tomllib.loads((ROOT / "scenarios" / "quad_square_mission.toml").read_text())
+    data["duration"] = 600.0
+    v = data["vehicle"][0]
+    v["mission"]["land"] = False
+    v["mission"]["waypoints"] = [{"north": 0, "east": 0, "altitude": 415, "hold": "600 s"}]
+    path = folder / "hover.toml"
+    path.write_text(tomli_w.dumps(data))
+    return path
+
+
 def _start(log: Path, **kw) -> subprocess.Popen:
-    """``cosim run`` as the leader of its own process group (so that the test can signal the
-    whole group without signalling itself)."""
+    """``cosim run`` of the hover as the leader of its own process group (so that the test can
+    signal the whole group without signalling itself)."""
     return subprocess.Popen(
-        [sys.executable, "-m", "sim.cli", "run", str(SCENARIO), "-o", str(log), "-q"],
+        [sys.executable, "-m", "sim.cli", "run", str(_hover(log.parent)), "-o", str(log), "-q"],
         cwd=ROOT,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
