@@ -19,9 +19,12 @@ UNIT = 5.0  # rules_unit of the scenarios: the thesis' metre [m]
 HEAD_ON_MARGIN, CONVERGING_MARGIN, OVERTAKE_MARGIN = 10 * UNIT, 8 * UNIT, 5 * UNIT  # (6.192)-(6.194), [R] defaults
 
 
-def fly(name: str, tmp_path) -> tuple[dict, RunLog]:
+def fly(name: str, tmp_path, seed: int | None = None) -> tuple[dict, RunLog]:
+    """Fly a rules scenario (with ``seed`` in place of its own) and read its metrics back."""
     out = tmp_path / f"{name}.mcap"
     scenario, text = load_scenario(SCENARIOS / f"{name}.toml")
+    if seed is not None:
+        scenario = scenario.model_copy(update={"seed": seed})
     run_scenario(scenario, out, scenario_text=text)
     log = RunLog(out)
     return log_metrics(log), log
@@ -128,3 +131,28 @@ def test_mixed_haps_and_multirotor_swarm_the_quadrotors_give_way(tmp_path):
     haps = log.topic("/haps/truth/state")
     leg = np.asarray(haps.t) <= m["vehicles"]["haps"]["mission"]["time_s"]
     assert np.abs(haps["pos_ned"][leg, 0]).max() < 10.0  # the HAPS held its course (its leg is north = 0)
+
+
+SEED_MARGINS = {  # scenario: (pairs that must keep the margin, margin [m])
+    "s9_converging": ([("uas1", "uas2")], CONVERGING_MARGIN),
+    "s10_head_on": ([("uas1", "uas2")], HEAD_ON_MARGIN),
+    "s11_roundabout": (None, HEAD_ON_MARGIN),
+    "s12_overtake_2x": ([("uas1", "uas2")], OVERTAKE_MARGIN),
+    "s13_overtake_3x": ([("uas1", "uas2")], OVERTAKE_MARGIN),
+    "s13_overtake_4x": ([("uas1", "uas2")], OVERTAKE_MARGIN),
+    "s14_pursuer": ([("uas1", "uas2")], HEAD_ON_MARGIN),
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(20))
+@pytest.mark.parametrize("name", sorted(SEED_MARGINS))
+def test_rules_scenarios_keep_their_margins_on_20_seeds(name, seed, tmp_path):
+    """S9-S14 beyond their pinned seed: every listed pair (S11: every pair) keeps the case margin
+    and the cooperative UAS complete (S14: uas1 is chased, only uas2 must complete)."""
+    m, _ = fly(name, tmp_path, seed)
+    pairs, margin = SEED_MARGINS[name]
+    seps = m["separation"] if pairs is None else {f"{a}-{b}": m["separation"][f"{a}-{b}"] for a, b in pairs}
+    assert min(x["distance_m"] for x in seps.values()) >= margin, seps
+    must = ["uas2"] if name == "s14_pursuer" else list(m["vehicles"])
+    assert all(m["vehicles"][v]["mission"]["complete"] for v in must)
