@@ -78,8 +78,7 @@ class MptpPlanner:
                 diagnostics={"complete": 1},
             )
         k = m.next_index
-        due = self.plan_ is None or k != self._goal_index or t - self._t_plan >= self.cfg.replan_period_s - 1e-9
-        if due:
+        if self.plan_ is None or k != self._goal_index or t - self._t_plan >= self.cfg.replan_period_s - 1e-9:
             self.plan_ = self._replan(estimate, threats.storms or [StormSnapshot(t, ())], t, k)
             self._t_plan, self._goal_index = t, k
         return self.plan_
@@ -109,7 +108,7 @@ class MptpPlanner:
                 pts, times, _ = orbit
                 diag.update(runtime_s=time.perf_counter() - wall, holding_s=float(times[-1] - t), reason="goal covered")
                 return self._to_plan(t, est, pts, times, np.full(len(pts), -1), PlanStatus.DEGRADED, diag)
-        arrival = t + np.linalg.norm(goal.at(t) - p0) / cfg.tas_mps
+        arrival = t + float(np.linalg.norm(goal.at(t) - p0)) / cfg.tas_mps
         turning = _one_way(cfg.turning) if availability.covered(int(tl.interval(arrival))) else cfg.turning
         # a partial trajectory must last until the next replan (the follower flies straight on
         # past a plan's end)
