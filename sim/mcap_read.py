@@ -10,7 +10,7 @@ import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
@@ -47,7 +47,7 @@ class LogInfo:
     attachments: list[str]
 
 
-def _open(path: str | Path):
+def _open(path: str | Path) -> tuple[Path, BinaryIO]:
     path = Path(path)
     if not path.is_file():
         raise LogReadError(f"{path}: no such file")
@@ -87,7 +87,7 @@ def read_info(path: str | Path) -> LogInfo:
         key=lambda ti: ti.topic,
     )
     return LogInfo(
-        path=path,
+        path=Path(path),
         profile=header.profile,
         library=header.library,
         start_s=((stats.message_start_time - epoch) / 1e9) if stats and stats.message_count else 0.0,
@@ -140,9 +140,14 @@ def iter_messages(path: str | Path, topics: list[str] | None = None) -> Iterator
                 if channel.message_encoding == "json":
                     decoded = json.loads(message.data)
                 else:
+                    if schema is None:
+                        raise LogReadError(f"{path}: channel {channel.topic} has no schema")
                     dec = decoders.get(schema.id)
                     if dec is None:
-                        dec = decoders[schema.id] = factory.decoder_for(channel.message_encoding, schema)
+                        dec = factory.decoder_for(channel.message_encoding, schema)
+                        if dec is None:
+                            raise LogReadError(f"{path}: no decoder for {channel.message_encoding} on {channel.topic}")
+                        decoders[schema.id] = dec
                     decoded = dec(message.data)
                 yield channel.topic, (message.log_time - epoch) / 1e9, decoded
         except _READ_ERRORS as exc:

@@ -41,6 +41,12 @@ class VehicleTrace:
     truth_vel_ned: np.ndarray | None = None  # (N, 3) true velocity [m/s]
     truth_cross_track_m: np.ndarray | None = None  # (N,) true cross-track to the followed leg [m]
 
+    def true_cross_track(self) -> np.ndarray:
+        """(N,) true cross-track to the followed leg [m]."""
+        if self.truth_cross_track_m is None:
+            raise ValueError(f"{self.name}: the trace has no true cross-track")
+        return self.truth_cross_track_m
+
     @property
     def mission_complete(self) -> bool:
         return self.complete_t is not None
@@ -145,10 +151,12 @@ class TraceRecorder:
             list(self._reached),
             self._complete_t,
             self._command_arrays(),
-            *(np.asarray(self._est[k], dtype=float) for k in ("pos_ned", "vel_ned")),
-            *((np.asarray(self._sigma[k], dtype=float) if self._sigma[k] else None) for k in ("pos", "vel")),
-            s["vel_ned"],
-            np.asarray(self._cross, dtype=float),
+            est_pos_ned=np.asarray(self._est["pos_ned"], dtype=float),
+            est_vel_ned=np.asarray(self._est["vel_ned"], dtype=float),
+            sigma3_pos=np.asarray(self._sigma["pos"], dtype=float) if self._sigma["pos"] else None,
+            sigma3_vel=np.asarray(self._sigma["vel"], dtype=float) if self._sigma["vel"] else None,
+            truth_vel_ned=s["vel_ned"],
+            truth_cross_track_m=np.asarray(self._cross, dtype=float),
         )
 
     def _command_arrays(self) -> dict[str, np.ndarray]:
