@@ -165,7 +165,8 @@ class McapLog:
         msg.timestamp.FromNanoseconds(ns)
         self.write_proto("/log", t, msg)
 
-    def metadata(self, name: str, data: dict[str, str]) -> None:
+    def metadata(self, name: str, data: dict[str, object]) -> None:
+        """A metadata record ``name``; values are written as their ``str``."""
         self._record(("metadata", name, {k: str(v) for k, v in data.items()}))
 
     def attach(self, name: str, data: bytes, media_type: str, t: float = 0.0) -> None:
