@@ -32,10 +32,10 @@ import shapely
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from sim.testbeds import mptp_thesis as S  # noqa: E402
 from guidance.mptp.search import plan_trajectory  # noqa: E402
 from guidance.mptp.timeline import ObstacleTimeline  # noqa: E402
 from sim.core.threats import StormSnapshot  # noqa: E402
+from sim.testbeds import mptp_thesis as S  # noqa: E402
 from sim.testbeds.mptp_openloop import run_open_loop  # noqa: E402
 
 HEURISTICS_CAP = 2000  # expansions for the heuristics comparison (the planner's default is 120)
@@ -223,8 +223,8 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|")
     for r in res["growth"]:
         print(
-            f"| {'on' if r['smoothing'] else 'off'} | {r['multiplier']} | {r['storm_vertices']} | {r['weather_s']:.3f} | "
-            f"{r['search_s']:.3f} | {r['total_s']:.3f} | {r['ratio']:.2f} | {r['exst']} |"
+            f"| {'on' if r['smoothing'] else 'off'} | {r['multiplier']} | {r['storm_vertices']} | "
+            f"{r['weather_s']:.3f} | {r['search_s']:.3f} | {r['total_s']:.3f} | {r['ratio']:.2f} | {r['exst']} |"
         )
     print("\n| scenario | turning | heuristic | status | EXST | TRST | TRST/EXST [%] | TL [km] | search [s] |")
     print("|---|---|---|---|---|---|---|---|---|")

@@ -108,7 +108,8 @@ def main() -> None:
     out.write_text(json.dumps(report, indent=2))
     for name, r in results.items():
         print(
-            f"{name:12s} median {r['median_ms']:7.2f} ms  p90 {r['p90_ms']:7.2f} ms  x{r['ratio_to_0_intruders']:.2f}  runs {r['category_runs']}"
+            f"{name:12s} median {r['median_ms']:7.2f} ms  p90 {r['p90_ms']:7.2f} ms  "
+            f"x{r['ratio_to_0_intruders']:.2f}  runs {r['category_runs']}"
         )
     print(f"-> {out}")
 

@@ -119,7 +119,7 @@ def load_batch(path: str | Path, out_dir: str | Path | None = None) -> tuple[str
     runs: list[RunSpec] = []
     index = 0
     for point in grid:
-        for draw in range(n_mc):
+        for _draw in range(n_mc):
             params = dict(point)
             for key, (lo, hi) in mc.get("uniform", {}).items():
                 params[key] = float(rng.uniform(lo, hi))
@@ -200,7 +200,7 @@ def run_batch(
             spec = futures[fut]
             try:
                 row = fut.result()
-            except Exception as exc:  # the worker itself died (not a failed flight)
+            except Exception as exc:  # noqa: BLE001 (the worker itself died, of anything: not a failed flight)
                 row = {"run_id": spec.run_id, "status": "failed", "error": f"worker: {exc}"}
             rows[spec.run_id] = row
             if progress:

@@ -61,7 +61,7 @@ def writer_main(path: str, chunk_size: int) -> int:
     src = sys.stdin.buffer
     error = None
     try:
-        rw = RecordWriter(open(path, "wb"), chunk_size)
+        rw = RecordWriter(open(path, "wb"), chunk_size)  # noqa: SIM115 (the writer owns the file; finish() closes it)
     except OSError as exc:
         print(f"cannot open {path}: {exc}", flush=True)
         return 1
@@ -74,12 +74,12 @@ def writer_main(path: str, chunk_size: int) -> int:
             if batch is None:
                 break
             rw.apply(batch)
-    except Exception as exc:  # reported to the simulation process at its next hand-over or close
+    except Exception as exc:  # noqa: BLE001 (any failure is reported to the simulation process at its next hand-over or close)
         error = f"{type(exc).__name__}: {exc}"
     finally:
         try:
             rw.finish()
-        except Exception as exc:
+        except Exception as exc:  # noqa: BLE001 (likewise reported)
             error = error or f"{type(exc).__name__}: {exc}"
     if error:
         print(error, flush=True)

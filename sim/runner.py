@@ -121,7 +121,7 @@ def run_scenario(
     except KeyboardInterrupt:
         result.status = "interrupted"
         result.error = "interrupted by the user"
-    except Exception as exc:  # recorded in the log, then re-raised as RunFailed
+    except Exception as exc:  # noqa: BLE001 (any failure is recorded in the log, then re-raised as RunFailed)
         result.status = "failed"
         result.error = f"{type(exc).__name__}: {exc}"
         failure = exc

@@ -94,7 +94,7 @@ class Gcs(threading.Thread):
             end = time.monotonic() + 30
             while time.monotonic() < end and self.recv({"GLOBAL_POSITION_INT"}, 1.0) is not None:
                 pass
-        except Exception as exc:  # reported by the test
+        except Exception as exc:  # noqa: BLE001 (any error in this thread is reported by the test)
             self.error = exc
 
 

@@ -205,7 +205,7 @@ def test_replay_of_damaged_log_is_a_clear_error(tmp_path):
     write_log(path)
     data = path.read_bytes()
     path.write_bytes(data[: len(data) // 2])
-    with pytest.raises(LogReadError, match="cut.mcap"):
+    with pytest.raises(LogReadError, match=r"cut\.mcap"):
         replay_to_gcs(path, speed=None)
     write_log(path)
     with pytest.raises(ValueError, match="no vehicle ghost"):

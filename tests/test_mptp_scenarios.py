@@ -10,7 +10,6 @@ import pytest
 import shapely
 from shapely.geometry import box
 
-from sim.testbeds import mptp_thesis as S
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
 from guidance.mptp.planner import MptpPlanner
@@ -20,6 +19,7 @@ from guidance.mptp.turning import flyby_path
 from sim.core.mission import Mission
 from sim.core.plan import PlanStatus, Threats
 from sim.core.threats import StormSnapshot
+from sim.testbeds import mptp_thesis as S
 from sim.testbeds.mptp_openloop import run_open_loop, vehicle_state
 
 

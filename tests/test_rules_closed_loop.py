@@ -9,8 +9,6 @@ import pytest
 
 from sim.replay.report import log_metrics
 from sim.replay.runlog import RunLog
-from sim.runner import run_scenario
-from sim.scenario import load_scenario
 
 pytestmark = pytest.mark.closed_loop
 
@@ -19,11 +17,9 @@ UNIT = 5.0  # rules_unit of the scenarios: the thesis' metre [m]
 HEAD_ON_MARGIN, CONVERGING_MARGIN, OVERTAKE_MARGIN = 10 * UNIT, 8 * UNIT, 5 * UNIT  # (6.192)-(6.194), [R] defaults
 
 
-def fly(name: str, tmp_path) -> tuple[dict, RunLog]:
-    out = tmp_path / f"{name}.mcap"
-    scenario, text = load_scenario(SCENARIOS / f"{name}.toml")
-    run_scenario(scenario, out, scenario_text=text)
-    log = RunLog(out)
+def flown(fly, name: str) -> tuple[dict, RunLog]:
+    """Metrics and log of the shipped rules scenario ``name``."""
+    log = fly(f"rules/{name}").log
     return log_metrics(log), log
 
 
@@ -41,8 +37,8 @@ def assert_complete(metrics: dict) -> None:
         assert v["mission"]["complete"], f"{name} did not complete"
 
 
-def test_s9_converging_the_uas_with_traffic_on_its_right_gives_way(tmp_path):
-    m, log = fly("s9_converging", tmp_path)
+def test_s9_converging_the_uas_with_traffic_on_its_right_gives_way(fly):
+    m, log = flown(fly, "s9_converging")
     assert_complete(m)
     assert separation(m, "uas1", "uas2") >= CONVERGING_MARGIN
     e1, e2 = events(log, "uas1"), events(log, "uas2")
@@ -52,8 +48,8 @@ def test_s9_converging_the_uas_with_traffic_on_its_right_gives_way(tmp_path):
     assert not any(e.startswith(("rule:converging", "rule:right_plane_heading")) for e in e2)  # holds course
 
 
-def test_s10_head_on_both_turn_right(tmp_path):
-    m, log = fly("s10_head_on", tmp_path)
+def test_s10_head_on_both_turn_right(fly):
+    m, log = flown(fly, "s10_head_on")
     assert_complete(m)
     assert separation(m, "uas1", "uas2") >= HEAD_ON_MARGIN
     for me, peer in (("uas1", "uas2"), ("uas2", "uas1")):
@@ -67,8 +63,8 @@ def test_s10_head_on_both_turn_right(tmp_path):
     assert n2.max() > 100.0 + UNIT and n2.min() > 100.0 - UNIT
 
 
-def test_s11_four_uas_circle_one_roundabout(tmp_path):
-    m, log = fly("s11_roundabout", tmp_path)
+def test_s11_four_uas_circle_one_roundabout(fly):
+    m, log = flown(fly, "s11_roundabout")
     assert_complete(m)
     # every pair, head-on or converging, keeps the roundabout margin = the largest case margin
     assert min(x["distance_m"] for x in m["separation"].values()) >= HEAD_ON_MARGIN
@@ -81,8 +77,8 @@ def test_s11_four_uas_circle_one_roundabout(tmp_path):
 
 
 @pytest.mark.parametrize("name", ["s12_overtake_2x", "s13_overtake_3x", "s13_overtake_4x"])
-def test_s12_s13_overtake_on_the_right(name, tmp_path):
-    m, log = fly(name, tmp_path)
+def test_s12_s13_overtake_on_the_right(name, fly):
+    m, log = flown(fly, name)
     assert_complete(m)
     assert separation(m, "uas1", "uas2") >= OVERTAKE_MARGIN
     e1 = events(log, "uas1")
@@ -95,11 +91,11 @@ def test_s12_s13_overtake_on_the_right(name, tmp_path):
     assert p2[k, 0] - p1[k, 0] >= OVERTAKE_MARGIN
 
 
-def test_s14_adversarial_pursuer_is_reported_unresolved(tmp_path):
+def test_s14_adversarial_pursuer_is_reported_unresolved(fly):
     """Negative test: a UAS that broadcasts like a cooperative one but flies at uas1 breaks the
     head-on margin; uas1 reports the case as unresolved (not hidden) at a time the logged truth
     confirms the breach, while the cooperative pair uas1-uas2 keeps its margin."""
-    m, log = fly("s14_pursuer", tmp_path)
+    m, log = flown(fly, "s14_pursuer")
     assert m["vehicles"]["uas2"]["mission"]["complete"]  # uas1 is being chased: no completion asked
     assert separation(m, "uas1", "uas2") >= HEAD_ON_MARGIN
     assert separation(m, "uas1", "uas3") < HEAD_ON_MARGIN  # the pursuer got through
@@ -117,10 +113,10 @@ def test_s14_adversarial_pursuer_is_reported_unresolved(tmp_path):
     assert true_sep < HEAD_ON_MARGIN + 2 * UNIT  # reported when it happened (track noise, one frame)
 
 
-def test_mixed_haps_and_multirotor_swarm_the_quadrotors_give_way(tmp_path):
+def test_mixed_haps_and_multirotor_swarm_the_quadrotors_give_way(fly):
     """The HAPS (filed as linear-propulsion, above VTOL) crosses three quadrotors in one altitude
     band: each quadrotor takes the give-way role against it and keeps the converging margin."""
-    m, log = fly("mixed_haps_swarm", tmp_path)
+    m, log = flown(fly, "mixed_haps_swarm")
     assert_complete(m)
     for q in ("quad1", "quad2", "quad3"):
         assert separation(m, "haps", q) >= CONVERGING_MARGIN, q

@@ -203,7 +203,7 @@ def test_filed_registration_of_a_peer_ranks_it():
     assert cfg.registration("haps", 5.0).priority() < cfg.registration("uas2", 5.0).priority()
     with pytest.raises(ValueError, match="unknown maneuverability 'jet'"):
         RulesConfig(filed={"haps": {"maneuverability": "jet"}})
-    with pytest.raises(ValueError, match="filed.haps: a table"):
+    with pytest.raises(ValueError, match=r"filed\.haps: a table"):
         RulesConfig(filed={"haps": "glider"})
 
 

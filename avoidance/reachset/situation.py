@@ -6,8 +6,8 @@ Mapping of the project's threat types (decision D-5): LiDAR scan -> detected obs
 visibility; ``PrismObstacle`` and static ``SphereThreat`` -> map obstacles; ``IntruderTrack`` and
 moving ``SphereThreat`` -> intruders, all with ``cfg.intruders`` (default line + body + time, the
 setting of the thesis' emergency scenarios S6-S8, whose intruders are non-cooperative but broadcast
-ADS-B; the cone preset is ``IntruderModelConfig.non_cooperative()``); ``Geofence`` -> static constraints; the newest ``StormSnapshot`` not after ``t_grid``
--> moving constraints.
+ADS-B; the cone preset is ``IntruderModelConfig.non_cooperative()``); ``Geofence`` -> static
+constraints; the newest ``StormSnapshot`` not after ``t_grid`` -> moving constraints.
 """
 
 from __future__ import annotations

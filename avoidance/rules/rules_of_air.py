@@ -56,11 +56,11 @@ def _severity(case: CollisionCase):
 @dataclass(frozen=True)
 class DetectCollisionCases:
     """(tab. 6.10) Once the own UAS has flown ``settle`` seconds and reached
-    ``established_speed`` of its cruise speed (before, at the start, headings say nothing), update the case book from this frame's
-    notifications (the peers whose pair
-    could be assessed are managed by the rules, the rest stay intruders), re-target roundabout
-    members, report unresolved cases (separation below the case margin: handed to the
-    emergency avoidance), select the own cases to resolve (own role gives way) by severity."""
+    ``established_speed`` of its cruise speed (before, at the start, headings say nothing),
+    update the case book from this frame's notifications (the peers whose pair could be
+    assessed are managed by the rules, the rest stay intruders), re-target roundabout members,
+    report unresolved cases (separation below the case margin: handed to the emergency
+    avoidance), select the own cases to resolve (own role gives way) by severity."""
 
     code: str = "detect"
     point: DecisionPoint = DecisionPoint.BEFORE_AVOIDANCE_RUN

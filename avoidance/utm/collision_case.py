@@ -183,9 +183,9 @@ def compute_collision_case(
     n1: PositionNotification, n2: PositionNotification, t: float, cfg: UtmConfig = UtmConfig()
 ) -> CollisionCase | None:
     """The case of the pair at frame time ``t`` [s], or None when they cannot meet (different
-    flight levels) or one of them hovers (below ``min_speed``). ``flagged`` is set when the closest approach (trajectory intersection when
-    both predictions are known, else linear) lies in [0, time_margin] and within the collision
-    margin (6.186)."""
+    flight levels) or one of them hovers (below ``min_speed``). ``flagged`` is set when the
+    closest approach (trajectory intersection when both predictions are known, else linear) lies
+    in [0, time_margin] and within the collision margin (6.186)."""
     if not n1.shares_level(n2) or min(n1.speed, n2.speed) < cfg.min_speed:
         return None
     a1, a2 = n1.adjusted(t), n2.adjusted(t)

@@ -56,11 +56,14 @@ class FaultSchedule:
         self._last: np.ndarray | None = None
 
     def add(self, fault: SensorFault) -> None:
-        if fault.kind == "bias_step" and isinstance(fault.value, tuple):
-            if self.dim is None or len(fault.value) != self.dim:
-                raise SensorConfigError(
-                    f"{self.sensor}: bias_step value has {len(fault.value)} axes, output has {self.dim}"
-                )
+        if (
+            fault.kind == "bias_step"
+            and isinstance(fault.value, tuple)
+            and (self.dim is None or len(fault.value) != self.dim)
+        ):
+            raise SensorConfigError(
+                f"{self.sensor}: bias_step value has {len(fault.value)} axes, output has {self.dim}"
+            )
         self.faults.append(fault)
         self._offsets.append(np.asarray(fault.value, float) if fault.kind == "bias_step" else 0.0)
 

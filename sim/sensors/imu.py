@@ -3,8 +3,9 @@
 Defaults are ADIS16448-class as PX4's SITL IMU plugin simulates it (noise densities and bias
 random walks are twice the datasheet values there; kept): gyro noise density
 3.39e-4 rad/s/sqrt(Hz) (2 x 35/3600 deg/s/sqrt(Hz)), gyro bias random walk 3.88e-5
-rad/s^2/sqrt(Hz) (2 x 4/3600 deg/s^2/sqrt(Hz)), turn-on gyro bias 0.5 deg/s; accel noise density 4e-3 m/s^2/sqrt(Hz), bias random walk 6e-3
-m/s^3/sqrt(Hz), turn-on bias 20 mg. Quantisation: ADIS16448 LSBs (0.04 deg/s, 0.833 mg).
+rad/s^2/sqrt(Hz) (2 x 4/3600 deg/s^2/sqrt(Hz)), turn-on gyro bias 0.5 deg/s; accel noise
+density 4e-3 m/s^2/sqrt(Hz), bias random walk 6e-3 m/s^3/sqrt(Hz), turn-on bias 20 mg.
+Quantisation: ADIS16448 LSBs (0.04 deg/s, 0.833 mg).
 Per-sample white noise = density * sqrt(rate).
 """
 
