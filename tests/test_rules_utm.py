@@ -375,7 +375,14 @@ def _avoider_with_traffic(cooperative: bool, ahead: float):
     decisions = []
     for t in (0.0, 1.0, 2.0):
         est = VehicleState(
-            t, np.array([t, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0
+            t=t,
+            pos_ned=np.array([t, 0.0, -5.0]),
+            vel_ned=np.array([1.0, 0.0, 0.0]),
+            euler=np.zeros(3),
+            rates_body=np.zeros(3),
+            alt_msl_m=5.0,
+            lat_deg=0.0,
+            lon_deg=0.0,
         )
         av.plan(est, Threats(intruders=[peer(t)]), t)
         decisions.append(av.last_decision)

@@ -25,6 +25,7 @@ as one averaged record per fusion interval), :meth:`three_sigma`, :meth:`biases`
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any, Literal
 
 import numpy as np
@@ -188,14 +189,13 @@ class SensorEstimator:
             ecfg = ecfg.model_copy(update={"gravity_mps2": normal_gravity(origin.lat_deg, initial.alt_msl_m)})
         init = initial
         if config.perturb_initial:
-            init = VehicleState(**{f: getattr(initial, f) for f in VehicleState.__slots__})
-            init.pos_ned = initial.pos_ned + r_init.normal(0.0, ecfg.init_pos_std_m, 3)
-            init.vel_ned = initial.vel_ned + r_init.normal(0.0, ecfg.init_vel_std_mps, 3)
-            init.euler = initial.euler + r_init.normal(0.0, 1.0, 3) * [
-                ecfg.init_tilt_std_rad,
-                ecfg.init_tilt_std_rad,
-                ecfg.init_yaw_std_rad,
-            ]
+            tilt, yaw = ecfg.init_tilt_std_rad, ecfg.init_yaw_std_rad
+            init = replace(  # drawn in this order: position, velocity, attitude
+                initial,
+                pos_ned=initial.pos_ned + r_init.normal(0.0, ecfg.init_pos_std_m, 3),
+                vel_ned=initial.vel_ned + r_init.normal(0.0, ecfg.init_vel_std_mps, 3),
+                euler=initial.euler + r_init.normal(0.0, 1.0, 3) * [tilt, tilt, yaw],
+            )
         self.ekf = InsEkf(ecfg, init, origin)
         self._imu_nodes = plant.property_nodes(_IMU_PROPS)
         self._truth = TruthSampler(plant)
