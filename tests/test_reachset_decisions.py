@@ -3,8 +3,6 @@ mission control (modes, waypoints, buffer replacement), the planner adapter and 
 
 import dataclasses
 import json
-import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -227,10 +225,10 @@ def test_goal_inside_the_turn_circle_is_flown_away_from_not_orbited():
     assert not ahead.path.away
 
 
-def test_lidar_shorter_than_the_grid_is_a_scenario_error():
+def test_lidar_shorter_than_the_grid_is_a_scenario_error(scenario_data):
     """A LiDAR whose range ends inside the reach-set grid leaves its far cells Uncertain, which
     blocks every path: the scenario is refused with one line naming the field."""
-    data = tomllib.loads((Path(__file__).resolve().parents[1] / "scenarios/reachset/building_lidar.toml").read_text())
+    data = scenario_data("reachset/building_lidar")
     parse_scenario(data)  # 60 m covers the 50 m grid of 5 m movements
     data["vehicle"][0]["lidar"] = {"max_range_m": 10.0}
     with pytest.raises(
