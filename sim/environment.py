@@ -95,5 +95,5 @@ def obstacle_prism(o: sc.Obstacle, origin_alt_m: float) -> PrismObstacle:
     return PrismObstacle(o.id, fp, base - origin_alt_m, o.top - origin_alt_m)
 
 
-def geofence(g: sc.Geofence, origin_alt_m: float) -> Geofence:
+def geofence(g: sc.GeofenceSpec, origin_alt_m: float) -> Geofence:
     return Geofence(g.id, Polygon(g.points), g.floor - origin_alt_m, g.ceiling - origin_alt_m, g.keep_in)

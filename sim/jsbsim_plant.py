@@ -1,7 +1,7 @@
 """One JSBSim FGFDMExec per vehicle: loading, initial conditions, trim, stepping, properties.
 
 Truth state comes out as a :class:`sim.core.state.VehicleState` in the scenario's NED frame [m, m/s,
-rad]. JSBSim's own units (ft, kt, slug) stay inside this module and ``sim.frames``.
+rad]. JSBSim's own units (ft, kt, slug) stay inside this module and ``sim.core.constants``.
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ Format (documented in docs/mptp.md)::
                                   "cell_id": "c7"}}]}        # optional, informative
 
 "wgs84" coordinates are RFC 7946 [lon, lat] degrees, converted to the scenario's local-level NED
-through sim.frames; "local_ne" coordinates are [north, east] metres from the scenario origin.
+through sim.geodesy; "local_ne" coordinates are [north, east] metres from the scenario origin.
 A MultiPolygon is several cells with the same properties. Within one time step either every
 cell has a velocity or none has.
 """

@@ -1,7 +1,7 @@
 """GeoJSON of a plan, its margin polygons and the storms, for Foxglove's Map panel.
 
 GeoJSON (RFC 7946) is WGS84 [lon, lat]: local-level NED / (north, east) [m] shapes are converted
-through sim.frames with the scenario ``origin``. Feature properties: ``kind`` ("plan", "margin",
+through sim.geodesy with the scenario ``origin``. Feature properties: ``kind`` ("plan", "margin",
 "storm"), ``t`` [s] (sim time the shape is valid at) and, for the plan, its status and the
 due time of every vertex (``times``).
 """

@@ -1,192 +1,192 @@
-"""Build a vehicle's planner from its scenario configuration (one place for the runner and for
-re-running planners on a log).
+"""The planner registry: every planner type with its typed options, its factory and its own log
+records. The engine knows planners only through this table; adding a planner is one package plus
+one :data:`PLANNERS` entry (the scenario validator takes the options model from here, so a bad
+option is a field-named error like any other).
 
-``options`` are fields of the planner's own configuration dataclass, in its units (SI):
-geometric ``GeometricConfig``, MPTP ``MptpConfig``; the reach-set planner takes ``period`` (its
-movement period [s]), ``constraint_margin`` (safety-margin ring of constraints [m]), ``constraint_mode``
-(polygon / circle), ``intruder_margin`` (added to
-intruders' body radius [m]), ``separations``
-(ACAS-like reach sets, e.g. ["horizontal"]), ``rules`` (the enabled rules of
-the air of a cooperative UAS, a list of codes) and ``rules_<field>`` (the other fields of
-``avoidance.rules.config.RulesConfig``); pursuit takes ``target`` (the pursued vehicle, S14);
-follow_mission takes none. Unknown options are an error naming them.
+Options are the fields of the planner's own options model, in SI units: the geometric avoider
+``avoidance.geometric.config.GeometricConfig``, the MPTP ``guidance.mptp.config.MptpConfig``
+(``tas_mps`` and ``bank_max`` default to the mission's cruise speed and the airframe's bank
+limit), the reach-set planner ``avoidance.rules.options.RulesOptions`` (reach-set options plus
+the rules of the air), pursuit ``target``; follow_mission takes none.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import importlib
+import typing
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, create_model, model_validator
+from pydantic.errors import PydanticSchemaGenerationError
 
-from avoidance.follow_mission import FollowMissionPlanner
-from avoidance.rules.config import RULES_FIELDS, RulesConfig
+from avoidance.geometric.config import GeometricConfig
+from avoidance.rules.options import RulesOptions
+from guidance.mptp.config import MptpConfig
 from sim.core.mission import Mission
-from sim.core.plan import Planner
+from sim.core.plan import Plan, Planner
+from sim.planner_records import RecordSink, geometric_records, mptp_records, reachset_records
 
-# planner -> (airframe kinds it flies, its config dataclass "module:Class" or the option names)
-_PLANNERS: dict[str, tuple[tuple[str, ...], str | tuple[str, ...]]] = {
-    "follow_mission": (("fixed_wing", "multirotor"), ()),
-    "geometric": (("multirotor",), "avoidance.geometric.config:GeometricConfig"),
-    "reachset": (
-        ("fixed_wing", "multirotor"),
-        (
-            "period",
-            "constraint_margin",
-            "constraint_mode",
-            "intruder_margin",
-            "separations",
-            "rules",
-            *(f"rules_{f}" for f in RULES_FIELDS),
-        ),
-    ),
-    "mptp": (("fixed_wing",), "guidance.mptp.config:MptpConfig"),
-    "pursuit": (("multirotor",), ("target",)),
-}
+
+@dataclass(frozen=True, slots=True)
+class BuildContext:
+    """What a planner is built for: the mission (NED [m]), the airframe kind
+    (``fixed_wing``/``multirotor``) and its bank limit [rad]."""
+
+    mission: Mission
+    airframe_kind: str
+    bank_limit_rad: float = float(np.radians(20.0))
+
+
+@dataclass(frozen=True, slots=True)
+class PlannerType:
+    """One planner type: the airframe kinds it flies, its options model, its factory, its own
+    log records (beside the common ``/<v>/plan``) and, for planners that need a sensor to see
+    their grid, the range [m] they need (``sensing_range(options, airframe_kind, cruise)``)."""
+
+    name: str
+    airframes: tuple[str, ...]
+    options: type[BaseModel]
+    build: Callable[[Any, BuildContext], Planner]
+    records: Callable[[RecordSink, Any, Plan, float], None] | None = None
+    sensing_range: Callable[[Any, str, float], float] | None = None
 
 
 class PlannerConfigError(ValueError):
-    """A planner is unknown, does not fit the airframe, or an option is unknown or invalid."""
+    """A planner is unknown or does not fit the airframe."""
 
 
-def _class(ref: str):
-    module, _, name = ref.partition(":")
-    return getattr(importlib.import_module(module), name)
+class DataclassOptions(BaseModel):
+    """Options model of a planner configured by a frozen dataclass (``config_class``): its fields,
+    types and defaults; validating the options also builds the dataclass, so that the dataclass's
+    own checks surface as the options' error."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    config_class: ClassVar[type]
+
+    def config(self, **fixed: Any) -> Any:
+        """The configuration: ``fixed`` values, overridden by the options the scenario gives."""
+        return self.config_class(**{**fixed, **{k: getattr(self, k) for k in self.model_fields_set}})
+
+    @model_validator(mode="after")
+    def _buildable(self) -> DataclassOptions:
+        self.config()
+        return self
 
 
-def check_planner(kind: str, airframe_kind: str, options: dict) -> None:
-    """Cheap check of a planner choice (no planner is built); PlannerConfigError otherwise."""
-    if kind not in _PLANNERS:
-        raise PlannerConfigError(f"unknown planner {kind!r} (known: {', '.join(_PLANNERS)})")
-    kinds, conf = _PLANNERS[kind]
-    if airframe_kind not in kinds:
-        raise PlannerConfigError(f"{kind} planner does not fly a {airframe_kind} (it flies: {', '.join(kinds)})")
-    names = {f.name for f in dataclasses.fields(_class(conf))} if isinstance(conf, str) else set(conf)
-    unknown = sorted(set(options) - names)
-    if unknown:
-        raise PlannerConfigError(
-            f"{kind} planner: unknown option(s) {', '.join(unknown)}"
-            + (f" (known: {', '.join(sorted(names))})" if names else " (it takes none)")
-        )
-    if isinstance(conf, str):  # values too (the config dataclass validates them)
-        _config(kind, options)
-    if kind == "reachset":
-        _reachset_config(options)
-        if "rules" in options:
-            _rules_config(options)
-    if kind == "pursuit" and not isinstance(options.get("target"), str):
-        raise PlannerConfigError("pursuit planner: option target (the pursued vehicle's name) is required")
-
-
-def _config(kind: str, options: dict, **fixed):
+def _field_type(hint: Any) -> Any:
+    """``hint`` where pydantic can validate it; ``Any`` for a type it cannot (e.g. a shapely
+    polygon given as a vertex list, which the dataclass converts itself)."""
     try:
-        return _class(_PLANNERS[kind][1])(**{**fixed, **options})
-    except (TypeError, ValueError) as exc:
-        raise PlannerConfigError(f"{kind} planner: {exc}") from None
+        TypeAdapter(hint)
+    except PydanticSchemaGenerationError:
+        return Any
+    return hint
 
 
-def _reachset_config(options: dict):
-    """``constraint_margin`` [m]; ``constraint_mode`` (``polygon`` exact, ``circle`` the thesis'
-    Welzl barrel); ``intruder_margin`` [m] added to every intruder's body radius;
-    ``separations``: planar separations of ACAS-like reach sets
-    (spec §4.8, e.g. ["horizontal"], the thesis' S1-S4) used in both modes instead of the 3-D
-    harmonic / combined sets."""
-    from avoidance.reachset.config import AvoidanceConfig, ConstraintConfig, ExpansionConfig, ReachSetConfig
-    from avoidance.reachset.expansion import SEPARATIONS
-
-    cfg = AvoidanceConfig()
-    if "constraint_margin" in options:
-        margin = options["constraint_margin"]
-        if isinstance(margin, bool) or not isinstance(margin, (int, float)) or margin < 0:
-            raise PlannerConfigError(
-                f"reachset planner: constraint_margin must be a number of metres >= 0 (got {margin!r})"
-            )
-        cfg = dataclasses.replace(cfg, constraints=ConstraintConfig(safety_margin=float(margin)))
-    if "constraint_mode" in options:
-        mode = options["constraint_mode"]
-        if mode not in ("polygon", "circle"):
-            raise PlannerConfigError(f"reachset planner: constraint_mode must be polygon or circle (got {mode!r})")
-        cfg = dataclasses.replace(cfg, constraints=dataclasses.replace(cfg.constraints, mode=mode))
-    if "intruder_margin" in options:
-        margin = options["intruder_margin"]
-        if isinstance(margin, bool) or not isinstance(margin, (int, float)) or margin < 0:
-            raise PlannerConfigError(
-                f"reachset planner: intruder_margin must be a number of metres >= 0 (got {margin!r})"
-            )
-        cfg = dataclasses.replace(cfg, intruders=dataclasses.replace(cfg.intruders, body_margin=float(margin)))
-    if "separations" in options:
-        seps = options["separations"]
-        if not isinstance(seps, list) or not seps or any(s not in SEPARATIONS for s in seps):
-            raise PlannerConfigError(
-                f"reachset planner: separations must be a non-empty list of {', '.join(SEPARATIONS)} (got {seps!r})"
-            )
-        acas = ReachSetConfig.single(ExpansionConfig.acas(tuple(seps)))
-        cfg = dataclasses.replace(cfg, navigation=acas, avoidance=acas)
-    return cfg
+def dataclass_options(config: type) -> type[DataclassOptions]:
+    """The options model of the frozen dataclass ``config``."""
+    hints = typing.get_type_hints(config)
+    fields: dict[str, Any] = {}
+    for f in dataclasses.fields(config):
+        if f.default_factory is not dataclasses.MISSING:
+            default: Any = Field(default_factory=f.default_factory)
+        else:
+            default = f.default if f.default is not dataclasses.MISSING else ...
+        fields[f.name] = (_field_type(hints[f.name]), default)
+    model = create_model(f"{config.__name__}Options", __base__=DataclassOptions, **fields)
+    model.config_class = config
+    return model
 
 
-def _reachset_automaton(airframe_kind: str, cruise: float, options: dict, bank_limit_rad: float = np.radians(20.0)):
-    from avoidance.reachset.movement import haps_automaton, multirotor_automaton
+class NoOptions(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
 
-    period = float(options.get("period", 1.0))
-    return (
-        multirotor_automaton(cruise, period)
-        if airframe_kind == "multirotor"
-        else haps_automaton(cruise, period, bank_limit_rad)
+
+class PursuitOptions(BaseModel):
+    """``target``: the name of the pursued vehicle."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    target: str
+
+
+def _follow_mission(options: NoOptions, ctx: BuildContext) -> Planner:
+    from avoidance.follow_mission import FollowMissionPlanner
+
+    return FollowMissionPlanner(ctx.mission)
+
+
+def _pursuit(options: PursuitOptions, ctx: BuildContext) -> Planner:
+    from avoidance.pursuit import PursuitPlanner
+
+    return PursuitPlanner(ctx.mission, options.target)
+
+
+def _geometric(options: DataclassOptions, ctx: BuildContext) -> Planner:
+    from avoidance.geometric.planner import GeometricAvoider
+
+    m = ctx.mission
+    start = m.start if m.start is not None else m.waypoints[0]
+    return GeometricAvoider(np.vstack([start, m.waypoints]), m.cruise_speed, options.config(), first_label=-1)
+
+
+def _reachset(options: RulesOptions, ctx: BuildContext) -> Planner:
+    from avoidance.reachset.planner import ReachSetAvoider
+    from avoidance.rules.planner import RulesAvoider
+
+    sma = options.automaton(ctx.airframe_kind, ctx.mission.cruise_speed, ctx.bank_limit_rad)
+    rules = options.rules_config()
+    if rules is None:
+        return ReachSetAvoider(ctx.mission, sma, options.avoidance_config())
+    return RulesAvoider(ctx.mission, sma, rules, options.avoidance_config())
+
+
+def _mptp(options: DataclassOptions, ctx: BuildContext) -> Planner:
+    from guidance.mptp.planner import MptpPlanner
+
+    return MptpPlanner(ctx.mission, options.config(tas_mps=ctx.mission.cruise_speed, bank_max=ctx.bank_limit_rad))
+
+
+def _grid_range(options: RulesOptions, airframe_kind: str, cruise: float) -> float:
+    return options.grid_range(airframe_kind, cruise)
+
+
+_BOTH = ("fixed_wing", "multirotor")
+PLANNERS: dict[str, PlannerType] = {
+    p.name: p
+    for p in (
+        PlannerType("follow_mission", _BOTH, NoOptions, _follow_mission),
+        PlannerType("geometric", ("multirotor",), dataclass_options(GeometricConfig), _geometric, geometric_records),
+        PlannerType("reachset", _BOTH, RulesOptions, _reachset, reachset_records, _grid_range),
+        PlannerType("mptp", ("fixed_wing",), dataclass_options(MptpConfig), _mptp, mptp_records),
+        PlannerType("pursuit", ("multirotor",), PursuitOptions, _pursuit),
     )
+}
 
 
-def reachset_grid_range(airframe_kind: str, cruise: float, options: dict) -> float:
-    """Range [m] of the reach-set avoidance grid flown at ``cruise`` [m/s]: layers x the movement
-    length of the active segment (a sensor that must see the grid needs at least this)."""
-    from avoidance.reachset.movement import KinState
-
-    sma = _reachset_automaton(airframe_kind, cruise, options)
-    length = sma.active(KinState(np.zeros(3), np.zeros(3), 0.0, cruise)).table.config.length
-    return float(_reachset_config(options).grid.scaled(length).d_range[1])
-
-
-def _rules_config(options: dict):
-    """The rules of the air of a reach-set planner: ``rules`` (enabled codes) + ``rules_<field>``."""
-    table = {k.removeprefix("rules_"): v for k, v in options.items() if k.startswith("rules_")}
+def planner_type(name: str) -> PlannerType:
     try:
-        return RulesConfig.from_options({"enabled": options["rules"], **table})
-    except (TypeError, ValueError) as exc:
-        raise PlannerConfigError(f"reachset planner: {exc}") from None
+        return PLANNERS[name]
+    except KeyError:
+        raise PlannerConfigError(f"unknown planner {name!r} (known: {', '.join(PLANNERS)})") from None
 
 
 def make_planner(
     kind: str,
     mission: Mission,
     airframe_kind: str = "multirotor",
-    options: dict | None = None,
-    bank_limit_rad: float = np.radians(20.0),
+    options: BaseModel | dict | None = None,
+    bank_limit_rad: float = float(np.radians(20.0)),
 ) -> Planner:
-    """The planner called ``kind`` for ``mission`` flown by an ``airframe_kind`` vehicle."""
-    options = dict(options or {})
-    check_planner(kind, airframe_kind, options)
-    if kind == "follow_mission":
-        return FollowMissionPlanner(mission)
-    if kind == "pursuit":
-        from avoidance.pursuit import PursuitPlanner
-
-        return PursuitPlanner(mission, options["target"])
-    if kind == "geometric":
-        from avoidance.geometric.planner import GeometricAvoider
-
-        start = mission.start if mission.start is not None else mission.waypoints[0]
-        return GeometricAvoider(
-            np.vstack([start, mission.waypoints]), mission.cruise_speed, _config(kind, options), first_label=-1
+    """The planner ``kind`` for ``mission`` flown by an ``airframe_kind`` vehicle; ``options`` is
+    the type's options model (a mapping is validated into it)."""
+    entry = planner_type(kind)
+    if airframe_kind not in entry.airframes:
+        raise PlannerConfigError(
+            f"{kind} planner does not fly a {airframe_kind} (it flies: {', '.join(entry.airframes)})"
         )
-    if kind == "reachset":
-        from avoidance.reachset.planner import ReachSetAvoider
-
-        sma = _reachset_automaton(airframe_kind, mission.cruise_speed, options, bank_limit_rad)
-        if "rules" not in options:
-            return ReachSetAvoider(mission, sma, _reachset_config(options))
-        from avoidance.rules.planner import RulesAvoider
-
-        return RulesAvoider(mission, sma, _rules_config(options), _reachset_config(options))
-    from guidance.mptp.planner import MptpPlanner
-
-    return MptpPlanner(mission, _config(kind, options, tas_mps=mission.cruise_speed, bank_max=bank_limit_rad))
+    if not isinstance(options, entry.options):
+        options = entry.options.model_validate(options or {})
+    return entry.build(options, BuildContext(mission, airframe_kind, bank_limit_rad))

@@ -12,14 +12,14 @@ import math
 import tomllib
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
 from shapely.geometry import Polygon
 
 from aircraft.registry import get_airframe
 from sim.geodesy import GeoPoint
-from sim.planner_registry import PlannerConfigError, check_planner, reachset_grid_range
+from sim.planner_registry import PLANNERS, PlannerType
 from sim.sensors.lidar import LidarConfig
 from sim.units import Angle, Speed, quantity
 
@@ -58,7 +58,7 @@ class Waypoint(_Strict):
     yaw: Angle | None = None  # multirotor heading at this waypoint (default: along the path)
 
 
-class Mission(_Strict):
+class MissionSpec(_Strict):
     """Waypoints flown in order at ``cruise_speed`` (true airspeed for fixed wing)."""
 
     cruise_speed: quantity("speed", 0.0, 120.0, lo_open=True)
@@ -84,18 +84,32 @@ class Initial(_Strict):
     on_ground: bool = False
 
 
-class PlannerConfig(_Strict):
-    """``type``: follow_mission (no avoidance), geometric (candidate paths, multirotor),
-    reachset (avoidance grid), mptp (weather, fixed wing), pursuit (flies at another vehicle, the
-    rules-of-the-air negative test). ``options``: fields of the planner's
-    own configuration, in its units (SI)."""
-
-    type: Literal["follow_mission", "geometric", "reachset", "mptp", "pursuit"] = "follow_mission"
+class _PlannerBase(_Strict):
     rate_hz: Annotated[float, Field(gt=0.0, le=100.0)] = 1.0
-    options: dict[str, float | int | str | bool | list | dict] = {}
 
 
-class Vehicle(_Strict):
+def _planner_model(entry: PlannerType) -> type[_PlannerBase]:
+    """``[vehicle.planner]`` of one planner type: ``type``, ``rate_hz`` [Hz] and ``options``,
+    the type's own options model (``sim.planner_registry``)."""
+    try:
+        entry.options.model_validate({})
+        options: object = Field(default_factory=entry.options)
+    except ValidationError:
+        options = ...  # the type has required options
+    return create_model(
+        f"{entry.name.title().replace('_', '')}Planner",
+        __base__=_PlannerBase,
+        type=(Literal[entry.name], entry.name),  # type: ignore[valid-type]
+        options=(entry.options, options),
+    )
+
+
+_PLANNER_MODELS = {name: _planner_model(entry) for name, entry in PLANNERS.items()}
+# ``type`` picks the model (follow_mission when not given); errors name the options' fields
+PlannerConfig = Annotated[Union[tuple(_PLANNER_MODELS.values())], Field(discriminator="type")]  # noqa: UP007
+
+
+class VehicleSpec(_Strict):
     name: Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$")]
     aircraft: str
     gains: Path | None = None
@@ -105,8 +119,16 @@ class Vehicle(_Strict):
     # 21,960-ray scan, so opt-in)
     lidar: LidarConfig | None = None
     initial: Initial
-    mission: Mission
-    planner: PlannerConfig = PlannerConfig()
+    mission: MissionSpec
+    planner: PlannerConfig = Field(default_factory=_PLANNER_MODELS["follow_mission"])
+
+    @model_validator(mode="before")
+    @classmethod
+    def _default_planner_type(cls, data: Any) -> Any:
+        planner = data.get("planner") if isinstance(data, dict) else None
+        if isinstance(planner, dict) and "type" not in planner:
+            data = {**data, "planner": {"type": "follow_mission", **planner}}
+        return data
 
     @field_validator("aircraft")
     @classmethod
@@ -118,14 +140,15 @@ class Vehicle(_Strict):
         return v
 
     @model_validator(mode="after")
-    def _fits_airframe(self) -> Vehicle:
+    def _fits_airframe(self) -> VehicleSpec:
         kind = get_airframe(self.aircraft).kind
-        try:
-            check_planner(self.planner.type, kind, self.planner.options)
-        except PlannerConfigError as exc:
-            raise ValueError(f"planner: {exc}") from None
-        if self.lidar is not None and self.planner.type == "reachset":
-            need = reachset_grid_range(kind, self.mission.cruise_speed, self.planner.options)
+        entry = PLANNERS[self.planner.type]
+        if kind not in entry.airframes:
+            raise ValueError(
+                f"planner: {entry.name} planner does not fly a {kind} (it flies: {', '.join(entry.airframes)})"
+            )
+        if self.lidar is not None and entry.sensing_range is not None:
+            need = entry.sensing_range(self.planner.options, kind, self.mission.cruise_speed)
             if self.lidar.max_range_m < need:
                 raise ValueError(
                     f"lidar.max_range_m: {self.lidar.max_range_m:g} m does not cover the reach-set grid "
@@ -201,7 +224,7 @@ class Obstacle(_Strict):
         return self
 
 
-class Geofence(_Strict):
+class GeofenceSpec(_Strict):
     """An area with an altitude band (MSL [m]) the vehicles must stay in (``keep_in``) or out of."""
 
     id: Annotated[str, Field(min_length=1)]
@@ -373,9 +396,9 @@ class Scenario(_Strict):
     weather: Weather | None = None
     object: list[TrafficObject] = []
     obstacle: list[Obstacle] = []
-    geofence: list[Geofence] = []
+    geofence: list[GeofenceSpec] = []
     fault: list[Fault] = []
-    vehicle: Annotated[list[Vehicle], Field(min_length=1)]
+    vehicle: Annotated[list[VehicleSpec], Field(min_length=1)]
 
     @field_validator("start_time")
     @classmethod
@@ -419,7 +442,9 @@ class Scenario(_Strict):
 
 def _field_path(loc: tuple) -> str:
     out = ""
-    for part in loc:
+    for prev, part in zip((None, *loc), loc, strict=False):
+        if prev == "planner" and part in PLANNERS:  # the planner type's tag in its union
+            continue
         if isinstance(part, int):
             out += f"[{part}]"
         else:
@@ -434,6 +459,9 @@ def _describe(err: dict) -> str:
         return f"{path}: unknown key"
     if kind == "missing":
         return f"{path}: missing required field"
+    if kind == "union_tag_invalid":
+        field, ctx = err["ctx"]["discriminator"].strip("'"), err["ctx"]
+        return f"{path}.{field}: unknown {field} {ctx['tag']!r} (known: {ctx['expected_tags']})"
     msg = err["msg"]
     for prefix in ("Value error, ", "Assertion failed, "):
         msg = msg.removeprefix(prefix)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+from typing import Any
 
 import numpy as np
 from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
@@ -24,8 +25,9 @@ from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from sim import log_schemas as S
 from sim.core.frames import euler_to_quat
 from sim.core.plan import Plan
+from sim.core.setpoints import FixedWingSetpoint, MultirotorSetpoint
 from sim.core.state import VehicleState
-from sim.geodesy import ned_to_geodetic
+from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.mcap_log import McapLog
 
 NED_FRAME = "ned"
@@ -100,6 +102,26 @@ def threats_dict(t: float, th) -> dict:
         "storms": [{"t": s.t, "cells": [list(c.exterior.coords) for c in s.cells]} for s in th.storms],
         "lidar_hits": int(th.lidar.hit.sum()) if th.lidar is not None else 0,
     }
+
+
+def _json_num(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def setpoint_record(sp: FixedWingSetpoint | MultirotorSetpoint, follower: Any, origin: GeoPoint) -> dict:
+    """The ``/<v>/ctrl/setpoint`` record of a setpoint with the follower's leg, cross-track [m]
+    and turning flag; NaN (not controlled) components are null."""
+    common = {"leg": follower.leg, "cross_track_m": follower.cross_track_m, "turning": follower.turning}
+    if isinstance(sp, MultirotorSetpoint):
+        d = float(sp.pos_ned[2])
+        return {
+            "pos_ned": [_json_num(x) for x in sp.pos_ned],
+            "vel_ned": [float(x) for x in sp.vel_ned],
+            "yaw_rad": _json_num(sp.yaw_rad),
+            "altitude_m": _json_num(origin.alt_m - d),
+            **common,
+        }
+    return {"roll_rad": sp.roll_rad, "altitude_m": sp.altitude_m, "tas_mps": sp.tas_mps, **common}
 
 
 def write_static_frames(log: McapLog) -> None:

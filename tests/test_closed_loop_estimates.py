@@ -7,7 +7,6 @@ import pytest
 
 from sim.estimator import PerfectEstimator
 from sim.replay.report import log_metrics
-from sim.vehicle import Vehicle
 
 pytestmark = pytest.mark.closed_loop
 
@@ -78,7 +77,9 @@ class _OffsetEstimator(PerfectEstimator):
 
 
 def test_controllers_and_planners_follow_the_estimate_not_the_truth(fly, hover, monkeypatch):
-    monkeypatch.setattr(Vehicle, "_make_estimator", lambda self, kind, seed: _OffsetEstimator(self.plant))
+    monkeypatch.setattr(
+        "sim.vehicle.make_estimator", lambda kind, plant, airframe, seed, origin: _OffsetEstimator(plant)
+    )
     log = fly(hover(20.0)).log
     truth = log.topic("/quad/truth/state")["pos_ned"]
     est = log.topic("/quad/est/state")["pos_ned"]

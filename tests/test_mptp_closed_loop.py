@@ -57,7 +57,7 @@ def test_an_opening_corridor_is_waited_for_in_closed_loop(fly):
     assert log_metrics(log)["vehicles"]["haps"]["storms"]["time_inside_s"] == 0.0
     assert all(m["status"] != "no_solution" for m in log.topic("/haps/plan").messages)
     wall, plug = np.array(scenario.weather.storm[0].points), scenario.weather.storm[2]
-    margin = scenario.vehicle[0].planner.options["safety_single_m"][0]
+    margin = scenario.vehicle[0].planner.options.safety_single_m[0]
     # the plug's margin leaves the walls' margin band (the corridor opens) at
     opens_s = (np.max(np.array(plug.points)[:, 0]) + margin - (wall[:, 0].min() - margin)) / abs(plug.drift_north)
     truth = log.topic("/haps/truth/state")

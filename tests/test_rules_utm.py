@@ -338,7 +338,7 @@ def test_moving_margin_follows_the_peer_in_time():
     [
         ('"head_on", "converging"', '"head_on", "converge"', "unknown rule(s) converge"),
         ("rules_settle = 10.0", "rules_settle = -1", "settle must be >= 0"),
-        ("rules_unit = 5.0", "rules_units = 5.0", "unknown option(s) rules_units"),
+        ("rules_unit = 5.0", "rules_units = 5.0", "planner.options.rules_units: unknown key"),
     ],
 )
 def test_bad_rules_options_are_one_line_scenario_errors(old, new, message, tmp_path):

@@ -81,7 +81,7 @@ CASES = [
         "fault_kind",
         {**GOOD, "fault": [{"vehicle": "haps", "kind": "lightning", "at": 10}]},
         None,
-        "fault[0]: Input tag 'lightning' found using 'kind' does not match any of the expected tags",
+        "fault[0].kind: unknown kind 'lightning' (known: 'gnss_loss', 'sensor_bias'",
     ),
     (
         "obstacle_fields",

@@ -1,7 +1,7 @@
 """The straight reference the geometric avoider leaves and rejoins (spec §1.2, G29).
 
 Input and output in the harness's local NED [m]; internally local ENU z-up [m] (the one
-conversion of this package, with ``sim.frames.ned_to_enu``). Along-track distance ``s`` [m] runs
+conversion of this package, with ``sim.core.frames.ned_to_enu``). Along-track distance ``s`` [m] runs
 from the first waypoint.
 """
 

@@ -1,7 +1,7 @@
 """Frames of the reach-set avoidance, and the one boundary to the project's NED frame.
 
 - Project frame: local-level NED from the scenario origin [m]; yaw from north, positive east [rad].
-- GCF (global, z-up, spec §0.1): ENU [m] from the same origin (``sim.frames.ned_to_enu``); heading
+- GCF (global, z-up, spec §0.1): ENU [m] from the same origin (``sim.core.frames.ned_to_enu``); heading
   ``psi`` from east, positive counter-clockwise (towards north) [rad]: ``psi = pi/2 - yaw_ned``.
 - LCF (local grid frame): origin at the grid's pose, X+ = heading (level, yaw only, A-12),
   Y+ = left, Z+ = up [m]. Polar: ``d = |p|``, ``theta = atan2(y, x)`` (left positive),

@@ -140,8 +140,16 @@ class MissionControl:
     def complete(self) -> bool:
         return self.goal >= len(self.waypoints)
 
-    def step(self, s_now: KinState, threats: Threats) -> Decision:
+    def goal_point(self, goal_override: np.ndarray | None = None) -> np.ndarray:
+        """Where the current goal is (ENU [m]): ``goal_override`` when given (the rules of the
+        air's overtake waypoint, flown in place of the mission's), else the mission waypoint."""
+        return self.waypoints[self.goal] if goal_override is None else goal_override
+
+    def step(self, s_now: KinState, threats: Threats, goal_override: np.ndarray | None = None) -> Decision:
+        """One decision frame from the state ``s_now``; ``goal_override`` (ENU [m]) replaces the
+        current goal waypoint for this frame (progress past it moves on to the mission's next)."""
         t0 = time.perf_counter()
+        override = goal_override
         seg_index = self.sma.active_index(s_now)
         ma = self.sma.automata[seg_index]
         length = ma.table.config.length
@@ -151,10 +159,11 @@ class MissionControl:
         while (
             self.advance_on_reach
             and not self.complete
-            and np.linalg.norm(s_now.pos - self.waypoints[self.goal]) <= radius
+            and np.linalg.norm(s_now.pos - self.goal_point(override)) <= radius
         ):
             events.append(f"waypoint_reached:{self.goal}")
             self.goal += 1
+            override = None
         pose_now = GridPose(s_now.pos, float(s_now.att[2]))
         if self.complete:
             self.buffer = []
@@ -180,7 +189,7 @@ class MissionControl:
         s_next = ma.apply(s_now, executing)
         pose = GridPose(s_next.pos, float(s_next.att[2]))
         plan = self.segment(seg_index)
-        goal_lcf = pose.to_lcf(self.waypoints[self.goal])
+        goal_lcf = pose.to_lcf(self.goal_point(override))
         # 4-5: threat collection and situation assessment with the current mode's reach set
         parts = plan.assessors[self.mode].assess(pose, s_next.t, threats)
         threat_events = situation_events(parts, self.cfg.fusion.threshold)
@@ -219,18 +228,19 @@ class MissionControl:
                 parts,
                 goal_lcf,
                 Steering(ma.table.turn_radii, radius),
-                self._goal_cost(pose, s_now, threats, length),
+                self._goal_cost(pose, s_now, threats, length, self.goal_point(override)),
             )
         d.reference = reference_trajectory(ma, s_now, executing, self.buffer)
         d.buffer = list(self.buffer)
         d.runtime_s = time.perf_counter() - t0
         return d
 
-    def _goal_cost(self, pose: GridPose, s_now: KinState, threats: Threats, length: float) -> GoalCost | None:
+    def _goal_cost(
+        self, pose: GridPose, s_now: KinState, threats: Threats, length: float, goal: np.ndarray
+    ) -> GoalCost | None:
         """Cost-to-go of LCF points to the goal around the keep-out geofences known now (D-17),
         raster L/2, built once per goal; None without such geofences (straight distance)."""
         if self._cost_to_go is None or self._cost_to_go[0] != self.goal:
-            goal = self.waypoints[self.goal]
             margin = self.cfg.constraints.safety_margin
             bodies = [
                 c.body.buffer(margin)

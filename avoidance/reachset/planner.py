@@ -90,9 +90,16 @@ class ReachSetAvoider:
         until the frame is due (:meth:`frame_due`)."""
         if not self.frame_due(t):
             return self._last
+        return self.decide(estimate, threats, t)
+
+    def decide(
+        self, estimate: VehicleState, threats: Threats, t: float, goal_override: np.ndarray | None = None
+    ) -> Plan:
+        """A decision frame now; ``goal_override`` (ENU [m]) is flown in place of the current goal
+        waypoint (the plan's labels still name the mission's own waypoints)."""
         ctl = self.control
         ctl.goal = max(ctl.goal, self.mission.next_index)  # progress marked by the plan follower
-        d = ctl.step(self.kin_state(estimate, t), threats)
+        d = ctl.step(self.kin_state(estimate, t), threats, goal_override)
         self.last_decision = d
         pos, times, labels = self._vertices(d, estimate, threats)
         vel = (

@@ -66,7 +66,6 @@ class RulesAvoider(ReachSetAvoider):
         self.emergency: set[str] = set()
         self.rules_record: dict | None = None
         self._ctx: RuleContext | None = None
-        self._mission_waypoints = self.control.waypoints
         self._deadlock_frames = 0
         self._unresolved: set = set()
         self._start: float | None = None
@@ -101,15 +100,9 @@ class RulesAvoider(ReachSetAvoider):
             threats, intruders=[tr for tr in threats.intruders if tr.id not in ctx.managed or tr.id in ctx.emergency]
         )
         ctl = self.control
-        self._mission_waypoints = ctl.waypoints
         goal = max(ctl.goal, self.mission.next_index)
-        if ctx.goal_override is not None and goal < len(ctl.waypoints):  # overtake: fly to the rule's waypoint
-            ctl.waypoints = ctl.waypoints.copy()
-            ctl.waypoints[goal] = ctx.goal_override
-        try:
-            plan = super().plan(estimate, sensed, t)
-        finally:
-            ctl.waypoints = self._mission_waypoints
+        override = ctx.goal_override if goal < len(ctl.waypoints) else None  # overtake: the rule's waypoint
+        plan = self.decide(estimate, sensed, t, override)
         d = self.last_decision
         ctx.decision = d
         self.engine.invoke(DecisionPoint.AFTER_AVOIDANCE_RUN, ctx)
@@ -130,15 +123,6 @@ class RulesAvoider(ReachSetAvoider):
         }
         self._ctx = None
         return plan
-
-    def _vertices(self, d: Decision, estimate: VehicleState, *rest):
-        """The plan's vertices labelled against the mission's own waypoints (never against an
-        overtake waypoint flown in their place)."""
-        flown, self.control.waypoints = self.control.waypoints, self._mission_waypoints
-        try:
-            return super()._vertices(d, estimate, *rest)
-        finally:
-            self.control.waypoints = flown
 
     def _restrict(self, d: Decision, run: GridRun) -> np.ndarray | None:
         """Decision point *trajectory restrictions* on the navigation run."""

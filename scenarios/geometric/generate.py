@@ -154,7 +154,7 @@ def s3(moving: bool):
     """Spec §7.6 S3 with the diagonal threats 1 m right of the spec's (``S3_DIAGONAL_SHIFT``):
     the spec's scene is left/right symmetric, so the side of the moving case's lateral path would
     be decided by rounding and, in the closed loop, by track noise (0.5 m was not enough there;
-    avoidance/geometric/scenarios.py, scenario3)."""
+    sim/testbeds/geometric_encounters.py, scenario3)."""
     return [(th.id, th.radius, tuple(th.p), tuple(th.v)) for th in scenario3(moving, S3_DIAGONAL_SHIFT).threats]
 
 

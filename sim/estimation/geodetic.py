@@ -1,6 +1,6 @@
 """Fast scalar local-level NED -> WGS84 geodetic conversion for estimator outputs.
 
-Same definition as :func:`sim.frames.ned_to_geodetic` (tangent-plane N, E through ECEF;
+Same definition as :func:`sim.geodesy.ned_to_geodetic` (tangent-plane N, E through ECEF;
 D = origin altitude - h, with the curvature drop), but in plain ``math`` with the origin's ECEF
 position and rotation precomputed and Bowring's closed-form inverse: about 3 us per call
 instead of ~0.4 ms through pymap3d, agreeing to millimetres within 100 km (tested).

@@ -65,7 +65,7 @@ def _threats(d: dict) -> Threats:
 def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> RerunReport:
     """Re-run ``vehicle``'s planner (``factory(mission)``; default: the scenario's own kind) on
     the log at ``path``."""
-    from sim.vehicle import mission_from_config  # the runner's own mission construction
+    from sim.vehicle_setup import mission_from_config  # the runner's own mission construction
 
     log = RunLog(path)
     scenario = read_attached_scenario(path)

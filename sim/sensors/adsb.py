@@ -21,7 +21,7 @@ from pydantic import Field
 from sim.core.state import VehicleState
 from sim.sensors.channel import Channel, ChannelConfig
 from sim.sensors.config import StrictConfig
-from sim.sensors.faults import FaultSchedule, SensorFault
+from sim.sensors.faults import SensorFault, SensorFaultSchedule
 from sim.sensors.measurements import AdsbReport
 
 _EPS = 1e-9
@@ -57,7 +57,7 @@ class AdsbReceiver:
     def __init__(self, cfg: AdsbConfig, rng: np.random.Generator):
         self.cfg = cfg
         self.rng = rng
-        self.faults = FaultSchedule(self.name, 6)
+        self.faults = SensorFaultSchedule(self.name, 6)
         self._links: dict[str, _Link] = {}
         self._pending: deque[tuple[float, AdsbReport]] = deque()
 

@@ -16,7 +16,7 @@ import numpy as np
 from pydantic import Field
 
 from sim.sensors.config import StrictConfig
-from sim.sensors.faults import FaultSchedule, SensorFault
+from sim.sensors.faults import SensorFault, SensorFaultSchedule
 from sim.sensors.truth import TruthSample
 
 M = TypeVar("M")
@@ -40,7 +40,7 @@ class SampledSensor(Generic[M]):
     def __init__(self, cfg: SensorConfig, rng: np.random.Generator):
         self.cfg = cfg
         self.rng = rng
-        self.faults = FaultSchedule(self.name, self.dim)
+        self.faults = SensorFaultSchedule(self.name, self.dim)
         self._period = 1.0 / cfg.rate_hz
         self._next_k = 0
         self._last_t: float | None = None

@@ -44,7 +44,7 @@ class SensorFault(StrictConfig):
         return self.t_start <= t < self.t_end
 
 
-class FaultSchedule:
+class SensorFaultSchedule:
     """The faults of one sensor with output dimension ``dim`` (``None``: any length)."""
 
     def __init__(self, sensor: str, dim: int | None):

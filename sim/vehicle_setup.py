@@ -1,0 +1,92 @@
+"""Building one vehicle's parts from its scenario entry: the mission in the NED frame, the JSBSim
+plant in its initial state (trimmed, in the scenario's wind), the estimator and the plan follower.
+Frames: local-level NED from the scenario origin [m]; altitudes MSL [m]."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aircraft.registry import Airframe
+from guidance.fixed_wing_follower import FixedWingPlanFollower
+from guidance.l1 import L1Guidance
+from guidance.multirotor_follower import MultirotorPlanFollower
+from sim import scenario as sc
+from sim.core.mission import Mission
+from sim.environment import apply_steady_wind, apply_turbulence
+from sim.estimation.sensor_estimator import SensorEstimator, SensorEstimatorConfig
+from sim.estimator import PerfectEstimator
+from sim.geodesy import GeoPoint, ned_to_geodetic
+from sim.jsbsim_plant import InitialConditions, JSBSimPlant
+
+
+def ned_of(north: float, east: float, altitude: float, origin: GeoPoint) -> np.ndarray:
+    """NED [m] of a scenario position (north/east offsets [m], altitude MSL [m])."""
+    return np.array([north, east, origin.alt_m - altitude])
+
+
+def mission_from_config(cfg: sc.VehicleSpec, origin: GeoPoint) -> Mission:
+    """The vehicle's mission in the local-level NED frame, starting at its initial position."""
+    m, ini = cfg.mission, cfg.initial
+    return Mission(
+        waypoints=np.array([ned_of(w.north, w.east, w.altitude, origin) for w in m.waypoints]),
+        cruise_speed=m.cruise_speed,
+        acceptance_radius=m.acceptance_radius,
+        start=ned_of(ini.north, ini.east, ini.altitude, origin),
+        hold_s={k: w.hold for k, w in enumerate(m.waypoints) if w.hold > 0},
+        land=m.land,
+    )
+
+
+def build_plant(cfg: sc.VehicleSpec, af: Airframe, origin: GeoPoint, wind: sc.Wind, seed: int) -> JSBSimPlant:
+    """The JSBSim plant at the scenario's initial state: steady wind, initial conditions, trim
+    (fixed wing by default) and turbulence seeded with the vehicle's ``seed``."""
+    plant = JSBSimPlant(af.jsbsim_model, 1.0 / af.plant_hz, origin, af.folder)
+    apply_steady_wind(plant, wind)
+    ini = cfg.initial
+    lat, lon, alt = ned_to_geodetic(ned_of(ini.north, ini.east, ini.altitude, origin), origin)
+    plant.initialise(
+        InitialConditions(
+            position=GeoPoint(float(lat), float(lon), float(alt)),
+            tas_mps=ini.airspeed,
+            heading_rad=ini.heading,
+            roll_rad=ini.roll,
+            pitch_rad=ini.pitch,
+            on_ground=ini.on_ground,
+            terrain_alt_m=origin.alt_m,
+        )
+    )
+    if ini.trim if ini.trim is not None else af.kind == "fixed_wing":
+        plant.trim()
+    apply_turbulence(plant, wind, seed)
+    return plant
+
+
+def make_estimator(kind: str, plant: JSBSimPlant, af: Airframe, seed: int, origin: GeoPoint):
+    """``ekf``: sensor models + INS/GNSS EKF (the default: the loop closes on estimates);
+    ``perfect``: ideal sensors (controller characterisation against the model)."""
+    if kind == "perfect":
+        return PerfectEstimator(plant)
+    cfg = SensorEstimatorConfig.for_kind(af.kind)
+    cfg.check_rates(af.plant_hz)
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))  # not the turbulence stream
+    return SensorEstimator(plant, cfg, rng, origin, plant.truth())
+
+
+def make_follower(cfg: sc.VehicleSpec, af: Airframe, controller, mission: Mission, origin: GeoPoint):
+    """The plan follower of the airframe kind: L1 + altitude/speed demands (fixed wing) or
+    position/velocity setpoints along the plan (multirotor)."""
+    m = cfg.mission
+    if af.kind == "fixed_wing":
+        return FixedWingPlanFollower(
+            L1Guidance.for_airframe(controller), m.cruise_speed, m.acceptance_radius, origin.alt_m
+        )
+    lim = controller.gains.limits
+    return MultirotorPlanFollower(
+        m.cruise_speed,
+        lim.max_climb,
+        lim.max_descent,
+        m.acceptance_radius,
+        mission.hold_s,
+        yaw_rad={k: w.yaw for k, w in enumerate(m.waypoints) if w.yaw is not None},
+        step=m.guidance == "step",
+    )
