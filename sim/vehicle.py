@@ -13,6 +13,7 @@ import time
 
 import numpy as np
 
+from aircraft.quadrotor.controller import MultirotorController
 from aircraft.registry import get_airframe
 from sim import log_schemas as S
 from sim import scenario as sc
@@ -57,7 +58,7 @@ class Vehicle:
             self.controller.reset(self.estimate)
             self._setpoint_schema = S.FIXED_WING_SETPOINT
         else:
-            self.controller.reset(self.estimate, landed=cfg.initial.on_ground)
+            self._multirotor().reset(self.estimate, landed=cfg.initial.on_ground)
             self._setpoint_schema = S.MULTIROTOR_SETPOINT
         self.recorder = TraceRecorder(cfg.name, af.kind, len(self.mission.waypoints))
         self.threats = Threats()
@@ -73,7 +74,7 @@ class Vehicle:
             self.mission,
             self.airframe.kind,
             self.cfg.planner.options,
-            getattr(self.controller.gains, "roll_limit_rad", np.radians(20.0)),
+            float(getattr(self.controller.gains, "roll_limit_rad", math.radians(20.0))),
         )
 
     def inject_sensor_fault(self, fault) -> None:
@@ -129,6 +130,12 @@ class Vehicle:
             entry.records(self.planner_records, self.planner, plan, t)
         self.recorder.latency(latency)
 
+    def _multirotor(self) -> MultirotorController:
+        """The controller of a multirotor (landing and take-off state, its limits)."""
+        if not isinstance(self.controller, MultirotorController):
+            raise TypeError(f"{self.name}: {type(self.controller).__name__} is not a multirotor controller")
+        return self.controller
+
     def event(self, t: float, text: str) -> None:
         """A ``/log`` event of this vehicle at sim time ``t`` [s]."""
         self.log.event(t, f"{self.name}: {text}", name=self.name)
@@ -142,10 +149,10 @@ class Vehicle:
                 self.recorder.reached(t)
         if m.land and m.waypoints_done:  # descend, and stay down once landed
             last = m.waypoints[-1]
-            descent = self.controller.gains.limits.max_descent
+            descent = self._multirotor().gains.limits.max_descent
             sp = MultirotorSetpoint(np.array([last[0], last[1], np.nan]), np.array([0.0, 0.0, descent]), float("nan"))
         cmds = self.controller.update(self.estimate, sp, self._control_dt)
-        if m.land and m.waypoints_done and m.landed_t is None and self.controller.landed:
+        if m.land and m.waypoints_done and m.landed_t is None and self._multirotor().landed:
             m.landed_t = t
             self.event(t, "landed")
         if m.check_complete(t):
