@@ -8,12 +8,14 @@ Measured in this run on this machine (one core, single-threaded numpy/GEOS):
   k x the vertices), with and without line smoothing; the ratio is against k = 1 in this run;
 - heuristics: first-iteration explored / trajectory states (EXST, TRST), length and runtime of
   Dijkstra, EDH and SSPH with one-way and two-way turning (the thesis's Tables 6.2-6.16), with
-  the expansion cap raised to ``HEURISTICS_CAP`` so that each search can finish;
+  the expansion cap raised to ``mptp_tables.HEURISTICS_CAP`` so that each search can finish;
 - closed loop (``--closed-loop SCALE``): the thesis's scenarios flown by the JSBSim HAPS on its
   EKF (guidance/mptp/haps_scenarios.py; SCALE "matched" or a space scale, 1 = full size):
-  arrival, flown length, closest true storm, worst replan (wall clock, from the log).
+  arrival, flown length, closest true storm, worst replan (wall clock, from the log);
+- wind (``--wind N,E``): the per-cycle replans calm and in a steady wind (the planner in the
+  air-mass frame), worst replan and its ratio to calm in the same run.
 
-    python benchmarks/bench_mptp.py [--quick] [--closed-loop matched|1]
+    python benchmarks/bench_mptp.py [--quick] [--closed-loop matched|1] [--wind N,E]
 
 Writes benchmarks/results/mptp.json and prints Markdown tables.
 """
@@ -34,20 +36,23 @@ sys.path.insert(0, str(ROOT))
 
 from guidance.mptp.search import plan_trajectory  # noqa: E402
 from guidance.mptp.timeline import ObstacleTimeline  # noqa: E402
+from guidance.mptp.wind import WindForecast  # noqa: E402
 from sim.core.threats import StormSnapshot  # noqa: E402
 from sim.testbeds import mptp_thesis as S  # noqa: E402
 from sim.testbeds.mptp_openloop import run_open_loop  # noqa: E402
+from sim.testbeds.mptp_tables import closed_loop_row, heuristics_row  # noqa: E402
 
-HEURISTICS_CAP = 2000  # expansions for the heuristics comparison (the planner's default is 120)
 
-
-def per_cycle(make) -> dict:
+def per_cycle(make, wind: np.ndarray | None = None) -> dict:
+    """Open-loop replans of one thesis scenario; with ``wind`` (north, east) [m/s] the aircraft
+    flies in that true wind and the planner is given it as its forecast (air-mass frame)."""
     sc = make()
-    run = run_open_loop(sc)
+    forecast = None if wind is None else WindForecast.steady(*wind)
+    run = run_open_loop(sc, wind_true=wind, wind_forecast=forecast)
     w = np.array([p.diagnostics.get("weather_s", 0.0) for p in run.plans])
     s = np.array([p.diagnostics.get("runtime_s", 0.0) for p in run.plans])
     return {
-        "scenario": sc.name,
+        "scenario": sc.name + ("" if wind is None else f" in wind {wind[0]:g}/{wind[1]:g} m/s"),
         "cycles": len(run.plans),
         "weather_mean_s": w.mean(),
         "search_mean_s": s.mean(),
@@ -58,49 +63,6 @@ def per_cycle(make) -> dict:
         "partial": sum(p.status.value != "ok" for p in run.plans),
         "tl_km": [p.diagnostics.get("path_length_m", float("nan")) / 1000 for p in run.plans],
     }
-
-
-def closed_loop(make, scale: str) -> dict:
-    """One thesis scenario flown by the JSBSim HAPS; numbers read from the MCAP log."""
-    import tempfile
-
-    import tomli_w
-
-    from sim.replay.report import log_metrics
-    from sim.replay.runlog import RunLog
-    from sim.runner import run_scenario
-    from sim.scenario import parse_scenario
-    from sim.testbeds.mptp_haps import matched_scale, scenario_data, time_scale
-
-    sc = make()
-    s = matched_scale(sc) if scale == "matched" else float(scale)
-    data = scenario_data(sc, s)
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "run.mcap"
-        result = run_scenario(parse_scenario(data, data["name"]), path, scenario_text=tomli_w.dumps(data))
-        log = RunLog(path)
-        haps = log_metrics(log)["vehicles"]["haps"]
-        pos = log.topic("/haps/truth/state")["pos_ned"]
-        plans = log.topic("/haps/plan").messages
-        runtime = [
-            m["diagnostics"].get("runtime_s", 0.0) + m["diagnostics"].get("weather_s", 0.0)
-            for m in plans
-            if "runtime_s" in m["diagnostics"]
-        ]
-        return {
-            "scenario": sc.name,
-            "space_scale": s,
-            "time_scale": time_scale(sc, s),
-            "status": result.status,
-            "arrival_min": haps["mission"]["time_s"] / 60 if haps["mission"]["time_s"] else float("nan"),
-            "flown_km": float(np.sum(np.linalg.norm(np.diff(pos[:, :2], axis=0), axis=1))) / 1000,
-            "storm_min_m": haps["storms"]["min_distance_m"],
-            "inside_s": haps["storms"]["time_inside_s"],
-            "degraded": sorted({m["status"] for m in plans} - {"ok"}),
-            "replans": len({m["t"] for m in plans}),
-            "replan_max_s": max(runtime),
-            "wall_s": result.wall_time_s,
-        }
 
 
 def densified(snaps: list[StormSnapshot], k: int) -> list[StormSnapshot]:
@@ -155,26 +117,12 @@ def growth(multipliers, repeat: int) -> list[dict]:
 
 
 def heuristics() -> list[dict]:
-    rows = []
-    for make in (S.scenario_1, S.scenario_2):
-        for turning in ("right", "both"):
-            for h in ("dijkstra", "edh", "ssph"):
-                sc = make(h, turning)
-                cfg = sc.cfg.with_(max_expansions=HEURISTICS_CAP)
-                tl = ObstacleTimeline(sc.storms.nowcast(0.0), cfg, 2 * cfg.horizon_s)
-                tr = plan_trajectory(tl, sc.start, 0.0, sc.course, sc.goal, cfg)
-                rows.append(
-                    {
-                        "scenario": sc.name,
-                        "turning": turning,
-                        "heuristic": h,
-                        "status": tr.status,
-                        "exst": tr.expanded,
-                        "trst": max(len(tr.positions) - 1, 0),
-                        "tl_km": tr.length_m / 1000 if tr.status == "ok" else float("nan"),
-                        "search_s": tr.runtime_s,
-                    }
-                )
+    rows = [
+        heuristics_row(make, h, turning)
+        for make in (S.scenario_1, S.scenario_2)
+        for turning in ("right", "both")
+        for h in ("dijkstra", "edh", "ssph")
+    ]
     return rows
 
 
@@ -182,12 +130,18 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="fewer repeats and multipliers")
     ap.add_argument("--closed-loop", metavar="SCALE", help="only the closed-loop HAPS runs: 'matched' or a space scale")
+    ap.add_argument(
+        "--wind",
+        metavar="N,E",
+        help="only the per-cycle replans, calm and in this true (and forecast) wind [m/s], with the ratio of the "
+        "worst replan in wind to calm in the same run",
+    )
     args = ap.parse_args()
     out = ROOT / "benchmarks" / "results"
     out.mkdir(parents=True, exist_ok=True)
     thesis = (S.scenario_1, S.scenario_2, S.holding_scenario, S.moving_goal_scenario)
     if args.closed_loop:
-        rows = [closed_loop(make, args.closed_loop) for make in thesis]
+        rows = [closed_loop_row(make, args.closed_loop) for make in thesis]
         (out / f"mptp_closed_loop_{args.closed_loop}.json").write_text(json.dumps(rows, indent=1, default=float))
         print(
             "| scenario | space x | time x | status | arrival [min] | flown [km] | closest storm [m] | inside [s] "
@@ -199,6 +153,21 @@ def main() -> None:
                 f"| {r['scenario']} | {r['space_scale']:.3g} | {r['time_scale']:.3g} | {r['status']} | "
                 f"{r['arrival_min']:.1f} | {r['flown_km']:.1f} | {r['storm_min_m']:.0f} | {r['inside_s']:.0f} | "
                 f"{', '.join(r['degraded']) or '-'} | {r['replans']} | {r['replan_max_s']:.2f} | {r['wall_s']:.0f} |"
+            )
+        return
+    if args.wind:
+        wind = np.array([float(x) for x in args.wind.split(",")])
+        print(
+            "| scenario | cycles | worst replan calm [s] | worst replan in wind [s] | ratio "
+            "| arrival calm / wind [min] |"
+        )
+        print("|---|---|---|---|---|---|")
+        for make in thesis:
+            calm, windy = per_cycle(make), per_cycle(make, wind)
+            print(
+                f"| {calm['scenario']} | {calm['cycles']} / {windy['cycles']} | {calm['total_max_s']:.2f} | "
+                f"{windy['total_max_s']:.2f} | {windy['total_max_s'] / calm['total_max_s']:.2f} | "
+                f"{calm['arrival_min']:.1f} / {windy['arrival_min']:.1f} |"
             )
         return
     mult = (1, 3) if args.quick else (1, 2, 3, 4, 6)

@@ -114,7 +114,8 @@ def read_attachment(path: str | Path, name: str) -> bytes | None:
 
 def read_attached_scenario(path: str | Path):
     """The validated scenario attached to a run log (``scenario.toml``), or None if there is
-    none; ScenarioError if it no longer validates."""
+    none; ScenarioError if it no longer validates. Nowcast files are taken from where the run
+    read them (metadata ``weather.nowcast_files``, absolute paths)."""
     import tomllib
 
     from sim.scenario import parse_scenario
@@ -122,7 +123,11 @@ def read_attached_scenario(path: str | Path):
     raw = read_attachment(path, "scenario.toml")
     if raw is None:
         return None
-    return parse_scenario(tomllib.loads(raw.decode()), f"{path}:scenario.toml")
+    data = tomllib.loads(raw.decode())
+    files = read_info(path).metadata.get("weather", {}).get("nowcast_files")
+    if files is not None and isinstance(data.get("weather"), dict):
+        data["weather"]["nowcast_files"] = json.loads(files)
+    return parse_scenario(data, f"{path}:scenario.toml")
 
 
 def iter_messages(path: str | Path, topics: list[str] | None = None) -> Iterator[tuple[str, float, Any]]:

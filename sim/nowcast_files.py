@@ -48,6 +48,20 @@ def load_nowcast(path: str | Path, origin: GeoPoint | None = None) -> list[Storm
     return parse_nowcast(doc, origin, str(path))
 
 
+def load_series(paths: list[str] | list[Path], origin: GeoPoint | None = None) -> list[list[StormSnapshot]]:
+    """A series of nowcast files, one per issue, in the given order: issue times (first steps)
+    must increase and no file may be empty."""
+    series = [load_nowcast(p, origin) for p in paths]
+    for p, nc in zip(paths, series, strict=True):
+        if not nc:
+            raise NowcastError(f"{p}: no features")
+    issued = [nc[0].t for nc in series]
+    bad = [i for i in range(1, len(issued)) if issued[i] <= issued[i - 1]]
+    if bad:
+        raise NowcastError(f"{paths[bad[0]]}: issued at t={issued[bad[0]]} s, not after the previous file")
+    return series
+
+
 def parse_nowcast(doc: dict[str, Any], origin: GeoPoint | None = None, where: str = "nowcast") -> list[StormSnapshot]:
     if not isinstance(doc, dict) or doc.get("type") != "FeatureCollection":
         raise NowcastError(f"{where}: type: expected 'FeatureCollection'")

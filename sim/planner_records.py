@@ -6,7 +6,8 @@ names its record writer in ``sim.planner_registry``):
 - reach-set: ``/<v>/plan/decision`` (mode, events, cell classes...) and ``/<v>/plan/grid``
   (foxglove.SceneUpdate: the avoidance grid and chosen path, 3D panel); with rules of the air,
   ``/<v>/plan/rules`` (collision cases, roundabouts, every rule decision of the frame);
-- MPTP: ``/<v>/plan/map`` (foxglove.GeoJSON: plan, margin polygons, nowcast storms, Map panel).
+- MPTP: ``/<v>/plan/map`` (foxglove.GeoJSON: plan, the margin region now (ground frame) and the
+  last nowcast's cells at its issue time, Map panel).
 """
 
 from __future__ import annotations
@@ -58,6 +59,7 @@ def reachset_records(sink: RecordSink, planner: Any, plan: Plan, t: float) -> No
 def mptp_records(sink: RecordSink, planner: Any, plan: Plan, t: float) -> None:
     from sim.plan_geojson import plan_geojson
 
-    timeline = getattr(planner, "timeline", None)
-    margins = timeline.shape_at(t) if timeline is not None else None  # margin-grown storms now
-    sink.log.write_proto(f"{sink.prefix}/map", t, GeoJSON(geojson=plan_geojson(plan, sink.origin, margins)))
+    timeline = planner.timeline  # the last nowcast as the planner sees it
+    issued = timeline.snapshots[0] if timeline is not None else None  # its cells at issue time
+    doc = plan_geojson(plan, sink.origin, planner.margins_at(t), issued)  # margins on the ground, now
+    sink.log.write_proto(f"{sink.prefix}/map", t, GeoJSON(geojson=doc))

@@ -33,11 +33,13 @@ from sim.planner_records import RecordSink, geometric_records, mptp_records, rea
 @dataclass(frozen=True, slots=True)
 class BuildContext:
     """What a planner is built for: the mission (NED [m]), the airframe kind
-    (``fixed_wing``/``multirotor``) and its bank limit [rad]."""
+    (``fixed_wing``/``multirotor``), its bank limit [rad] and the scenario's steady wind
+    (north, east) [m/s] (the MPTP's forecast)."""
 
     mission: Mission
     airframe_kind: str
     bank_limit_rad: float = float(np.radians(20.0))
+    wind_ne_mps: tuple[float, float] = (0.0, 0.0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -144,9 +146,14 @@ def _reachset(options: RulesOptions, ctx: BuildContext) -> Planner:
 
 
 def _mptp(options: DataclassOptions, ctx: BuildContext) -> Planner:
+    """The MPTP; its wind forecast is the scenario's steady wind plus the option
+    ``wind_error_ne_mps``, or none (still air) with ``wind_forecast = "none"``."""
     from guidance.mptp.planner import MptpPlanner
+    from guidance.mptp.wind import WindForecast
 
-    return MptpPlanner(ctx.mission, options.config(tas_mps=ctx.mission.cruise_speed, bank_max=ctx.bank_limit_rad))
+    cfg = options.config(tas_mps=ctx.mission.cruise_speed, bank_max=ctx.bank_limit_rad)
+    forecast = np.add(ctx.wind_ne_mps, cfg.wind_error_ne_mps)
+    return MptpPlanner(ctx.mission, cfg, wind=None if cfg.wind_forecast == "none" else WindForecast.steady(*forecast))
 
 
 def _grid_range(options: RulesOptions, airframe_kind: str, cruise: float) -> float:
@@ -179,9 +186,11 @@ def make_planner(
     airframe_kind: str = "multirotor",
     options: BaseModel | dict | None = None,
     bank_limit_rad: float = float(np.radians(20.0)),
+    wind_ne_mps: tuple[float, float] = (0.0, 0.0),
 ) -> Planner:
     """The planner ``kind`` for ``mission`` flown by an ``airframe_kind`` vehicle; ``options`` is
-    the type's options model (a mapping is validated into it)."""
+    the type's options model (a mapping is validated into it); ``wind_ne_mps`` the scenario's
+    steady wind (north, east) [m/s]."""
     entry = planner_type(kind)
     if airframe_kind not in entry.airframes:
         raise PlannerConfigError(
@@ -189,4 +198,4 @@ def make_planner(
         )
     if not isinstance(options, entry.options):
         options = entry.options.model_validate(options or {})
-    return entry.build(options, BuildContext(mission, airframe_kind, bank_limit_rad))
+    return entry.build(options, BuildContext(mission, airframe_kind, bank_limit_rad, wind_ne_mps))

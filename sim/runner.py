@@ -100,6 +100,8 @@ def run_scenario(
         )
         if scenario_text:
             log.attach("scenario.toml", scenario_text.encode(), "application/toml")
+        if scenario.weather is not None and scenario.weather.nowcast_files:  # where they were read
+            log.metadata("weather", {"nowcast_files": json.dumps(scenario.weather.nowcast_files)})
         write_static_frames(log)
         world = World(scenario, log)
         sched = LockstepScheduler(world.base_hz)

@@ -14,7 +14,16 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Final, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    create_model,
+    field_validator,
+    model_validator,
+)
 from pydantic_core import ErrorDetails
 from shapely.geometry import Polygon
 
@@ -309,11 +318,15 @@ class Weather(_Strict):
     """Synthetic convective weather (seeded from the scenario): ``cells`` storm cells over a
     box of ``size`` x ``size`` [m] south-west-cornered at the origin, drifting at
     (``drift_north``, ``drift_east``) [m/s] +- ``drift_spread``, mean radius ``radius``; a
-    nowcast of the next ``horizon`` in ``step`` slices is issued every ``nowcast_period`` (what the
-    vehicles see). ``seed``: the field's own seed (default: drawn from the scenario seed);
+    nowcast of the next ``horizon`` in ``step`` slices is issued every ``nowcast_period`` (what
+    the vehicles see). ``seed``: the field's own seed (default: drawn from the scenario seed);
     ``pop_up``: cells may be born after the start (unforeseen by earlier nowcasts); false = every
-    cell is alive at the start.
-    ``storm``: scripted cells added to the generated ones (``[[weather.storm]]``)."""
+    cell is alive at the start. ``storm``: scripted cells added to the generated ones
+    (``[[weather.storm]]``). ``nowcast_files``: nowcast GeoJSON files (format in docs/mptp.md;
+    paths relative to the scenario file), one per issue, instead of the synthetic and scripted
+    cells: each is issued to the vehicles at its first step's time, and the truth (log and
+    metrics) is the latest issued nowcast's first step (its analysis) moved by its cell
+    velocities."""
 
     cells: Annotated[int, Field(ge=0, le=500)] = 12
     size: Annotated[float, quantity("length", 1000.0, 2e6)] = 250_000.0
@@ -330,6 +343,26 @@ class Weather(_Strict):
     seed: Annotated[int, Field(ge=0)] | None = None
     pop_up: bool = True
     storm: list[StormCell] = []
+    nowcast_files: list[str] = []
+
+    @field_validator("nowcast_files")
+    @classmethod
+    def _resolved(cls, v: list[str], info: ValidationInfo) -> list[str]:
+        base = Path((info.context or {}).get("base_dir", "."))
+        paths = [base / p for p in v]
+        missing = [str(p) for p in paths if not p.is_file()]
+        if missing:
+            raise ValueError(f"no such file: {missing[0]}")
+        return [str(p.resolve()) for p in paths]
+
+    @model_validator(mode="after")
+    def _one_source(self) -> Weather:
+        mixed = self.nowcast_files and ({"cells", "storm", "centres"} & self.model_fields_set)
+        if mixed:
+            raise ValueError(
+                f"nowcast_files replace the synthetic and scripted cells: remove {', '.join(sorted(mixed))}"
+            )
+        return self
 
 
 class _Fault(_Strict):
@@ -434,6 +467,13 @@ class Scenario(_Strict):
         dup = sorted({i for i in ids if ids.count(i) > 1})
         if dup:
             raise ValueError(f"obstacle/geofence ids must be unique, repeated: {', '.join(dup)}")
+        if self.weather is not None and self.weather.nowcast_files:
+            from sim.nowcast_files import NowcastError, load_series
+
+            try:
+                load_series(self.weather.nowcast_files, self.origin_point)
+            except NowcastError as exc:
+                raise ValueError(f"weather.nowcast_files: {exc}") from None
         return self
 
     @property
@@ -479,9 +519,11 @@ def _describe(err: ErrorDetails) -> str:
 
 
 def parse_scenario(data: dict, source: str = "<scenario>") -> Scenario:
-    """Validate a scenario mapping; ScenarioError names ``source`` and the first bad field."""
+    """Validate a scenario mapping; ScenarioError names ``source`` and the first bad field.
+    Files the scenario names are relative to ``source``'s folder (when it is a file)."""
+    base = Path(source).parent if Path(source).is_file() else Path.cwd()
     try:
-        return Scenario.model_validate(data)
+        return Scenario.model_validate(data, context={"base_dir": str(base)})
     except ValidationError as exc:
         errors = exc.errors(include_url=False)
         more = f" (+{len(errors) - 1} more)" if len(errors) > 1 else ""

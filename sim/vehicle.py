@@ -47,6 +47,7 @@ class Vehicle:
         self.logw = VehicleLogWriter(log, cfg.name)
         self.planner_records = RecordSink(log, f"/{cfg.name}/plan", origin)
         self.plant = build_plant(cfg, af, origin, wind, seed)
+        self.wind_ne = (wind.north, wind.east)  # the scenario's steady wind, the planners' forecast [m/s]
         self.mission = mission_from_config(cfg, origin)
         self.estimator = make_estimator(cfg.estimator, self.plant, af, seed, origin)
         self.controller = af.make_controller(cfg.gains)
@@ -75,6 +76,7 @@ class Vehicle:
             self.airframe.kind,
             self.cfg.planner.options,
             float(getattr(self.controller.gains, "roll_limit_rad", math.radians(20.0))),
+            self.wind_ne,
         )
 
     def inject_sensor_fault(self, fault) -> None:

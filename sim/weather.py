@@ -4,7 +4,8 @@ The field is MPTP's seeded storm generator (``sim.storm_synthetic.StormField``: 
 drift, grow, decay, split and merge) in the local (north, east) plane [m], plus the scenario's
 scripted cells (fixed polygons drifting at constant velocity). Every
 ``nowcast_period`` a nowcast of the next ``horizon`` is issued: what planners see
-(``Threats.storms``); the truth is for logging and metrics only.
+(``Threats.storms``); the truth is for logging and metrics only. Or a series of nowcast files
+(:class:`NowcastSeries`), each issued at its first step's time.
 """
 
 from __future__ import annotations
@@ -18,6 +19,8 @@ from shapely.geometry import Polygon
 
 from sim import scenario as sc
 from sim.core.threats import StormSnapshot
+from sim.geodesy import GeoPoint
+from sim.nowcast_files import load_series
 from sim.storm_synthetic import StormField
 
 
@@ -34,9 +37,35 @@ class ScriptedStormField(StormField):
         return shapes, np.vstack([vel.reshape(-1, 2)] + [v for _, v in self.scripted]).reshape(-1, 2)
 
 
+class NowcastSeries:
+    """Weather from a series of nowcast files (``[weather] nowcast_files``): the nowcast issued at
+    t is the latest file whose first step is at or before t; the truth is that nowcast's first
+    step (the analysis) with its cells moved by their velocities since then."""
+
+    def __init__(self, series: list[list[StormSnapshot]]):
+        self.series = series
+        self.issued = np.array([nc[0].t for nc in series])
+
+    def latest(self, t: float) -> int:
+        """Index of the nowcast in force at ``t`` [s] (the first one before its issue)."""
+        return max(int(np.searchsorted(self.issued, t + 1e-9, side="right")) - 1, 0)
+
+    def truth(self, t: float) -> StormSnapshot:
+        a = self.series[self.latest(t)][0]
+        v = np.zeros((len(a.cells), 2)) if a.velocities_ne is None else np.asarray(a.velocities_ne, float)
+        dt = max(t - a.t, 0.0)
+        return StormSnapshot(
+            t,
+            tuple(shapely.affinity.translate(c, *(vk * dt)) for c, vk in zip(a.cells, v, strict=True)),
+            a.velocities_ne,
+        )
+
+
 class WeatherService:
-    def __init__(self, cfg: sc.Weather, seed: int):
+    def __init__(self, cfg: sc.Weather, seed: int, origin: GeoPoint | None = None):
+        """``origin``: the scenario's, for nowcast files in WGS84."""
         self.cfg = cfg
+        self.files = NowcastSeries(load_series(cfg.nowcast_files, origin)) if cfg.nowcast_files else None
         self.field = ScriptedStormField(
             scripted=tuple((Polygon(c.points), np.array([c.drift_north, c.drift_east])) for c in cfg.storm),
             seed=seed if cfg.seed is None else cfg.seed,
@@ -55,6 +84,12 @@ class WeatherService:
 
     def update(self, t: float) -> bool:
         """Issue a nowcast if one is due at ``t`` [s]; True when a new one was issued."""
+        if self.files is not None:
+            k = self.files.latest(t)
+            if self.issued_t == self.files.issued[k]:
+                return False
+            self.nowcast, self.issued_t = self.files.series[k], float(self.files.issued[k])
+            return True
         if self.issued_t is not None and t < self.issued_t + self.cfg.nowcast_period - 1e-9:
             return False
         self.nowcast = self.field.nowcast(t, self.cfg.horizon, self.cfg.step)
@@ -62,7 +97,7 @@ class WeatherService:
         return True
 
     def truth(self, t: float) -> StormSnapshot:
-        return self.field.truth(t)
+        return self.files.truth(t) if self.files is not None else self.field.truth(t)
 
 
 def storms_geojson(snapshot: StormSnapshot, to_lonlat) -> str:

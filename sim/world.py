@@ -66,7 +66,9 @@ class World:
             else {}
         )
         self.weather = (
-            WeatherService(scenario.weather, weather_seed(weather_ss)) if scenario.weather is not None else None
+            WeatherService(scenario.weather, weather_seed(weather_ss), scenario.origin_point)
+            if scenario.weather is not None
+            else None
         )
         self.faults = FaultSchedule(scenario.fault, {v.name: v for v in self.vehicles}, log)
         self.lidars = {

@@ -71,9 +71,9 @@ def test_an_opening_corridor_is_waited_for_in_closed_loop(fly):
     "options, message",
     [
         ({"goal_track": [[0, 1, 2], [0, 3, 4]]}, "goal_track: expected rows [t, north, east]"),
-        ({"goal_track": "x"}, "goal_track: expected rows [t, north, east]"),
+        ({"goal_track": "x"}, "planner.options.goal_track: Input should be a valid tuple"),
         ({"mission_area": [[0, 0], [1, 1]]}, "mission_area: expected >= 3 vertices"),
-        ({"heuristic": "astar"}, "unknown heuristic 'astar'"),
+        ({"heuristic": "astar"}, "planner.options.heuristic: Input should be 'dijkstra', 'edh' or 'ssph'"),
     ],
 )
 def test_bad_mptp_options_are_one_line_scenario_errors(scenario_data, options, message):

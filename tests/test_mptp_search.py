@@ -247,7 +247,12 @@ def test_no_leg_from_a_boundary_vertex_into_the_obstacle():
     tl = ObstacleTimeline([StormSnapshot(0.0, (storm,), np.zeros((1, 2)))], cfg, 7200.0)
     goal = GoalTrack.fixed([30_000.0, 5_000.0])
     fs = free_space(
-        tl, np.zeros(2), 0.0, default_workspace(np.zeros(2), goal.at(0.0), cfg), cfg.tas_mps, cfg.ring_segments
+        tl,
+        np.zeros(2),
+        0.0,
+        default_workspace(np.vstack([np.zeros(2), goal.at(0.0)]), cfg),
+        cfg.tas_mps,
+        cfg.ring_segments,
     )
     corner = fs.boundary.verts[np.argmin(np.linalg.norm(fs.boundary.verts - [9_000.0, -6_000.0], axis=1))]
     ahead = math.atan2(0.0 - corner[1], 15_000.0 - corner[0])  # towards the storm's centre

@@ -7,7 +7,6 @@ The loop here is the harness's in miniature: JSBSim at 240 Hz, the Python outer 
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -150,9 +149,7 @@ def test_position_step_with_yaw_change():
     fly(plant, ctrl, hold(MultirotorSetpoint(pos_ned=p0, yaw_rad=0.0)), 1.0)
     step = np.array([10.0, 5.0, -5.0])  # 10 m N, 5 m E, 5 m up
     sp = MultirotorSetpoint(pos_ned=p0 + step, yaw_rad=math.pi / 2)
-    wall = time.perf_counter()
     r = fly(plant, ctrl, hold(sp), 20.0)
-    rtf = 20.0 / (time.perf_counter() - wall)
 
     dist = np.linalg.norm(step)
     progress = (r["pos"] - p0) @ (step / dist)
@@ -166,7 +163,6 @@ def test_position_step_with_yaw_change():
     assert settle_s <= 15.0
     assert err[-1] <= 0.1
     assert abs(math.remainder(r["euler"][-1, 2] - math.pi / 2, 2 * math.pi)) < math.radians(1.0)
-    assert rtf >= 50.0, f"closed loop only {rtf:.0f}x real time"
 
 
 def test_yaw_turns_the_short_way():

@@ -1,8 +1,9 @@
 """Planner parameters of the MPTP, with the HAPS defaults and the thesis's 80 m/s aircraft.
 
 Units SI, angles in radians (the ``*_deg`` constructors are for people). The aircraft model is
-the thesis's low-fidelity one (seed 002, 3.2 and 5.1): constant true airspeed = ground speed
-(wind compensated), level flight, course changes of at most ``course_change_max`` per state.
+the thesis's low-fidelity one (seed 002, 3.2 and 5.1): constant true airspeed in the air-mass
+frame (wind.py; ground speed = airspeed in still air), level flight, course changes of at most
+``course_change_max`` per state.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from sim.core.constants import STANDARD_GRAVITY
 NM = 1852.0  # m per nautical mile
 
 Heuristic = Literal["dijkstra", "edh", "ssph"]
+WindSource = Literal["scenario", "none"]
 Turning = Literal["both", "right", "left"]
 
 
@@ -49,6 +51,10 @@ class MptpConfig:
     ``goal_track``: a predicted track of a moving goal that replaces the mission waypoint as the
     target, rows [t [s], north [m], east [m]] with increasing t (the thesis's 6.4); None = the
     mission waypoint.
+
+    Wind (read by the engine when it builds the planner, see wind.py): ``wind_forecast``
+    "scenario" = the planner is given the scenario's steady wind plus ``wind_error_ne_mps``
+    (north, east) [m/s] as its forecast; "none" = still air (wind-blind planning).
     """
 
     tas_mps: float = 26.0
@@ -73,6 +79,8 @@ class MptpConfig:
     mission_area: Polygon | None = None
     goal_track: tuple[tuple[float, float, float], ...] | None = None
     g: float = STANDARD_GRAVITY
+    wind_forecast: WindSource = "scenario"
+    wind_error_ne_mps: tuple[float, float] = (0.0, 0.0)
 
     def __post_init__(self) -> None:
         if self.tas_mps <= 0 or self.dt_s <= 0 or self.horizon_s < self.dt_s:
@@ -83,6 +91,12 @@ class MptpConfig:
             raise ValueError("probability must be in [0, 1)")
         if self.heuristic not in ("dijkstra", "edh", "ssph") or self.turning not in ("both", "right", "left"):
             raise ValueError(f"unknown heuristic {self.heuristic!r} or turning {self.turning!r}")
+        if self.wind_forecast not in ("scenario", "none"):
+            raise ValueError(f"wind_forecast: expected 'scenario' or 'none', got {self.wind_forecast!r}")
+        err = np.asarray(self.wind_error_ne_mps, float) if _is_numeric(self.wind_error_ne_mps) else np.empty(0)
+        if err.shape != (2,) or not np.isfinite(err).all():
+            raise ValueError("wind_error_ne_mps: expected [north, east] [m/s]")
+        object.__setattr__(self, "wind_error_ne_mps", (float(err[0]), float(err[1])))
         for name in ("safety_single_m", "safety_line_m"):  # lists from scenario files
             object.__setattr__(self, name, tuple(float(x) for x in getattr(self, name)))
         if self.mission_area is not None and not isinstance(self.mission_area, Polygon):
@@ -124,6 +138,14 @@ class MptpConfig:
             simplify_tol_m=0.022 * math.pi / 180 * 6_371_000.0,
         )
         return replace(base, **changes)
+
+
+def _is_numeric(value) -> bool:
+    try:
+        np.asarray(value, float)
+    except (TypeError, ValueError):
+        return False
+    return True
 
 
 def _area(vertices) -> Polygon:

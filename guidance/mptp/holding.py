@@ -40,8 +40,8 @@ def holding_orbit(
     senses = [turning] + [s for s in SENSES if s not in (turning, "both")]
     for sense in senses:
         pts, times, courses = [np.asarray(p0, float)], [t0], [course0]
-        for _ in range(n_legs):
-            q, chi = aux_states(pts[-1], courses[-1], cfg, sense)
+        for leg in range(n_legs):
+            q, chi = aux_states(pts[-1], courses[-1], cfg, sense, from_start=leg == 0)
             pts.append(q[0])
             times.append(times[-1] + cfg.dt_s)
             courses.append(float(chi[0]))

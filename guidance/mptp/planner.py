@@ -2,8 +2,9 @@
 
 Frames/units: the estimate and the plan in local-level NED [m], storms in (north, east) [m],
 times in sim seconds [s]. The planner keeps its last plan and replans at a fixed cadence
-(``replan_period_s``), at the first call and whenever the mission's goal waypoint changes; in
-between it returns the same plan. A replan (Algorithm 2 of seed 002):
+(``replan_period_s``), at the first call, whenever the mission's goal waypoint changes and
+whenever a new nowcast arrives (the thesis replans at every nowcast update); in between it
+returns the same plan. A replan (Algorithm 2 of seed 002):
 
 1. the storm nowcast (``threats.storms``) becomes an ObstacleTimeline (cached per nowcast);
 2. if the goal stays covered over the whole horizon: a holding orbit (status DEGRADED);
@@ -15,6 +16,11 @@ between it returns the same plan. A replan (Algorithm 2 of seed 002):
    conflict free like any other), else straight flight inside the estimated safe area
    (NO_SOLUTION).
 
+With a wind forecast (wind.py) every step runs in the air-mass frame of the wind at the flight
+level (the mean of the estimate's and the goal's heights): storms drift at their velocity minus
+the wind, the goal drifts at minus the wind, the course is that of the air velocity, and the
+planned states map back to the ground at their times.
+
 The plan's vertices are the trajectory states; labels are -1 except the goal (its waypoint
 index); the altitude goes linearly (constant climb angle) from the estimate's to the goal's.
 """
@@ -25,6 +31,8 @@ import math
 import time
 
 import numpy as np
+import shapely
+from shapely.geometry import Polygon
 
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
@@ -33,12 +41,13 @@ from guidance.mptp.holding import holding_orbit, safe_area_leg
 from guidance.mptp.search import Trajectory, default_workspace, plan_trajectory
 from guidance.mptp.statespace import free_space
 from guidance.mptp.timeline import ObstacleTimeline
+from guidance.mptp.wind import WindForecast, air_goal, to_air, to_ground
 from sim.core.mission import Mission
 from sim.core.plan import Plan, PlanStatus, Threats
 from sim.core.state import VehicleState
 from sim.core.threats import StormSnapshot
 
-MIN_GROUND_SPEED = 1.0  # below this the course is taken from the yaw [m/s]
+MIN_AIRSPEED = 1.0  # below this the course is taken from the yaw [m/s]
 
 
 class MptpPlanner:
@@ -46,12 +55,20 @@ class MptpPlanner:
 
     ``goal_track``: a predicted track of a moving goal (replaces the mission waypoint as the
     target of the current leg; default ``config.goal_track``); ``config``: aircraft, search and
-    margin parameters."""
+    margin parameters; ``wind``: the wind forecast the planner may know (None = still air)."""
 
     name = "mptp"
 
-    def __init__(self, mission: Mission, config: MptpConfig | None = None, goal_track: GoalTrack | None = None):
+    def __init__(
+        self,
+        mission: Mission,
+        config: MptpConfig | None = None,
+        goal_track: GoalTrack | None = None,
+        wind: WindForecast | None = None,
+    ):
         self.mission = mission
+        self.wind = wind
+        self.wind_ne = np.zeros(2)  # wind of the last replan's air-mass frame (north, east) [m/s]
         self.cfg = config or MptpConfig()
         if goal_track is None and self.cfg.goal_track is not None:
             rows = np.array(self.cfg.goal_track)
@@ -63,6 +80,7 @@ class MptpPlanner:
         self._t_plan = -math.inf
         self._goal_index = -1
         self._nowcast_key: tuple | None = None
+        self._issue: tuple = ()  # identity of the last nowcast seen
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         m = self.mission
@@ -78,28 +96,51 @@ class MptpPlanner:
                 diagnostics={"complete": 1},
             )
         k = m.next_index
-        if self.plan_ is None or k != self._goal_index or t - self._t_plan >= self.cfg.replan_period_s - 1e-9:
+        issue = tuple((id(s), s.t) for s in threats.storms)
+        due = k != self._goal_index or issue != self._issue or t - self._t_plan >= self.cfg.replan_period_s - 1e-9
+        self._issue = issue
+        if self.plan_ is None or due:
             self.plan_ = self._replan(estimate, threats.storms or [StormSnapshot(t, ())], t, k)
             self._t_plan, self._goal_index = t, k
         return self.plan_
 
-    def _timeline_for(self, storms: list[StormSnapshot], t: float) -> tuple[ObstacleTimeline, float]:
-        key = tuple((id(s), s.t) for s in storms)
+    def margins_at(self, t: float):
+        """The margin region of the last replan's timeline at time ``t`` [s], on the ground
+        (north, east) [m] (None before the first replan)."""
+        if self.timeline is None:
+            return None
+        shift = to_ground(np.zeros(2), t, self.wind_ne, self.timeline.t_issue)
+        return shapely.affinity.translate(self.timeline.shape_at(t), *shift)
+
+    def _timeline_for(self, storms: list[StormSnapshot], t: float, wind: np.ndarray) -> tuple[ObstacleTimeline, float]:
+        key = (*((id(s), s.t) for s in storms), tuple(wind))
         if key != self._nowcast_key or self.timeline is None:
             wall = time.perf_counter()
-            self.timeline = ObstacleTimeline(storms, self.cfg, t + 2 * self.cfg.horizon_s)
+            self.timeline = ObstacleTimeline(storms, self.cfg, t + 2 * self.cfg.horizon_s, wind)
             self._nowcast_key = key
             return self.timeline, time.perf_counter() - wall
         return self.timeline, 0.0
 
+    def _wind_at(self, est: VehicleState, k: int) -> np.ndarray:
+        if self.wind is None:
+            return np.zeros(2)
+        return self.wind.at(-0.5 * (float(est.pos_ned[2]) + float(self.mission.waypoints[k, 2])))
+
     def _replan(self, est: VehicleState, storms: list[StormSnapshot], t: float, k: int) -> Plan:
         cfg = self.cfg
-        tl, weather_s = self._timeline_for(storms, t)
-        goal = self.goal_track or GoalTrack.fixed(self.mission.waypoints[k, :2])
-        p0 = np.asarray(est.pos_ned[:2], float)
-        course = est.course_rad if est.ground_speed_mps >= MIN_GROUND_SPEED else est.yaw
+        w = self.wind_ne = self._wind_at(est, k)
+        tl, weather_s = self._timeline_for(storms, t, w)
+        t_ref = tl.t_issue
+        ground_goal = self.goal_track or GoalTrack.fixed(self.mission.waypoints[k, :2])
+        goal = air_goal(ground_goal, w, t_ref, t, t + 2 * cfg.horizon_s) if w.any() else ground_goal
+        p0 = to_air(np.asarray(est.pos_ned[:2], float), t, w, t_ref)
+        v_air = np.asarray(est.vel_ned[:2], float) - w
+        course = math.atan2(v_air[1], v_air[0]) if np.hypot(*v_air) >= MIN_AIRSPEED else est.yaw
         diag: dict[str, float | int | str] = {"heuristic": cfg.heuristic, "weather_s": weather_s}
+        if w.any():
+            diag.update(wind_north_mps=float(w[0]), wind_east_mps=float(w[1]))
         wall = time.perf_counter()
+        workspace = self._workspace(p0, goal, t, w, t_ref)
         availability = GoalAvailability(tl, goal)
         levels = tl.interval(t + np.arange(0.0, cfg.horizon_s + cfg.dt_s, cfg.dt_s))
         if all(availability.covered(int(j)) for j in levels):
@@ -108,11 +149,13 @@ class MptpPlanner:
                 pts, times, _ = orbit
                 diag.update(runtime_s=time.perf_counter() - wall, holding_s=float(times[-1] - t), reason="goal covered")
                 return self._to_plan(t, est, pts, times, np.full(len(pts), -1), PlanStatus.DEGRADED, diag)
-        arrival = t + float(np.linalg.norm(goal.at(t) - p0)) / cfg.tas_mps
+        arrival = float(goal.intercept(p0, np.array([t]), cfg.tas_mps)[0])
         turning = _one_way(cfg.turning) if availability.covered(int(tl.interval(arrival))) else cfg.turning
         # a partial trajectory must last until the next replan (the follower flies straight on
         # past a plan's end)
-        traj = plan_trajectory(tl, p0, t, course, goal, cfg, turning=turning, min_partial_s=cfg.replan_period_s)
+        traj = plan_trajectory(
+            tl, p0, t, course, goal, cfg, workspace, turning=turning, min_partial_s=cfg.replan_period_s
+        )
         self.trajectory = traj
         diag.update(
             expanded=traj.expanded,
@@ -127,11 +170,7 @@ class MptpPlanner:
             holding = traj.holding_turn >= 2 * math.pi - 1e-6
             labels = np.full(len(traj.positions), -1)
             labels[-1] = k
-            diag.update(
-                path_length_m=traj.length_m,
-                eta_s=float(traj.times[-1] - t),
-                holding_turns=traj.holding_turn / (2 * math.pi),
-            )
+            diag.update(eta_s=float(traj.times[-1] - t), holding_turns=traj.holding_turn / (2 * math.pi))
             status = PlanStatus.DEGRADED if holding else PlanStatus.OK
             return self._to_plan(t, est, traj.positions, traj.times, labels, status, diag)
         if len(traj.positions) >= 2:  # the search's best progress towards the goal
@@ -139,14 +178,22 @@ class MptpPlanner:
             return self._to_plan(
                 t, est, traj.positions, traj.times, np.full(len(traj.positions), -1), PlanStatus.DEGRADED, diag
             )
-        fs = traj.start_space or free_space(
-            tl, p0, t, default_workspace(p0, goal.at(t), cfg), cfg.tas_mps, cfg.ring_segments
-        )
+        fs = traj.start_space or free_space(tl, p0, t, workspace, cfg.tas_mps, cfg.ring_segments)
         end, _ = safe_area_leg(fs, course, cfg, cfg.tas_mps * cfg.replan_period_s * 2)
         pts = np.vstack([p0, end])
         times = t + np.r_[0.0, np.linalg.norm(end - p0) / cfg.tas_mps]
         diag["reason"] = "search " + traj.status
         return self._to_plan(t, est, pts, times, np.full(2, -1), PlanStatus.NO_SOLUTION, diag)
+
+    def _workspace(self, p0: np.ndarray, goal: GoalTrack, t: float, w: np.ndarray, t_ref: float) -> Polygon:
+        """The search's workspace in the air-mass frame: the start and the goal over the horizon,
+        padded; the mission area is swept by -w over the horizon (a convex superset)."""
+        cfg = self.cfg
+        area = cfg.mission_area
+        if area is not None and w.any():
+            ends = [to_air(np.zeros(2), x, w, t_ref) for x in (t, t + cfg.horizon_s)]
+            area = shapely.convex_hull(shapely.union_all([shapely.affinity.translate(area, *e) for e in ends]))
+        return default_workspace(np.vstack([p0, goal.at(t), goal.at(t + cfg.horizon_s)]), cfg, area)
 
     def _to_plan(
         self,
@@ -158,9 +205,13 @@ class MptpPlanner:
         status: PlanStatus,
         diag: dict,
     ) -> Plan:
+        """A plan from states (air-mass frame ``ne`` (N, 2) [m] at ``times`` [s]) on the ground."""
+        ne = to_ground(ne, times, self.wind_ne, self.timeline.t_issue if self.timeline else t)
         d0 = float(est.pos_ned[2])
         d1 = float(self.mission.waypoints[self._goal_index_for(labels), 2])
         seg = np.linalg.norm(np.diff(ne, axis=0), axis=1)
+        if (labels >= 0).any():
+            diag["path_length_m"] = float(seg.sum())
         frac = np.concatenate([[0.0], np.cumsum(seg)]) / max(seg.sum(), 1e-9)
         down = d0 + (d1 - d0) * frac if (labels >= 0).any() else np.full(len(ne), d0)
         pos = np.column_stack([ne, down])

@@ -73,13 +73,14 @@ class Trajectory:
         return best
 
 
-def default_workspace(start: np.ndarray, goal: np.ndarray, cfg: MptpConfig) -> Polygon:
-    """Bounding box of start and goal padded by half the horizon's range, within the mission
-    area (the thesis restricts W to the reachable set, 4.1.2)."""
+def default_workspace(points: np.ndarray, cfg: MptpConfig, area: Polygon | None = None) -> Polygon:
+    """Bounding box of ``points`` (start and goal positions, (N, 2) [m]) padded by half the
+    horizon's range, within ``area`` (the thesis restricts W to the reachable set, 4.1.2)."""
     pad = 0.5 * cfg.tas_mps * cfg.horizon_s
-    lo, hi = np.minimum(start, goal) - pad, np.maximum(start, goal) + pad
+    pts = np.atleast_2d(points)
+    lo, hi = pts.min(axis=0) - pad, pts.max(axis=0) + pad
     box = Polygon([(lo[0], lo[1]), (hi[0], lo[1]), (hi[0], hi[1]), (lo[0], hi[1])])
-    return box if cfg.mission_area is None else box.intersection(cfg.mission_area)
+    return box if area is None else box.intersection(area)
 
 
 class _Expander:
@@ -100,12 +101,12 @@ class _Expander:
         t_goal = float(self.goal.intercept(p, np.array([s.t]), v)[0])
         g_pt = self.goal.at(t_goal) if np.isfinite(t_goal) else self.goal.points[-1]
         _, vi = visible_vertices(p[None], b)
-        aux_p, _ = aux_states(p, s.course, cfg, self.turning)
+        aux_p, _ = aux_states(p, s.course, cfg, self.turning, from_start=s.kind == START)
         aux_p = aux_p[~blocked(np.repeat(p[None], len(aux_p), 0), aux_p, b)]
         goal_ok = np.isfinite(t_goal) and not blocked(p[None], g_pt[None], b)[0]
         pts = np.vstack([g_pt[None] if goal_ok else np.empty((0, 2)), b.verts[vi], aux_p])
         kinds = np.array([GOAL] * int(goal_ok) + [VERTEX] * len(vi) + [AUX] * len(aux_p))
-        ok, chi, leg = admissible(p, s.course, pts, cfg, to_goal=kinds == GOAL)
+        ok, chi, leg = admissible(p, s.course, pts, cfg, to_goal=kinds == GOAL, from_start=s.kind == START)
         pts, chi, leg, kinds = pts[ok], chi[ok], leg[ok], kinds[ok]
         times = s.t + leg / v
         h = self._heuristic(fs, g_pt, pts, times, kinds)
@@ -126,11 +127,9 @@ class _Expander:
         return np.where(np.isfinite(static), np.maximum(static, euclid), euclid)
 
     def _static_paths(self, fs: FreeSpace, g_pt: np.ndarray) -> StaticPaths:
-        """SSPH graph: of the start state's free space for the whole search when the goal is
-        fixed (one reduced visibility graph per replan instead of one per expansion), of the
-        expanded state's own when it moves (the goal point is then each state's interception)."""
-        if self.goal.moving:
-            return StaticPaths(fs, g_pt)
+        """SSPH graph of the start state's free space for the whole search (one reduced
+        visibility graph per replan instead of one per expansion), to the goal's interception
+        point from the start (a moving goal, or a fixed one seen from the air-mass frame)."""
         if self.static is None:
             self.static = StaticPaths(fs, g_pt)
         return self.static
@@ -151,7 +150,8 @@ def plan_trajectory(
     (or a partial one, see Trajectory, lasting at least ``min_partial_s`` [s])."""
     wall = time.perf_counter()
     p0 = np.asarray(p0, float)
-    w = workspace if workspace is not None else default_workspace(p0, goal.at(t0), cfg)
+    ends = goal.at(np.array([t0, t0 + cfg.horizon_s]))
+    w = workspace if workspace is not None else default_workspace(np.vstack([p0, ends]), cfg, cfg.mission_area)
     exp = _Expander(tl, goal, cfg, w, turning or cfg.turning)
     q_p, q_t, q_c = 0.01 * cfg.leg_m, 0.01 * cfg.dt_s, math.radians(1.0)
 

@@ -72,15 +72,21 @@ class ObstacleTimeline:
     """Margined storm cells of one nowcast as a function of time.
 
     ``snapshots``: the nowcast (first = issue time); ``t_end`` [s]: the last time the planner
-    will ask about (cells are extrapolated up to it); ``cfg``: margins, dt and tolerances.
+    will ask about (cells are extrapolated up to it); ``cfg``: margins, dt and tolerances;
+    ``drift_ne`` [m/s]: the velocity of the frame the shapes are given in (the wind, for the
+    air-mass frame, see wind.py): a shape at time t is moved by -drift (t - t_issue). Margins
+    and cell matching use the ground velocities of the nowcast.
     """
 
-    def __init__(self, snapshots: list[StormSnapshot], cfg: MptpConfig, t_end: float):
+    def __init__(
+        self, snapshots: list[StormSnapshot], cfg: MptpConfig, t_end: float, drift_ne: np.ndarray | None = None
+    ):
         if not snapshots:
             raise ValueError("a timeline needs at least one nowcast snapshot")
         snaps = sorted(snapshots, key=lambda s: s.t)
         self.cfg = cfg
         self.t_issue = snaps[0].t
+        self.drift = np.zeros(2) if drift_ne is None else np.asarray(drift_ne, float).reshape(2)
         self.dt = cfg.dt_s
         self.extra_m = cfg.simplify_tol_m + turn_cut_m(cfg)
         snaps = _extrapolate(snaps, t_end, cfg.dt_s * max(1, round(300.0 / cfg.dt_s)))
@@ -108,10 +114,13 @@ class ObstacleTimeline:
             ext = margin_hulls(list(moved[lost]), va[lost], b.t - self.t_issue, self.cfg, self.extra_m)
             pairs += list(zip(ha[lost], ext, strict=False))
         pairs += [(hb[j], hb[j]) for j in np.setdiff1d(np.arange(len(b.cells)), jb)]
-        return _PairSet(a.t, b.t, [minkowski_sequences(_ring(p), _ring(q)) for p, q in pairs])
+        return self._pairset_of(a.t, b.t, [minkowski_sequences(_ring(p), _ring(q)) for p, q in pairs])
 
     def _held_pairs(self, h: np.ndarray):
-        return _PairSet(self.t_issue, self.t_issue, [minkowski_sequences(_ring(p), _ring(p)) for p in h])
+        return self._pairset_of(self.t_issue, self.t_issue, [minkowski_sequences(_ring(p), _ring(p)) for p in h])
+
+    def _pairset_of(self, ta: float, tb: float, seqs: list[tuple[np.ndarray, np.ndarray]]) -> _PairSet:
+        return _PairSet(ta, tb, seqs, self.drift, self.t_issue)
 
     # --- queries ------------------------------------------------------------------------------
     @overload
@@ -128,8 +137,7 @@ class ObstacleTimeline:
 
     def shape_at(self, t: float) -> BaseGeometry:
         """Merged margin region at time ``t`` [s] (what the aircraft must be outside of)."""
-        ps = self._pairset(t)
-        return merge(ps.polygons(ps.s(t)), self.cfg)
+        return merge(self._pairset(t).polygons(t), self.cfg)
 
     def envelope(self, j: int) -> BaseGeometry:
         """Envelope of planning interval j (cached)."""
@@ -137,19 +145,10 @@ class ObstacleTimeline:
 
     def _envelope_span(self, j: int, k: int) -> BaseGeometry:
         """Envelope over the k planning intervals from level j, [t_j, t_j+k] (beyond the
-        nowcast's last step its shapes are held)."""
+        nowcast's last step its shapes are held, drifting with the frame)."""
         t0, t1 = self.level_time(j), self.level_time(j + k)
-        cuts = np.unique(
-            np.clip(
-                np.concatenate([[t0, t1], self.times[(self.times > t0) & (self.times < t1)]]),
-                self.times[0],
-                self.times[-1],
-            )
-        )
-        hulls = []
-        for a, b in itertools.pairwise(cuts) if len(cuts) > 1 else [(cuts[0], cuts[0])]:
-            ps = self._pairset(0.5 * (a + b))
-            hulls.append(ps.swept_hulls(ps.s(a), ps.s(b)))
+        cuts = np.concatenate([[t0], self.times[(self.times > t0) & (self.times < t1)], [t1]])
+        hulls = [self._pairset(0.5 * (a + b)).swept_hulls(a, b) for a, b in itertools.pairwise(cuts)]
         return merge(np.concatenate(hulls), self.cfg)
 
     def _pairset(self, t: float) -> _PairSet:
@@ -179,10 +178,13 @@ class ObstacleTimeline:
 
 
 class _PairSet:
-    """Matched pairs of one nowcast step [ta, tb]: vertex sequences lerped in s."""
+    """Matched pairs of one nowcast step [ta, tb]: vertex sequences lerped in s (held outside
+    the step), moved by -drift (t - t_ref) (the frame's motion)."""
 
-    def __init__(self, ta: float, tb: float, seqs: list[tuple[np.ndarray, np.ndarray]]):
-        self.ta, self.tb = ta, tb
+    def __init__(
+        self, ta: float, tb: float, seqs: list[tuple[np.ndarray, np.ndarray]], drift: np.ndarray, t_ref: float
+    ):
+        self.ta, self.tb, self.drift, self.t_ref = ta, tb, drift, t_ref
         self.ca = np.vstack([a for a, _ in seqs]) if seqs else np.empty((0, 2))
         self.cb = np.vstack([b for _, b in seqs]) if seqs else np.empty((0, 2))
         self.owner = np.concatenate([np.full(len(a), i) for i, (a, _) in enumerate(seqs)]) if seqs else np.empty(0, int)
@@ -190,18 +192,21 @@ class _PairSet:
     def s(self, t: float) -> float:
         return 0.0 if self.tb <= self.ta else float(np.clip((t - self.ta) / (self.tb - self.ta), 0.0, 1.0))
 
-    def coords(self, s: float) -> np.ndarray:
-        return (1.0 - s) * self.ca + s * self.cb
+    def coords(self, t: float) -> np.ndarray:
+        s = self.s(t)
+        return (1.0 - s) * self.ca + s * self.cb - self.drift * (t - self.t_ref)
 
-    def polygons(self, s: float) -> np.ndarray:
+    def polygons(self, t: float) -> np.ndarray:
         if not len(self.owner):
             return np.empty(0, object)
-        return shapely.polygons(shapely.linearrings(self.coords(s), indices=self.owner))
+        return shapely.polygons(shapely.linearrings(self.coords(t), indices=self.owner))
 
-    def swept_hulls(self, sa: float, sb: float) -> np.ndarray:
+    def swept_hulls(self, ta: float, tb: float) -> np.ndarray:
+        """Convex hulls of every pair's shapes at ta and tb [s] (within one step both the lerp
+        and the drift are linear in t, so they contain every shape in between)."""
         if not len(self.owner):
             return np.empty(0, object)
-        pts = np.stack([self.coords(sa), self.coords(sb)], axis=1).reshape(-1, 2)
+        pts = np.stack([self.coords(ta), self.coords(tb)], axis=1).reshape(-1, 2)
         return shapely.convex_hull(shapely.multipoints(pts, indices=np.repeat(self.owner, 2)))
 
 

@@ -12,8 +12,8 @@ Flyability: every state is flown as a fly-by with the minimum radius; its turn a
 R tan(|dchi|/2) on both adjacent legs (the minimum stabilisation distance of Table 5.1). A leg is
 admissible when it holds the anticipation of the turn at its start plus the largest possible
 one at its end (a leg to the goal has no turn at its end). The start state cannot anticipate:
-the aircraft turns at R from the start until it points at the next state, which the fly-by
-reserve leaves room for.
+the aircraft turns at R from its current course until it points at the next state, which must
+therefore lie outside that turning circle, and arrives on the turn's exit course.
 """
 
 from __future__ import annotations
@@ -44,11 +44,51 @@ def min_leg_m(dchi: np.ndarray | float, cfg: MptpConfig, to_goal: np.ndarray | b
     return cfg.turn_radius_m * (np.tan(0.5 * np.abs(dchi)) + reserve)
 
 
+def start_turn(
+    p: np.ndarray, course: float, targets: np.ndarray, radius: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The turn from a state that cannot anticipate (the start): at ``radius`` [m] from p
+    towards the side of each target (N, 2) until pointing at it, then straight.
+
+    Returns (reachable: target outside the turning circle, signed turn [rad] (+ = right), course
+    at the turn's exit = at arrival [rad], straight length after the turn [m]); the flown
+    distance is radius * |turn| + straight."""
+    u = np.array([math.cos(course), math.sin(course)])
+    d0 = np.asarray(targets, float) - p
+    side = np.where(u[0] * d0[:, 1] - u[1] * d0[:, 0] >= 0.0, 1.0, -1.0)
+    centre = p + radius * side[:, None] * np.array([-u[1], u[0]])
+    d = targets - centre
+    dist = np.linalg.norm(d, axis=1)
+    reachable = dist >= radius
+    ratio = np.minimum(radius / np.maximum(dist, 1e-12), 1.0)
+    chi = wrap(np.arctan2(d[:, 1], d[:, 0]) + side * (0.5 * math.pi - np.arccos(ratio)))
+    turn = wrap(chi - course)
+    turn = np.where(side * turn >= -1e-9, turn, turn + side * 2 * math.pi)
+    straight = np.sqrt(np.maximum(dist**2 - radius**2, 0.0))
+    return reachable, turn, chi, straight
+
+
 def admissible(
-    p: np.ndarray, course: float, targets: np.ndarray, cfg: MptpConfig, to_goal: np.ndarray | bool = False
+    p: np.ndarray,
+    course: float,
+    targets: np.ndarray,
+    cfg: MptpConfig,
+    to_goal: np.ndarray | bool = False,
+    from_start: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Which targets (N, 2) may follow a state at p with ``course``: (mask, course at arrival,
-    leg length [m])."""
+    """Which targets (N, 2) may follow a state at p with ``course``: (mask, course at arrival
+    [rad], flown distance [m]).
+
+    After a fly-by (``from_start`` False) the leg is straight on the bearing and must hold the
+    turn's anticipation plus the reserve for the next one. From the start the aircraft turns at
+    R from ``course`` (:func:`start_turn`): the target must lie outside the turning circle, the
+    turn within the course-change limit, and the straight part after it must hold the reserve;
+    the course at arrival is the turn's exit course."""
+    reserve = np.where(to_goal, 0.0, math.tan(0.5 * cfg.course_change_max)) * cfg.turn_radius_m
+    if from_start:
+        reachable, turn, chi, straight = start_turn(p, course, targets, cfg.turn_radius_m)
+        ok = reachable & (np.abs(turn) <= cfg.course_change_max + 1e-6) & (straight >= reserve)
+        return ok, chi, cfg.turn_radius_m * np.abs(turn) + straight
     leg = np.linalg.norm(targets - p, axis=1)
     chi = bearing(p, targets)
     dchi = wrap(chi - course)
@@ -56,10 +96,21 @@ def admissible(
     return ok, chi, leg
 
 
-def aux_states(p: np.ndarray, course: float, cfg: MptpConfig, turning: str) -> tuple[np.ndarray, np.ndarray]:
-    """Auxiliary states of one state: positions (k, 2) and courses (k,) for the turning senses."""
-    chi = np.array([course + s * cfg.course_change_max for s in SENSES[turning]])
-    pts = p + cfg.leg_m * np.stack([np.cos(chi), np.sin(chi)], 1)
+def aux_states(
+    p: np.ndarray, course: float, cfg: MptpConfig, turning: str, from_start: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
+    """Auxiliary states of one state: positions (k, 2) and courses (k,) for the turning senses,
+    a flight of LD on the course chi +- dchi_max. After a fly-by the leg is straight on it; from
+    the start (no anticipation) the aircraft first turns by dchi_max at R, then flies straight
+    for the rest of LD."""
+    sides = np.array(SENSES[turning])
+    chi = course + sides * cfg.course_change_max
+    if not from_start:
+        return p + cfg.leg_m * np.stack([np.cos(chi), np.sin(chi)], 1), wrap(chi)
+    r, th = cfg.turn_radius_m, cfg.course_change_max
+    mid = course + 0.5 * sides * th
+    arc = 2.0 * r * math.sin(0.5 * th) * np.stack([np.cos(mid), np.sin(mid)], 1)
+    pts = p + arc + (cfg.leg_m - r * th) * np.stack([np.cos(chi), np.sin(chi)], 1)
     return pts, wrap(chi)
 
 
@@ -72,15 +123,15 @@ def flyby_path(points: np.ndarray, course0: float, radius: float, step_deg: floa
     pos, chi = points[0].astype(float), float(course0)
     for i in range(1, len(points)):
         target = points[i]
-        # turn towards the target: at the start (no anticipation) or after a fly-by exit
-        side = np.sign(_cross(_unit(chi), target - pos))
-        turned = 0.0
-        while abs(wrap(bearing(pos, target) - chi)) > step and turned < 2 * math.pi:
-            pos, chi = _arc_step(pos, chi, side, radius, step)
-            out.append(pos)
-            turned += step
-        if turned >= 2 * math.pi:
-            raise ValueError(f"state {i} lies inside the turning circle")
+        if i == 1:  # the start turns towards the first state without anticipation
+            reachable, turn, chi_exit, _ = start_turn(pos, chi, target[None], radius)
+            if not reachable[0]:
+                raise ValueError("state 1 lies inside the turning circle")
+            n = int(abs(turn[0]) / step) + 1
+            for _ in range(n):
+                pos, chi = _arc_step(pos, chi, math.copysign(1.0, turn[0]), radius, abs(turn[0]) / n)
+                out.append(pos)
+            chi = float(chi_exit[0])
         if i == len(points) - 1:
             out.append(target)
             break

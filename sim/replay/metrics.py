@@ -45,7 +45,7 @@ class MetricsWorld:
         alt0 = scenario.origin.altitude
         m = scenario.metrics
         weather = (
-            WeatherService(scenario.weather, weather_seed(seed_streams(scenario.seed)[2]))
+            WeatherService(scenario.weather, weather_seed(seed_streams(scenario.seed)[2]), scenario.origin_point)
             if scenario.weather is not None
             else None
         )

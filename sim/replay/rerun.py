@@ -76,7 +76,13 @@ def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> 
         raise LogReadError(f"{path}: no vehicle {vehicle!r} in the attached scenario")
     mission = mission_from_config(cfg, scenario.origin_point)
     kind = get_airframe(cfg.aircraft).kind
-    planner = factory(mission) if factory else make_planner(cfg.planner.type, mission, kind, cfg.planner.options)
+    planner = (
+        factory(mission)
+        if factory
+        else make_planner(
+            cfg.planner.type, mission, kind, cfg.planner.options, wind_ne_mps=(scenario.wind.north, scenario.wind.east)
+        )
+    )
     est = log.topic(f"/{vehicle}/est/state")
     threats = log.topic(f"/{vehicle}/threats")
     plans = log.topic(f"/{vehicle}/plan")
