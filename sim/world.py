@@ -15,6 +15,7 @@ import numpy as np
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
 from sim import log_schemas as S
+from sim.broad_phase import relevant
 from sim.environment import geofence, obstacle_prism
 from sim.faults import FaultSchedule
 from sim.geodesy import ned_to_geodetic
@@ -57,6 +58,10 @@ class World:
         for v in self.vehicles:
             v.threats.obstacles, v.threats.geofences = self.obstacles, self.fences  # known from the map
         has_traffic = n > 1 or bool(self.objects)
+        self.awareness: list[tuple[float, float] | None] = [
+            getattr(v.planner, "awareness", lambda: None)() for v in self.vehicles
+        ]  # what each planner needs sensed (sim/broad_phase.py); None: everything
+        self._cruise = np.array([v.mission.cruise_speed for v in self.vehicles])
         self.perception = (
             {
                 v.name: Perception(scenario.surveillance, np.random.default_rng(ss))
@@ -112,11 +117,17 @@ class World:
             self.log.write_proto("/world/weather/storms", t, _geojson(storms_geojson(truth, self._lonlat)))
         if not self.perception:
             return
-        truths = {v.name: (v.plant.truth(), v.airframe.radius_m, True) for v in self.vehicles}
-        objects = {o.id: (o.state(t), o.radius_m, o.cooperative) for o in self.objects if o.exists(t)}
-        for v in self.vehicles:
-            traffic = {k: x for k, x in truths.items() if k != v.name} | objects
-            v.threats.intruders = self.perception[v.name].update(t, traffic)
+        bodies = {v.name: (v.plant.truth(), v.airframe.radius_m, True) for v in self.vehicles}
+        bodies |= {o.id: (o.state(t), o.radius_m, o.cooperative) for o in self.objects if o.exists(t)}
+        names = list(bodies)
+        states = [s for s, _, _ in bodies.values()]
+        speed = np.linalg.norm([s.vel_ned for s in states], axis=1)
+        speed[: len(self.vehicles)] = np.maximum(speed[: len(self.vehicles)], self._cruise)
+        near = relevant(
+            np.array([s.pos_ned for s in states]), speed, np.array([r for _, r, _ in bodies.values()]), self.awareness
+        )
+        for v, idx in zip(self.vehicles, near, strict=True):
+            v.threats.intruders = self.perception[v.name].update(t, {names[j]: bodies[names[j]] for j in idx})
 
     def _scan(self, v: Vehicle, t: float) -> None:
         """A LiDAR sweep cast from the true pose, handed on placed with the ESTIMATED pose."""

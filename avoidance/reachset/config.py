@@ -143,7 +143,9 @@ class ConstraintConfig:
 class IntruderModelConfig:
     """Intruder space/time models (spec §5.4). Flags select line/body/spread (cone) models and
     the time-intersection rate; ``theta_i``/``phi_i`` are the manoeuvre-uncertainty half angles
-    [rad]; ``spacing`` the line/body sample spacing [m]; ``time_error`` widens the UAS window [s];
+    [rad]; ``path_step`` the spacing of the line/body centre samples along the predicted path, in
+    layer depths of the grid (the body is grown by half of it, so the sampled balls cover the swept
+    body); ``spacing`` the cone's lattice spacing [m]; ``time_error`` widens the UAS window [s];
     ``cone_steps`` lattice points per ellipse axis; ``density`` ``mean`` (6.133) or ``product``;
     ``body_margin`` [m] is added to every intruder's body radius (safety-margin bloat, §8.2)."""
 
@@ -153,6 +155,7 @@ class IntruderModelConfig:
     timed: bool = True
     theta_i: float = pi / 8
     phi_i: float = pi / 12
+    path_step: float = 0.1
     spacing: float = 0.2
     time_error: float = 1.0
     cone_steps: int = 7
@@ -197,3 +200,6 @@ class AvoidanceConfig:
     intruders: IntruderModelConfig = field(default_factory=IntruderModelConfig.cooperative)
     fusion: FusionConfig = field(default_factory=FusionConfig)
     mission: MissionConfig = field(default_factory=MissionConfig)
+
+
+DEFAULT_AVOIDANCE = AvoidanceConfig()  # shared default of the planners (frozen)

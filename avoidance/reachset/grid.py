@@ -17,11 +17,13 @@ import shapely
 from avoidance.reachset.config import GridConfig
 from avoidance.reachset.frames import from_polar, to_polar
 
+DEFAULT_GRID = GridConfig()
+
 
 class AvoidanceGrid:
     """Geometry only; ratings live in per-decision arrays of length ``n_cells``."""
 
-    def __init__(self, cfg: GridConfig = GridConfig()):
+    def __init__(self, cfg: GridConfig = DEFAULT_GRID):
         self.cfg = cfg
         self.shape = (cfg.n_layers, cfg.n_h, cfg.n_v)
         self.n_cells = cfg.n_layers * cfg.n_h * cfg.n_v
@@ -58,6 +60,31 @@ class AvoidanceGrid:
     def cell_index(self, p_lcf: np.ndarray) -> np.ndarray:
         """Flat cell index of Cartesian LCF points (..., 3), -1 outside the grid."""
         return self.cell_index_polar(to_polar(p_lcf))
+
+    def distance(self, p_lcf: np.ndarray) -> np.ndarray:
+        """Exact Euclidean distance [m] of LCF points (M, 3) to every cell (M, n_cells) (0 inside).
+
+        A cell is the set of ``s·a`` with ``s`` in its distance band [d0, d1] and ``a`` a unit
+        direction in its angular rectangle A = [θ0, θ1] × [φ0, φ1]. The distance of a point at range
+        ρ to the segment s·a grows with the angle α between them, so the nearest direction of A is
+        the one of least angle: its meridian is the circularly nearest θ of [θ0, θ1] (for every
+        elevation ψ, cos α = cos φ cos ψ cos Δθ + sin φ sin ψ grows with cos Δθ), and on that
+        meridian cos α = R cos(ψ − ψ*) is largest at ψ* clipped to [φ0, φ1] when ψ* lies inside,
+        else at an end. Then s = clip(ρ cos α, d0, d1) and |p − s·a|² = (ρ cos α − s)² + ρ² sin² α."""
+        cfg = self.cfg
+        th_lo = self.starts[1] + self.steps[1] * np.arange(cfg.n_h)  # (J,)
+        ph_lo = self.starts[2] + self.steps[2] * np.arange(cfg.n_v)  # (K,)
+        d_lo = self.starts[0] + self.steps[0] * np.arange(cfg.n_layers)  # (I,)
+        bounds = (th_lo, th_lo + self.steps[1], ph_lo, ph_lo + self.steps[2], d_lo, d_lo + self.steps[0])
+        return _polar_box_distance(p_lcf, *bounds).reshape(-1, self.n_cells)
+
+    def envelope_distance(self, p_lcf: np.ndarray) -> np.ndarray:
+        """Exact distance [m] of LCF points (M, 3) to the whole grid (the union of its cells) (M,);
+        a lower bound of :meth:`distance` to every cell."""
+        lo, hi = self.starts, self.starts + self.steps * np.array(self.shape)
+        return _polar_box_distance(p_lcf, *([np.array([a]) for a in (lo[1], hi[1], lo[2], hi[2], lo[0], hi[0])]))[
+            :, 0, 0, 0
+        ]
 
     def wall_distance(self, p_lcf: np.ndarray, cells: np.ndarray) -> np.ndarray:
         """Distance of points to the 4 side walls (constant θ, constant φ) of their cells (§4.5)."""
@@ -125,3 +152,33 @@ class AvoidanceGrid:
     def per_cell(self, values: np.ndarray) -> np.ndarray:
         """View of a per-cell array as (I, J, K)."""
         return values.reshape(self.shape)
+
+
+def _polar_box_distance(
+    p_lcf: np.ndarray,
+    th_lo: np.ndarray,
+    th_hi: np.ndarray,
+    ph_lo: np.ndarray,
+    ph_hi: np.ndarray,
+    d_lo: np.ndarray,
+    d_hi: np.ndarray,
+) -> np.ndarray:
+    """Distance [m] of LCF points (M, 3) to the polar boxes [d_lo, d_hi] × [θ_lo, θ_hi] ×
+    [φ_lo, φ_hi] of every combination of the bands (I,), columns (J,) and rows (K,): (M, I, J, K)
+    (derivation: :meth:`AvoidanceGrid.distance`)."""
+    rho, th, ph = to_polar(np.asarray(p_lcf, float).reshape(-1, 3)).T
+    inside = (th[:, None] >= th_lo) & (th[:, None] <= th_hi)
+    cos_dth = np.where(inside, 1.0, np.maximum(np.cos(th[:, None] - th_lo), np.cos(th[:, None] - th_hi)))  # (M, J)
+    a = (np.cos(ph)[:, None] * cos_dth)[:, :, None]  # (M, J, 1)
+    b = np.sin(ph)[:, None, None]
+    psi = np.arctan2(b, a)
+    best = np.where(
+        (psi >= ph_lo) & (psi <= ph_hi),
+        np.hypot(a, b),
+        np.maximum(a * np.cos(ph_lo) + b * np.sin(ph_lo), a * np.cos(ph_hi) + b * np.sin(ph_hi)),
+    )  # (M, J, K): cos α of the nearest direction
+    cos_a = np.clip(best, -1.0, 1.0)[:, None, :, :]  # (M, 1, J, K)
+    r = rho[:, None, None, None]
+    s = np.clip(r * cos_a, d_lo[:, None, None], d_hi[:, None, None])  # (M, I, J, K)
+    d2 = (r * cos_a - s) ** 2 + r * r * (1.0 - cos_a * cos_a)  # along + across the direction
+    return np.sqrt(np.maximum(d2, 0.0))

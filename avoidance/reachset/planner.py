@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from avoidance.reachset.config import AvoidanceConfig
+from avoidance.reachset.config import DEFAULT_AVOIDANCE, AvoidanceConfig
 from avoidance.reachset.frames import GridPose, heading_from_yaw_ned
 from avoidance.reachset.fusion import SpaceClass, fuse_cells
 from avoidance.reachset.mission import Decision, MissionControl, Restriction
@@ -40,7 +40,7 @@ class ReachSetAvoider:
         self,
         mission: Mission,
         sma: SegmentedMovementAutomaton,
-        cfg: AvoidanceConfig = AvoidanceConfig(),
+        cfg: AvoidanceConfig = DEFAULT_AVOIDANCE,
         cache_dir: Path | None = None,
         restrict: Restriction | None = None,
         heading_from_velocity: float = 0.5,
@@ -74,6 +74,20 @@ class ReachSetAvoider:
             if abs(np.angle(np.exp(1j * (psi - planned)))) < dyaw:
                 psi = planned
         return KinState(pos, np.array([0.0, 0.0, psi]), t, self.speed)
+
+    def awareness(self) -> tuple[float, float] | None:
+        """Range [m] from the vehicle and horizon [s] within which other traffic can be rated in
+        its grids: a track whose linear prediction over the horizon stays farther than the range
+        is culled exactly (``IntruderModel.reachable``). Range = grid range + one movement (the
+        grid starts one movement ahead) + the intruder body margin + half a centre sample; the
+        cruise segment has the largest grid. ``None`` would mean: every track matters."""
+        ctl = self.control
+        seg = ctl.segment(ctl.sma.active_index(KinState(np.zeros(3), np.zeros(3), 0.0, self.speed)))
+        models = [a.intruder_model for a in seg.assessors.values()]
+        length = float(seg.grid.steps[0])
+        icfg = ctl.cfg.intruders
+        reach = seg.grid.range + length + icfg.body_margin + max(m.step for m in models)
+        return reach, max(m.horizon for m in models)
 
     def frame_due(self, t: float) -> bool:
         """Whether a call at ``t`` [s] makes a new decision frame: one per movement period (at the

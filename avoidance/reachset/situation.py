@@ -19,7 +19,7 @@ from avoidance.reachset.frames import GridPose
 from avoidance.reachset.fusion import ThreatParts
 from avoidance.reachset.grid import AvoidanceGrid
 from avoidance.reachset.threats.constraints import Constraint, classify, from_geofence, from_storm
-from avoidance.reachset.threats.intruders import IntruderModel, intruder_motion, intruder_ratings
+from avoidance.reachset.threats.intruders import IntruderModel, intruder_motion
 from avoidance.reachset.threats.lidar import lidar_ratings
 from avoidance.reachset.threats.map_obstacles import MapObstacle, map_rating
 from avoidance.reachset.tree import ReachSetTree
@@ -59,7 +59,7 @@ class Assessor:
             IntruderTrack(s.id, s.t, s.center_ned, s.vel_ned, s.radius_m) for s in moving
         ]
         parts.intruder_motion = intruder_motion(pose, t_grid, tracks, cfg.intruders.body_margin)
-        parts.intruders = intruder_ratings(grid, parts.intruder_motion, self.intruder_model)
+        parts.intruders = self.intruder_model.ratings(parts.intruder_motion)
         parts.hard, parts.soft = classify(
             grid, pose, self.constraints(threats, t_grid), cfg.constraints, t_grid, self.uas_leave
         )

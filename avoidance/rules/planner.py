@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from avoidance.reachset.config import AvoidanceConfig
+from avoidance.reachset.config import DEFAULT_AVOIDANCE, AvoidanceConfig
 from avoidance.reachset.gridrun import GridRun
 from avoidance.reachset.mission import Decision
 from avoidance.reachset.movement import KinState, SegmentedMovementAutomaton
@@ -50,7 +50,7 @@ class RulesAvoider(ReachSetAvoider):
         mission: Mission,
         sma: SegmentedMovementAutomaton,
         rules: RulesConfig,
-        cfg: AvoidanceConfig = AvoidanceConfig(),
+        cfg: AvoidanceConfig = DEFAULT_AVOIDANCE,
         cache_dir: Path | None = None,
     ):
         """``cfg``'s navigation reach set is replaced by the rules' ACAS-like one."""
@@ -69,6 +69,10 @@ class RulesAvoider(ReachSetAvoider):
         self._deadlock_frames = 0
         self._unresolved: set = set()
         self._start: float | None = None
+
+    def awareness(self) -> None:
+        """Every track matters: the rules negotiate with each cooperative peer they hear."""
+        return None
 
     def notifications(self, estimate: VehicleState, threats: Threats, t: float) -> list[PositionNotification]:
         own = PositionNotification(t, self.registration, ned_to_enu(estimate.pos_ned), ned_to_enu(estimate.vel_ned))

@@ -3,8 +3,10 @@ space-intersection models (line, body volume, manoeuvre-uncertainty elliptic con
 its time-intersection rate against the UAS entry/leave window of the cell.
 
 Times are relative to the grid's origin time (the next decision time t_{i+1}) [s]; positions LCF
-[m]. A model is a point cloud (points, time of arrival, weight per time sample); all models are
-binned with the same vectorised cell lookup.
+[m]. Line and body are rated by exact point-to-cell distances of centre samples spaced in
+proportion to the cell size (vectorised over samples × cells × intruders, in bounded blocks); the
+cone is a weighted point cloud binned per cell. Intruders that cannot reach the grid within the
+horizon are skipped exactly.
 """
 
 from __future__ import annotations
@@ -18,14 +20,6 @@ from avoidance.reachset.frames import GridPose
 from avoidance.reachset.grid import AvoidanceGrid
 from sim.core.frames import ned_to_enu
 from sim.core.threats import IntruderTrack
-
-
-@lru_cache(maxsize=8)
-def _unit_ball(step: float) -> np.ndarray:
-    """Lattice points of the unit ball with spacing ``step`` (plus the centre)."""
-    u = np.arange(-1.0, 1.0 + 1e-9, step)
-    p = np.stack(np.meshgrid(u, u, u, indexing="ij"), axis=-1).reshape(-1, 3)
-    return p[np.einsum("ij,ij->i", p, p) <= 1.0 + 1e-9]
 
 
 @lru_cache(maxsize=8)
@@ -59,15 +53,29 @@ def _time_rate(i_e: np.ndarray, i_l: np.ndarray, u_e: np.ndarray, u_l: np.ndarra
 
 
 class IntruderModel:
-    """Combined intruder model (6.150/6.151) for one grid and one reach set's UAS windows."""
+    """Combined intruder model (6.150/6.151) for one grid and one reach set's UAS windows.
+
+    Line and body (6.122-6.128) are rated exactly against the cells: the centre ``x(τ)`` is
+    sampled every ``path_step`` layer depths of the path, and a cell is hit at τ when its exact
+    distance to ``x(τ)`` (:meth:`AvoidanceGrid.distance`) is at most the body radius plus half
+    the sample spacing, so the sampled balls cover the swept body; ``[i_e, i_l]`` is the hull of
+    the hit times (every ball point carries its centre's time). The line is the body of radius
+    0, inside the body in space and time, so with the body on its rate never exceeds the body's
+    and only the body is rated. The cone (6.129-6.149) keeps its lattice at ``spacing``.
+    Intruders whose reachable volume within the horizon (the capsule of the model's radius
+    around the predicted segment) misses the grid's bounding ball are skipped: their rating is 0.
+    """
+
+    max_block = 1 << 20  # distance entries evaluated at once (memory bound per decision)
 
     def __init__(self, grid: AvoidanceGrid, uas_entry: np.ndarray, uas_leave: np.ndarray, cfg: IntruderModelConfig):
         self.grid, self.cfg = grid, cfg
         self.u_e, self.u_l = uas_entry, uas_leave
         self.horizon = float(uas_leave.max(initial=0.0)) + cfg.time_error
+        self.step = cfg.path_step * float(grid.steps[0])
 
     def _bin(self, pts: np.ndarray, toa: np.ndarray, weight: np.ndarray | None = None):
-        """Per cell: summed weight (or hit indicator), earliest and latest time of arrival."""
+        """Per cell: summed weight, earliest and latest time of arrival of lattice points."""
         cells = self.grid.cell_index(pts)
         ok = cells >= 0
         c, t = cells[ok], toa[ok]
@@ -78,51 +86,96 @@ class IntruderModel:
         np.maximum.at(i_l, c, t)
         return mass, i_e, i_l
 
-    def _rate(self, space: np.ndarray, i_e: np.ndarray, i_l: np.ndarray, speed: float) -> np.ndarray:
+    def _rate(self, space: np.ndarray, i_e: np.ndarray, i_l: np.ndarray, speed: np.ndarray | float) -> np.ndarray:
+        """Space rate × time rate (6.120); ``speed`` per row of ``space`` [m/s]."""
         if not self.cfg.timed:
             return space
-        tol = self.cfg.time_error + (self.grid.steps[0] / speed if speed > 0 else 0.0)  # [R] tolerance
+        speed = np.asarray(speed, float)[..., None]
+        tol = self.cfg.time_error + np.where(speed > 0, self.grid.steps[0] / np.maximum(speed, 1e-12), 0.0)
         return space * _time_rate(i_e, i_l, self.u_e - tol, self.u_l + tol)
 
-    def rating(self, x_s: np.ndarray, v: np.ndarray, radius: float) -> np.ndarray:
-        """P_OI per cell (n_cells,) of an intruder at ``x_s`` (LCF, at the grid time) with
-        velocity ``v`` (LCF) [m/s] and body ``radius`` [m]."""
+    def _samples(self, speed: float) -> int:
+        """Centre samples over the horizon: at most ``step`` apart, at least both ends."""
+        return max(2, int(np.ceil(speed * self.horizon / self.step)) + 1)
+
+    def reach(self, motion: np.ndarray) -> np.ndarray:
+        """(n,) radius [m] around each predicted segment within which the models can rate a cell."""
         cfg = self.cfg
-        speed = float(np.linalg.norm(v))
+        speed = np.linalg.norm(motion[:, 3:6], axis=1)
+        n_t = np.array([self._samples(s) for s in speed])
+        out = np.where(cfg.body, motion[:, 6], 0.0) + 0.5 * speed * self.horizon / (n_t - 1)
+        if not (cfg.line or cfg.body):
+            out = np.full(len(motion), -np.inf)
+        if cfg.spread:
+            cone = max(np.sin(cfg.theta_i), np.sin(cfg.phi_i)) * speed * self.horizon + cfg.spacing
+            out = np.maximum(out, cone)
+        return out
+
+    def reachable(self, motion: np.ndarray) -> np.ndarray:
+        """(n,) whether each intruder's reachable volume within the horizon meets the grid's
+        bounding ball (origin, radius = grid range): exact distance of the predicted segment
+        x_s + v·τ, τ ∈ [0, horizon], to the origin against range + :meth:`reach`."""
+        x, v = motion[:, :3], motion[:, 3:6]
+        vv = np.einsum("ij,ij->i", v, v)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            tau = np.clip(np.where(vv > 0, -np.einsum("ij,ij->i", x, v) / vv, 0.0), 0.0, self.horizon)
+        gap = np.linalg.norm(x + tau[:, None] * v, axis=1)
+        return gap <= self.grid.range + self.reach(motion) + 1e-9 * (1.0 + self.grid.range)  # rounding
+
+    def ratings(self, motion: np.ndarray) -> np.ndarray:
+        """(n_intruders, n_cells) P_OI of the linear predictions ``motion`` (:func:`intruder_motion`);
+        rows of intruders that cannot reach the grid are 0."""
+        out = np.zeros((len(motion), self.grid.n_cells))
+        rows = np.flatnonzero(self.reachable(motion))
+        if not len(rows):
+            return out
+        m = motion[rows]
+        speed = np.linalg.norm(m[:, 3:6], axis=1)
+        if self.cfg.line or self.cfg.body:
+            out[rows] = self._rate(*self._body(m, speed), speed)
+        if self.cfg.spread:
+            for r, mm, sp in zip(rows, m, speed, strict=True):
+                if sp > 0:
+                    np.maximum(out[r], self._cone(mm[:3], mm[3:6], float(sp)), out=out[r])
+        return out
+
+    def _body(self, motion: np.ndarray, speed: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Hit indicator and hit-time hull [i_e, i_l] per (intruder, cell) of the swept bodies:
+        the centre samples of all intruders are stacked, those farther from the whole grid than
+        their bound dropped, and the distances of the rest to every cell evaluated in blocks of at
+        most :attr:`max_block` entries, reduced per intruder."""
+        n, n_cells = len(motion), self.grid.n_cells
+        n_t = np.array([self._samples(s) for s in speed])
+        owner = np.repeat(np.arange(n), n_t)
+        first = np.cumsum(n_t) - n_t
+        tau = (np.arange(len(owner)) - first[owner]) * (self.horizon / (n_t[owner] - 1))
+        centres = motion[owner, :3] + tau[:, None] * motion[owner, 3:6]
+        bound = (motion[owner, 6] if self.cfg.body else 0.0) + 0.5 * speed[owner] * self.horizon / (n_t[owner] - 1)
+        hit = np.zeros((n, n_cells))
+        i_e = np.full((n, n_cells), np.inf)
+        i_l = np.full((n, n_cells), -np.inf)
+        keep = self.grid.envelope_distance(centres) <= bound  # samples that can touch any cell
+        owner, tau, centres, bound = owner[keep], tau[keep], centres[keep], bound[keep]
+        per_block = max(1, self.max_block // n_cells)
+        for lo in range(0, len(owner), per_block):
+            sl = slice(lo, lo + per_block)
+            near = self.grid.distance(centres[sl]) <= bound[sl, None]  # (k, n_cells)
+            own, t = owner[sl], tau[sl, None]
+            starts = np.flatnonzero(np.r_[True, own[1:] != own[:-1]])
+            rows = own[starts]
+            hit[rows] = np.maximum(hit[rows], np.logical_or.reduceat(near, starts, axis=0))
+            i_e[rows] = np.minimum(i_e[rows], np.minimum.reduceat(np.where(near, t, np.inf), starts, axis=0))
+            i_l[rows] = np.maximum(i_l[rows], np.maximum.reduceat(np.where(near, t, -np.inf), starts, axis=0))
+        return hit, i_e, i_l
+
+    def _cone(self, x_s: np.ndarray, v: np.ndarray, speed: float) -> np.ndarray:
+        """Elliptic cone (6.129-6.149): P_S = mean over the time samples in [i_e, i_l] of the
+        ellipse mass in the cell; line samples every ``spacing``."""
+        cfg = self.cfg
         n_t = max(3, int(np.ceil(speed * self.horizon / cfg.spacing)) + 1)
         tau = np.linspace(0.0, self.horizon, n_t)
         line = x_s + tau[:, None] * v
-        out = np.zeros(self.grid.n_cells)
-        if cfg.line:
-            hit, i_e, i_l = self._bin(line, tau)
-            np.maximum(out, self._rate((hit > 0).astype(float), i_e, i_l, speed), out=out)
-        if cfg.body:
-            pts, toa = self._swept_ball(line, tau, v, radius)
-            hit, i_e, i_l = self._bin(pts, toa)
-            np.maximum(out, self._rate((hit > 0).astype(float), i_e, i_l, speed), out=out)
-        if cfg.spread and speed > 0:
-            np.maximum(out, self._cone(line, tau, v / speed, speed), out=out)
-        return out
-
-    def _swept_ball(self, line: np.ndarray, tau: np.ndarray, v: np.ndarray, radius: float):
-        """Body volume (6.125-6.128): the ball swept along the line, sampled as a disc ⊥ v at
-        every line sample plus full balls at both ends; every point keeps its centre's time."""
-        ball = _unit_ball(min(1.0, self.cfg.spacing / max(radius, 1e-9))) * radius
-        speed = float(np.linalg.norm(v))
-        if speed == 0.0:
-            return (line[:1] + ball), np.zeros(len(ball))
         e2, e3 = _perpendicular_basis(v / speed)
-        disc = ball[np.abs(ball[:, 2]) < 1e-9][:, :2]
-        sweep = line[:, None, :] + disc[None, :, 0:1] * e2 + disc[None, :, 1:2] * e3
-        pts = np.concatenate([sweep.reshape(-1, 3), line[0] + ball, line[-1] + ball])
-        toa = np.concatenate([np.repeat(tau, len(disc)), np.full(len(ball), tau[0]), np.full(len(ball), tau[-1])])
-        return pts, toa
-
-    def _cone(self, line: np.ndarray, tau: np.ndarray, e1: np.ndarray, speed: float) -> np.ndarray:
-        """Elliptic cone (6.129-6.149): P_S = mean over the time samples in [i_e, i_l] of the
-        ellipse mass in the cell."""
-        cfg = self.cfg
-        e2, e3 = _perpendicular_basis(e1)
         ratio = np.sin(cfg.theta_i) / np.sin(cfg.phi_i)
         disc, w = _unit_disc(cfg.cone_steps, float(ratio), cfg.density)
         dd = speed * tau
@@ -144,13 +197,4 @@ def intruder_motion(pose: GridPose, t_grid: float, tracks: list[IntruderTrack], 
     for n, tr in enumerate(tracks):
         pos = np.asarray(tr.pos_ned, float) + np.asarray(tr.vel_ned, float) * (t_grid - tr.t)
         out[n] = [*pose.ned_to_lcf(pos), *pose.vec_to_lcf(ned_to_enu(tr.vel_ned)), tr.radius_m + body_margin]
-    return out
-
-
-def intruder_ratings(grid: AvoidanceGrid, motion: np.ndarray, model: IntruderModel) -> np.ndarray:
-    """(n_intruders, n_cells) P_OI of the intruders' linear predictions ``motion``
-    (:func:`intruder_motion`)."""
-    out = np.zeros((len(motion), grid.n_cells))
-    for n, m in enumerate(motion):
-        out[n] = model.rating(m[:3], m[3:6], float(m[6]))
     return out
