@@ -143,15 +143,24 @@ def cmd_replay(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from sim.replay.compare import compare_logs
+    from sim.replay.compare import compare_logs, write_csv, write_json
 
-    rows = compare_logs(args.a, args.b)
+    rows = [r for r in compare_logs(args.a, args.b) if not (args.changed and r[1] == r[2])]
+    to_stdout = False
+    for target, write in ((args.json, write_json), (args.csv, write_csv)):
+        if target == "-":
+            write(rows, sys.stdout)
+            to_stdout = True
+        elif target is not None:
+            with open(target, "w", encoding="utf-8", newline="") as fh:
+                write(rows, fh)
+    if to_stdout:
+        return EXIT_OK
     t = Table("metric", "A", "B", "B - A", title=f"A = {args.a}   B = {args.b}", title_justify="left")
     for k, x, y, d in rows:
-        if args.changed and x == y:
-            continue
         t.add_row(k, _cell(x), _cell(y), "" if d is None else f"{d:+.4g}")
-    out.print(t)
+    # off a terminal (a pipe, a file) the table takes its natural width: full metric names
+    (out if out.is_terminal else Console(width=1_000_000)).print(t)
     return EXIT_OK
 
 
@@ -202,6 +211,52 @@ def cmd_batch(args) -> int:
     return EXIT_OK if failed == 0 else EXIT_FAILED
 
 
+def cmd_encounters(args) -> int:
+    from sim.encounters.campaign import load_campaign, run_campaign
+
+    out_dir = Path(args.output) if args.output else Path("logs") / "encounters" / Path(args.campaign).stem
+    campaign = load_campaign(args.campaign, out_dir, args.limit)
+    executor = None
+    client = None
+    if args.dask:
+        from distributed import Client
+
+        client = Client(args.dask)
+        executor = client.get_executor()
+    progress = Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total} runs"),
+        TimeElapsedColumn(),
+        console=err,
+        disable=args.quiet,
+        transient=True,
+    )
+    try:
+        with progress:
+            task = progress.add_task(campaign.name, total=len(campaign.runs))
+            summary = run_campaign(
+                campaign,
+                out_dir,
+                executor=executor,
+                workers=args.workers,
+                progress=lambda k, total, _row: progress.update(task, total=total, completed=k),
+                resume=not args.no_resume,
+            )
+    finally:
+        if client is not None:
+            client.close()
+    s = summary[campaign.planner]
+    out.print(
+        f"{s['n']} encounters: NMAC {s.get('nmac_mitigated')} mitigated / {s.get('nmac_unmitigated')} unmitigated, "
+        f"risk ratio {s.get('risk_ratio')}, induced {s.get('induced_nmac')}, completion {s.get('completion_rate')}; "
+        f"report: {out_dir / 'report.md'}",
+        soft_wrap=True,
+        highlight=False,
+    )
+    return EXIT_OK if s.get("failed_runs", 0) == 0 else EXIT_FAILED
+
+
 def cmd_validate(args) -> int:
     from sim.scenario import load_scenario
 
@@ -239,6 +294,8 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("a")
     cp.add_argument("b")
     cp.add_argument("--changed", action="store_true", help="only the metrics that differ")
+    cp.add_argument("--json", metavar="FILE", help="write the rows as JSON to FILE ('-': standard output, no table)")
+    cp.add_argument("--csv", metavar="FILE", help="write the rows as CSV to FILE ('-': standard output, no table)")
     cp.set_defaults(fn=cmd_compare)
     b = sub.add_parser("batch", help="sweep / Monte-Carlo runs from a batch file")
     b.add_argument("batch", help="batch TOML file")
@@ -248,6 +305,15 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--no-resume", action="store_true", help="re-run runs that already finished")
     b.add_argument("-q", "--quiet", action="store_true")
     b.set_defaults(fn=cmd_batch)
+    e = sub.add_parser("encounters", help="encounter campaign: paired mitigated/unmitigated runs, risk ratio")
+    e.add_argument("campaign", help="campaign TOML file")
+    e.add_argument("-o", "--output", help="output folder (default logs/encounters/<campaign file name>)")
+    e.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="local worker processes")
+    e.add_argument("--dask", metavar="ADDRESS", help="run on a Dask distributed scheduler instead")
+    e.add_argument("--no-resume", action="store_true", help="re-run runs that already finished")
+    e.add_argument("--limit", type=int, help="fly only the first N draws (the full campaign resumes them)")
+    e.add_argument("-q", "--quiet", action="store_true")
+    e.set_defaults(fn=cmd_encounters)
     sub.add_parser("tune", help="trim, linearise, loop margins, gain proposals (cosim tune --help)")
     v = sub.add_parser("validate", help="check a scenario file without flying it")
     v.add_argument("scenario")
@@ -263,13 +329,20 @@ def main(argv: list[str] | None = None) -> int:
         return tune_main(argv[1:])
     args = build_parser().parse_args(argv)
     from sim.batch import BatchError
+    from sim.encounters.model import CampaignError
     from sim.mcap_log import LogWriteError
     from sim.mcap_read import LogReadError
     from sim.scenario import ScenarioError
 
     try:
         return args.fn(args)
-    except (ScenarioError, LogReadError, LogWriteError, BatchError) as exc:  # bad input: one line, exit 2
+    except (
+        ScenarioError,
+        LogReadError,
+        LogWriteError,
+        BatchError,
+        CampaignError,
+    ) as exc:  # bad input: one line, exit 2
         _error(exc)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:

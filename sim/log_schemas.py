@@ -127,9 +127,28 @@ THREATS = _obj(
         ),
         "storms": (
             {"type": "array", "items": {"type": "object"}},
-            "storm nowcast snapshots: t [s], cells = polygons [[north, east], ...] [m]",
+            "storm nowcast snapshots: t [s], cells = polygons [[north, east], ...] [m], "
+            "velocities_ne = cell velocities [[north, east], ...] [m/s] or null",
         ),
         "lidar_hits": ({"type": "integer"}, "returns in the latest LiDAR scan"),
+        "lidar": (
+            {"type": ["object", "null"]},
+            "latest LiDAR scan: t [s], origin_ned [m], directions_ned (unit, NED), ranges_m [m], hit, max_range_m",
+        ),
+    },
+)
+
+PLAN_INPUT = _obj(
+    "cosim.PlanInput",
+    {
+        "t": (_NUM, "sim time of the planner call [s]"),
+        "planner": ({"type": "string"}, "planner name"),
+        "estimate": ({"type": "object"}, "the estimate the planner saw (cosim.VehicleState)"),
+        "mission": (
+            {"type": "object"},
+            "mission progress: reached = [[waypoint index, sim time [s]], ...], landed_t, completed_t [s] or null",
+        ),
+        "new_plan": ({"type": "boolean"}, "the call made a new plan (false: the planner kept its plan)"),
     },
 )
 

@@ -36,6 +36,16 @@ LEVELS = {"debug": Log.DEBUG, "info": Log.INFO, "warning": Log.WARNING, "error":
 _BATCH = 128  # records per hand-over to the writer process (a few log ticks)
 
 
+def sim_ns(t: float) -> int:
+    """Sim time ``t`` [s] in the log's whole nanoseconds (a message's log time is the epoch plus this)."""
+    return round(t * 1e9)
+
+
+def logged_time(t: float) -> float:
+    """Sim time [s] of a message logged at ``t`` [s] as it reads back from the log."""
+    return sim_ns(t) / 1e9
+
+
 class LogWriteError(RuntimeError):
     """The log could not be written (e.g. disk full); says why."""
 
@@ -93,7 +103,7 @@ class McapLog:
         if background:
             self._proc = _WriterProcess(self.path, chunk_size)
         else:
-            self._inline = RecordWriter(open(self.path, "wb"), chunk_size)  # noqa: SIM115 (the writer owns the file; finish() closes it)
+            self._inline = RecordWriter(open(self.path, "wb"), chunk_size)  # noqa: SIM115 (the writer closes it)
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._seq: dict[int, int] = {}
@@ -133,7 +143,7 @@ class McapLog:
     # -- writing -------------------------------------------------------------------------
     def _add(self, cid: int, t: float, data: bytes) -> None:
         seq = self._seq[cid] = self._seq[cid] + 1
-        self._record(("message", cid, self.epoch_ns + round(t * 1e9), data, seq))
+        self._record(("message", cid, self.epoch_ns + sim_ns(t), data, seq))
 
     def write_json(
         self, topic: str, t: float, obj: dict[str, Any], schema: dict, metadata: dict[str, str] | None = None
@@ -160,7 +170,7 @@ class McapLog:
 
     def event(self, t: float, text: str, level: str = "info", name: str = "cosim") -> None:
         """A ``foxglove.Log`` on ``/log`` (mission events, mode changes, errors)."""
-        ns = self.epoch_ns + round(t * 1e9)
+        ns = self.epoch_ns + sim_ns(t)
         msg = Log(level=LEVELS[level], message=text, name=name)
         msg.timestamp.FromNanoseconds(ns)
         self.write_proto("/log", t, msg)
@@ -170,7 +180,7 @@ class McapLog:
         self._record(("metadata", name, {k: str(v) for k, v in data.items()}))
 
     def attach(self, name: str, data: bytes, media_type: str, t: float = 0.0) -> None:
-        ns = self.epoch_ns + round(t * 1e9)
+        ns = self.epoch_ns + sim_ns(t)
         self._record(("attachment", ns, name, media_type, data))
 
     def close(self) -> None:

@@ -408,10 +408,13 @@ Fault = Annotated[GnssLoss | SensorBias | SensorStuck | MotorFailure | Gust, Fie
 
 class Metrics(_Strict):
     """Thresholds of the run metrics: the well-clear volume between two aircraft (horizontal
-    radius, vertical half height; default ASTM F3442 small-UAS well clear)."""
+    radius, vertical half height; default ASTM F3442 small-UAS well clear) and the near mid-air
+    collision cylinder (default RTCA DO-365, 500 ft / 100 ft, manned-scale traffic)."""
 
     well_clear_horizontal: Annotated[float, quantity("length", 0.0, 1e5, lo_open=True)] = 2000 * 0.3048
     well_clear_vertical: Annotated[float, quantity("length", 0.0, 1e4, lo_open=True)] = 250 * 0.3048
+    nmac_horizontal: Annotated[float, quantity("length", 0.0, 1e4, lo_open=True)] = 500 * 0.3048
+    nmac_vertical: Annotated[float, quantity("length", 0.0, 1e4, lo_open=True)] = 100 * 0.3048
 
 
 class Logging(_Strict):

@@ -23,13 +23,13 @@ from sim.estimation.sensor_estimator import SensorEstimator
 from sim.geodesy import GeoPoint
 from sim.mcap_log import McapLog
 from sim.planner_records import RecordSink
-from sim.planner_registry import PLANNERS, make_planner
+from sim.planner_registry import PLANNERS
 from sim.replay.trace import TraceRecorder
 from sim.scheduler import LockstepScheduler, Stage
 from sim.sensors.faults import SensorFault
 from sim.vehicle_commands import apply_command
 from sim.vehicle_log import VehicleLogWriter, setpoint_record
-from sim.vehicle_setup import build_plant, make_estimator, make_follower, mission_from_config
+from sim.vehicle_setup import build_plant, make_estimator, make_follower, mission_from_config, scenario_planner
 
 
 class SimulationDiverged(RuntimeError):
@@ -70,14 +70,7 @@ class Vehicle:
 
     def make_mission_planner(self) -> Planner:
         """The scenario's planner for the current mission."""
-        return make_planner(
-            self.cfg.planner.type,
-            self.mission,
-            self.airframe.kind,
-            self.cfg.planner.options,
-            float(getattr(self.controller.gains, "roll_limit_rad", math.radians(20.0))),
-            self.wind_ne,
-        )
+        return scenario_planner(self.cfg, self.mission, self.airframe, self.controller.gains, self.wind_ne)
 
     def inject_sensor_fault(self, fault) -> None:
         """A scenario sensor fault (gnss_loss, sensor_bias, sensor_stuck) into the sensor models."""
@@ -120,17 +113,25 @@ class Vehicle:
         self.estimate = self.estimator.update(t)
 
     def plan_now(self, t: float) -> None:
-        """Call the planner now and hand its plan to the follower (logged)."""
+        """Call the planner now and hand its plan to the follower. Logged per call: the planner's
+        inputs; per new plan (made at this call, ``plan.t == t``): the plan and the call's
+        wall-clock latency; a call that kept the previous plan counts as a cache hit."""
+        self.logw.threats(t, self.threats)
         t0 = time.perf_counter()
         plan: Plan = self.planner.plan(self.estimate, self.threats, t)
         latency = time.perf_counter() - t0
+        new_plan = plan.t == t
+        self.logw.plan_input(t, self.planner.name, self.estimate, self.mission, new_plan)
         self.follower.set_plan(plan)
-        self.logw.threats(t, self.threats)
-        self.logw.plan(plan, latency)
+        if new_plan:
+            self.logw.plan(plan)
+            self.logw.latency(t, latency)
+            self.recorder.latency(latency)
+        else:
+            self.recorder.cache_hit()
         entry = PLANNERS.get(self.planner.name)  # ground-station mode planners have no records
         if entry is not None and entry.records is not None:
             entry.records(self.planner_records, self.planner, plan, t)
-        self.recorder.latency(latency)
 
     def _multirotor(self) -> MultirotorController:
         """The controller of a multirotor (landing and take-off state, its limits)."""

@@ -21,12 +21,15 @@ from foxglove_schemas_protobuf.GeoJSON_pb2 import GeoJSON
 from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
 from foxglove_schemas_protobuf.LocationFix_pb2 import LocationFix
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+from shapely.geometry import Polygon
 
 from sim import log_schemas as S
 from sim.core.frames import euler_to_quat
-from sim.core.plan import Plan
+from sim.core.mission import Mission
+from sim.core.plan import Plan, Threats
 from sim.core.setpoints import FixedWingSetpoint, MultirotorSetpoint
 from sim.core.state import VehicleState
+from sim.core.threats import Geofence, IntruderTrack, LidarScan, PrismObstacle, SphereThreat, StormSnapshot
 from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.mcap_log import McapLog
 
@@ -71,8 +74,10 @@ def state_from_dict(d: dict) -> VehicleState:
     )
 
 
-def threats_dict(t: float, th) -> dict:
-    """Sensed threats as plain JSON (map obstacles and geofences are logged once in /world/map)."""
+def threats_dict(t: float, th: Threats) -> dict:
+    """Sensed threats as plain JSON, every field a planner reads (map obstacles and geofences are
+    the scenario's, logged once in /world/map); ``threats_from_dict`` inverts it."""
+    lidar = th.lidar
     return {
         "t": t,
         "intruders": [
@@ -99,9 +104,101 @@ def threats_dict(t: float, th) -> dict:
             }
             for s in th.spheres
         ],
-        "storms": [{"t": s.t, "cells": [list(c.exterior.coords) for c in s.cells]} for s in th.storms],
-        "lidar_hits": int(th.lidar.hit.sum()) if th.lidar is not None else 0,
+        "storms": [
+            {
+                "t": s.t,
+                "cells": [list(c.exterior.coords) for c in s.cells],
+                "velocities_ne": None if s.velocities_ne is None else np.asarray(s.velocities_ne).tolist(),
+            }
+            for s in th.storms
+        ],
+        "lidar_hits": int(lidar.hit.sum()) if lidar is not None else 0,
+        "lidar": None
+        if lidar is None
+        else {
+            "t": lidar.t,
+            "origin_ned": lidar.origin_ned.tolist(),
+            "directions_ned": lidar.directions_ned.tolist(),
+            "ranges_m": lidar.ranges_m.tolist(),
+            "hit": lidar.hit.tolist(),
+            "max_range_m": lidar.max_range_m,
+        },
     }
+
+
+def storms_from_dicts(storms: list[dict]) -> list[StormSnapshot]:
+    """Logged storm snapshots (``threats_dict``'s ``storms``) back into StormSnapshots."""
+    return [
+        StormSnapshot(
+            s["t"],
+            tuple(Polygon(c) for c in s["cells"]),
+            None if s.get("velocities_ne") is None else np.asarray(s["velocities_ne"], float),
+        )
+        for s in storms
+    ]
+
+
+def threats_from_dict(
+    d: dict,
+    obstacles: list[PrismObstacle],
+    geofences: list[Geofence],
+    storms: list[StormSnapshot] | None = None,
+) -> Threats:
+    """A logged ``threats_dict`` message back into Threats with the scenario's map obstacles and
+    geofences; ``storms``: the snapshots to use instead of the logged ones (the caller's own
+    objects for an unchanged nowcast, as a planner caches a nowcast by its snapshots)."""
+    a = np.asarray
+    lid = d.get("lidar")
+    return Threats(
+        intruders=[
+            IntruderTrack(
+                i["id"],
+                i["t"],
+                a(i["pos_ned"], float),
+                a(i["vel_ned"], float),
+                i["radius_m"],
+                a(i["pos_cov"], float),
+                a(i["vel_cov"], float),
+                i["cooperative"],
+            )
+            for i in d["intruders"]
+        ],
+        spheres=[
+            SphereThreat(
+                s["id"],
+                s["t"],
+                a(s["center_ned"], float),
+                s["radius_m"],
+                a(s["vel_ned"], float),
+                a(s["center_cov"], float),
+            )
+            for s in d["spheres"]
+        ],
+        obstacles=obstacles,
+        geofences=geofences,
+        storms=storms_from_dicts(d["storms"]) if storms is None else storms,
+        lidar=None
+        if lid is None
+        else LidarScan(
+            lid["t"],
+            a(lid["origin_ned"], float),
+            a(lid["directions_ned"], float).reshape(-1, 3),
+            a(lid["ranges_m"], float),
+            a(lid["hit"], bool),
+            lid["max_range_m"],
+        ),
+    )
+
+
+def mission_progress(m: Mission) -> dict:
+    """The mission's mutable state (waypoints reached with their times [s], touchdown and
+    completion times [s]); ``restore_progress`` sets it back."""
+    return {"reached": [[k, t] for k, t in m.reached], "landed_t": m.landed_t, "completed_t": m.completed_t}
+
+
+def restore_progress(m: Mission, d: dict) -> None:
+    m.reached = [(int(k), float(t)) for k, t in d["reached"]]
+    m.landed_t, m.completed_t = d["landed_t"], d["completed_t"]
 
 
 def _json_num(x: float) -> float | None:
@@ -141,7 +238,7 @@ class VehicleLogWriter:
         p = f"/{name}"
         self.t_state, self.t_loc = f"{p}/truth/state", f"{p}/truth/location"
         self.t_sp, self.t_cmd, self.t_mission = f"{p}/ctrl/setpoint", f"{p}/ctrl/commands", f"{p}/mission/status"
-        self.t_plan, self.t_latency = f"{p}/plan", f"{p}/plan/latency"
+        self.t_plan, self.t_latency, self.t_input = f"{p}/plan", f"{p}/plan/latency", f"{p}/plan/input"
         self.t_est, self.t_threats = f"{p}/est/state", f"{p}/threats"
         self.t_sensors, self.t_sigma = f"{p}/sensors", f"{p}/est/sigma3"
         self.t_tracking = f"{p}/truth/tracking"
@@ -223,7 +320,25 @@ class VehicleLogWriter:
             S.MISSION_STATUS,
         )
 
-    def plan(self, plan: Plan, latency_s: float) -> None:
+    def plan_input(self, t: float, planner: str, estimate: VehicleState, mission: Mission, new_plan: bool) -> None:
+        """Per planner call: the planner's name, the estimate and mission progress it saw (the
+        threats go to ``/<v>/threats``, one message per call too) and whether it made a new plan."""
+        self.log.write_json(
+            self.t_input,
+            t,
+            {
+                "t": t,
+                "planner": planner,
+                "estimate": state_dict(estimate),
+                "mission": mission_progress(mission),
+                "new_plan": new_plan,
+            },
+            S.PLAN_INPUT,
+            {"frame": "local-level NED from the scenario origin"},
+        )
+
+    def plan(self, plan: Plan) -> None:
+        """A new plan, once, at its creation time."""
         t = plan.t
         self.log.write_json(
             self.t_plan,
@@ -240,7 +355,10 @@ class VehicleLogWriter:
             S.PLAN,
             {"frame": "local-level NED from the scenario origin"},
         )
-        self.log.write_json(self.t_latency, t, {"t": t, "seconds": latency_s}, S.WALL_TIMING, {"wallclock": "true"})
+
+    def latency(self, t: float, seconds: float) -> None:
+        """Wall-clock time [s] of a planner call that made a new plan."""
+        self.log.write_json(self.t_latency, t, {"t": t, "seconds": seconds}, S.WALL_TIMING, {"wallclock": "true"})
 
 
 def _prism_lines(footprint, d_top: float, d_bottom: float) -> list[tuple[float, float, float]]:

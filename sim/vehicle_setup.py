@@ -4,6 +4,8 @@ Frames: local-level NED from the scenario origin [m]; altitudes MSL [m]."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from aircraft.registry import Airframe
@@ -12,11 +14,13 @@ from guidance.l1 import L1Guidance
 from guidance.multirotor_follower import MultirotorPlanFollower
 from sim import scenario as sc
 from sim.core.mission import Mission
+from sim.core.plan import Planner
 from sim.environment import apply_steady_wind, apply_turbulence
 from sim.estimation.sensor_estimator import SensorEstimator, SensorEstimatorConfig
 from sim.estimator import PerfectEstimator
 from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
+from sim.planner_registry import make_planner
 
 
 def ned_of(north: float, east: float, altitude: float, origin: GeoPoint) -> np.ndarray:
@@ -35,6 +39,16 @@ def mission_from_config(cfg: sc.VehicleSpec, origin: GeoPoint) -> Mission:
         hold_s={k: w.hold for k, w in enumerate(m.waypoints) if w.hold > 0},
         land=m.land,
     )
+
+
+def scenario_planner(
+    cfg: sc.VehicleSpec, mission: Mission, af: Airframe, gains: object, wind_ne_mps: tuple[float, float]
+) -> Planner:
+    """The scenario's planner for ``mission``; a fixed-wing planner turns within the controller's
+    roll limit (``gains.roll_limit_rad`` [rad], 20 deg for gains without one); ``wind_ne_mps``:
+    the scenario's steady wind (north, east) [m/s], the planners' forecast."""
+    roll_limit = float(getattr(gains, "roll_limit_rad", math.radians(20.0)))
+    return make_planner(cfg.planner.type, mission, af.kind, cfg.planner.options, roll_limit, wind_ne_mps)
 
 
 def build_plant(cfg: sc.VehicleSpec, af: Airframe, origin: GeoPoint, wind: sc.Wind, seed: int) -> JSBSimPlant:

@@ -276,3 +276,20 @@ def test_unsafe_commitment_far_off_the_reference_flies_on_when_holding_is_worse(
     # the same path without the intruder: holding is clear, the vehicle hovers
     p = av.plan(state(2.1, *here), Threats(spheres=[sphere(25.0), grazing]), 2.1)
     assert p.diagnostics["status"] == "suspended" and p.diagnostics["clearance_hold_m"] >= av.config.r_uav
+
+
+def test_avoidance_path_ending_past_the_last_waypoint_still_completes_the_mission():
+    """A threat just before the last waypoint: the chosen path rejoins the line beyond its end.
+    The plan must end at the last waypoint (labelled, so the follower can mark it reached) and the
+    commitment must end once the vehicle is past the end of the reference (it used to stay
+    'committed' for ever, the projection being clipped at the reference's length)."""
+    ref = np.array([[0.0, 0.0, -20.0], [30.0, 0.0, -20.0]])
+    av = GeometricAvoider(ref, 5.0, GeometricConfig(start_shift_s=0.5))
+    p = av.plan(state(0.0, 18.0), Threats(spheres=[sphere(27.0)]), 0.0)
+    assert p.diagnostics["status"] == "avoid"
+    path_end = av._commit.points_enu[-1]
+    assert path_end[1] > ref[-1, 0]  # ENU y = north: the rejoin point is past the last waypoint
+    assert p.labels[-1] == 1 and np.allclose(p.positions[-1], ref[-1])
+    beyond = av.plan(state(1.0, path_end[1], 0.0), Threats(spheres=[sphere(27.0)]), 3.0)
+    assert beyond.diagnostics["status"] != "committed"
+    assert beyond.labels[-1] == 1 and np.allclose(beyond.positions[-1], ref[-1])

@@ -1,6 +1,9 @@
 """Replay: metrics recomputed from the MCAP equal the live ones; report and A/B compare."""
 
 import json
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,6 +12,8 @@ from sim.replay.metrics import differing_keys, min_separation, straight_flight_m
 from sim.replay.report import log_metrics, write_report
 from sim.replay.runlog import RunLog
 from sim.replay.trace import VehicleTrace
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
@@ -25,7 +30,8 @@ def test_replayed_metrics_equal_live_metrics(short_run):
     stored = json.loads(RunLog(path).metadata["metrics"]["json"])
     assert differing_keys(stored, replayed) == []
     assert replayed["vehicles"]["haps"]["mission"]["waypoints_reached"] == 1
-    assert replayed["vehicles"]["haps"]["planner_latency"]["count"] == 901
+    assert replayed["vehicles"]["haps"]["planner_latency"]["count"] == 901  # follow_mission plans anew at every call
+    assert replayed["vehicles"]["haps"]["planner_latency"]["cache_hits"] == 0
 
 
 def test_report_and_compare_cli(short_run, tmp_path, cosim):
@@ -181,3 +187,63 @@ def test_vehicles_of_different_plant_rates_share_their_log_times():
     assert np.intersect1d(t240, t120).size < t240.size  # the bits differ
     t, ia, ib = common_times(SimpleNamespace(t=t240), SimpleNamespace(t=t120))
     assert t.size == t240.size and (ia == np.arange(100)).all() and (ib == np.arange(100)).all()
+
+
+@pytest.fixture(scope="module")
+def quad_runs(fly_in, tmp_path_factory):
+    """The square mission of the 240 Hz quadrotor flown to completion (70 s) and cut at 40 s:
+    (live metrics of the full run, its log, the cut run's log)."""
+    folder = tmp_path_factory.mktemp("quad")
+    full = fly_in(folder, "quad_square_mission", "full", duration=70.0)
+    cut = fly_in(folder, "quad_square_mission", "cut", duration=40.0)
+    return full.result.metrics, full.path, cut.path
+
+
+def test_replayed_metrics_equal_live_metrics_for_a_240_hz_quadrotor(quad_runs):
+    """Mission times come from /log events, whose log times are whole nanoseconds: the live
+    metrics keep them as logged (a 240 Hz tick is not a whole nanosecond)."""
+    live, path, _ = quad_runs
+    replayed = log_metrics(RunLog(path))
+    assert differing_keys(live, replayed) == []
+    mission = live["vehicles"]["quad"]["mission"]
+    assert mission["complete"] and mission["waypoints_reached"] == mission["waypoints"]
+
+
+def _compare_cli(*args: object) -> str:
+    proc = subprocess.run(
+        [sys.executable, "-m", "sim.cli", "compare", *map(str, args)],
+        check=False,
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout
+
+
+def test_compare_writes_json_and_csv_and_full_names_off_a_terminal(quad_runs, tmp_path):
+    import csv
+
+    from sim.replay.compare import compare_logs
+
+    _, a, b = quad_runs
+    rows = [r for r in compare_logs(a, b) if r[1] != r[2]]
+    assert any(d not in (None, 0) for *_, d in rows)  # the runs differ in numbers
+    as_json = json.loads(_compare_cli(a, b, "--changed", "--json", "-"))
+    assert [[r["metric"], r["a"], r["b"], r["b_minus_a"]] for r in as_json] == json.loads(json.dumps(rows))
+    _compare_cli(a, b, "--changed", "--csv", tmp_path / "ab.csv")
+    with open(tmp_path / "ab.csv", newline="") as fh:
+        table = list(csv.reader(fh))
+    assert table[0] == ["metric", "a", "b", "b_minus_a"] and len(table) == len(rows) + 1
+    for (k, x, y, d), line in zip(rows, table[1:], strict=True):
+        assert line[0] == k
+        for v, cell in ((x, line[1]), (y, line[2]), (d, line[3])):
+            if isinstance(v, float):
+                assert float(cell) == v  # exact
+            elif v is None:
+                assert cell == ""
+    # piped (not a terminal): every metric's full name on a line of the table
+    lines = _compare_cli(a, b, "--changed").splitlines()
+    for k, *_ in rows:
+        assert any(f"│ {k} " in line for line in lines), k

@@ -9,6 +9,8 @@ import pytest
 
 from sim.replay.report import log_metrics
 from sim.replay.runlog import RunLog
+from sim.runner import run_scenario
+from sim.scenario import load_scenario
 
 pytestmark = pytest.mark.closed_loop
 
@@ -17,9 +19,14 @@ UNIT = 5.0  # rules_unit of the scenarios: the thesis' metre [m]
 HEAD_ON_MARGIN, CONVERGING_MARGIN, OVERTAKE_MARGIN = 10 * UNIT, 8 * UNIT, 5 * UNIT  # (6.192)-(6.194), [R] defaults
 
 
-def flown(fly, name: str) -> tuple[dict, RunLog]:
-    """Metrics and log of the shipped rules scenario ``name``."""
-    log = fly(f"rules/{name}").log
+def fly(name: str, tmp_path, seed: int | None = None) -> tuple[dict, RunLog]:
+    """Fly a rules scenario (with ``seed`` in place of its own) and read its metrics back."""
+    out = tmp_path / f"{name}.mcap"
+    scenario, text = load_scenario(SCENARIOS / f"{name}.toml")
+    if seed is not None:
+        scenario = scenario.model_copy(update={"seed": seed})
+    run_scenario(scenario, out, scenario_text=text)
+    log = RunLog(out)
     return log_metrics(log), log
 
 
@@ -37,8 +44,8 @@ def assert_complete(metrics: dict) -> None:
         assert v["mission"]["complete"], f"{name} did not complete"
 
 
-def test_s9_converging_the_uas_with_traffic_on_its_right_gives_way(fly):
-    m, log = flown(fly, "s9_converging")
+def test_s9_converging_the_uas_with_traffic_on_its_right_gives_way(tmp_path):
+    m, log = fly("s9_converging", tmp_path)
     assert_complete(m)
     assert separation(m, "uas1", "uas2") >= CONVERGING_MARGIN
     e1, e2 = events(log, "uas1"), events(log, "uas2")
@@ -48,8 +55,8 @@ def test_s9_converging_the_uas_with_traffic_on_its_right_gives_way(fly):
     assert not any(e.startswith(("rule:converging", "rule:right_plane_heading")) for e in e2)  # holds course
 
 
-def test_s10_head_on_both_turn_right(fly):
-    m, log = flown(fly, "s10_head_on")
+def test_s10_head_on_both_turn_right(tmp_path):
+    m, log = fly("s10_head_on", tmp_path)
     assert_complete(m)
     assert separation(m, "uas1", "uas2") >= HEAD_ON_MARGIN
     for me, peer in (("uas1", "uas2"), ("uas2", "uas1")):
@@ -63,8 +70,8 @@ def test_s10_head_on_both_turn_right(fly):
     assert n2.max() > 100.0 + UNIT and n2.min() > 100.0 - UNIT
 
 
-def test_s11_four_uas_circle_one_roundabout(fly):
-    m, log = flown(fly, "s11_roundabout")
+def test_s11_four_uas_circle_one_roundabout(tmp_path):
+    m, log = fly("s11_roundabout", tmp_path)
     assert_complete(m)
     # every pair, head-on or converging, keeps the roundabout margin = the largest case margin
     assert min(x["distance_m"] for x in m["separation"].values()) >= HEAD_ON_MARGIN
@@ -77,8 +84,8 @@ def test_s11_four_uas_circle_one_roundabout(fly):
 
 
 @pytest.mark.parametrize("name", ["s12_overtake_2x", "s13_overtake_3x", "s13_overtake_4x"])
-def test_s12_s13_overtake_on_the_right(name, fly):
-    m, log = flown(fly, name)
+def test_s12_s13_overtake_on_the_right(name, tmp_path):
+    m, log = fly(name, tmp_path)
     assert_complete(m)
     assert separation(m, "uas1", "uas2") >= OVERTAKE_MARGIN
     e1 = events(log, "uas1")
@@ -91,11 +98,11 @@ def test_s12_s13_overtake_on_the_right(name, fly):
     assert p2[k, 0] - p1[k, 0] >= OVERTAKE_MARGIN
 
 
-def test_s14_adversarial_pursuer_is_reported_unresolved(fly):
+def test_s14_adversarial_pursuer_is_reported_unresolved(tmp_path):
     """Negative test: a UAS that broadcasts like a cooperative one but flies at uas1 breaks the
     head-on margin; uas1 reports the case as unresolved (not hidden) at a time the logged truth
     confirms the breach, while the cooperative pair uas1-uas2 keeps its margin."""
-    m, log = flown(fly, "s14_pursuer")
+    m, log = fly("s14_pursuer", tmp_path)
     assert m["vehicles"]["uas2"]["mission"]["complete"]  # uas1 is being chased: no completion asked
     assert separation(m, "uas1", "uas2") >= HEAD_ON_MARGIN
     assert separation(m, "uas1", "uas3") < HEAD_ON_MARGIN  # the pursuer got through
@@ -113,10 +120,10 @@ def test_s14_adversarial_pursuer_is_reported_unresolved(fly):
     assert true_sep < HEAD_ON_MARGIN + 2 * UNIT  # reported when it happened (track noise, one frame)
 
 
-def test_mixed_haps_and_multirotor_swarm_the_quadrotors_give_way(fly):
+def test_mixed_haps_and_multirotor_swarm_the_quadrotors_give_way(tmp_path):
     """The HAPS (filed as linear-propulsion, above VTOL) crosses three quadrotors in one altitude
     band: each quadrotor takes the give-way role against it and keeps the converging margin."""
-    m, log = flown(fly, "mixed_haps_swarm")
+    m, log = fly("mixed_haps_swarm", tmp_path)
     assert_complete(m)
     for q in ("quad1", "quad2", "quad3"):
         assert separation(m, "haps", q) >= CONVERGING_MARGIN, q
@@ -124,3 +131,28 @@ def test_mixed_haps_and_multirotor_swarm_the_quadrotors_give_way(fly):
     haps = log.topic("/haps/truth/state")
     leg = np.asarray(haps.t) <= m["vehicles"]["haps"]["mission"]["time_s"]
     assert np.abs(haps["pos_ned"][leg, 0]).max() < 10.0  # the HAPS held its course (its leg is north = 0)
+
+
+SEED_MARGINS = {  # scenario: (pairs that must keep the margin, margin [m])
+    "s9_converging": ([("uas1", "uas2")], CONVERGING_MARGIN),
+    "s10_head_on": ([("uas1", "uas2")], HEAD_ON_MARGIN),
+    "s11_roundabout": (None, HEAD_ON_MARGIN),
+    "s12_overtake_2x": ([("uas1", "uas2")], OVERTAKE_MARGIN),
+    "s13_overtake_3x": ([("uas1", "uas2")], OVERTAKE_MARGIN),
+    "s13_overtake_4x": ([("uas1", "uas2")], OVERTAKE_MARGIN),
+    "s14_pursuer": ([("uas1", "uas2")], HEAD_ON_MARGIN),
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(20))
+@pytest.mark.parametrize("name", sorted(SEED_MARGINS))
+def test_rules_scenarios_keep_their_margins_on_20_seeds(name, seed, tmp_path):
+    """S9-S14 beyond their pinned seed: every listed pair (S11: every pair) keeps the case margin
+    and the cooperative UAS complete (S14: uas1 is chased, only uas2 must complete)."""
+    m, _ = fly(name, tmp_path, seed)
+    pairs, margin = SEED_MARGINS[name]
+    seps = m["separation"] if pairs is None else {f"{a}-{b}": m["separation"][f"{a}-{b}"] for a, b in pairs}
+    assert min(x["distance_m"] for x in seps.values()) >= margin, seps
+    must = ["uas2"] if name == "s14_pursuer" else list(m["vehicles"])
+    assert all(m["vehicles"][v]["mission"]["complete"] for v in must)

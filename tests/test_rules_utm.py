@@ -421,3 +421,35 @@ def test_widest_keeps_one_trajectory_per_cell_the_farthest_from_the_point():
         in_cell = np.flatnonzero(NAV.tip_cell == c)
         assert clearance[kept & (NAV.tip_cell == c)][0] == clearance[in_cell].max()
     assert not widest_per_cell(NAV, np.zeros(NAV.n_nodes, bool), clearance).any()
+
+
+def test_managed_peer_is_an_intruder_while_another_threat_holds_the_emergency_mode():
+    """A non-cooperative intruder crossing ahead holds the UAS in emergency mode while a
+    cooperative head-on peer's case is open. Emergency runs have no rule restrictions, so the peer
+    must be an intruder there: the run's feasible trajectories are those with a non-cooperative
+    peer in its place (it used to be dropped from the run: more trajectories, some through it)."""
+    from avoidance.reachset.movement import thesis_automaton
+    from avoidance.rules.planner import RulesAvoider
+    from sim.core.mission import Mission
+    from sim.core.plan import Threats
+    from sim.core.state import VehicleState
+    from sim.core.threats import IntruderTrack
+
+    def decisions(cooperative: bool) -> list:
+        mission = Mission(np.array([[60.0, 0.0, -5.0]]), cruise_speed=1.0, acceptance_radius=2.0)
+        av = RulesAvoider(mission, thesis_automaton(), RulesConfig())
+        out = []
+        for t in (0.0, 1.0):
+            peer = IntruderTrack(
+                "peer", t, np.array([12.0 - t, 0, -5]), np.array([-1.0, 0, 0]), cooperative=cooperative
+            )
+            crossing = IntruderTrack("nc", t, np.array([6.0, -6.0 + t, -5.0]), np.array([0.0, 1.0, 0.0]))
+            est = VehicleState(t, np.array([t, 0, -5.0]), np.array([1.0, 0, 0]), np.zeros(3), np.zeros(3), 5.0, 0, 0)
+            av.plan(est, Threats(intruders=[peer, crossing]), t)
+            out.append(av.last_decision)
+        return out
+
+    coop, non_coop = decisions(True)[1], decisions(False)[1]
+    assert "rule:case_open:self-peer:head_on:roundabout" in coop.events  # the rules manage the peer
+    assert coop.mode.value == "emergency"
+    np.testing.assert_array_equal(coop.run.fused.node_ok, non_coop.run.fused.node_ok)

@@ -55,6 +55,11 @@ class _Commitment:
     main_id: str
     t_cpa: float
 
+    def passed(self, s_now: float, length: float) -> bool:
+        """Whether along-track distance ``s_now`` [m] is past the rejoin point, or at the end of a
+        reference of ``length`` [m] the path rejoins beyond (the projection stops there)."""
+        return s_now >= min(float(self.along[-1]), length)
+
     def remaining(self, s_now: float) -> tuple[np.ndarray, np.ndarray]:
         """The rest of the path from along-track distance ``s_now`` [m] (its point there first) and
         its schedule re-timed to the vehicle's progress [s, τ = 0 now]: a vehicle behind (or
@@ -156,7 +161,7 @@ class GeometricAvoider:
         s_now, cross = ref.project(pos)
         replan = ""
         commit = self._commit
-        if commit is not None and s_now < commit.along[-1]:
+        if commit is not None and not commit.passed(s_now, ref.length):
             go, hold = self._commit_clearances(commit, threats, t, estimate.pos_ned)
             if go >= cfg.r_uav:
                 return self._with_diagnostics(commit.plan, {"status": "committed"}, t_start)
@@ -217,7 +222,8 @@ class GeometricAvoider:
         clear of the sensed threats with the rules used to choose it (the vehicle radius without
         ``select_margin_m``). False when nothing is committed or the rejoin point is passed."""
         c = self._commit
-        if c is None or self._require_reference().project(ned_to_enu(pos_ned))[0] >= c.along[-1]:
+        ref = self._require_reference()
+        if c is None or c.passed(ref.project(ned_to_enu(pos_ned))[0], ref.length):
             return False
         return self._commit_clearances(c, threats, t, pos_ned)[0] >= self.config.r_uav
 

@@ -72,10 +72,13 @@ class ReferenceLine:
     def onward(self, s: float, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The reference beyond along-distance ``s`` [m] reached at time ``t_s`` [s]: NED positions,
         times, vertex labels and NED velocities of the vertices after s (zero velocity at the
-        last vertex)."""
+        last vertex). At or past the end (``s`` >= length) it is the last vertex, due at ``t_s``:
+        a plan ending there still carries the last waypoint's label."""
         idx = np.flatnonzero(self.along > s + 1e-9)
+        if not len(idx):
+            idx = np.array([len(self.along) - 1])
         pos = enu_to_ned(self.waypoints_enu[idx])
-        times = t_s + (self.along[idx] - s) / self.speed
+        times = t_s + np.maximum(self.along[idx] - s, 0.0) / self.speed
         vel = np.tile(enu_to_ned(self.velocity), (len(idx), 1))
         if len(idx):
             vel[-1] = 0.0

@@ -145,9 +145,19 @@ class MissionControl:
         air's overtake waypoint, flown in place of the mission's), else the mission waypoint."""
         return self.waypoints[self.goal] if goal_override is None else goal_override
 
-    def step(self, s_now: KinState, threats: Threats, goal_override: np.ndarray | None = None) -> Decision:
+    def step(
+        self,
+        s_now: KinState,
+        threats: Threats,
+        goal_override: np.ndarray | None = None,
+        emergency_threats: Threats | None = None,
+    ) -> Decision:
         """One decision frame from the state ``s_now``; ``goal_override`` (ENU [m]) replaces the
-        current goal waypoint for this frame (progress past it moves on to the mission's next)."""
+        current goal waypoint for this frame (progress past it moves on to the mission's next).
+        ``threats`` decide the mode and feed navigation runs; in emergency mode the runs see
+        ``emergency_threats`` when given (a superset: the rules of the air resolve cooperative
+        peers by restricting navigation runs, which emergency runs do not have, so there the peers
+        must be intruders again)."""
         t0 = time.perf_counter()
         override = goal_override
         seg_index = self.sma.active_index(s_now)
@@ -200,6 +210,9 @@ class MissionControl:
                 self.buffer = []  # drop the rest of the avoidance path
             self.mode = new_mode
             parts = plan.assessors[self.mode].assess(pose, s_next.t, threats)
+        if self.mode == Mode.EMERGENCY and emergency_threats is not None:
+            parts = plan.assessors[self.mode].assess(pose, s_next.t, emergency_threats)
+            threat_events = situation_events(parts, self.cfg.fusion.threshold)
         events += threat_events
         d = Decision(
             s_now.t,

@@ -107,13 +107,19 @@ class ReachSetAvoider:
         return self.decide(estimate, threats, t)
 
     def decide(
-        self, estimate: VehicleState, threats: Threats, t: float, goal_override: np.ndarray | None = None
+        self,
+        estimate: VehicleState,
+        threats: Threats,
+        t: float,
+        goal_override: np.ndarray | None = None,
+        emergency_threats: Threats | None = None,
     ) -> Plan:
         """A decision frame now; ``goal_override`` (ENU [m]) is flown in place of the current goal
-        waypoint (the plan's labels still name the mission's own waypoints)."""
+        waypoint (the plan's labels still name the mission's own waypoints); ``emergency_threats``:
+        see :meth:`MissionControl.step`."""
         ctl = self.control
         ctl.goal = max(ctl.goal, self.mission.next_index)  # progress marked by the plan follower
-        d = ctl.step(self.kin_state(estimate, t), threats, goal_override)
+        d = ctl.step(self.kin_state(estimate, t), threats, goal_override, emergency_threats)
         self.last_decision = d
         pos, times, labels = self._vertices(d, estimate, threats)
         vel = (

@@ -9,7 +9,9 @@ Per decision frame (one per movement period):
 3. the mission-control run sees as intruders the non-cooperative traffic, cooperative peers the
    rules cannot assess (hovering, no common flight level) and peers handed to the emergency
    avoidance (unresolved cases, deadlocks); the other cooperative peers are not (they are
-   resolved by the rules in navigation mode, spec §6.2 step 5b);
+   resolved by the rules in navigation mode, spec §6.2 step 5b) — unless another threat holds
+   the vehicle in emergency mode, whose runs have no rule restrictions: there every peer is an
+   intruder;
 4. decision point *trajectory restrictions* (``MissionControl(restrict=...)``): the manoeuvre
    rules disable navigation trajectories; an overtake flies its divergence / convergence waypoint
    in place of the mission goal for that run;
@@ -106,7 +108,7 @@ class RulesAvoider(ReachSetAvoider):
         ctl = self.control
         goal = max(ctl.goal, self.mission.next_index)
         override = ctx.goal_override if goal < len(ctl.waypoints) else None  # overtake: the rule's waypoint
-        plan = self.decide(estimate, sensed, t, override)
+        plan = self.decide(estimate, sensed, t, override, emergency_threats=threats)
         ctx.decision = self.last_decision
         d = ctx.current_decision()
         self.engine.invoke(DecisionPoint.AFTER_AVOIDANCE_RUN, ctx)

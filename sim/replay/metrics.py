@@ -26,7 +26,8 @@ class MetricsWorld:
     """What metrics measure against besides the vehicles: map obstacles and geofences
     (``sim.core.threats`` types), scripted traffic objects (``sim.traffic.TrafficObject``) and
     the well-clear volume (horizontal radius, vertical half height [m]; default ASTM F3442
-    small-UAS well clear, 2000 ft / 250 ft)."""
+    small-UAS well clear, 2000 ft / 250 ft) and the NMAC cylinder (default RTCA DO-365 500 ft /
+    100 ft)."""
 
     obstacles: tuple = ()
     geofences: tuple = ()
@@ -34,6 +35,8 @@ class MetricsWorld:
     well_clear_h_m: float = 2000 * FT
     well_clear_v_m: float = 250 * FT
     weather: WeatherService | None = None  # the true storm field
+    nmac_h_m: float = 500 * FT  # near mid-air collision cylinder: horizontal radius [m] ...
+    nmac_v_m: float = 100 * FT  # ... and vertical half height [m] (default RTCA DO-365)
 
     @classmethod
     def from_scenario(cls, scenario) -> MetricsWorld:
@@ -56,6 +59,8 @@ class MetricsWorld:
             m.well_clear_horizontal,
             m.well_clear_vertical,
             weather,
+            m.nmac_horizontal,
+            m.nmac_vertical,
         )
 
 
@@ -101,20 +106,26 @@ def tracking_metrics(tr: VehicleTrace) -> dict:
 
 
 def mission_metrics(tr: VehicleTrace) -> dict:
+    """Mission progress, completion time [s] and the true path length flown [m] (to the end of
+    the log)."""
     return {
         "complete": tr.mission_complete,
         "waypoints_reached": len(tr.waypoint_times),
         "waypoints": tr.waypoints_total,
         "time_s": tr.complete_t,
+        "path_length_m": float(np.linalg.norm(np.diff(tr.pos_ned, axis=0), axis=1).sum()),
     }
 
 
 def latency_metrics(tr: VehicleTrace) -> dict:
+    """Wall-clock latency of the planner calls that made a new plan; ``cache_hits``: calls that
+    kept the previous plan (not in the latency figures)."""
     x = tr.plan_latency_s
     if x.size == 0:
-        return {"count": 0}
+        return {"count": 0, "cache_hits": tr.plan_cache_hits}
     return {
         "count": int(x.size),
+        "cache_hits": tr.plan_cache_hits,
         "median_ms": float(np.median(x) * 1e3),
         "p95_ms": float(np.percentile(x, 95) * 1e3),
         "max_ms": float(np.max(x) * 1e3),
@@ -134,14 +145,35 @@ def common_times(a: VehicleTrace, b: VehicleTrace) -> tuple[np.ndarray, np.ndarr
     return a.t[ia], ia, ib
 
 
-def min_separation(a: VehicleTrace, b: VehicleTrace) -> dict:
-    """Smallest 3-D distance between two vehicles at their common log times [m], and when."""
+def min_separation(a: VehicleTrace, b: VehicleTrace, world: MetricsWorld = MetricsWorld()) -> dict:
+    """Smallest 3-D distance between two vehicles at their common log times [m], and when, with
+    :func:`cylinder_separation` of the pair."""
     common, ia, ib = common_times(a, b)
     if common.size == 0:
         return {"distance_m": None, "t": None}
     d = np.linalg.norm(a.pos_ned[ia] - b.pos_ned[ib], axis=1)
     k = int(np.argmin(d))
-    return {"distance_m": float(d[k]), "t": float(common[k])}
+    return {
+        "distance_m": float(d[k]),
+        "t": float(common[k]),
+        **cylinder_separation(a.pos_ned[ia] - b.pos_ned[ib], world),
+    }
+
+
+def cylinder_separation(rel_ned: np.ndarray, world: MetricsWorld) -> dict:
+    """From relative positions (N, 3) NED [m] at common times: the smallest horizontal and
+    vertical separations [m] (each over the whole run), the vertical separation at the smallest
+    horizontal one [m], whether the pair was ever inside the NMAC cylinder (``nmac``) and inside
+    the well-clear volume (``lowc``), each horizontally and vertically at one same time."""
+    h, v = np.hypot(rel_ned[:, 0], rel_ned[:, 1]), np.abs(rel_ned[:, 2])
+    k = int(np.argmin(h))
+    return {
+        "min_horizontal_m": float(h[k]),
+        "vertical_at_min_horizontal_m": float(v[k]),
+        "min_vertical_m": float(v.min()),
+        "nmac": bool(((h < world.nmac_h_m) & (v < world.nmac_v_m)).any()),
+        "lowc": bool(((h < world.well_clear_h_m) & (v < world.well_clear_v_m)).any()),
+    }
 
 
 def _clearance(tr: VehicleTrace, footprint, up_min: float, up_max: float) -> np.ndarray:
@@ -185,12 +217,14 @@ def obstacle_metrics(tr: VehicleTrace, world: MetricsWorld) -> dict:
 
 def object_metrics(tr: VehicleTrace, world: MetricsWorld) -> dict:
     """Closest approach to every scripted traffic object while it exists: 3-D distance from the
-    vehicle to the object's sphere surface [m] (negative inside) and when."""
+    vehicle to the object's sphere surface [m] (negative inside) and when, and
+    :func:`cylinder_separation` of the vehicle and the object's centre."""
     out = {}
     for o in world.objects:
         live = tr.t >= o.appear
-        d = np.linalg.norm(tr.pos_ned[live] - o.position(tr.t[live]), axis=1) - o.radius_m
-        out[f"object.{o.id}"] = _min_at(tr.t[live], d)
+        rel = tr.pos_ned[live] - o.position(tr.t[live])
+        d = np.linalg.norm(rel, axis=1) - o.radius_m
+        out[f"object.{o.id}"] = _min_at(tr.t[live], d) | (cylinder_separation(rel, world) if len(rel) else {})
     return out
 
 
@@ -280,7 +314,7 @@ def run_metrics(traces: list[VehicleTrace], world: MetricsWorld = MetricsWorld()
     for a, b in itertools.combinations(traces, 2):
         losses = well_clear_losses(a, b, world)
         out["separation"][f"{a.name}-{b.name}"] = {
-            **min_separation(a, b),
+            **min_separation(a, b, world),
             "well_clear_losses": len(losses),
             "well_clear_loss_events": losses,
         }

@@ -1,9 +1,13 @@
 """Re-run a planner open-loop on a recorded run and compare its decisions with the recorded ones.
 
-For every plan a vehicle logged, the planner (the scenario's own, or another kind or parameter
-set) is fed what the recorded one saw: the logged estimate at that time, the logged threats,
-and the mission progress up to that time (waypoints reached before it, from the events). Plans
-compare vertex by vertex: positions [m], due times [s], labels and status.
+Every planner call of the run logged the planner's complete inputs: ``/<v>/plan/input`` (the
+estimate, the mission progress, whether the call made a new plan) and ``/<v>/threats`` (every
+sensed threat field, one message per call); map obstacles and geofences and the planner's
+options come from the attached scenario. The planner (the scenario's own, or another kind or
+parameter set) is called at every logged call with those inputs, in order, so its internal
+state (replan timers, committed plans, nowcast caches) evolves as in the run. Plans compare
+vertex by vertex (positions [m], due times [s], labels and status), and a call that made a new
+plan in one run but kept the previous plan in the other is a difference.
 """
 
 from __future__ import annotations
@@ -12,16 +16,15 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from shapely.geometry import Polygon
 
 from aircraft.registry import get_airframe
 from sim.core.mission import Mission
-from sim.core.plan import Planner, Threats
-from sim.core.threats import IntruderTrack, SphereThreat, StormSnapshot
+from sim.core.plan import Plan, Planner
+from sim.core.threats import StormSnapshot
+from sim.environment import geofence, obstacle_prism
 from sim.mcap_read import LogReadError, read_attached_scenario
-from sim.planner_registry import make_planner
 from sim.replay.runlog import RunLog
-from sim.vehicle_log import state_from_dict
+from sim.vehicle_log import restore_progress, state_from_dict, storms_from_dicts, threats_from_dict
 
 PlannerFactory = Callable[[Mission], Planner]
 
@@ -38,34 +41,11 @@ class RerunReport:
     differences: list[str] = field(default_factory=list)  # a line per differing plan (first 20)
 
 
-def _threats(d: dict) -> Threats:
-    a = np.asarray
-    return Threats(
-        intruders=[
-            IntruderTrack(
-                i["id"],
-                i["t"],
-                a(i["pos_ned"]),
-                a(i["vel_ned"]),
-                i["radius_m"],
-                a(i["pos_cov"]),
-                a(i["vel_cov"]),
-                i["cooperative"],
-            )
-            for i in d["intruders"]
-        ],
-        spheres=[
-            SphereThreat(s["id"], s["t"], a(s["center_ned"]), s["radius_m"], a(s["vel_ned"]), a(s["center_cov"]))
-            for s in d["spheres"]
-        ],
-        storms=[StormSnapshot(s["t"], tuple(Polygon(c) for c in s["cells"])) for s in d["storms"]],
-    )
-
-
 def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> RerunReport:
-    """Re-run ``vehicle``'s planner (``factory(mission)``; default: the scenario's own kind) on
-    the log at ``path``."""
-    from sim.vehicle_setup import mission_from_config  # the runner's own mission construction
+    """Re-run ``vehicle``'s planner (``factory(mission)``; default: the scenario's own, built as
+    the run built it) on the log at ``path``. Calls made by a ground-station mode planner (HOLD,
+    GUIDED) are not re-run."""
+    from sim.vehicle_setup import mission_from_config, scenario_planner  # the runner's own construction
 
     log = RunLog(path)
     scenario = read_attached_scenario(path)
@@ -74,57 +54,73 @@ def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> 
     cfg = next((v for v in scenario.vehicle if v.name == vehicle), None)
     if cfg is None:
         raise LogReadError(f"{path}: no vehicle {vehicle!r} in the attached scenario")
+    if not log.has(f"/{vehicle}/plan/input"):
+        raise LogReadError(f"{path}: no /{vehicle}/plan/input (a log older than the planner-input records)")
     mission = mission_from_config(cfg, scenario.origin_point)
-    kind = get_airframe(cfg.aircraft).kind
+    af = get_airframe(cfg.aircraft)
+    wind_ne = (scenario.wind.north, scenario.wind.east)
     planner = (
         factory(mission)
         if factory
-        else make_planner(
-            cfg.planner.type, mission, kind, cfg.planner.options, wind_ne_mps=(scenario.wind.north, scenario.wind.east)
-        )
+        else scenario_planner(cfg, mission, af, af.make_controller(cfg.gains).gains, wind_ne)
     )
-    est = log.topic(f"/{vehicle}/est/state")
-    threats = log.topic(f"/{vehicle}/threats")
-    plans = log.topic(f"/{vehicle}/plan")
-    prefix = f"{vehicle}: waypoint "
-    reached = sorted(
-        (t, int(text[len(prefix) :].split("/")[0]) - 1)
-        for t, text in log.events()
-        if text.startswith(prefix) and text.endswith(" reached")
-    )
+    alt0 = scenario.origin_point.alt_m
+    obstacles = [obstacle_prism(c, alt0) for c in scenario.obstacle]
+    fences = [geofence(c, alt0) for c in scenario.geofence]
+    inputs, threats = log.topic(f"/{vehicle}/plan/input"), log.topic(f"/{vehicle}/threats")
+    plans = iter(log.topic(f"/{vehicle}/plan").messages)
+    if len(inputs) != len(threats):
+        raise LogReadError(f"{path}: {len(inputs)} planner inputs but {len(threats)} threat records for {vehicle}")
     report = RerunReport(vehicle, getattr(planner, "name", type(planner).__name__))
-    for t, rec in zip(plans.t, plans.messages, strict=False):
-        for tr, k in reached:
-            if tr < t:  # at a tick the planner runs before the control that marks a waypoint
-                mission.mark_reached(k, tr)
-        i = int(np.searchsorted(est.t, t, side="right")) - 1
-        j = int(np.searchsorted(threats.t, t, side="right")) - 1
-        if i < 0 or j < 0:
-            raise LogReadError(f"{path}: no estimate or threats logged before the plan at t={t:.2f} s")
-        new = planner.plan(state_from_dict(est.messages[i]), _threats(threats.messages[j]), float(t))
-        _compare(report, float(t), rec, new)
+    scenario_planner_name = inputs.messages[0]["planner"] if len(inputs) else ""
+    logged_storms: list[dict] | None = None
+    storms: list[StormSnapshot] = []
+    for rec_in, rec_th in zip(inputs.messages, threats.messages, strict=True):
+        recorded = next(plans) if rec_in["new_plan"] else None
+        if rec_in["planner"] != scenario_planner_name:  # a ground-station mode planner flew this call
+            continue
+        if rec_th["storms"] != logged_storms:  # a new nowcast: new snapshot objects, as in the run
+            logged_storms, storms = rec_th["storms"], storms_from_dicts(rec_th["storms"])
+        restore_progress(mission, rec_in["mission"])
+        t = float(rec_in["t"])
+        new = planner.plan(state_from_dict(rec_in["estimate"]), threats_from_dict(rec_th, obstacles, fences, storms), t)
+        _compare(report, t, recorded, new if new.t == t else None)
     return report
 
 
-def _compare(report: RerunReport, t: float, rec: dict, new) -> None:
+def _compare(report: RerunReport, t: float, rec: dict | None, new: Plan | None) -> None:
+    """One planner call: ``rec`` the recorded new plan, ``new`` the re-run's (None: the call kept
+    the previous plan)."""
+    if rec is None and new is None:
+        return
     report.plans += 1
-    old_p, old_t = np.asarray(rec["positions"]), np.asarray(rec["times"])
+    why = _differences(report, rec, new)
+    if not why:
+        report.same += 1
+        return
+    if report.first_difference_t is None:
+        report.first_difference_t = t
+    if len(report.differences) < 20:
+        report.differences.append(f"t={t:.2f} s: " + "; ".join(why))
+
+
+def _differences(report: RerunReport, rec: dict | None, new: Plan | None) -> list[str]:
+    """How the re-run's plan differs from the recorded one; updates the report's largest
+    vertex differences."""
+    if rec is None:
+        return ["the recorded run kept its plan, the re-run made a new one"]
+    if new is None:
+        return ["the re-run kept its plan, the recorded run made a new one"]
     why = []
     if rec["status"] != new.status.value:
         why.append(f"status {rec['status']} -> {new.status.value}")
+    old_p = np.asarray(rec["positions"], float)
     if old_p.shape != new.positions.shape or rec["labels"] != new.labels.tolist():
-        why.append(f"{len(old_p)} -> {len(new.positions)} vertices")
-    else:
-        dp = float(np.max(np.linalg.norm(old_p - new.positions, axis=1)))
-        dt = float(np.max(np.abs(old_t - new.times)))
-        report.max_position_diff_m = max(report.max_position_diff_m, dp)
-        report.max_time_diff_s = max(report.max_time_diff_s, dt)
-        if dp > 1e-6 or dt > 1e-6:
-            why.append(f"vertices differ by up to {dp:.3g} m / {dt:.3g} s")
-    if why:
-        if report.first_difference_t is None:
-            report.first_difference_t = t
-        if len(report.differences) < 20:
-            report.differences.append(f"t={t:.2f} s: " + "; ".join(why))
-    else:
-        report.same += 1
+        return [*why, f"{len(old_p)} -> {len(new.positions)} vertices"]
+    dp = float(np.max(np.linalg.norm(old_p - new.positions, axis=1)))
+    dt = float(np.max(np.abs(np.asarray(rec["times"], float) - new.times)))
+    report.max_position_diff_m = max(report.max_position_diff_m, dp)
+    report.max_time_diff_s = max(report.max_time_diff_s, dt)
+    if dp > 1e-6 or dt > 1e-6:
+        why.append(f"vertices differ by up to {dp:.3g} m / {dt:.3g} s")
+    return why

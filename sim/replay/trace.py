@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sim.mcap_log import logged_time
 from sim.replay.runlog import RunLog
 
 # truth-state fields and the setpoint fields every follower logs; tas_mps only for fixed wing
@@ -40,6 +41,7 @@ class VehicleTrace:
     sigma3_vel: np.ndarray | None = None  # (N, 3) [m/s]
     truth_vel_ned: np.ndarray | None = None  # (N, 3) true velocity [m/s]
     truth_cross_track_m: np.ndarray | None = None  # (N,) true cross-track to the followed leg [m]
+    plan_cache_hits: int = 0  # planner calls that kept the previous plan
 
     def true_cross_track(self) -> np.ndarray:
         """(N,) true cross-track to the followed leg [m]."""
@@ -55,7 +57,7 @@ class VehicleTrace:
     def from_log(cls, log: RunLog, name: str) -> VehicleTrace:
         st = log.topic(f"/{name}/truth/state")
         sp = log.topic(f"/{name}/ctrl/setpoint")
-        lat_topic = f"/{name}/plan/latency"
+        lat_topic, inp_topic = f"/{name}/plan/latency", f"/{name}/plan/input"
         latency = log.topic(lat_topic)["seconds"] if log.has(lat_topic) else np.zeros(0)
         status = log.topic(f"/{name}/mission/status")
         total = int(status["waypoints"][-1]) if len(status) else 0
@@ -90,6 +92,7 @@ class VehicleTrace:
             None if sig is None else sig["vel"],
             st["vel_ned"],
             log.topic(f"/{name}/truth/tracking")["cross_track_m"],
+            plan_cache_hits=sum(not m["new_plan"] for m in log.topic(inp_topic).messages) if log.has(inp_topic) else 0,
         )
 
 
@@ -103,6 +106,7 @@ class TraceRecorder:
     _state: dict[str, list] = field(default_factory=lambda: {k: [] for k in _STATE})
     _setpoint: dict[str, list] = field(default_factory=dict)
     _latency: list[float] = field(default_factory=list)
+    _cache_hits: int = 0
     _reached: list[float] = field(default_factory=list)
     _complete_t: float | None = None
     _commands: list[dict[str, float]] = field(default_factory=list)
@@ -129,11 +133,16 @@ class TraceRecorder:
     def latency(self, seconds: float) -> None:
         self._latency.append(seconds)
 
+    def cache_hit(self) -> None:
+        self._cache_hits += 1
+
     def reached(self, t: float) -> None:
-        self._reached.append(t)
+        """A waypoint reached at ``t`` [s]: kept as its ``/log`` event's time reads back."""
+        self._reached.append(logged_time(t))
 
     def complete(self, t: float) -> None:
-        self._complete_t = t
+        """The mission completed at ``t`` [s]: kept as its ``/log`` event's time reads back."""
+        self._complete_t = logged_time(t)
 
     def trace(self) -> VehicleTrace:
         s = {k: np.asarray(v, dtype=float) for k, v in self._state.items()}
@@ -153,11 +162,15 @@ class TraceRecorder:
             self._command_arrays(),
             est_pos_ned=np.asarray(self._est["pos_ned"], dtype=float),
             est_vel_ned=np.asarray(self._est["vel_ned"], dtype=float),
-            sigma3_pos=np.asarray(self._sigma["pos"], dtype=float) if self._sigma["pos"] else None,
-            sigma3_vel=np.asarray(self._sigma["vel"], dtype=float) if self._sigma["vel"] else None,
+            sigma3_pos=self._sigma_array("pos"),
+            sigma3_vel=self._sigma_array("vel"),
             truth_vel_ned=s["vel_ned"],
             truth_cross_track_m=np.asarray(self._cross, dtype=float),
+            plan_cache_hits=self._cache_hits,
         )
+
+    def _sigma_array(self, key: str) -> np.ndarray | None:
+        return np.asarray(self._sigma[key], dtype=float) if self._sigma[key] else None
 
     def _command_arrays(self) -> dict[str, np.ndarray]:
         props = self._commands[-1].keys() if self._commands else ()

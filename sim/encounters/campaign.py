@@ -1,0 +1,260 @@
+"""Encounter campaigns on the batch machinery: a campaign file expands into paired runs
+(:data:`~sim.encounters.geometry.MODES`) of sampled encounters, flown by
+:func:`sim.batch.run_batch` (process pool or Dask, resumable), then tabled and summarised.
+
+A campaign file (TOML)::
+
+    name = "geometric_quad_pairs"
+    seed = 17                      # master seed: parameters and run seeds derive from it
+    encounters = 500
+    latin_hypercube = true         # optional (default false: independent draws)
+    altitude = 420                 # ownship altitude at the CPA [m MSL]
+    after_cpa = 10                 # flown past the CPA to the mission's end [s]
+    slack = 30                     # extra sim time for detours [s]
+    keep_mcaps = "failures"        # or "all": MCAPs of every run
+    min_relative_speed = 0.5       # [m/s] draws closing slower are skipped (counted in summary.json)
+    [metrics]                      # the scenarios' [metrics]: NMAC cylinder, well clear [m]
+    nmac_horizontal = 5
+    [ownship]
+    aircraft = "quadrotor"
+    planner = { type = "geometric", rate_hz = 10, options = { conflict_horizon_s = 2.0 } }
+    [intruder]
+    kind = "object"                # object | quadrotor | haps | cooperative
+    radius = 0.5
+    [parameters]                   # sim.encounters.model.PARAMETERS: number or distribution
+    approach_angle = { uniform = [0, 360] }
+
+Outputs in the campaign folder: ``runs/`` (the batch's per-run JSON; MCAPs of failed, NMAC and
+induced-NMAC encounters, or all), ``encounters.csv``, ``summary.json``, ``report.md``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import tomllib
+from collections.abc import Callable
+from concurrent.futures import Executor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from sim.batch import RunSpec, run_batch
+from sim.encounters.aggregate import Pair, by_bin, geometry_bins, summarise
+from sim.encounters.geometry import (
+    DEFAULT_ORIGIN,
+    INTRUDER,
+    INTRUDER_KINDS,
+    MODES,
+    OWN,
+    EncounterSetup,
+    build_scenario,
+    relative_speed,
+)
+from sim.encounters.model import PARAMETERS, CampaignError, parse_distributions, sample
+from sim.scenario import ScenarioError, parse_scenario
+
+FT = 0.3048
+# NMAC cylinders [m]: RTCA DO-365 (manned-scale traffic, here the HAPS) and the project's small-UAS
+# body-scale volume (docs/encounters.md)
+NMAC_DO365 = {"nmac_horizontal": 500 * FT, "nmac_vertical": 100 * FT}
+NMAC_SMALL_UAS = {"nmac_horizontal": 5.0, "nmac_vertical": 2.5}
+TOP_KEYS = {"name", "seed", "encounters", "latin_hypercube", "altitude", "after_cpa", "slack", "keep_mcaps"}
+TOP_KEYS |= {"min_relative_speed"}
+TOP_KEYS |= {"surveillance_rate_hz", "origin", "metrics", "ownship", "intruder", "parameters"}
+
+
+@dataclass(frozen=True, slots=True)
+class Encounter:
+    index: int
+    seed: int
+    params: dict[str, float]
+
+
+@dataclass(frozen=True, slots=True)
+class Campaign:
+    name: str
+    setup: EncounterSetup
+    encounters: list[Encounter]  # flown: draws closing at min_relative_speed or faster
+    runs: list[RunSpec]  # per encounter: mitigated, unmitigated
+    keep_mcaps: str
+    skipped: int = 0  # draws closing slower than min_relative_speed
+
+    @property
+    def planner(self) -> str:
+        return self.setup.ownship["planner"].get("type", "follow_mission")
+
+
+def run_seed(master: int, index: int) -> int:
+    """Seed of encounter ``index`` (both of its runs) from the master seed."""
+    return int(np.random.SeedSequence([master, index]).generate_state(1, dtype=np.uint64)[0] >> 1)
+
+
+def load_campaign(path: str | Path, out_dir: str | Path, limit: int | None = None) -> Campaign:
+    """Parse, sample and expand a campaign file into validated paired runs logged under ``out_dir``.
+    ``limit``: only the first draws (the same runs as in the full campaign, which resumes them)."""
+    path = Path(path)
+    src = str(path)
+    try:
+        cfg = tomllib.loads(path.read_text())
+    except OSError as exc:
+        raise CampaignError(f"{src}: cannot read campaign file ({exc.strerror})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise CampaignError(f"{src}: not valid TOML: {exc}") from None
+    unknown = sorted(set(cfg) - TOP_KEYS)
+    if unknown:
+        raise CampaignError(f"{src}: {unknown[0]}: unknown key")
+    for key in ("ownship", "intruder"):
+        if not isinstance(cfg.get(key), dict):
+            raise CampaignError(f"{src}: {key}: missing table [{key}]")
+    own, intruder = cfg["ownship"], cfg["intruder"]
+    if "aircraft" not in own or "planner" not in own:
+        raise CampaignError(f"{src}: ownship: needs aircraft and planner")
+    if intruder.get("kind") not in INTRUDER_KINDS:
+        raise CampaignError(f"{src}: intruder.kind: one of {', '.join(INTRUDER_KINDS)}, got {intruder.get('kind')!r}")
+    keep = cfg.get("keep_mcaps", "failures")
+    if keep not in ("failures", "all"):
+        raise CampaignError(f"{src}: keep_mcaps: 'failures' or 'all', got {keep!r}")
+    n = cfg.get("encounters", 0)
+    if not isinstance(n, int) or n < 1:
+        raise CampaignError(f"{src}: encounters: a positive integer, got {n!r}")
+    default_nmac = NMAC_DO365 if intruder["kind"] == "haps" else NMAC_SMALL_UAS
+    setup_kw = {k: float(cfg[k]) for k in ("altitude", "after_cpa", "slack", "surveillance_rate_hz") if k in cfg}
+    setup = EncounterSetup(
+        own,
+        intruder,
+        origin=cfg.get("origin", dict(DEFAULT_ORIGIN)),
+        metrics=default_nmac | cfg.get("metrics", {}),
+        **setup_kw,
+    )
+    name = cfg.get("name", path.stem)
+    master = int(cfg.get("seed", 0))
+    dists = parse_distributions(cfg.get("parameters", {}), f"{src}: parameters")
+    draws = sample(dists, n, master, bool(cfg.get("latin_hypercube", False)))
+    min_rel = float(cfg.get("min_relative_speed", 0.5))
+    out = Path(out_dir)
+    encounters, runs = [], []
+    for i, params in enumerate(draws[:limit]):
+        if relative_speed(params) < min_rel:
+            continue
+        enc = Encounter(i, run_seed(master, i), params)
+        encounters.append(enc)
+        for mode in MODES:
+            run_id = f"{name}_{i:05d}_{mode}"
+            try:
+                scen = build_scenario(params, setup, enc.seed, mode, run_id)
+                parse_scenario(scen, f"{src} encounter {i} ({mode})")
+            except (ScenarioError, CampaignError) as exc:
+                raise CampaignError(f"{src}: {exc}") from None
+            runs.append(
+                RunSpec(
+                    run_id,
+                    scen,
+                    None,
+                    str(out / "runs" / f"{run_id}.mcap"),
+                    str(out / "runs" / f"{run_id}.json"),
+                    {"encounter": i, "mode": mode, "seed": enc.seed, **params},
+                )
+            )
+    if not encounters:
+        raise CampaignError(f"{src}: no encounter closes at min_relative_speed ({min_rel:g} m/s) or faster")
+    return Campaign(name, setup, encounters, runs, keep, len(draws[:limit]) - len(encounters))
+
+
+def outcome(row: dict, kind: str) -> dict:
+    """One run's encounter metrics from its batch row."""
+    m = {k.removeprefix("metric."): v for k, v in row.items() if k.startswith("metric.")}
+    sep = f"vehicles.{OWN}.clearance.object.{INTRUDER}" if kind == "object" else f"separation.{OWN}-{INTRUDER}"
+    vehicles = [OWN] if kind != "cooperative" else [OWN, INTRUDER]
+    return {
+        "status": row.get("status"),
+        "min_horizontal_m": m.get(f"{sep}.min_horizontal_m"),
+        "min_vertical_m": m.get(f"{sep}.min_vertical_m"),
+        "vertical_at_min_horizontal_m": m.get(f"{sep}.vertical_at_min_horizontal_m"),
+        "cpa_t": m.get(f"{sep}.t"),
+        "nmac": bool(m.get(f"{sep}.nmac")),
+        "lowc": bool(m.get(f"{sep}.lowc")),
+        "complete": all(bool(m.get(f"vehicles.{v}.mission.complete")) for v in vehicles),
+        "time_s": m.get(f"vehicles.{OWN}.mission.time_s"),
+        "path_length_m": m.get(f"vehicles.{OWN}.mission.path_length_m"),
+        "latency_p95_ms": m.get(f"vehicles.{OWN}.planner_latency.p95_ms"),
+    }
+
+
+def _extra(a: float | None, b: float | None) -> float | None:
+    return a - b if a is not None and b is not None else None
+
+
+def tabulate(c: Campaign, rows: list[dict]) -> tuple[list[dict], list[Pair]]:
+    """encounters.csv rows (one per encounter and mode: parameters, outcome, extra time and path
+    of the mitigated run) and the pairs of encounters whose two runs did not fail."""
+    kind = c.setup.intruder["kind"]
+    table: list[dict] = []
+    pairs: list[Pair] = []
+    for k, enc in enumerate(c.encounters):
+        mit, unm = (outcome(r, kind) for r in rows[2 * k : 2 * k + 2])
+        for mode, o in zip(MODES, (mit, unm), strict=True):
+            extra: dict[str, float | None] = {"extra_time_s": None, "extra_path_m": None}
+            if mode == "mitigated":
+                extra = {
+                    "extra_time_s": _extra(mit["time_s"], unm["time_s"]),
+                    "extra_path_m": _extra(mit["path_length_m"], unm["path_length_m"]),
+                }
+            table.append({"encounter": enc.index, "mode": mode, "seed": enc.seed, **enc.params, **o, **extra})
+        if mit["status"] != "failed" and unm["status"] != "failed":
+            pairs.append(
+                Pair(mit["nmac"], unm["nmac"], mit["lowc"], unm["lowc"], mit["complete"], geometry_bins(enc.params))
+            )
+    return table, pairs
+
+
+def keep_logs(c: Campaign, table: list[dict]) -> set[str]:
+    """Run ids whose MCAP is kept: both runs of an encounter with a failed run, a mitigated NMAC
+    (induced or not) or an incomplete mitigated mission (every run with ``keep_mcaps = "all"``)."""
+    keep = set()
+    for k in range(len(c.encounters)):
+        mit, unm = table[2 * k], table[2 * k + 1]
+        bad = "failed" in (mit["status"], unm["status"]) or mit["nmac"] or not mit["complete"]
+        if bad or c.keep_mcaps == "all":
+            keep |= {c.runs[2 * k].run_id, c.runs[2 * k + 1].run_id}
+    return keep
+
+
+def run_campaign(
+    c: Campaign,
+    out_dir: str | Path,
+    executor: Executor | None = None,
+    workers: int = 1,
+    progress: Callable[[int, int, dict], None] | None = None,
+    resume: bool = True,
+) -> dict:
+    """Fly every run (finished ones skipped when ``resume``), write the outputs, return the
+    summary ({planner: summary with ``bins``})."""
+    from sim.encounters.report import write_report
+
+    out = Path(out_dir)
+    rows = run_batch(c.runs, out, executor=executor, workers=workers, progress=progress, resume=resume)
+    table, pairs = tabulate(c, rows)
+    kept = keep_logs(c, table)
+    for spec, row in zip(c.runs, table, strict=True):
+        log = Path(spec.log_path)
+        if spec.run_id not in kept:
+            log.unlink(missing_ok=True)
+        row["mcap"] = str(log.relative_to(out)) if log.exists() else ""
+    write_table(out / "encounters.csv", table)
+    failed = sum(r["status"] == "failed" for r in table)
+    summary = {c.planner: summarise(pairs) | {"failed_runs": failed, "skipped_draws": c.skipped}}
+    summary[c.planner]["bins"] = by_bin(pairs)
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, sort_keys=True))
+    write_report(out, c, table, summary)
+    return summary
+
+
+def write_table(path: Path, table: list[dict]) -> None:
+    first = ["encounter", "mode", "seed", *PARAMETERS]
+    columns = first + [k for k in table[0] if k not in first]
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=columns)
+        w.writeheader()
+        w.writerows(table)

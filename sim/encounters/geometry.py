@@ -1,0 +1,164 @@
+"""Encounter construction: from sampled parameters to a scenario whose unmitigated closest
+approach is the sampled one.
+
+Local NED [m] from the scenario origin, altitudes MSL [m], speeds [m/s], sim time [s]. Both
+vehicles fly straight, constant-velocity legs through their closest point of approach (CPA) at
+``time_to_cpa``: the ownship passes over (north, east) = (0, 0) at ``altitude``; the intruder is
+then ``hmd`` to the right of the horizontal relative velocity (intruder minus ownship) and ``vmd``
+above. With the relative position at that time perpendicular to the relative velocity, that time
+is the horizontal CPA and ``hmd`` its miss distance. Each vehicle starts ``time_to_cpa`` back
+along its leg at its cruise speed (a multirotor already moving: its initial airspeed) and its one
+waypoint lies ``after_cpa`` beyond the CPA.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sim.encounters.model import CampaignError
+
+INTRUDER_KINDS = ("object", "quadrotor", "haps", "cooperative")
+MODES = ("mitigated", "unmitigated")
+OWN, INTRUDER = "own", "intruder"
+FOLLOW = {"type": "follow_mission"}
+DEFAULT_ORIGIN = {"lat": 47.0, "lon": 8.0, "altitude": 400.0}  # [deg, deg, m MSL]
+
+
+@dataclass(frozen=True, slots=True)
+class EncounterSetup:
+    """What every encounter of a campaign shares. ``ownship``: ``aircraft``, ``planner`` (a
+    scenario planner table), optional ``acceptance_radius`` [m], ``estimator`` and ``initial``
+    (scenario initial-state fields over the generated ones, e.g. ``trim = false``); ``intruder``:
+    ``kind`` (:data:`INTRUDER_KINDS`; ``cooperative``: a quadrotor running the ownship's planner
+    when mitigated), ``radius`` [m] of an object, optional ``acceptance_radius``, ``estimator``,
+    ``initial``. ``metrics``: the
+    scenario's ``[metrics]`` table (NMAC cylinder, well clear)."""
+
+    ownship: dict
+    intruder: dict
+    altitude: float = 420.0
+    after_cpa: float = 10.0
+    slack: float = 30.0
+    origin: dict = field(default_factory=lambda: dict(DEFAULT_ORIGIN))
+    surveillance_rate_hz: float = 2.0
+    metrics: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True, slots=True)
+class Leg:
+    """A straight leg: start NED [m] (down = -(altitude - origin altitude)), velocity NED [m/s]."""
+
+    start: np.ndarray
+    velocity: np.ndarray
+
+    def at(self, t: float) -> np.ndarray:
+        return self.start + self.velocity * t
+
+
+def velocities(p: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Ownship and intruder velocities NED [m/s] of parameters ``p``."""
+    psi_o = math.radians(p["own_heading"])
+    psi_i = psi_o + math.radians(p["approach_angle"])
+    v_o = np.array([p["own_speed"] * math.cos(psi_o), p["own_speed"] * math.sin(psi_o), -p["own_vertical_rate"]])
+    v_i = np.array(
+        [p["intruder_speed"] * math.cos(psi_i), p["intruder_speed"] * math.sin(psi_i), -p["intruder_vertical_rate"]]
+    )
+    return v_o, v_i
+
+
+def relative_speed(p: dict[str, float]) -> float:
+    """Horizontal speed of the intruder relative to the ownship [m/s]."""
+    v_o, v_i = velocities(p)
+    return float(np.hypot(*(v_i[:2] - v_o[:2])))
+
+
+def legs(p: dict[str, float], setup: EncounterSetup) -> tuple[Leg, Leg]:
+    """Ownship and intruder legs of parameters ``p`` (see :mod:`sim.encounters.model`)."""
+    v_o, v_i = velocities(p)
+    rel = v_i[:2] - v_o[:2]
+    n = float(np.hypot(*rel))
+    if n < 1e-6:
+        raise CampaignError(f"encounter {p}: equal horizontal velocities: no closest approach")
+    right = np.array([-rel[1], rel[0]]) / n
+    down_cpa = -(setup.altitude - setup.origin["altitude"])
+    cpa_o = np.array([0.0, 0.0, down_cpa])
+    cpa_i = np.array([*(p["hmd"] * right), down_cpa - p["vmd"]])
+    t = p["time_to_cpa"]
+    return Leg(cpa_o - v_o * t, v_o), Leg(cpa_i - v_i * t, v_i)
+
+
+def _vehicle(name: str, aircraft: str, leg: Leg, setup: EncounterSetup, end_t: float, cfg: dict, planner: dict) -> dict:
+    """A scenario ``[[vehicle]]`` flying ``leg`` from t = 0 to its waypoint at ``end_t`` [s]."""
+    alt0 = setup.origin["altitude"]
+    end = leg.at(end_t)
+    horizontal = float(np.hypot(*leg.velocity[:2]))
+    vehicle = {
+        "name": name,
+        "aircraft": aircraft,
+        "initial": {
+            "north": float(leg.start[0]),
+            "east": float(leg.start[1]),
+            "altitude": alt0 - float(leg.start[2]),
+            "airspeed": horizontal,
+            "heading": math.degrees(math.atan2(leg.velocity[1], leg.velocity[0])),
+            **cfg.get("initial", {}),
+        },
+        "mission": {
+            "cruise_speed": float(np.linalg.norm(leg.velocity)) if aircraft != "haps" else horizontal,
+            "acceptance_radius": float(cfg.get("acceptance_radius", 2.0)),
+            "waypoints": [{"north": float(end[0]), "east": float(end[1]), "altitude": alt0 - float(end[2])}],
+        },
+        "planner": planner,
+    }
+    if "estimator" in cfg:
+        vehicle["estimator"] = cfg["estimator"]
+    return vehicle
+
+
+def build_scenario(p: dict[str, float], setup: EncounterSetup, seed: int, mode: str, name: str) -> dict:
+    """The scenario mapping of one encounter flown in ``mode`` (:data:`MODES`): mitigated, the
+    ownship (and a cooperative intruder) run the campaign's planner; unmitigated, every vehicle
+    runs ``follow_mission``."""
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    own_leg, int_leg = legs(p, setup)
+    end_t = p["time_to_cpa"] + setup.after_cpa
+    kind = setup.intruder["kind"]
+    planner = setup.ownship["planner"] if mode == "mitigated" else FOLLOW
+    wind = math.radians(p["wind_direction"])
+    scen: dict = {
+        "name": name,
+        "seed": seed,
+        "duration": end_t + setup.slack,
+        "origin": dict(setup.origin),
+        "surveillance": {
+            "rate_hz": setup.surveillance_rate_hz,
+            "latency": p["surveillance_latency"],
+            "dropout": p["surveillance_dropout"],
+            "position_noise_horizontal": p["surveillance_noise_h"],
+            "position_noise_vertical": p["surveillance_noise_v"],
+        },
+        "wind": {"north": p["wind_speed"] * math.cos(wind), "east": p["wind_speed"] * math.sin(wind)},
+        "metrics": dict(setup.metrics),
+        "vehicle": [_vehicle(OWN, setup.ownship["aircraft"], own_leg, setup, end_t, setup.ownship, planner)],
+    }
+    alt0 = setup.origin["altitude"]
+    if kind == "object":
+        scen["object"] = [
+            {
+                "id": INTRUDER,
+                "radius": float(setup.intruder.get("radius", 0.5)),
+                "north": float(int_leg.start[0]),
+                "east": float(int_leg.start[1]),
+                "altitude": alt0 - float(int_leg.start[2]),
+                "velocity": dict(zip(("north", "east", "down"), map(float, int_leg.velocity), strict=True)),
+            }
+        ]
+    else:
+        aircraft = "haps" if kind == "haps" else "quadrotor"
+        int_planner = planner if kind == "cooperative" else FOLLOW
+        scen["vehicle"].append(_vehicle(INTRUDER, aircraft, int_leg, setup, end_t, setup.intruder, int_planner))
+    return scen

@@ -1,0 +1,321 @@
+"""Encounter campaigns: sampling, encounter construction through the sampled CPA (open loop and
+flown unmitigated), the statistics against hand-computed values, and a CI-sized campaign whose
+outcomes are checked against hand-computed geometry."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import textwrap
+
+import numpy as np
+import pytest
+
+from sim.encounters.aggregate import Pair, ratio_interval, summarise, wilson
+from sim.encounters.campaign import load_campaign, run_campaign
+from sim.encounters.geometry import EncounterSetup, build_scenario, legs
+from sim.encounters.model import PARAMETERS, CampaignError, Distribution, parse_distributions, sample
+from sim.replay.metrics import flatten
+from sim.runner import run_scenario
+from sim.scenario import parse_scenario
+
+BASE = {k: d for k, (_, d, _) in PARAMETERS.items()}
+SETUP = EncounterSetup(
+    {"aircraft": "quadrotor", "planner": {"type": "geometric", "rate_hz": 10}},
+    {"kind": "object", "radius": 0.5},
+    metrics={"nmac_horizontal": 5.0, "nmac_vertical": 2.5},
+)
+
+
+def linear_cpa(p: dict) -> tuple[float, float, float]:
+    """Horizontal CPA of the two legs by hand: time [s], horizontal miss [m], vertical miss [m]."""
+    own, intr = legs(p, SETUP)
+    r0, vr = intr.start - own.start, intr.velocity - own.velocity
+    t = -float(r0[:2] @ vr[:2]) / float(vr[:2] @ vr[:2])
+    r = r0 + vr * t
+    return t, float(np.hypot(r[0], r[1])), float(-r[2])
+
+
+def test_distributions_and_latin_hypercube_strata():
+    d = parse_distributions(
+        {
+            "hmd": {"uniform": [0, 50]},
+            "vmd": {"normal": [0, 3]},
+            "approach_angle": {"choice": [90, 180]},
+            "own_speed": 4,
+        },
+        "c",
+    )
+    draws = sample(d, 40, seed=3, latin_hypercube=True)
+    hmd = np.array([x["hmd"] for x in draws])
+    assert sorted(np.floor(hmd / 50 * 40).astype(int)) == list(range(40))  # one draw per stratum
+    assert {x["approach_angle"] for x in draws} == {90.0, 180.0} and all(x["own_speed"] == 4.0 for x in draws)
+    assert all(x["time_to_cpa"] == PARAMETERS["time_to_cpa"][1] for x in draws)  # defaults fixed
+    vmd = np.array([x["vmd"] for x in draws])
+    assert abs(vmd.mean()) < 0.5 and 2.0 < vmd.std() < 4.0
+    assert sample(d, 40, 3, True) == draws and sample(d, 40, 4, True) != draws
+    iid = np.array([x["hmd"] for x in sample(d, 40, 3)])
+    assert len(set(np.floor(iid / 50 * 40).astype(int))) < 40  # independent draws leave strata empty
+    assert Distribution.parse({"normal": [1.0, 0.0]}, "x").quantile(np.array([0.3])) == pytest.approx([1.0])
+
+
+@pytest.mark.parametrize(
+    ("table", "message"),
+    [
+        ({"hmdx": 1}, "hmdx: unknown parameter"),
+        ({"hmd": {"triangular": [0, 1]}}, "unknown distribution"),
+        ({"hmd": {"uniform": [5, 1]}}, "lo <= hi"),
+        ({"hmd": {"normal": [0]}}, "needs 2 value"),
+        ({"hmd": {"choice": []}}, "at least one"),
+    ],
+)
+def test_bad_distributions_name_the_parameter(table, message):
+    with pytest.raises(CampaignError, match=message):
+        parse_distributions(table, "c")
+
+
+@pytest.mark.parametrize(
+    ("angle", "hmd", "vmd", "vi", "vz_o", "vz_i"),
+    [
+        (180, 0, 0, 5, 0, 0),
+        (90, 10, 0, 3, 0, 0),
+        (45, -8, 3, 4, 0.5, -0.5),
+        (270, 20, -2, 2, 0, 1),
+        (10, 5, 0, 9, 0, 0),
+    ],
+)
+def test_legs_pass_through_the_sampled_cpa(angle, hmd, vmd, vi, vz_o, vz_i):
+    p = BASE | {
+        "approach_angle": angle,
+        "hmd": hmd,
+        "vmd": vmd,
+        "intruder_speed": vi,
+        "own_vertical_rate": vz_o,
+        "intruder_vertical_rate": vz_i,
+        "own_heading": 30.0,
+        "time_to_cpa": 12.0,
+    }
+    t, h, v = linear_cpa(p)
+    assert t == pytest.approx(12.0) and h == pytest.approx(abs(hmd), abs=1e-9) and v == pytest.approx(vmd, abs=1e-9)
+    own, _ = legs(p, SETUP)
+    np.testing.assert_allclose(own.at(12.0), [0, 0, -(SETUP.altitude - SETUP.origin["altitude"])], atol=1e-9)
+
+
+def test_same_velocities_have_no_cpa():
+    with pytest.raises(CampaignError, match="no closest approach"):
+        legs(BASE | {"approach_angle": 0.0}, SETUP)
+
+
+@pytest.mark.parametrize("kind", ["object", "quadrotor"])
+@pytest.mark.parametrize(("estimator", "tol_h", "tol_v"), [("perfect", 1.0, 0.5), ("ekf", 2.0, None)])
+def test_flown_unmitigated_cpa_is_the_sampled_one(kind, estimator, tol_h, tol_v, tmp_path):
+    """JSBSim quadrotor(s) on follow_mission: the horizontal CPA at the sampled miss, the vertical
+    separation there at the sampled one, at the sampled time within 1 s. Perfect navigation: within
+    1 m / 0.5 m (the multirotor's ~0.35 s lag behind its carrot, ~0.5 m track wobble). On the EKF
+    the horizontal miss within 2 m; the vertical one carries each vehicle's EKF altitude error
+    (1.5-2 m with this seed, the same in both modes of an encounter), so it is not checked."""
+    own = SETUP.ownship | {"estimator": estimator}
+    setup = EncounterSetup(own, {"kind": kind, "radius": 0.5, "estimator": estimator}, after_cpa=3.0, slack=2.0)
+    p = BASE | {"approach_angle": 135.0, "hmd": 6.0, "vmd": 1.5, "intruder_speed": 4.0, "time_to_cpa": 8.0}
+    scen = build_scenario(p, setup, 5, "unmitigated", "cpa")
+    assert all(v["planner"]["type"] == "follow_mission" for v in scen["vehicle"])
+    f = flatten(run_scenario(parse_scenario(scen), tmp_path / "cpa.mcap").metrics)
+    key = "vehicles.own.clearance.object.intruder" if kind == "object" else "separation.own-intruder"
+    assert f[f"{key}.min_horizontal_m"] == pytest.approx(6.0, abs=tol_h)
+    if tol_v is not None:
+        assert f[f"{key}.vertical_at_min_horizontal_m"] == pytest.approx(1.5, abs=tol_v)
+    assert f[f"{key}.t"] == pytest.approx(8.0, abs=1.0)
+
+
+def test_wilson_and_ratio_interval_by_hand():
+    lo, hi = wilson(0, 20)
+    assert lo == 0.0 and hi == pytest.approx(1.959964**2 / (20 + 1.959964**2), rel=1e-6)  # 0.1611
+    assert wilson(10, 20) == pytest.approx((0.299298, 0.700702), abs=1e-6)
+    # zero mitigated NMACs: the upper limit is u1 / sqrt(l2 (2 p2 - l2)) (MOVER-R)
+    l2 = wilson(10, 20)[0]
+    assert ratio_interval(0, 20, 10, 20) == pytest.approx((0.0, hi / math.sqrt(l2 * (1.0 - l2))), rel=1e-9)
+    lo, hi = ratio_interval(7, 20, 7, 20)
+    assert lo < 1.0 < hi
+    assert ratio_interval(3, 20, 0, 20) is None
+
+
+def test_summary_counts_induced_nmacs_and_ratios():
+    g = {"approach": "180 head-on"}
+    pairs = [Pair(False, True, True, True, True, g)] * 6 + [Pair(True, False, True, False, False, g)]
+    pairs += [Pair(False, False, False, True, True, g)] * 3
+    s = summarise(pairs)
+    assert s["n"] == 10 and s["nmac_mitigated"] == 1 and s["nmac_unmitigated"] == 6 and s["induced_nmac"] == 1
+    assert s["risk_ratio"] == pytest.approx(1 / 6) and s["lowc_ratio"] == pytest.approx(7 / 9)
+    assert s["completion_rate"] == pytest.approx(0.9)
+    assert s["risk_ratio_ci95"][0] < 1 / 6 < s["risk_ratio_ci95"][1]
+
+
+CAMPAIGN = """
+name = "ci"
+seed = 5
+encounters = 20
+after_cpa = 4
+slack = 6
+surveillance_rate_hz = 10
+[ownship]
+aircraft = "quadrotor"
+acceptance_radius = 2
+planner = { type = "geometric", rate_hz = 10, options = { conflict_horizon_s = 2.0 } }
+[intruder]
+kind = "object"
+radius = 0.5
+[parameters]
+approach_angle = { choice = [180, 180, 90] }
+hmd = { choice = [0, 500] }
+time_to_cpa = 6
+intruder_speed = 3
+surveillance_noise_h = 0.3
+surveillance_noise_v = 0.3
+surveillance_latency = 0.1
+surveillance_dropout = 0.0
+"""
+
+
+def test_ci_campaign_outcomes_match_hand_computed_geometry(tmp_path):
+    """20 encounters, head-on/crossing with a zero or 500 m miss against a scripted 0.5 m sphere:
+    unmitigated, a zero miss is an NMAC (5 m / 2.5 m cylinder) and 500 m is not, both lose well
+    clear (2000 ft / 250 ft); counts, outputs, kept logs and resume."""
+    path = tmp_path / "ci.toml"
+    path.write_text(textwrap.dedent(CAMPAIGN))
+    out = tmp_path / "out"
+    c = load_campaign(path, out)
+    assert len(c.runs) == 40 and c.planner == "geometric"
+    summary = run_campaign(c, out, workers=2)["geometric"]
+    with open(out / "encounters.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 40 and {r["mode"] for r in rows} == {"mitigated", "unmitigated"}
+    unm = [r for r in rows if r["mode"] == "unmitigated"]
+    zero = [r for r in unm if float(r["hmd"]) == 0.0]
+    assert zero and len(zero) < 20
+    for r in unm:
+        assert (r["nmac"] == "True") == (float(r["hmd"]) == 0.0), r
+        assert r["lowc"] == "True", r  # 500 m is inside the 2000 ft (609.6 m) well-clear radius
+    mit = [r for r in rows if r["mode"] == "mitigated"]
+    assert summary["n"] == 20 and summary["nmac_unmitigated"] == len(zero)
+    assert summary["nmac_mitigated"] == sum(r["nmac"] == "True" for r in mit)
+    assert summary["risk_ratio"] == pytest.approx(summary["nmac_mitigated"] / len(zero))
+    assert summary["induced_nmac"] == 0 and summary["completion_rate"] == 1.0
+    assert json.loads((out / "summary.json").read_text())["geometric"]["n"] == 20
+    assert "risk_ratio" in (out / "report.md").read_text() and (out / "separation.png").is_file()
+    kept = {r["mcap"] for r in rows if r["mcap"]}
+    assert all((out / k).is_file() for k in kept) and len(list((out / "runs").glob("*.mcap"))) == len(kept)
+    flown = []
+    run_campaign(c, out, workers=1, progress=lambda k, n, row: flown.append(row))
+    assert flown == []  # resumed: nothing re-flown
+
+
+def _campaign_file(tmp_path, text: str = CAMPAIGN, **replace: str):
+    body = textwrap.dedent(text)
+    for old, new in replace.items():
+        body = body.replace(old, new)
+    path = tmp_path / "c.toml"
+    path.write_text(body)
+    return path
+
+
+def test_limit_takes_the_first_draws_and_slow_closing_draws_are_skipped(tmp_path):
+    full = load_campaign(_campaign_file(tmp_path), tmp_path / "o")
+    part = load_campaign(_campaign_file(tmp_path), tmp_path / "o", limit=5)
+    assert [r.run_id for r in part.runs] == [r.run_id for r in full.runs[:10]]
+    assert [r.scenario for r in part.runs] == [r.scenario for r in full.runs[:10]]
+    # overtaking at equal speed: no closing speed, every draw skipped (and counted)
+    same = _campaign_file(
+        tmp_path,
+        **{
+            "approach_angle = { choice = [180, 180, 90] }": "approach_angle = 0",
+            "intruder_speed = 3": "intruder_speed = 5",
+        },
+    )
+    with pytest.raises(CampaignError, match="no encounter closes"):
+        load_campaign(same, tmp_path / "o")
+    slow = _campaign_file(
+        tmp_path,
+        **{
+            "approach_angle = { choice = [180, 180, 90] }": "approach_angle = { choice = [0, 180] }",
+            "intruder_speed = 3": "intruder_speed = 5",
+        },
+    )
+    c = load_campaign(slow, tmp_path / "o")
+    assert c.skipped > 0 and len(c.encounters) + c.skipped == 20
+    assert all(e.params["approach_angle"] == 180.0 for e in c.encounters)
+
+
+@pytest.mark.parametrize(
+    ("replace", "message"),
+    [
+        ({'kind = "object"': 'kind = "blimp"'}, "intruder.kind: one of"),
+        ({"encounters = 20": "encounters = 0"}, "encounters: a positive integer"),
+        ({"seed = 5": "seed = 5\nfoo = 1"}, "foo: unknown key"),
+        ({"hmd = { choice = [0, 500] }": "hmd = { choice = [0, 500] }\nspeed = 3"}, "speed: unknown parameter"),
+        ({'type = "geometric"': 'type = "warp"'}, "planner.type"),
+    ],
+)
+def test_bad_campaign_files_are_one_line_errors(tmp_path, replace, message):
+    with pytest.raises(CampaignError, match=message) as err:
+        load_campaign(_campaign_file(tmp_path, **replace), tmp_path / "o")
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.closed_loop
+def test_campaign_same_outputs_on_process_pool_and_dask(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    path = _campaign_file(tmp_path, **{"encounters = 20": "encounters = 3"})
+    pool = run_campaign(load_campaign(path, tmp_path / "pool"), tmp_path / "pool", workers=2)
+    with (
+        distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster,
+        distributed.Client(cluster) as client,
+    ):
+        dask = run_campaign(load_campaign(path, tmp_path / "dask"), tmp_path / "dask", executor=client.get_executor())
+    assert pool == dask
+
+    def table(folder: str) -> list[dict]:
+        with open(tmp_path / folder / "encounters.csv") as f:
+            return [{k: v for k, v in r.items() if k != "latency_p95_ms"} for r in csv.DictReader(f)]  # wall clock
+
+    assert table("pool") == table("dask") and len(table("pool")) == 6
+
+
+def test_every_parameter_and_setup_field_reaches_the_scenario():
+    """Sensor quality, wind, planners per mode and intruder kind, initial overrides, NMAC metrics."""
+    p = BASE | {
+        "surveillance_noise_h": 1.5,
+        "surveillance_noise_v": 2.5,
+        "surveillance_latency": 0.3,
+        "surveillance_dropout": 0.1,
+        "wind_speed": 4.0,
+        "wind_direction": 90.0,
+        "own_speed": 4.0,
+        "own_vertical_rate": 1.0,
+    }
+    coop = EncounterSetup(
+        {"aircraft": "quadrotor", "planner": {"type": "geometric"}, "estimator": "perfect"},
+        {"kind": "cooperative", "initial": {"roll": 1.0}},
+        surveillance_rate_hz=5.0,
+        metrics={"nmac_horizontal": 7.0},
+    )
+    s = build_scenario(p, coop, 9, "mitigated", "x")
+    assert s["surveillance"] == {
+        "rate_hz": 5.0,
+        "latency": 0.3,
+        "dropout": 0.1,
+        "position_noise_horizontal": 1.5,
+        "position_noise_vertical": 2.5,
+    }
+    assert s["wind"]["north"] == pytest.approx(0.0, abs=1e-12) and s["wind"]["east"] == pytest.approx(4.0)
+    own, intr = s["vehicle"]
+    assert own["planner"] == intr["planner"] == {"type": "geometric"} and own["estimator"] == "perfect"
+    assert intr["initial"]["roll"] == 1.0 and s["metrics"] == {"nmac_horizontal": 7.0} and s["seed"] == 9
+    assert own["mission"]["cruise_speed"] == pytest.approx(math.hypot(4.0, 1.0))  # 3-D leg speed
+    assert own["initial"]["airspeed"] == pytest.approx(4.0)
+    unm = build_scenario(p, coop, 9, "unmitigated", "x")
+    assert [v["planner"] for v in unm["vehicle"]] == [{"type": "follow_mission"}] * 2
+    haps = build_scenario(p, EncounterSetup(coop.ownship, {"kind": "haps"}), 9, "mitigated", "x")
+    assert haps["vehicle"][1]["aircraft"] == "haps" and haps["vehicle"][1]["planner"] == {"type": "follow_mission"}
+    with pytest.raises(ValueError, match="mode must be one of"):
+        build_scenario(p, coop, 9, "both", "x")
