@@ -40,13 +40,22 @@ class Airframe:
     controller: str  # "module:Class" with a ctor taking the gains object
     gains: str  # "module:Class" with ``load(path=None)``
     description: str
+    # "module:function(plant)" trimming where JSBSim's own trim cannot (None: JSBSim's trim only)
+    level_trim: str | None = None
+    # electrical power system (solar array, battery, loads): ``energy.toml`` in the airframe folder
+    energy: bool = False
+
+    @property
+    def energy_file(self) -> Path | None:
+        return self.folder / "energy.toml" if self.energy and self.folder is not None else None
 
     def make_controller(self, gains_path: Path | None = None) -> FlightController:
-        gains = _resolve(self.gains).load(gains_path)
-        return _resolve(self.controller)(gains)
+        gains = resolve(self.gains).load(gains_path)
+        return resolve(self.controller)(gains)
 
 
-def _resolve(ref: str):
+def resolve(ref: str):
+    """The object named by ``"module:attr"``."""
     module, _, attr = ref.partition(":")
     return getattr(importlib.import_module(module), attr)
 
@@ -65,6 +74,8 @@ AIRFRAMES: dict[str, Airframe] = {
             controller="aircraft.haps.autopilot:HapsAutopilot",
             gains="aircraft.haps.autopilot:HapsGains",
             description="Zephyr-class solar-electric HAPS, 25 m span, 75 kg (aircraft/haps/README.md)",
+            level_trim="sim.tuning.trim_haps:level_trim",
+            energy=True,
         ),
         Airframe(
             name="quadrotor",

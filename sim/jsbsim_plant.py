@@ -114,6 +114,7 @@ class JSBSimPlant:
         self.origin = origin
         self._frame = LocalLevelFrame(origin)
         self._log = _quiet_logger()
+        self._log.recent.clear()  # the logger is per thread: warnings count from this plant's load
         self.fdm = jsbsim.FGFDMExec(jsbsim.get_default_root_dir())
         self.fdm.set_debug_level(0)
         if airframe_dir is None:
@@ -141,7 +142,8 @@ class JSBSimPlant:
 
     @property
     def warnings(self) -> list[str]:
-        """JSBSim's recent warnings and errors (its console is silenced)."""
+        """JSBSim's recent warnings and errors since this plant was created (its console is
+        silenced; plants of one thread share the logger)."""
         return list(self._log.recent)
 
     def _with_log(self, msg: str) -> str:

@@ -201,3 +201,27 @@ MISSION_STATUS = _obj(
         "complete": ({"type": "boolean"}, "all waypoints reached"),
     },
 )
+
+ENERGY = _obj(
+    "cosim.Energy",
+    {
+        "t": (_NUM, "sim time at the end of the energy step [s]"),
+        "state_of_charge": (_NUM, "battery state of charge, usable energy / usable capacity [0..1]"),
+        "energy_wh": (_NUM, "usable energy stored [Wh]"),
+        "solar_w": (_NUM, "solar-array electrical power after the MPPT [W]"),
+        "propulsion_w": (_NUM, "motors' electrical power, shaft power / motor efficiency [W]"),
+        "loads_w": (_NUM, "avionics + payload [W]"),
+        "total_w": (_NUM, "bus power solar - propulsion - loads, > 0 charging [W]"),
+        "battery_w": (_NUM, "power into the cells after conversion losses, < 0 discharging [W]"),
+        "loss_w": (_NUM, "charge/discharge conversion loss [W]"),
+        "curtailed_w": (_NUM, "solar power not taken (battery full or charge limit) [W]"),
+        "shortfall_w": (_NUM, "demand not delivered (battery empty or discharge limit) [W]"),
+        "sun_elevation_deg": (_NUM, "apparent sun elevation at the vehicle [deg]"),
+        "incidence_cos": (_NUM, "cosine of the sun's incidence on the array (0: behind it)"),
+        "depleted": ({"type": "boolean"}, "the battery ran empty; the motors are stopped"),
+        "cumulative_wh": (
+            {"type": "object", "additionalProperties": _NUM},
+            "energies since the start [Wh]: solar, propulsion, loads, loss, curtailed, shortfall",
+        ),
+    },
+)

@@ -78,6 +78,9 @@ class MissionSpec(_Strict):
     # multirotor guidance: "path" flies the legs at cruise speed; "step" jumps the position
     # setpoint to each waypoint in turn (step-response tests, position-mode "go to")
     guidance: Literal["path", "step"] = "path"
+    # fixed wing: after the last waypoint fly the waypoints again from the first (station
+    # keeping); the mission then never completes and the run lasts its duration
+    repeat: bool = False
 
 
 class Initial(_Strict):
@@ -92,6 +95,35 @@ class Initial(_Strict):
     pitch: Annotated[float, quantity("angle", -90.0, 90.0)] = 0.0
     trim: bool | None = None  # default: JSBSim trim for fixed wing; multirotors start in hover
     on_ground: bool = False
+
+
+class AltitudeScheduleConfig(_Strict):
+    """Energy management by altitude (sim/energy/altitude_schedule.py): climb to ``ceiling`` once
+    the battery reaches ``soc_high``, glide down to ``floor`` once it falls to ``soc_low``; the
+    mission's waypoint altitudes are replaced by this demand (fixed wing)."""
+
+    floor: _Altitude
+    ceiling: _Altitude
+    soc_high: Annotated[float, Field(ge=0.0, le=1.0)] = 0.95
+    soc_low: Annotated[float, Field(ge=0.0, le=1.0)] = 0.90
+
+    @model_validator(mode="after")
+    def _ordered(self) -> AltitudeScheduleConfig:
+        if not self.floor < self.ceiling:
+            raise ValueError("floor must be below ceiling")
+        if not self.soc_low < self.soc_high:
+            raise ValueError("soc_low must be below soc_high")
+        return self
+
+
+class EnergyOptions(_Strict):
+    """Electrical power system of an airframe that has one (``aircraft/<name>/energy.toml``):
+    ``enabled`` false flies without it; ``initial_soc`` overrides the file's starting state of
+    charge [0..1]; ``altitude_schedule`` turns on energy management by altitude."""
+
+    enabled: bool = True
+    initial_soc: Annotated[float, Field(ge=0.0, le=1.0)] | None = None
+    altitude_schedule: AltitudeScheduleConfig | None = None
 
 
 class _PlannerBase(_Strict):
@@ -137,6 +169,7 @@ class VehicleSpec(_Strict):
     initial: Initial
     mission: MissionSpec
     planner: PlannerConfig = Field(default_factory=_PLANNER_MODELS["follow_mission"])
+    energy: EnergyOptions = EnergyOptions()
 
     @model_validator(mode="before")
     @classmethod
@@ -163,6 +196,11 @@ class VehicleSpec(_Strict):
             raise ValueError(
                 f"planner: {entry.name} planner does not fly a {kind} (it flies: {', '.join(entry.airframes)})"
             )
+        e = self.energy
+        if (e.initial_soc is not None or e.altitude_schedule is not None) and (
+            get_airframe(self.aircraft).energy_file is None or not e.enabled
+        ):
+            raise ValueError(f"energy: {self.aircraft} flies without a power-system model here (energy.toml, enabled)")
         if self.lidar is not None and entry.sensing_range is not None:
             need = entry.sensing_range(self.planner.options, kind, self.mission.cruise_speed)
             if self.lidar.max_range_m < need:
@@ -177,7 +215,11 @@ class VehicleSpec(_Strict):
                     "initial.trim: JSBSim cannot trim a multirotor; it starts in hover "
                     "(or on the ground) and its controller holds it"
                 )
+            if self.mission.repeat:
+                raise ValueError(f"mission.repeat: for fixed wing ({self.aircraft} is {kind})")
             return self
+        if self.mission.repeat and self.planner.type != "follow_mission":
+            raise ValueError("mission.repeat: only with the follow_mission planner")
         if self.mission.land:
             raise ValueError(f"mission.land: only multirotors land at the end of a mission ({self.aircraft} is {kind})")
         if self.initial.on_ground:

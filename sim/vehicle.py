@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import time
+from datetime import UTC, datetime
 
 import numpy as np
 
@@ -17,8 +18,12 @@ from aircraft.quadrotor.controller import MultirotorController
 from aircraft.registry import get_airframe
 from sim import log_schemas as S
 from sim import scenario as sc
+from sim.core.mission import Mission
 from sim.core.plan import Plan, Planner, Threats
 from sim.core.setpoints import MultirotorSetpoint
+from sim.energy.altitude_schedule import AltitudeManager, AltitudeSchedule
+from sim.energy.params import EnergyParams
+from sim.energy.power_system import PowerSystem
 from sim.estimation.sensor_estimator import SensorEstimator
 from sim.geodesy import GeoPoint
 from sim.mcap_log import McapLog
@@ -46,7 +51,7 @@ class Vehicle:
         self.log = log
         self.logw = VehicleLogWriter(log, cfg.name)
         self.planner_records = RecordSink(log, f"/{cfg.name}/plan", origin)
-        self.plant = build_plant(cfg, af, origin, wind, seed)
+        self.plant = build_plant(cfg, af, origin, wind, seed, lambda text: self.event(0.0, text))
         self.wind_ne = (wind.north, wind.east)  # the scenario's steady wind, the planners' forecast [m/s]
         self.mission = mission_from_config(cfg, origin)
         self.estimator = make_estimator(cfg.estimator, self.plant, af, seed, origin)
@@ -61,12 +66,28 @@ class Vehicle:
         else:
             self._multirotor().reset(self.estimate, landed=cfg.initial.on_ground)
             self._setpoint_schema = S.MULTIROTOR_SETPOINT
+        self.power = self._make_power_system(log)
+        sched = cfg.energy.altitude_schedule
+        self.altitude_manager = (
+            AltitudeManager(
+                AltitudeSchedule(sched.floor, sched.ceiling, sched.soc_high, sched.soc_low), self.power.battery.soc
+            )
+            if sched is not None and self.power is not None
+            else None
+        )
         self.recorder = TraceRecorder(cfg.name, af.kind, len(self.mission.waypoints))
         self.threats = Threats()
         self._control_dt = 1.0 / af.control_hz
         self._setpoint: dict = {}
         self._commands: dict[str, float] = {}
         self._mission_logged: tuple[int, bool] | None = None
+
+    def _make_power_system(self, log: McapLog) -> PowerSystem | None:
+        path = self.airframe.energy_file
+        if path is None or not self.cfg.energy.enabled:
+            return None
+        epoch = datetime.fromtimestamp(log.epoch_ns / 1e9, tz=UTC)
+        return PowerSystem(EnergyParams.load(path), epoch, self.cfg.energy.initial_soc)
 
     def make_mission_planner(self) -> Planner:
         """The scenario's planner for the current mission."""
@@ -107,6 +128,8 @@ class Vehicle:
         sched.add_task(f"{n}.estimator", af.control_hz, Stage.ESTIMATE, self._estimate)
         sched.add_task(f"{n}.planner", self.cfg.planner.rate_hz, Stage.PLAN, self.plan_now)
         sched.add_task(f"{n}.control", af.control_hz, Stage.CONTROL, self._control)
+        if self.power is not None:
+            sched.add_task(f"{n}.energy", af.control_hz, Stage.CONTROL, self._energy)
         sched.add_task(f"{n}.log", log_hz, Stage.LOG, self._log)
 
     def _estimate(self, t: float) -> None:
@@ -150,10 +173,14 @@ class Vehicle:
             if label >= 0 and m.mark_reached(label, t):
                 self.event(t, f"waypoint {label + 1}/{len(m.waypoints)} reached")
                 self.recorder.reached(t)
+        if self.cfg.mission.repeat and m.waypoints_done:
+            m = self._repeat_mission(t)
         if m.land and m.waypoints_done:  # descend, and stay down once landed
             last = m.waypoints[-1]
             descent = self._multirotor().gains.limits.max_descent
             sp = MultirotorSetpoint(np.array([last[0], last[1], np.nan]), np.array([0.0, 0.0, descent]), float("nan"))
+        if self.altitude_manager is not None and self.power is not None:
+            sp.altitude_m = self.altitude_manager.altitude(self.power.battery.soc)
         cmds = self.controller.update(self.estimate, sp, self._control_dt)
         if m.land and m.waypoints_done and m.landed_t is None and self._multirotor().landed:
             m.landed_t = t
@@ -164,6 +191,30 @@ class Vehicle:
         self.plant.set_many(cmds)
         self._setpoint = setpoint_record(sp, self.follower, self.origin)
         self._commands = cmds
+
+    def _energy(self, t: float) -> None:
+        """Step the power system over the coming control period; an empty battery stops the
+        motors (motor health 0) for the rest of the run."""
+        power = self.power
+        if power is None:
+            return
+        was_depleted = power.depleted
+        shaft = [self.plant[f"propulsion/engine[{i}]/power-hp"] for i in range(self.plant.engine_count)]
+        rec = power.step(self.plant.truth(), shaft, self._control_dt)
+        if rec.depleted and not was_depleted:
+            self.plant.set_many({f"ap/motor-health[{i}]": 0.0 for i in range(self.plant.engine_count)})
+            self.log.event(
+                t, f"{self.name}: energy_depleted (battery empty), motors stopped", level="warning", name=self.name
+            )
+
+    def _repeat_mission(self, t: float) -> Mission:
+        """The same waypoints again, the first leg from the last waypoint (mission.repeat)."""
+        m = self.mission
+        self.mission = Mission(m.waypoints, m.cruise_speed, m.acceptance_radius, start=m.waypoints[-1].copy())
+        self.planner = self.make_mission_planner()
+        self.event(t, "mission repeated")
+        self.plan_now(t)
+        return self.mission
 
     def _log(self, t: float) -> None:
         truth = self.plant.truth()
@@ -181,6 +232,8 @@ class Vehicle:
             self.logw.sensors(t, est.measurements(), sigma3, est.biases())
         self.recorder.estimate(est_logged, sigma3)
         self.logw.control(t, self._setpoint, self._setpoint_schema, self._commands, dict(self.controller.debug))
+        if self.power is not None:
+            self.logw.energy(t, self.power.record.as_dict())
         m = self.mission
         status = (m.next_index, m.complete)
         if status != self._mission_logged:

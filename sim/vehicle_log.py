@@ -242,6 +242,7 @@ class VehicleLogWriter:
         self.t_est, self.t_threats = f"{p}/est/state", f"{p}/threats"
         self.t_sensors, self.t_sigma = f"{p}/sensors", f"{p}/est/sigma3"
         self.t_tracking = f"{p}/truth/tracking"
+        self.t_energy = f"{p}/energy"
 
     def truth(self, s: VehicleState) -> dict:
         """Log the true state; returns the state as logged (a plain dict)."""
@@ -311,6 +312,10 @@ class VehicleLogWriter:
     ) -> None:
         self.log.write_json(self.t_sp, t, {"t": t, **setpoint}, schema)
         self.log.write_json(self.t_cmd, t, {"t": t, "properties": commands, "debug": debug}, S.COMMANDS)
+
+    def energy(self, t: float, record: dict) -> None:
+        """The electrical bus (sim.energy.power_system.EnergyRecord)."""
+        self.log.write_json(self.t_energy, t, record, S.ENERGY, {"units": "W, Wh, state of charge 0..1"})
 
     def mission(self, t: float, next_waypoint: int, waypoints: int, complete: bool) -> None:
         self.log.write_json(

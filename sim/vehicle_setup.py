@@ -5,10 +5,11 @@ Frames: local-level NED from the scenario origin [m]; altitudes MSL [m]."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
-from aircraft.registry import Airframe
+from aircraft.registry import Airframe, resolve
 from guidance.fixed_wing_follower import FixedWingPlanFollower
 from guidance.l1 import L1Guidance
 from guidance.multirotor_follower import MultirotorPlanFollower
@@ -19,7 +20,7 @@ from sim.environment import apply_steady_wind, apply_turbulence
 from sim.estimation.sensor_estimator import SensorEstimator, SensorEstimatorConfig
 from sim.estimator import PerfectEstimator
 from sim.geodesy import GeoPoint, ned_to_geodetic
-from sim.jsbsim_plant import InitialConditions, JSBSimPlant
+from sim.jsbsim_plant import InitialConditions, JSBSimPlant, PlantError
 from sim.planner_registry import make_planner
 
 
@@ -51,9 +52,29 @@ def scenario_planner(
     return make_planner(cfg.planner.type, mission, af.kind, cfg.planner.options, roll_limit, wind_ne_mps)
 
 
-def build_plant(cfg: sc.VehicleSpec, af: Airframe, origin: GeoPoint, wind: sc.Wind, seed: int) -> JSBSimPlant:
+def trim_plant(plant: JSBSimPlant, af: Airframe, note: Callable[[str], None]) -> None:
+    """JSBSim's trim; where it fails (the HAPS below ~13 km, see sim/tuning/trim_haps.py) the
+    airframe's own level-flight trim, told to ``note``."""
+    try:
+        plant.trim()
+    except PlantError as exc:
+        if af.level_trim is None:
+            raise
+        resolve(af.level_trim)(plant)
+        note(f"JSBSim trim failed ({exc}); level-flight trim used")
+
+
+def build_plant(
+    cfg: sc.VehicleSpec,
+    af: Airframe,
+    origin: GeoPoint,
+    wind: sc.Wind,
+    seed: int,
+    note: Callable[[str], None] = lambda text: None,
+) -> JSBSimPlant:
     """The JSBSim plant at the scenario's initial state: steady wind, initial conditions, trim
-    (fixed wing by default) and turbulence seeded with the vehicle's ``seed``."""
+    (fixed wing by default; ``note`` hears of a fallback trim) and turbulence seeded with the
+    vehicle's ``seed``."""
     plant = JSBSimPlant(af.jsbsim_model, 1.0 / af.plant_hz, origin, af.folder)
     apply_steady_wind(plant, wind)
     ini = cfg.initial
@@ -70,7 +91,7 @@ def build_plant(cfg: sc.VehicleSpec, af: Airframe, origin: GeoPoint, wind: sc.Wi
         )
     )
     if ini.trim if ini.trim is not None else af.kind == "fixed_wing":
-        plant.trim()
+        trim_plant(plant, af, note)
     apply_turbulence(plant, wind, seed)
     return plant
 

@@ -267,3 +267,21 @@ def test_closed_loop_without_trim_throttle_and_lower_gains_scheduled():
     assert np.abs(r["alt"] - ALT).max() < 50.0
     assert np.abs(r["tas"][-200:] - TAS * 10.0 / 8.0).max() < 0.5
     assert loop.plant["ap/gain-sched"] == pytest.approx(0.64, abs=0.03)
+
+
+def test_climb_and_descent_follow_the_eas_schedule():
+    """Beyond the band the airspeed demand is the schedule's EAS (as TAS at this density ratio),
+    whatever the setpoint's airspeed; within it, the setpoint's."""
+    g = HapsGains.load()
+    ratio = TAS / 8.0  # TAS per EAS of _state
+    cases = {
+        "climb": (ALT + g.schedule_band_m + 50.0, g.climb_eas * ratio),
+        "descent": (ALT - g.schedule_band_m - 50.0, g.descent_eas * ratio),
+        "near": (ALT + g.schedule_band_m - 50.0, TAS + 2.0),
+    }
+    for name, (alt_dem, v_expected) in cases.items():
+        ap = HapsAutopilot(g)
+        s = _state(0.0, 0.0, 0.0, speed=TAS)
+        ap.reset(s)
+        ap.update(s, FixedWingSetpoint(0.0, alt_dem, TAS + 2.0), DT)
+        assert ap.debug["v_dem_mps"] == pytest.approx(v_expected, rel=1e-9), name

@@ -14,7 +14,9 @@ TECS (total energy control, after ArduPilot ``AP_TECS``), per unit mass [J/kg]:
   error;
 - energy balance SEB = (2-w) g h - w V^2/2 -> pitch: demanded balance rate / (g V) + P on the
   balance-rate error + I on the balance error (the I term holds the trim angle of attack).
-Demands are shaped first: the altitude and airspeed references move toward the setpoint no
+Airspeed schedule: while the altitude demand is more than ``schedule_band_m`` away, the speed
+demand is the climb or descent EAS (converted to TAS at the current density ratio). Demands are
+shaped first: the altitude and airspeed references move toward the setpoint no
 faster than the climb/sink and acceleration limits and stay within the linear range of the
 P loops, so integrators do not wind up on large steps. Integrators are clamped and frozen while
 their output saturates in the direction of the error (anti-windup). Below ``eas_underspeed``
@@ -83,6 +85,17 @@ class HapsAutopilot:
         power = q_s * (g.cd0 + g.k_induced * cl * cl) * tas / g.prop_efficiency
         return power / g.power_max_w
 
+    def _scheduled_tas(self, sp: FixedWingSetpoint, h: float, tas_per_eas: float) -> float:
+        """Airspeed demand [m/s TAS]: the climb or descent EAS of the schedule while the altitude
+        demand is beyond the band, else the setpoint's."""
+        g = self.gains
+        dh = sp.altitude_m - h
+        if dh > g.schedule_band_m:
+            return g.climb_eas * tas_per_eas
+        if dh < -g.schedule_band_m:
+            return g.descent_eas * tas_per_eas
+        return sp.tas_mps
+
     def update(self, state: VehicleState, sp: FixedWingSetpoint, dt: float) -> dict[str, float]:
         """One outer-loop step of ``dt`` [s]: property commands for JSBSim (see module docstring).
         Resets from ``state`` first if :meth:`reset` was never called."""
@@ -101,7 +114,7 @@ class HapsAutopilot:
         vdot = self._vdot
 
         # demand shaping: rate-limited references, kept within the P loops' linear range
-        v_dem = _clamp(sp.tas_mps, g.eas_min * tas_per_eas, g.eas_max * tas_per_eas)
+        v_dem = _clamp(self._scheduled_tas(sp, h, tas_per_eas), g.eas_min * tas_per_eas, g.eas_max * tas_per_eas)
         v_lead = g.accel_max * g.spd_time_const_s
         v_ref = _clamp(
             self._v_ref + _clamp(v_dem - self._v_ref, -g.accel_max * dt, g.accel_max * dt), v - v_lead, v + v_lead
@@ -149,6 +162,7 @@ class HapsAutopilot:
 
         self.debug = {
             "h_ref_m": h_ref,
+            "v_dem_mps": v_dem,
             "v_ref_mps": v_ref,
             "hdot_dem_mps": hdot_dem,
             "vdot_dem_mps2": vdot_dem,

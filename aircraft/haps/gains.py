@@ -47,6 +47,10 @@ class HapsGains:
     eas_min: float = _in("limits")
     eas_max: float = _in("limits")
     eas_underspeed: float = _in("limits")
+    # [schedule]
+    climb_eas: float = _in("schedule")
+    descent_eas: float = _in("schedule")
+    schedule_band_m: float = _in("schedule")
     # [tecs]
     alt_time_const_s: float = _in("tecs")
     spd_time_const_s: float = _in("tecs")

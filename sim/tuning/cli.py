@@ -1,6 +1,7 @@
 """``cosim tune ...``: trim, linearise, loop margins and gain tuning from the command line.
 
     tune trim AIRFRAME [--out DIR] [--no-check]       envelope trim: CSV, Markdown, PNG
+    tune trim haps --eas 8 [--altitudes 0:23000:1000]  trims at one EAS from the ground up
     tune linearize AIRFRAME [--alt M --tas MPS] [--out DIR]   A, B (JSON) and modes
     tune margins AIRFRAME [--alt M --tas MPS] [--out DIR]     loop margins (JSON)
     tune roll-gain [--crossover RAD_S | --phase-margin DEG]  quadrotor roll-attitude gain
@@ -44,18 +45,37 @@ def _out_dir(args) -> Path:
     return d
 
 
+def _altitudes(spec: str) -> tuple[float, ...]:
+    """``START:STOP:STEP`` [m] (STOP included) -> altitudes."""
+    try:
+        start, stop, step = (float(x) for x in spec.split(":"))
+    except ValueError:
+        raise ValueError(f"--altitudes wants START:STOP:STEP in metres, got {spec!r}") from None
+    if step <= 0 or stop < start:
+        raise ValueError(f"--altitudes {spec!r}: needs STEP > 0 and STOP >= START")
+    n = math.floor((stop - start) / step + 1e-9) + 1
+    return tuple(start + k * step for k in range(n))
+
+
 def cmd_trim(args) -> int:
     from sim.tuning import report, trim_haps, trim_quad
 
-    if args.airframe == "haps":
+    if args.airframe == "haps" and args.eas is not None:
+        rows = trim_haps.altitude_profile(_altitudes(args.altitudes), args.eas, check_in_jsbsim=not args.no_check)
+        title = f"HAPS trim at EAS {args.eas:g} m/s by altitude (JSBSim trim and casadi trim)"
+        stem = f"trim_haps_eas{args.eas:g}"
+    elif args.airframe == "haps":
         rows = trim_haps.envelope(check_in_jsbsim=not args.no_check)
         title = "HAPS trim envelope (JSBSim trim and casadi trim)"
+        stem = "trim_haps"
     else:
         rows = trim_quad.envelope()
         title = "Quadrotor trim (hover and level forward flight, root-finding on JSBSim)"
-    paths = report.write_all(rows, _out_dir(args), f"trim_{args.airframe}", title)
+        stem = "trim_quadrotor"
+    paths = report.write_all(rows, _out_dir(args), stem, title)
     t = Table(title=title)
-    for c in ("method", "alt m", "TAS m/s", "ok", "alpha deg", "pitch deg", "elev", "throttle", "res acc", "res rot"):
+    cols = ("method", "alt m", "TAS m/s", "ok", "alpha deg", "pitch deg", "elev", "throttle", "power W", "V/Vs")
+    for c in (*cols, "res acc", "res rot"):
         t.add_column(c)
     for r in rows:
         t.add_row(
@@ -67,6 +87,8 @@ def cmd_trim(args) -> int:
             _f(r.pitch_deg),
             _f(r.elevator_norm),
             _f(r.throttle),
+            _f(r.shaft_power_w),
+            _f(r.stall_margin),
             _f(r.residual_acc),
             _f(r.residual_rot),
         )
@@ -237,6 +259,8 @@ def build_parser() -> argparse.ArgumentParser:
         s.add_argument("--out", help="output folder (default logs/tuning/<airframe>)")
         if name == "trim":
             s.add_argument("--no-check", action="store_true", help="HAPS: skip JSBSim's check of the casadi trims")
+            s.add_argument("--eas", type=float, help="HAPS: trim at this equivalent airspeed [m/s] by altitude")
+            s.add_argument("--altitudes", default="0:23000:1000", help="HAPS --eas: START:STOP:STEP [m]")
         else:
             s.add_argument("--alt", type=float, default=20_000.0, help="HAPS trim altitude MSL [m]")
             s.add_argument("--tas", type=float, default=29.7, help="HAPS true airspeed [m/s]")

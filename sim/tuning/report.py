@@ -20,6 +20,8 @@ COLUMNS = (
     "elevator_norm",
     "throttle",
     "prop_rpm",
+    "shaft_power_w",
+    "stall_margin",
     "residual_acc",
     "residual_rot",
     "residual_model",
@@ -57,7 +59,7 @@ def markdown(rows: list[TrimPoint], title: str) -> str:
         f"# {title}",
         "",
         (
-            "Units: m, m/s, deg, normalised surface/throttle, rpm; residuals "
+            "Units: m, m/s, deg, normalised surface/throttle, rpm, W; stall margin = EAS / 1-g stall EAS; residuals "
             "m/s^2 (translational), rad/s^2 (rotational), casadi model residual dimensionless."
         ),
         "",
