@@ -78,7 +78,7 @@ class BatchFile(_Strict):
 
     base: str
     name: Annotated[str, Field(pattern=NAME_PATTERN, max_length=120)] | None = None
-    duration: quantity("time", 0.0, 30 * 86400.0, lo_open=True) | None = None
+    duration: Annotated[float, quantity("time", 0.0, 30 * 86400.0, lo_open=True)] | None = None
     sweep: dict[str, Annotated[list, Field(min_length=1)]] = {}
     monte_carlo: _MonteCarlo = _MonteCarlo()
 

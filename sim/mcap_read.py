@@ -141,7 +141,7 @@ def read_info(path: str | Path) -> LogInfo:
         key=lambda ti: ti.topic,
     )
     return LogInfo(
-        path=path,
+        path=Path(path),
         profile=header.profile,
         library=header.library,
         start_s=((stats.message_start_time - epoch) / 1e9) if stats and stats.message_count else 0.0,

@@ -59,9 +59,12 @@ def state_dict(s: VehicleState) -> dict:
 
 def state_from_dict(d: dict) -> VehicleState:
     """A logged ``cosim.VehicleState`` message (plain dict) back into a VehicleState."""
-    vec = {k: np.asarray(d[k], float) for k in ("pos_ned", "vel_ned", "euler", "rates_body")}
     return VehicleState(
         t=float(d["t"]),
+        pos_ned=np.asarray(d["pos_ned"], float),
+        vel_ned=np.asarray(d["vel_ned"], float),
+        euler=np.asarray(d["euler"], float),
+        rates_body=np.asarray(d["rates_body"], float),
         alt_msl_m=float(d["alt_msl_m"]),
         lat_deg=float(d["lat_deg"]),
         lon_deg=float(d["lon_deg"]),
@@ -69,7 +72,6 @@ def state_from_dict(d: dict) -> VehicleState:
         eas_mps=float(d.get("eas_mps", 0.0)),
         alpha_rad=float(d.get("alpha_rad", 0.0)),
         beta_rad=float(d.get("beta_rad", 0.0)),
-        **vec,
     )
 
 

@@ -23,6 +23,7 @@ from sim.runner import run_scenario
 from sim.scenario import parse_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
+
 pytestmark = pytest.mark.closed_loop
 ORIGIN = GeoPoint(47.0, 8.0, 400.0)
 TARGETS = np.array([[20.0, 0.0, -15.0], [20.0, 20.0, -15.0], [0.0, 20.0, -15.0]])  # NED [m]
@@ -113,9 +114,9 @@ class Gcs(threading.Thread):
             self.error = exc
 
 
-def test_gcs_uploads_a_mission_that_the_vehicle_flies(tmp_path):
+def test_gcs_uploads_a_mission_that_the_vehicle_flies(fly, scenario_data):
     port = _free_port()
-    data = tomllib.loads((ROOT / "scenarios" / "quad_square_mission.toml").read_text())
+    data = scenario_data("quad_square_mission")
     data.update(
         duration=60.0,
         stop_when_complete=True,
@@ -127,14 +128,13 @@ def test_gcs_uploads_a_mission_that_the_vehicle_flies(tmp_path):
     gcs = Gcs(port)
     gcs.hold_off_s = 2.0  # upload while the vehicle already holds at its first waypoint (the hold must end)
     gcs.start()
-    path = tmp_path / "mav.mcap"
-    result = run_scenario(parse_scenario(data, "mavlink test"), path)
+    run = fly(data, "mav")
+    result, log = run.result, run.log
     gcs.join(timeout=5)
     assert gcs.error is None
     assert gcs.heartbeat is not None and gcs.heartbeat.get_srcSystem() == 1 and gcs.heartbeat.get_srcComponent() == 1
     assert gcs.heartbeat.type == mav.MAV_TYPE_QUADROTOR
     assert gcs.ack is not None and gcs.ack.type == mav.MAV_MISSION_ACCEPTED
-    log = RunLog(path)
     events = [text for _, text in log.events()]
     assert "quad: mission uploaded: 3 waypoints, mode AUTO" in events
     assert [e for e in events if "waypoint" in e and e.endswith("/3 reached")] == [

@@ -1,7 +1,5 @@
 """Bad scenario files: one line naming the file and the field, exit code 2, no traceback."""
 
-import subprocess
-import sys
 import tomllib
 from pathlib import Path
 
@@ -108,12 +106,10 @@ CASES = [
 
 
 @pytest.mark.parametrize("kind,data,text,expected", CASES, ids=[c[0] for c in CASES])
-def test_bad_scenario_is_one_line_error_exit_2(tmp_path, kind, data, text, expected):
+def test_bad_scenario_is_one_line_error_exit_2(tmp_path, cosim, kind, data, text, expected):
     f = tmp_path / f"{kind}.toml"
     f.write_text(text if text is not None else tomli_w.dumps(data))
-    proc = subprocess.run(
-        [sys.executable, "-m", "sim.cli", "run", str(f), "-q"], capture_output=True, text=True, cwd=ROOT, timeout=60
-    )
+    proc = cosim("run", f, "-q")
     assert proc.returncode == 2, proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1, proc.stderr
@@ -123,36 +119,18 @@ def test_bad_scenario_is_one_line_error_exit_2(tmp_path, kind, data, text, expec
     assert not (tmp_path / "logs").exists()
 
 
-def test_missing_file_is_exit_2(tmp_path):
-    proc = subprocess.run(
-        [sys.executable, "-m", "sim.cli", "run", str(tmp_path / "nope.toml")],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=60,
-    )
+def test_missing_file_is_exit_2(tmp_path, cosim):
+    proc = cosim("run", tmp_path / "nope.toml")
     assert proc.returncode == 2
     assert "cannot read scenario file" in proc.stderr and "Traceback" not in proc.stderr
 
 
-def test_unwritable_log_path_is_exit_2(tmp_path):
-    proc = subprocess.run(
-        [sys.executable, "-m", "sim.cli", "run", "scenarios/quad_hover_offset.toml", "-o", str(tmp_path)],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=60,
-    )
+def test_unwritable_log_path_is_exit_2(tmp_path, cosim):
+    proc = cosim("run", "scenarios/quad_hover_offset.toml", "-o", tmp_path)
     assert proc.returncode == 2
     assert "cannot write the log" in proc.stderr and "Traceback" not in proc.stderr
 
 
-def test_good_scenario_validates():
-    proc = subprocess.run(
-        [sys.executable, "-m", "sim.cli", "validate", "scenarios/haps_box_mission.toml"],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=60,
-    )
+def test_good_scenario_validates(cosim):
+    proc = cosim("validate", "scenarios/haps_box_mission.toml")
     assert proc.returncode == 0, proc.stderr

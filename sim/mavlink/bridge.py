@@ -248,7 +248,7 @@ class VehicleLink:
     def set_mission(self, waypoints: Sequence[Waypoint]) -> None:
         """The mission a GCS download returns: (lat [deg], lon [deg], alt MSL [m]) per waypoint.
         A completed upload replaces it too."""
-        self.mission.mission = [tuple(float(x) for x in wp) for wp in waypoints]
+        self.mission.mission = [(float(lat), float(lon), float(alt)) for lat, lon, alt in waypoints]
 
     def publish(
         self,

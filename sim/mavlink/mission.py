@@ -137,7 +137,7 @@ class MissionServer:
             "mission_timeout",
             f"mission upload cancelled: item {up.next_seq} of {up.count} never arrived after {self.retries} retries",
         )
-        self._finish(mav.MAV_MISSION_OPERATION_CANCELLED)
+        self._finish(up, mav.MAV_MISSION_OPERATION_CANCELLED)
 
     # -- upload -----------------------------------------------------------------------------
     def _on_count(self, msg, src, reply: Reply, now: float) -> None:
@@ -169,13 +169,13 @@ class MissionServer:
             return None
         if msg.seq > up.next_seq:
             self._anomaly("mission_sequence", f"mission item {msg.seq} arrived, expected {up.next_seq}")
-            self._finish(mav.MAV_MISSION_INVALID_SEQUENCE)
+            self._finish(up, mav.MAV_MISSION_INVALID_SEQUENCE)
             return None
         try:
             wp = self._waypoint(msg)
         except _ItemError as err:
             self._anomaly("mission_invalid_item", f"mission item {msg.seq}: {err}")
-            self._finish(err.result)
+            self._finish(up, err.result)
             return None
         if wp is not None:
             up.waypoints.append(wp)
@@ -185,10 +185,10 @@ class MissionServer:
             return None
         if not up.waypoints:
             self._event("mission upload refused: no waypoint in it", "warning")
-            self._finish(mav.MAV_MISSION_DENIED)
+            self._finish(up, mav.MAV_MISSION_DENIED)
             return None
         self.mission, self.current_seq = list(up.waypoints), 0
-        self._finish(mav.MAV_MISSION_ACCEPTED)
+        self._finish(up, mav.MAV_MISSION_ACCEPTED)
         self._event(f"mission of {len(self.mission)} waypoints uploaded", "info")
         return list(self.mission)
 
@@ -196,8 +196,9 @@ class MissionServer:
         up.deadline = now + self.timeout_s
         up.reply(self._m.mission_request_int_encode(*up.src, up.next_seq, _MISSION))
 
-    def _finish(self, result: int) -> None:
-        up, self._upload = self._upload, None
+    def _finish(self, up: _Upload, result: int) -> None:
+        """End the upload ``up`` with ``result`` sent to its sender."""
+        self._upload = None
         up.reply(self._m.mission_ack_encode(*up.src, result, _MISSION))
 
     def _waypoint(self, msg) -> Waypoint | None:

@@ -67,8 +67,9 @@ def _attached_scenario(path: Path, event: EventFn) -> Scenario | None:
     return sc
 
 
-def _mission(sc: Scenario, name: str, origin: GeoPoint) -> list[Waypoint]:
+def _mission(sc: Scenario, name: str) -> list[Waypoint]:
     """A scenario vehicle's waypoints (north, east [m], altitude MSL [m]) as (lat, lon, alt)."""
+    origin = sc.origin_point
     v = next((v for v in sc.vehicle if v.name == name), None)
     if v is None:
         return []
@@ -115,7 +116,7 @@ def replay_to_gcs(
             )
             links[n] = VehicleLink(cfg, on_event)
             if sc is not None:
-                links[n].set_mission(_mission(sc, n, origin))
+                links[n].set_mission(_mission(sc, n))
         current = dict.fromkeys(names, 0)
         topics = [f"/{n}/{s}" for n in names for s in ("truth/state", "mission/status")]
         for topic, t, msg in iter_messages(path, topics):

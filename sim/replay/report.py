@@ -72,7 +72,7 @@ def _time_plots(tr: VehicleTrace, path: Path) -> None:
         axes[1].plot(tm, speed, label="ground speed (3-D)")
         axes[1].set_ylabel("speed [m/s]")
     axes[2].plot(tm, np.degrees(tr.euler[:, 0]), label="bank")
-    axes[2].plot(tm, tr.truth_cross_track_m / 10.0, label="true cross-track / 10 [m]", alpha=0.7)
+    axes[2].plot(tm, tr.true_cross_track() / 10.0, label="true cross-track / 10 [m]", alpha=0.7)
     axes[2].set_ylabel("bank [deg]")
     axes[2].set_xlabel("sim time [min]")
     for ax in axes:

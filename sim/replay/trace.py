@@ -43,6 +43,12 @@ class VehicleTrace:
     truth_cross_track_m: np.ndarray | None = None  # (N,) true cross-track to the followed leg [m]
     plan_cache_hits: int = 0  # planner calls that kept the previous plan
 
+    def true_cross_track(self) -> np.ndarray:
+        """(N,) true cross-track to the followed leg [m]."""
+        if self.truth_cross_track_m is None:
+            raise ValueError(f"{self.name}: the trace has no true cross-track")
+        return self.truth_cross_track_m
+
     @property
     def mission_complete(self) -> bool:
         return self.complete_t is not None
@@ -163,12 +169,12 @@ class TraceRecorder:
             list(self._reached),
             self._complete_t,
             self._command_arrays(),
-            _array("pos_ned", self._est["pos_ned"]),
-            _array("vel_ned", self._est["vel_ned"]),
-            self._sigma_array("pos"),
-            self._sigma_array("vel"),
-            s["vel_ned"],
-            np.asarray(self._cross, dtype=float),
+            est_pos_ned=_array("pos_ned", self._est["pos_ned"]),
+            est_vel_ned=_array("vel_ned", self._est["vel_ned"]),
+            sigma3_pos=self._sigma_array("pos"),
+            sigma3_vel=self._sigma_array("vel"),
+            truth_vel_ned=s["vel_ned"],
+            truth_cross_track_m=np.asarray(self._cross, dtype=float),
             plan_cache_hits=self._cache_hits,
         )
 

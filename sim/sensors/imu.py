@@ -3,8 +3,9 @@
 Defaults are ADIS16448-class as PX4's SITL IMU plugin simulates it (noise densities and bias
 random walks are twice the datasheet values there; kept): gyro noise density
 3.39e-4 rad/s/sqrt(Hz) (2 x 35/3600 deg/s/sqrt(Hz)), gyro bias random walk 3.88e-5
-rad/s^2/sqrt(Hz) (2 x 4/3600 deg/s^2/sqrt(Hz)), turn-on gyro bias 0.5 deg/s; accel noise density 4e-3 m/s^2/sqrt(Hz), bias random walk 6e-3
-m/s^3/sqrt(Hz), turn-on bias 20 mg. Quantisation: ADIS16448 LSBs (0.04 deg/s, 0.833 mg).
+rad/s^2/sqrt(Hz) (2 x 4/3600 deg/s^2/sqrt(Hz)), turn-on gyro bias 0.5 deg/s; accel noise
+density 4e-3 m/s^2/sqrt(Hz), bias random walk 6e-3 m/s^3/sqrt(Hz), turn-on bias 20 mg.
+Quantisation: ADIS16448 LSBs (0.04 deg/s, 0.833 mg).
 Per-sample white noise = density * sqrt(rate).
 """
 
@@ -66,7 +67,7 @@ class Imu(SampledSensor[ImuSample]):
         super().__init__(cfg, rng)
         self.accel = Channel(cfg.accel_channel(), 3, rng)
         self.gyro = Channel(cfg.gyro_channel(), 3, rng)
-        self._blk = None
+        self._blk: tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._walk = self._white = np.empty((0, 6))
         self._pool_i = 0
 
