@@ -19,6 +19,7 @@ class FlightController(Protocol):
     """Setpoint + estimate -> JSBSim property commands, called at the airframe's control rate."""
 
     debug: dict[str, float]
+    gains: object  # the airframe's gains (aircraft/<airframe>/gains.py)
 
     def reset(self, state: VehicleState) -> None: ...
 

@@ -24,7 +24,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from sim.batch import load_batch, run_batch
+from sim.batch import load_batch, run_batch  # noqa: E402 (after the sys.path line: runs as a script)
 
 BATCH = ROOT / "scenarios" / "batch" / "haps_monte_carlo.toml"
 

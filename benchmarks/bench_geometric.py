@@ -147,7 +147,7 @@ def baseline_plan(enc: Encounter, cfg: GeometricConfig, veh: VehicleParams) -> t
         trees[j] = KDTree([th.p + (end - th.p) * u for u in np.linspace(0, 1, n)])
     (_, lim_rp, lim_m), caps, (k_s, k_t, k_c) = cfg.log_limits, cfg.caps, cfg.weights
     costs, t_norm = {}, {}
-    for k, (kind, theta, alpha, xs, ys, pts, vel, tau) in enumerate(paths):
+    for k, (_kind, _theta, alpha, xs, ys, pts, vel, tau) in enumerate(paths):
         if baseline_collides(
             pts,
             vel,
@@ -230,8 +230,8 @@ def main() -> None:
             for enc in encs[:3]:  # warm-up and agreement check
                 res, (b_chosen, _) = enc.plan(cfg, veh), baseline_plan(enc, cfg, veh)
                 assert res.chosen == b_chosen, (res.chosen, b_chosen)
-            vec = median_time(lambda e: e.plan(cfg, veh), encs, args.repeat)
-            base = median_time(lambda e: baseline_plan(e, cfg, veh), encs[: args.baseline_envs], 1)
+            vec = median_time(lambda e, cfg=cfg: e.plan(cfg, veh), encs, args.repeat)
+            base = median_time(lambda e, cfg=cfg: baseline_plan(e, cfg, veh), encs[: args.baseline_envs], 1)
             ok = sum(e.plan(cfg, veh).status is Status.AVOID for e in encs)
             rows.append(
                 {
@@ -248,7 +248,8 @@ def main() -> None:
                 }
             )
     print(
-        f"{'mode':6} {'N':>2} {'median ms':>10} {'baseline ms':>12} {'thesis ms':>10} {'x thesis':>9} {'x baseline':>11}"
+        f"{'mode':6} {'N':>2} {'median ms':>10} {'baseline ms':>12} {'thesis ms':>10} "
+        f"{'x thesis':>9} {'x baseline':>11}"
     )
     for r in rows:
         print(

@@ -124,12 +124,12 @@ class MultirotorPlanFollower:
             elif self.step:
                 self.s = float(cum[self.leg + 1])
             else:
-                a, u = P[self.leg], self._unit(self.leg)
+                a, u = P[self.leg], _leg_unit(P, self.leg)
                 if np.linalg.norm(a + u * (self.s - cum[self.leg]) - pos) < self.max_lead_m:
                     v = self._leg_speed(u)
                     self.s = min(self.s + v * dt, cum[self.leg + 1])
                     vel = u * v
-        a, u = P[self.leg], self._unit(self.leg)
+        a, u = P[self.leg], _leg_unit(P, self.leg)
         self.carrot = a + u * (self.s - cum[self.leg])
         end_label = int(plan.labels[self.leg + 1])
         if end_label in self.yaw_rad:
@@ -150,7 +150,9 @@ class MultirotorPlanFollower:
         ap = pos_ned - a
         return float(np.linalg.norm(ap - u * float(ap @ u)))
 
-    def _unit(self, leg: int) -> np.ndarray:
-        seg = self.plan.positions[leg + 1] - self.plan.positions[leg]
-        n = float(np.linalg.norm(seg))
-        return seg / n if n > 0 else np.zeros(3)
+
+def _leg_unit(positions: np.ndarray, leg: int) -> np.ndarray:
+    """Unit vector along leg ``leg`` of the (N, 3) polyline ``positions`` (zero for a null leg)."""
+    seg = positions[leg + 1] - positions[leg]
+    n = float(np.linalg.norm(seg))
+    return seg / n if n > 0 else np.zeros(3)

@@ -26,7 +26,9 @@ out = Console()
 
 
 def _error(exc: Exception) -> None:
-    err.print(f"[red]error:[/] {escape(str(exc))}", highlight=False)
+    """One line on stderr (line breaks in the message shown as ``\\n``)."""
+    text = str(exc).replace("\n", "\\n")
+    err.print(f"[red]error:[/] {escape(text)}", highlight=False)
 
 
 def _raise_interrupt(signum, frame):
@@ -40,12 +42,14 @@ def _fmt_duration(s: float) -> str:
 
 
 def cmd_run(args) -> int:
+    from sim.output_paths import path_under
     from sim.scenario import load_scenario
 
     scenario, text = load_scenario(args.scenario)
+    scenario = _with_signing_key(scenario, args.mavlink_key)
     from sim.runner import RunFailed, run_scenario
 
-    path = Path(args.output) if args.output else Path("logs") / f"{scenario.name}.mcap"
+    path = Path(args.output) if args.output else path_under(Path("logs"), f"{scenario.name}.mcap")
     duration = args.duration if args.duration is not None else scenario.duration
     signal.signal(signal.SIGTERM, _raise_interrupt)
     progress = Progress(
@@ -73,6 +77,27 @@ def cmd_run(args) -> int:
     return {"completed": EXIT_OK, "duration_elapsed": EXIT_OK, "interrupted": EXIT_INTERRUPTED}.get(
         result.status, EXIT_FAILED
     )
+
+
+def _with_signing_key(scenario, key_file: str | None):
+    """The scenario with ``--mavlink-key`` as its MAVLink signing key file; the key file (from
+    either) is read now, so that a bad one is a one-line error before the run."""
+    from sim.scenario import ScenarioError
+
+    mav = scenario.mavlink
+    if key_file is not None and not mav.enabled:
+        raise ScenarioError("--mavlink-key: the scenario does not enable MAVLink ([mavlink] enabled = true)")
+    if key_file is not None:
+        mav = mav.model_copy(update={"signing_key_file": Path(key_file)})
+        scenario = scenario.model_copy(update={"mavlink": mav})
+    if mav.enabled and mav.signing_key_file is not None:
+        from sim.mavlink.signing import SigningKeyError, load_key
+
+        try:
+            load_key(mav.signing_key_file)
+        except SigningKeyError as exc:
+            raise ScenarioError(str(exc)) from None
+    return scenario
 
 
 def _print_summary(r) -> None:
@@ -105,6 +130,8 @@ def cmd_info(args) -> int:
     head.add_row("result", res.get("status", "? (no result metadata)"))
     head.add_row("sim time", f"{info.start_s:.2f} .. {info.end_s:.2f} s")
     head.add_row("messages", str(info.messages))
+    if not info.finished:
+        head.add_row("file", "[yellow]unfinished (its writer never closed it): read up to its last complete chunk[/]")
     head.add_row("versions", f"cosim {run.get('cosim_version', '?')}, jsbsim {run.get('jsbsim_version', '?')}")
     head.add_row("attachments", ", ".join(info.attachments) or "-")
     out.print(head)
@@ -116,11 +143,14 @@ def cmd_info(args) -> int:
 
 
 def cmd_replay(args) -> int:
+    from sim.mcap_read import read_info
     from sim.replay.report import write_report
 
     log = Path(args.log)
     out_dir = Path(args.output) if args.output else log.with_name(f"{log.stem}_report")
     report, metrics = write_report(log, out_dir)
+    if not read_info(log).finished:
+        err.print("[yellow]warning:[/] unfinished log, read up to its last complete chunk", highlight=False)
     if args.rerun_planner:
         from sim.replay.rerun import rerun_planner
 
@@ -173,7 +203,7 @@ def cmd_batch(args) -> int:
     from sim.batch import load_batch, run_batch
 
     name, runs = load_batch(args.batch, args.output)
-    out_dir = Path(args.output) if args.output else Path("logs") / "batch" / name
+    out_dir = Path(args.output) if args.output else Path("logs") / "batch" / name  # name checked by load_batch
     executor = None
     client = None
     if args.dask:
@@ -182,6 +212,7 @@ def cmd_batch(args) -> int:
         client = Client(args.dask)
         executor = client.get_executor()
     failures = 0
+    signal.signal(signal.SIGTERM, _raise_interrupt)
     progress = Progress(
         TextColumn("[bold]{task.description}"),
         BarColumn(),
@@ -208,8 +239,14 @@ def cmd_batch(args) -> int:
         if client is not None:
             client.close()
     failed = sum(r.get("status") == "failed" for r in rows)
-    out.print(f"{len(rows)} runs, {failed} failed; results: {out_dir / 'results.csv'}", soft_wrap=True, highlight=False)
-    return EXIT_OK if failed == 0 else EXIT_FAILED
+    cut = sum(r.get("status") == "interrupted" for r in rows)
+    out.print(
+        f"{len(rows)} runs, {failed} failed, {cut} interrupted (flown again on resume); "
+        f"results: {out_dir / 'results.csv'}",
+        soft_wrap=True,
+        highlight=False,
+    )
+    return EXIT_INTERRUPTED if cut else EXIT_OK if failed == 0 else EXIT_FAILED
 
 
 def cmd_encounters(args) -> int:
@@ -287,6 +324,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--duration", type=_sim_seconds, help="sim time to fly [s] (default: the scenario's)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     r.add_argument("--debug", action="store_true", help="print the traceback of a failed run")
+    r.add_argument(
+        "--mavlink-key",
+        metavar="FILE",
+        help="MAVLink 2 signing: a file holding the passphrase (overrides the scenario's signing_key_file)",
+    )
     r.set_defaults(fn=cmd_run)
     i = sub.add_parser("info", help="summarise an MCAP log")
     i.add_argument("log")
@@ -344,6 +386,7 @@ def main(argv: list[str] | None = None) -> int:
     from sim.encounters.model import CampaignError
     from sim.mcap_log import LogWriteError
     from sim.mcap_read import LogReadError
+    from sim.output_paths import OutputPathError
     from sim.scenario import ScenarioError
 
     try:
@@ -354,8 +397,12 @@ def main(argv: list[str] | None = None) -> int:
         LogWriteError,
         BatchError,
         CampaignError,
+        OutputPathError,
     ) as exc:  # bad input: one line, exit 2
         _error(exc)
+        return EXIT_BAD_INPUT
+    except OSError as exc:  # an output folder that cannot be written, a file that vanished: one line
+        _error(OSError(f"{exc.filename or ''}: {exc.strerror or exc}".lstrip(": ")))
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         err.print("interrupted")

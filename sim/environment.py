@@ -61,7 +61,7 @@ def start_gust(plant: JSBSimPlant, gust: sc.Gust) -> None:
 
 def obstacle_prism(o: sc.Obstacle, origin_alt_m: float) -> PrismObstacle:
     """The obstacle as a prism: footprint in (north, east) [m], heights above the origin [m]."""
-    if o.shape == "box":
+    if o.shape == "box" and o.length is not None and o.width is not None:
         fp = Polygon(
             [
                 (-o.length / 2, -o.width / 2),
@@ -73,10 +73,12 @@ def obstacle_prism(o: sc.Obstacle, origin_alt_m: float) -> PrismObstacle:
         # (north, east) axes: a positive heading turns north towards east, i.e. clockwise
         fp = rotate(fp, -math.degrees(o.heading), origin=(0, 0))
         fp = Polygon([(n + o.north, e + o.east) for n, e in fp.exterior.coords])
-    elif o.shape == "cylinder":
+    elif o.shape == "cylinder" and o.radius is not None:
         fp = Point(o.north, o.east).buffer(o.radius, quad_segs=16)
-    else:
+    elif o.shape == "polygon" and o.points is not None:
         fp = Polygon(o.points)  # validated simple by the scenario
+    else:
+        raise ValueError(f"obstacle {o.id!r}: a {o.shape} without its dimensions")
     base = o.base if o.base is not None else origin_alt_m
     return PrismObstacle(o.id, fp, base - origin_alt_m, o.top - origin_alt_m)
 

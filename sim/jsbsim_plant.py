@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import threading
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -128,9 +129,17 @@ class JSBSimPlant:
         if not ok:
             raise PlantError(self._with_log(f"JSBSim could not load model {model!r}"))
         self.fdm.set_dt(self.dt)
-        pm = self.fdm.get_property_manager()
-        self._truth_nodes = [pm.get_node(p, False) for p in _TRUTH_PROPS]
+        self._truth_nodes = self.property_nodes(_TRUTH_PROPS)
         self._truth: VehicleState | None = None  # the last truth read, valid while sim time stands
+
+    def property_nodes(self, names: Sequence[str]) -> list[jsbsim.FGPropertyNode]:
+        """The model's property nodes of ``names`` (looked up once, read every tick)."""
+        pm = self.fdm.get_property_manager()
+        nodes = [pm.get_node(name, False) for name in names]
+        missing = [name for name, node in zip(names, nodes, strict=True) if node is None]
+        if missing:
+            raise PlantError(f"JSBSim model has no properties {missing}")
+        return [node for node in nodes if node is not None]
 
     @property
     def warnings(self) -> list[str]:

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 _NUM = {"type": "number"}
 _VEC3 = {"type": "array", "items": _NUM, "minItems": 3, "maxItems": 3}
+_NUM_OR_NULL = {"type": ["number", "null"]}  # null where the field says what it means
+_VEC3_OR_NULL = {"type": "array", "items": _NUM_OR_NULL, "minItems": 3, "maxItems": 3}
 
 
 def _obj(title: str, fields: dict[str, tuple[dict, str]], extra: bool = False) -> dict:
@@ -54,10 +56,13 @@ MULTIROTOR_SETPOINT = _obj(
     "cosim.MultirotorSetpoint",
     {
         "t": (_NUM, "sim time [s]"),
-        "pos_ned": (_VEC3, "position demand (the carrot), local-level NED [m]; null: velocity control"),
+        "pos_ned": (
+            _VEC3_OR_NULL,
+            "position demand (the carrot), local-level NED [m]; null on an axis: velocity control on it",
+        ),
         "vel_ned": (_VEC3, "velocity feed-forward NED [m/s]"),
-        "yaw_rad": (_NUM, "yaw demand [rad] (null: hold)"),
-        "altitude_m": (_NUM, "altitude demand, MSL [m]"),
+        "yaw_rad": (_NUM_OR_NULL, "yaw demand [rad]; null: hold the heading"),
+        "altitude_m": (_NUM_OR_NULL, "altitude demand, MSL [m]; null: vertical velocity control"),
         "leg": ({"type": "integer"}, "index of the plan leg being followed"),
         "cross_track_m": (_NUM, "distance from the leg line (3-D) [m]"),
         "turning": ({"type": "boolean"}, "true while the carrot waits (vertex, hold, landing)"),

@@ -2,7 +2,8 @@
 
 Log time of a message = scenario epoch + sim time [ns]; publish time = log time, so that two runs
 of the same scenario and seed write byte-identical messages. Channels whose content is wall-clock
-time (planner latency) carry the channel metadata ``wallclock=true`` and are the only exception.
+time (planner latency, planner runtimes) carry the channel metadata ``wallclock=true`` and
+``wallclock_fields`` (the dotted paths of those fields) and are the only exception.
 
 Writing: the simulation process only serialises messages (JSON with orjson, protobuf) and hands
 them in batches to a writer process that owns the file and the ``mcap`` writer (record framing,
@@ -12,7 +13,11 @@ without it (a crash of the flight model, SIGKILL), the writer process sees the p
 finishes the file with every message it received, so the log stays readable. The writer is a
 fresh interpreter (``python -m sim.mcap_writer``, which imports only ``mcap``) fed pickled
 batches on its stdin, so it also starts inside daemonic workers (a Dask nanny's) and never re-runs
-the caller's script; ``background=False`` writes the same records in-process.
+the caller's script; ``background=False`` writes the same records in-process. The writer runs in
+its own session, so a signal to the whole process group (a terminal hang-up, ``kill -- -PGID``,
+SIGKILL included) kills the simulation but not the writer, which then finishes the file. A log
+whose writer died anyway (killed on its own, full disk) keeps every complete chunk:
+:mod:`sim.mcap_read` reads it up to there.
 """
 
 from __future__ import annotations
@@ -24,7 +29,7 @@ import pickle
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import orjson
 from foxglove_schemas_protobuf.Log_pb2 import Log
@@ -50,6 +55,42 @@ class LogWriteError(RuntimeError):
     """The log could not be written (e.g. disk full); says why."""
 
 
+class _WriterProcess:
+    """The writer process (``python -m sim.mcap_writer``, a fresh interpreter: nothing of the
+    caller's ``__main__`` is re-run): pickled record batches in on its stdin, ``None`` last; its
+    stdout says why it failed."""
+
+    def __init__(self, path: Path, chunk_size: int):
+        root = str(Path(__file__).resolve().parents[1])
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])))
+        self._proc = subprocess.Popen(
+            [sys.executable, "-m", "sim.mcap_writer", str(path), str(chunk_size)],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            env=env,
+            start_new_session=True,  # a signal to our process group (hang-up, kill) spares it
+        )
+        if self._proc.stdin is None or self._proc.stdout is None:
+            raise LogWriteError(f"{path}: the writer process has no pipes")
+        self._stdin: IO[bytes] = self._proc.stdin
+        self._stdout: IO[bytes] = self._proc.stdout
+
+    def send(self, batch: list[tuple], last: bool = False) -> None:
+        """Hand ``batch`` over (flushed); ``last``: then tell the writer to finish the file."""
+        pickle.dump(batch, self._stdin, protocol=pickle.HIGHEST_PROTOCOL)
+        if last:
+            pickle.dump(None, self._stdin)
+        self._stdin.flush()
+
+    def error(self) -> str:
+        """Why the writer process stopped (its stdout line), after waiting for it."""
+        with contextlib.suppress(OSError):
+            self._stdin.close()
+        out = self._stdout.read().decode(errors="replace").strip()
+        code = self._proc.wait()
+        return out or (f"the writer process stopped (exit code {code})" if code else "")
+
+
 class McapLog:
     """Writes one run to ``path``. Topics are registered on first write."""
 
@@ -63,21 +104,16 @@ class McapLog:
         except OSError as exc:
             raise LogWriteError(f"cannot write the log {self.path}: {exc.strerror or exc}") from None
         self._pending: list[tuple] = []
-        self._proc = self._inline = None
-        if background:  # a fresh interpreter: nothing of the caller's __main__ is re-run
-            root = str(Path(__file__).resolve().parents[1])
-            env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])))
-            self._proc = subprocess.Popen(
-                [sys.executable, "-m", "sim.mcap_writer", str(self.path), str(chunk_size)],
-                stdin=subprocess.PIPE,
-                stdout=subprocess.PIPE,
-                env=env,
-            )
+        self._proc: _WriterProcess | None = None
+        self._inline: RecordWriter | None = None
+        if background:
+            self._proc = _WriterProcess(self.path, chunk_size)
         else:
             self._inline = RecordWriter(open(self.path, "wb"), chunk_size)  # noqa: SIM115 (the writer closes it)
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._seq: dict[int, int] = {}
+        self._failure: str | None = None  # why the writer stopped: every later write says so
         self.closed = False
 
     # -- registration --------------------------------------------------------------------
@@ -95,6 +131,8 @@ class McapLog:
         return cid
 
     def _record(self, rec: tuple) -> None:
+        if self._failure is not None:
+            raise LogWriteError(self._failure)
         if self.closed:
             raise LogWriteError(f"{self.path}: the log is closed")
         self._pending.append(rec)
@@ -105,20 +143,12 @@ class McapLog:
         batch, self._pending = self._pending, []
         if self._inline is not None:
             self._inline.apply(batch)
-            return
-        try:
-            pickle.dump(batch, self._proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
-            self._proc.stdin.flush()  # handed over now: a crash after this loses none of it
-        except OSError:
-            raise LogWriteError(f"{self.path}: {self._writer_error()}") from None
-
-    def _writer_error(self) -> str:
-        """Why the writer process stopped (its stdout line), after waiting for it."""
-        with contextlib.suppress(OSError):
-            self._proc.stdin.close()
-        out = self._proc.stdout.read().decode(errors="replace").strip()
-        code = self._proc.wait()
-        return out or (f"the writer process stopped (exit code {code})" if code else "")
+        elif self._proc is not None:
+            try:
+                self._proc.send(batch)  # handed over now: a crash after this loses none of it
+            except OSError:
+                self._failure = f"{self.path}: {self._proc.error()}"
+                raise LogWriteError(self._failure) from None
 
     # -- writing -------------------------------------------------------------------------
     def _add(self, cid: int, t: float, data: bytes) -> None:
@@ -155,7 +185,8 @@ class McapLog:
         msg.timestamp.FromNanoseconds(ns)
         self.write_proto("/log", t, msg)
 
-    def metadata(self, name: str, data: dict[str, str]) -> None:
+    def metadata(self, name: str, data: dict[str, object]) -> None:
+        """A metadata record ``name``; values are written as their ``str``."""
         self._record(("metadata", name, {k: str(v) for k, v in data.items()}))
 
     def attach(self, name: str, data: bytes, media_type: str, t: float = 0.0) -> None:
@@ -168,20 +199,20 @@ class McapLog:
         if self.closed:
             return
         self.closed = True
+        if self._failure is not None:
+            raise LogWriteError(self._failure)
         if self._inline is not None:
             try:
                 self._inline.apply(self._pending)
             finally:
                 self._inline.finish()
             return
-        try:
-            pickle.dump(self._pending, self._proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
-            pickle.dump(None, self._proc.stdin)
-            self._proc.stdin.flush()
-        except OSError:
-            pass  # the writer is gone: its error line says why
+        if self._proc is None:
+            return
+        with contextlib.suppress(OSError):  # the writer is gone: its error line says why
+            self._proc.send(self._pending, last=True)
         self._pending = []
-        error = self._writer_error()
+        error = self._proc.error()
         if error:
             raise LogWriteError(f"{self.path}: {error}")
 

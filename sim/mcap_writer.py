@@ -4,6 +4,7 @@ fed pickled batches on stdin). Imports only ``mcap``, so the writer process star
 
 from __future__ import annotations
 
+import contextlib
 import pickle
 import signal
 import sys
@@ -53,38 +54,47 @@ class RecordWriter:
 
 
 def writer_main(path: str, chunk_size: int) -> int:
-    """Writer process (``python -m sim.mcap_log PATH CHUNK_SIZE``): applies the pickled batches
-    read from stdin until ``None`` (close) or end of file (the simulation process died), finishes
-    the file and prints an error line on stdout if anything failed. Ignores SIGINT: Ctrl-C
-    reaches the whole process group, and the simulation process closes the log itself."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    """Writer process (``python -m sim.mcap_writer PATH CHUNK_SIZE``, started in its own session
+    so that signals to the simulation's process group do not reach it): applies the pickled
+    batches read from stdin until ``None`` (close) or end of file (the simulation process died:
+    the pipe is its parent-death watch), finishes the file and prints an error line on stdout if
+    anything failed. Every batch is flushed to the OS, so even a killed writer leaves the file
+    readable up to its last complete chunk. A write that fails (full disk, file size limit) stops
+    the writing there: the file keeps its complete chunks and the error line says why."""
+    for sig in (signal.SIGINT, signal.SIGHUP, signal.SIGXFSZ):  # SIGXFSZ: a size limit is an OSError
+        signal.signal(sig, signal.SIG_IGN)
     src = sys.stdin.buffer
+    try:
+        rw = RecordWriter(open(path, "wb"), chunk_size)  # noqa: SIM115 - RecordWriter closes it
+    except OSError as exc:
+        print(f"cannot open {path}: {exc.strerror or exc}", flush=True)
+        return 1
     error = None
     try:
-        rw = RecordWriter(open(path, "wb"), chunk_size)
-    except OSError as exc:
-        print(f"cannot open {path}: {exc}", flush=True)
-        return 1
-    try:
-        while True:
-            try:
-                batch = pickle.load(src)
-            except EOFError:
-                break
-            if batch is None:
-                break
+        while (batch := _next_batch(src)) is not None:
             rw.apply(batch)
-    except Exception as exc:  # reported to the simulation process at its next hand-over or close
+            rw.file.flush()
+        rw.finish()
+    except OSError as exc:
+        error = f"{exc.strerror or exc}: the log ends at its last complete chunk"
+        with contextlib.suppress(OSError):
+            rw.file.close()
+    except Exception as exc:  # noqa: BLE001 - reported to the simulation process at its next hand-over or close
         error = f"{type(exc).__name__}: {exc}"
-    finally:
-        try:
+        with contextlib.suppress(Exception):
             rw.finish()
-        except Exception as exc:
-            error = error or f"{type(exc).__name__}: {exc}"
     if error:
         print(error, flush=True)
         return 1
     return 0
+
+
+def _next_batch(src) -> list[tuple] | None:
+    """The next batch, or None at the close marker or the end of the pipe."""
+    try:
+        return pickle.load(src)
+    except EOFError:
+        return None
 
 
 if __name__ == "__main__":

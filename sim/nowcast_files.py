@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import shapely
@@ -61,14 +62,14 @@ def load_series(paths: list[str] | list[Path], origin: GeoPoint | None = None) -
     return series
 
 
-def parse_nowcast(doc: dict, origin: GeoPoint | None = None, where: str = "nowcast") -> list[StormSnapshot]:
+def parse_nowcast(doc: dict[str, Any], origin: GeoPoint | None = None, where: str = "nowcast") -> list[StormSnapshot]:
     if not isinstance(doc, dict) or doc.get("type") != "FeatureCollection":
         raise NowcastError(f"{where}: type: expected 'FeatureCollection'")
     frame = doc.get("frame", "wgs84")
     if frame not in FRAMES:
         raise NowcastError(f"{where}: frame: {frame!r} is not one of {FRAMES}")
     if frame == "wgs84" and origin is None:
-        o = doc.get("origin")
+        o: Any = doc.get("origin")  # JSON: checked by the conversions below
         try:
             origin = GeoPoint(float(o["lat_deg"]), float(o["lon_deg"]), float(o.get("alt_m", 0.0)))
         except (TypeError, KeyError, ValueError) as e:
@@ -88,7 +89,7 @@ def parse_nowcast(doc: dict, origin: GeoPoint | None = None, where: str = "nowca
             if not (isinstance(vel, list) and len(vel) == 2):
                 raise NowcastError(f"{at}.properties.velocity_ne: expected [north, east] in m/s")
             vel = np.array([_number(v, f"{at}.properties.velocity_ne") for v in vel])
-        for poly in _cells(f.get("geometry"), f"{at}.geometry", frame, origin):
+        for poly in _cells(f.get("geometry"), f"{at}.geometry", origin if frame == "wgs84" else None):
             steps.setdefault(t, []).append((poly, vel))
     out = []
     for t in sorted(steps):
@@ -101,13 +102,15 @@ def parse_nowcast(doc: dict, origin: GeoPoint | None = None, where: str = "nowca
     return out
 
 
-def _number(x, at: str) -> float:
+def _number(x: object, at: str) -> float:
     if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
         raise NowcastError(f"{at}: expected a finite number, got {x!r}")
     return float(x)
 
 
-def _cells(geom, at: str, frame: str, origin: GeoPoint | None) -> list[Polygon]:
+def _cells(geom: object, at: str, origin: GeoPoint | None) -> list[Polygon]:
+    """The polygons of a GeoJSON geometry in (north, east) [m]: coordinates (lon, lat) [deg] about
+    ``origin``, or already local (north, east) [m] without one."""
     if not isinstance(geom, dict) or geom.get("type") not in ("Polygon", "MultiPolygon"):
         raise NowcastError(f"{at}.type: expected 'Polygon' or 'MultiPolygon'")
     try:
@@ -119,7 +122,7 @@ def _cells(geom, at: str, frame: str, origin: GeoPoint | None) -> list[Polygon]:
         xy = np.asarray(part.exterior.coords)
         if not np.isfinite(xy).all() or len(xy) < 4:
             raise NowcastError(f"{at}.coordinates[{k}]: need at least 3 finite points")
-        ne = xy if frame == "local_ne" else geodetic_to_ned(xy[:, 1], xy[:, 0], 0.0, origin)[:, :2]
+        ne = xy if origin is None else geodetic_to_ned(xy[:, 1], xy[:, 0], 0.0, origin)[:, :2]
         poly = Polygon(ne)
         if not poly.is_valid or poly.area <= 0:
             raise NowcastError(f"{at}.coordinates[{k}]: not a valid polygon ({shapely.is_valid_reason(poly)})")
@@ -127,24 +130,27 @@ def _cells(geom, at: str, frame: str, origin: GeoPoint | None) -> list[Polygon]:
     return out
 
 
-def dump_nowcast(snapshots: list[StormSnapshot], frame: str = "local_ne", origin: GeoPoint | None = None) -> dict:
+def dump_nowcast(
+    snapshots: list[StormSnapshot], frame: str = "local_ne", origin: GeoPoint | None = None
+) -> dict[str, Any]:
     """The GeoJSON document of ``snapshots`` (inverse of :func:`parse_nowcast`)."""
     if frame not in FRAMES or (frame == "wgs84" and origin is None):
         raise ValueError("frame must be 'local_ne', or 'wgs84' with an origin")
+    geo = origin if frame == "wgs84" else None
     feats = []
     for s in snapshots:
         for i, c in enumerate(s.cells):
             ne = np.asarray(c.exterior.coords)
-            if frame == "wgs84":
-                lat, lon, _ = ned_to_geodetic(np.column_stack([ne, np.zeros(len(ne))]), origin)
+            if geo is not None:
+                lat, lon, _ = ned_to_geodetic(np.column_stack([ne, np.zeros(len(ne))]), geo)
                 ne = np.column_stack([lon, lat])
-            props = {"t": float(s.t)}
+            props: dict[str, Any] = {"t": float(s.t)}
             if s.velocities_ne is not None:
                 props["velocity_ne"] = [float(v) for v in s.velocities_ne[i]]
             feats.append({"type": "Feature", "geometry": mapping(Polygon(ne)), "properties": props})
-    doc = {"type": "FeatureCollection", "frame": frame, "features": feats}
-    if frame == "wgs84":
-        doc["origin"] = {"lat_deg": origin.lat_deg, "lon_deg": origin.lon_deg, "alt_m": origin.alt_m}
+    doc: dict[str, Any] = {"type": "FeatureCollection", "frame": frame, "features": feats}
+    if geo is not None:
+        doc["origin"] = {"lat_deg": geo.lat_deg, "lon_deg": geo.lon_deg, "alt_m": geo.alt_m}
     return json.loads(json.dumps(doc))
 
 

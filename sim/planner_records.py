@@ -23,6 +23,27 @@ from sim.mcap_log import McapLog
 
 _ANY = {"title": "cosim.PlannerRecord", "type": "object", "additionalProperties": True}
 
+# The wall-clock fields (dotted paths) of each planner's records, by channel suffix after
+# /<v>/plan: their channels carry metadata wallclock=true and wallclock_fields=<the paths>; every
+# other field repeats bit for bit with the scenario and seed.
+WALLCLOCK_FIELDS: dict[str, dict[str, tuple[str, ...]]] = {
+    "geometric": {
+        "": tuple(
+            f"diagnostics.t_{s}_s" for s in ("total", "generation", "kinematics", "collision", "cost", "selection")
+        ),
+        "/candidates": ("timings_s",),
+    },
+    "reachset": {"": ("diagnostics.runtime_ms",), "/decision": ("runtime_s",)},
+    "mptp": {"": ("diagnostics.runtime_s", "diagnostics.weather_s")},
+}
+
+
+def wallclock_metadata(planner: str, suffix: str) -> dict[str, str]:
+    """Channel metadata marking the wall-clock fields of ``planner``'s records on
+    ``/<v>/plan<suffix>`` (empty when they have none)."""
+    fields = WALLCLOCK_FIELDS.get(planner, {}).get(suffix)
+    return {"wallclock": "true", "wallclock_fields": ",".join(fields)} if fields else {}
+
 
 @dataclass(slots=True)
 class RecordSink:
@@ -40,7 +61,13 @@ def geometric_records(sink: RecordSink, planner: Any, plan: Plan, t: float) -> N
     c = planner.candidate_log()
     if c is not None and c["t"] != sink.memory.get("candidates_t"):
         sink.memory["candidates_t"] = c["t"]
-        sink.log.write_json(f"{sink.prefix}/candidates", t, c, {**_ANY, "title": "cosim.GeometricCandidates"})
+        sink.log.write_json(
+            f"{sink.prefix}/candidates",
+            t,
+            c,
+            {**_ANY, "title": "cosim.GeometricCandidates"},
+            wallclock_metadata("geometric", "/candidates"),
+        )
 
 
 def reachset_records(sink: RecordSink, planner: Any, plan: Plan, t: float) -> None:
@@ -49,7 +76,13 @@ def reachset_records(sink: RecordSink, planner: Any, plan: Plan, t: float) -> No
     d = planner.last_decision
     if d is None:
         return
-    sink.log.write_json(f"{sink.prefix}/decision", t, decision_record(d), {**_ANY, "title": "cosim.ReachSetDecision"})
+    sink.log.write_json(
+        f"{sink.prefix}/decision",
+        t,
+        decision_record(d),
+        {**_ANY, "title": "cosim.ReachSetDecision"},
+        wallclock_metadata("reachset", "/decision"),
+    )
     sink.log.write_proto(f"{sink.prefix}/grid", t, scene_update(d, sink.log.epoch_ns / 1e9 + t))
     rules = getattr(planner, "rules_record", None)
     if rules is not None and rules["t"] == t:

@@ -2,8 +2,9 @@
 
 The log is finished in a ``finally``: a run that raises, is interrupted (Ctrl-C, SIGTERM) or
 diverges leaves a readable file with every message up to its last tick, and metadata ``result``
-saying how it ended. Nothing wall-clock goes into the messages except channels marked
-``wallclock=true``, so the same scenario and seed give the same message payloads.
+saying how it ended. Nothing wall-clock goes into the messages except the fields a channel lists
+in its ``wallclock_fields`` metadata (with ``wallclock=true``), so the same scenario and seed give
+the same message payloads otherwise.
 """
 
 from __future__ import annotations
@@ -109,7 +110,7 @@ def run_scenario(
         if scenario.mavlink.enabled:
             from sim.mavlink.session import MavlinkSession
 
-            session = MavlinkSession(scenario.mavlink, world.vehicles, world.origin, log)
+            session = MavlinkSession(scenario.mavlink, world.vehicles, world.origin, log, world.fences)
             sched.add_task("mavlink", scenario.logging.rate_hz, Stage.LOG, session.tick)
         if progress is not None:
             sched.add_task("progress", progress_hz, Stage.LOG, lambda t: progress(t, end))
@@ -123,7 +124,7 @@ def run_scenario(
     except KeyboardInterrupt:
         result.status = "interrupted"
         result.error = "interrupted by the user"
-    except Exception as exc:  # recorded in the log, then re-raised as RunFailed
+    except Exception as exc:  # noqa: BLE001 - recorded in the log, then re-raised as RunFailed
         result.status = "failed"
         result.error = f"{type(exc).__name__}: {exc}"
         failure = exc

@@ -10,10 +10,9 @@ from __future__ import annotations
 
 import itertools
 import math
-import tomllib
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import TYPE_CHECKING, Annotated, Any, Final, Literal, Union
 
 from pydantic import (
     BaseModel,
@@ -25,11 +24,13 @@ from pydantic import (
     field_validator,
     model_validator,
 )
+from pydantic_core import ErrorDetails
 from shapely.geometry import Polygon
 
 from aircraft.registry import get_airframe
 from sim.estimation.sensor_estimator import SensorEstimatorConfig
 from sim.geodesy import GeoPoint
+from sim.input_files import parse_toml, read_text
 from sim.planner_registry import PLANNERS, PlannerType
 from sim.sensors.airspeed import AirspeedConfig
 from sim.sensors.baro import BaroConfig
@@ -41,7 +42,9 @@ from sim.sensors.magnetometer import MagnetometerConfig
 from sim.sensors.presets import PRESETS
 from sim.units import Angle, Speed, quantity
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION: Final = 1
+# a scenario/batch name: it names files (logs/<name>.mcap), so no path separators, no leading dot
+NAME_PATTERN = r"^[^/\\\x00-\x1f\x7f.][^/\\\x00-\x1f\x7f]*$"
 
 
 class ScenarioError(ValueError):
@@ -56,13 +59,13 @@ class Origin(_Strict):
     """WGS84 origin of the local NED frame; lat/lon in degrees; ``altitude`` [m MSL] is also
     the elevation of the flat ground under the whole scenario."""
 
-    lat: quantity("angle", -90.0, 90.0)
-    lon: quantity("angle", -180.0, 180.0)
-    altitude: quantity("length", -500.0, 9000.0) = 0.0
+    lat: Annotated[float, quantity("angle", -90.0, 90.0)]
+    lon: Annotated[float, quantity("angle", -180.0, 180.0)]
+    altitude: Annotated[float, quantity("length", -500.0, 9000.0)] = 0.0
 
 
-_Offset = quantity("length", -2.0e6, 2.0e6)
-_Altitude = quantity("length", -500.0, 30000.0)
+_Offset = Annotated[float, quantity("length", -2.0e6, 2.0e6)]
+_Altitude = Annotated[float, quantity("length", -500.0, 30000.0)]
 
 
 class Waypoint(_Strict):
@@ -72,15 +75,15 @@ class Waypoint(_Strict):
     north: _Offset
     east: _Offset
     altitude: _Altitude
-    hold: quantity("time", 0.0, 86400.0) = 0.0
+    hold: Annotated[float, quantity("time", 0.0, 86400.0)] = 0.0
     yaw: Angle | None = None  # multirotor heading at this waypoint (default: along the path)
 
 
 class MissionSpec(_Strict):
     """Waypoints flown in order at ``cruise_speed`` (true airspeed for fixed wing)."""
 
-    cruise_speed: quantity("speed", 0.0, 120.0, lo_open=True)
-    acceptance_radius: quantity("length", 0.0, 5000.0, lo_open=True) = 100.0
+    cruise_speed: Annotated[float, quantity("speed", 0.0, 120.0, lo_open=True)]
+    acceptance_radius: Annotated[float, quantity("length", 0.0, 5000.0, lo_open=True)] = 100.0
     waypoints: Annotated[list[Waypoint], Field(min_length=1)]
     land: bool = False
     # multirotor guidance: "path" flies the legs at cruise speed; "step" jumps the position
@@ -97,10 +100,10 @@ class Initial(_Strict):
     north: _Offset = 0.0
     east: _Offset = 0.0
     altitude: _Altitude
-    airspeed: quantity("speed", 0.0, 120.0) = 0.0
+    airspeed: Annotated[float, quantity("speed", 0.0, 120.0)] = 0.0
     heading: Angle = 0.0
-    roll: quantity("angle", -90.0, 90.0) = 0.0
-    pitch: quantity("angle", -90.0, 90.0) = 0.0
+    roll: Annotated[float, quantity("angle", -90.0, 90.0)] = 0.0
+    pitch: Annotated[float, quantity("angle", -90.0, 90.0)] = 0.0
     trim: bool | None = None  # default: JSBSim trim for fixed wing; multirotors start in hover
     on_ground: bool = False
 
@@ -136,6 +139,9 @@ class EnergyOptions(_Strict):
 
 class _PlannerBase(_Strict):
     rate_hz: Annotated[float, Field(gt=0.0, le=100.0)] = 1.0
+    if TYPE_CHECKING:  # fields of each planner type's model (_planner_model)
+        type: str
+        options: BaseModel
 
 
 def _planner_model(entry: PlannerType) -> type[_PlannerBase]:
@@ -149,14 +155,17 @@ def _planner_model(entry: PlannerType) -> type[_PlannerBase]:
     return create_model(
         f"{entry.name.title().replace('_', '')}Planner",
         __base__=_PlannerBase,
-        type=(Literal[entry.name], entry.name),  # type: ignore[valid-type]
+        type=(Literal[entry.name], entry.name),
         options=(entry.options, options),
     )
 
 
 _PLANNER_MODELS = {name: _planner_model(entry) for name, entry in PLANNERS.items()}
 # ``type`` picks the model (follow_mission when not given); errors name the options' fields
-PlannerConfig = Annotated[Union[tuple(_PLANNER_MODELS.values())], Field(discriminator="type")]  # noqa: UP007
+if TYPE_CHECKING:  # the union is built at run time; statically, every member is a _PlannerBase
+    PlannerConfig = _PlannerBase
+else:
+    PlannerConfig = Annotated[Union[tuple(_PLANNER_MODELS.values())], Field(discriminator="type")]  # noqa: UP007
 
 
 class SensorsSpec(_Strict):
@@ -298,13 +307,29 @@ class VehicleSpec(_Strict):
 class Mavlink(_Strict):
     """MAVLink to a ground station during the run (vehicle k: system id k+1, GCS port
     ``base_port + k``). ``pace``: at most this many times the wall clock (0: sim time, no
-    waiting)."""
+    waiting). Only the ground station ``gcs_system_id`` (component ``gcs_component_id``, any if
+    unset) is obeyed, after its heartbeat. ``bind_host``: local interface (default loopback; a
+    non-loopback ``gcs_host`` needs it set). ``signing_key_file``: a file holding the MAVLink 2
+    signing passphrase (relative to the scenario file; signing off if unset). ``max_height``
+    above the ground and ``max_range`` from the origin bound the mission items and position
+    targets a GCS may send (defaults by airframe kind, ``sim/mavlink/envelope.py``)."""
 
     enabled: bool = False
     gcs_host: str = "127.0.0.1"
     base_port: Annotated[int, Field(ge=1024, le=65000)] = 14550
     rate_hz: Annotated[float, Field(gt=0.0, le=50.0)] = 4.0
     pace: Annotated[float, Field(ge=0.0, le=1000.0)] = 1.0
+    gcs_system_id: Annotated[int, Field(ge=1, le=255)] = 255
+    gcs_component_id: Annotated[int, Field(ge=0, le=255)] | None = None
+    bind_host: str | None = None
+    signing_key_file: Path | None = None
+    max_height: Annotated[float, quantity("length", 0.0, 30500.0, lo_open=True)] | None = None
+    max_range: Annotated[float, quantity("length", 0.0, 3.0e6, lo_open=True)] | None = None
+
+    @field_validator("signing_key_file")
+    @classmethod
+    def _relative_to_scenario(cls, v: Path | None, info: ValidationInfo) -> Path | None:
+        return None if v is None else Path((info.context or {}).get("base_dir", ".")) / v
 
 
 class WindLevel(_Strict):
@@ -382,10 +407,10 @@ class Obstacle(_Strict):
     shape: Literal["box", "cylinder", "polygon"]
     north: _Offset = 0.0
     east: _Offset = 0.0
-    length: quantity("length", 0.0, 1e5, lo_open=True) | None = None
-    width: quantity("length", 0.0, 1e5, lo_open=True) | None = None
+    length: Annotated[float, quantity("length", 0.0, 1e5, lo_open=True)] | None = None
+    width: Annotated[float, quantity("length", 0.0, 1e5, lo_open=True)] | None = None
     heading: Angle = 0.0
-    radius: quantity("length", 0.0, 1e5, lo_open=True) | None = None
+    radius: Annotated[float, quantity("length", 0.0, 1e5, lo_open=True)] | None = None
     points: list[tuple[float, float]] | None = None
     base: _Altitude | None = None
     top: _Altitude
@@ -439,12 +464,12 @@ class TrafficObject(_Strict):
     [m/s] (zero: a static threat). ``cooperative`` ones broadcast their position."""
 
     id: Annotated[str, Field(min_length=1)]
-    radius: quantity("length", 0.0, 1e4, lo_open=True)
+    radius: Annotated[float, quantity("length", 0.0, 1e4, lo_open=True)]
     north: _Offset
     east: _Offset
     altitude: _Altitude
     velocity: Velocity = Velocity()
-    appear: quantity("time", 0.0, 30 * 86400.0) = 0.0
+    appear: Annotated[float, quantity("time", 0.0, 30 * 86400.0)] = 0.0
     cooperative: bool = False
 
 
@@ -455,10 +480,10 @@ class Surveillance(_Strict):
     horizontal/vertical) and velocity noise; a constant-velocity Kalman track per target."""
 
     rate_hz: Annotated[float, Field(gt=0.0, le=50.0)] = 2.0
-    latency: quantity("time", 0.0, 60.0) = 0.5
+    latency: Annotated[float, quantity("time", 0.0, 60.0)] = 0.5
     dropout: Annotated[float, Field(ge=0.0, lt=1.0)] = 0.05
-    position_noise_horizontal: quantity("length", 0.0, 1e4) = 3.0
-    position_noise_vertical: quantity("length", 0.0, 1e4) = 5.0
+    position_noise_horizontal: Annotated[float, quantity("length", 0.0, 1e4)] = 3.0
+    position_noise_vertical: Annotated[float, quantity("length", 0.0, 1e4)] = 5.0
     velocity_noise: Speed = 0.5
 
 
@@ -482,26 +507,26 @@ class Weather(_Strict):
     box of ``size`` x ``size`` [m] south-west-cornered at the origin, drifting at
     (``drift_north``, ``drift_east``) [m/s] +- ``drift_spread``, mean radius ``radius``; a
     nowcast of the next ``horizon`` in ``step`` slices is issued every ``nowcast_period`` (what
-    the vehicles see). ``seed``: the
-    field's own seed (default: drawn from the scenario seed); ``pop_up``: cells may be born after
-    the start (unforeseen by earlier nowcasts); false = every cell is alive at the start.
-    ``storm``: scripted cells added to the generated ones (``[[weather.storm]]``).
-    ``nowcast_files``: nowcast GeoJSON files (format in docs/mptp.md; paths relative to the
-    scenario file), one per issue, instead of the synthetic and scripted cells: each is issued
-    to the vehicles at its first step's time, and the truth (log and metrics) is the latest
-    issued nowcast's first step (its analysis) moved by its cell velocities."""
+    the vehicles see). ``seed``: the field's own seed (default: drawn from the scenario seed);
+    ``pop_up``: cells may be born after the start (unforeseen by earlier nowcasts); false = every
+    cell is alive at the start. ``storm``: scripted cells added to the generated ones
+    (``[[weather.storm]]``). ``nowcast_files``: nowcast GeoJSON files (format in docs/mptp.md;
+    paths relative to the scenario file), one per issue, instead of the synthetic and scripted
+    cells: each is issued to the vehicles at its first step's time, and the truth (log and
+    metrics) is the latest issued nowcast's first step (its analysis) moved by its cell
+    velocities."""
 
     cells: Annotated[int, Field(ge=0, le=500)] = 12
-    size: quantity("length", 1000.0, 2e6) = 250_000.0
+    size: Annotated[float, quantity("length", 1000.0, 2e6)] = 250_000.0
     drift_north: Speed = 0.0
     drift_east: Speed = 10.0
     drift_spread: Speed = 3.0
-    radius: quantity("length", 100.0, 2e5) = 8000.0
+    radius: Annotated[float, quantity("length", 100.0, 2e5)] = 8000.0
     split_probability: Annotated[float, Field(ge=0.0, le=1.0)] = 0.3
-    life: quantity("time", 60.0, 86400.0) = 5400.0
-    nowcast_period: quantity("time", 10.0, 86400.0) = 300.0
-    horizon: quantity("time", 60.0, 86400.0) = 3600.0
-    step: quantity("time", 10.0, 86400.0) = 300.0
+    life: Annotated[float, quantity("time", 60.0, 86400.0)] = 5400.0
+    nowcast_period: Annotated[float, quantity("time", 10.0, 86400.0)] = 300.0
+    horizon: Annotated[float, quantity("time", 60.0, 86400.0)] = 3600.0
+    step: Annotated[float, quantity("time", 10.0, 86400.0)] = 300.0
     centres: list[tuple[float, float]] | None = None  # [[north, east], ...] [m] to place the cells
     seed: Annotated[int, Field(ge=0)] | None = None
     pop_up: bool = True
@@ -530,8 +555,8 @@ class Weather(_Strict):
 
 class _Fault(_Strict):
     vehicle: str
-    at: quantity("time", 0.0, 30 * 86400.0)
-    duration: quantity("time", 0.0, 30 * 86400.0, lo_open=True) | None = None  # None: to the end
+    at: Annotated[float, quantity("time", 0.0, 30 * 86400.0)]
+    duration: Annotated[float, quantity("time", 0.0, 30 * 86400.0, lo_open=True)] | None = None  # None: to the end
 
 
 class GnssLoss(_Fault):
@@ -563,7 +588,7 @@ class Gust(_Fault):
     north: Speed = 0.0
     east: Speed = 0.0
     down: Speed = 0.0
-    ramp: quantity("time", 0.0, 600.0) = 2.0
+    ramp: Annotated[float, quantity("time", 0.0, 600.0)] = 2.0
 
 
 Fault = Annotated[GnssLoss | SensorBias | SensorStuck | MotorFailure | Gust, Field(discriminator="kind")]
@@ -574,10 +599,10 @@ class Metrics(_Strict):
     radius, vertical half height; default ASTM F3442 small-UAS well clear) and the near mid-air
     collision cylinder (default RTCA DO-365, 500 ft / 100 ft, manned-scale traffic)."""
 
-    well_clear_horizontal: quantity("length", 0.0, 1e5, lo_open=True) = 2000 * 0.3048
-    well_clear_vertical: quantity("length", 0.0, 1e4, lo_open=True) = 250 * 0.3048
-    nmac_horizontal: quantity("length", 0.0, 1e4, lo_open=True) = 500 * 0.3048
-    nmac_vertical: quantity("length", 0.0, 1e4, lo_open=True) = 100 * 0.3048
+    well_clear_horizontal: Annotated[float, quantity("length", 0.0, 1e5, lo_open=True)] = 2000 * 0.3048
+    well_clear_vertical: Annotated[float, quantity("length", 0.0, 1e4, lo_open=True)] = 250 * 0.3048
+    nmac_horizontal: Annotated[float, quantity("length", 0.0, 1e4, lo_open=True)] = 500 * 0.3048
+    nmac_vertical: Annotated[float, quantity("length", 0.0, 1e4, lo_open=True)] = 100 * 0.3048
 
 
 class Logging(_Strict):
@@ -588,10 +613,10 @@ class Scenario(_Strict):
     """A validated scenario. ``seed`` fixes every random draw of the run."""
 
     schema_version: Literal[1] = SCHEMA_VERSION
-    name: Annotated[str, Field(min_length=1)]
+    name: Annotated[str, Field(pattern=NAME_PATTERN, max_length=128)]
     description: str = ""
     seed: Annotated[int, Field(ge=0, lt=2**63)]
-    duration: quantity("time", 0.0, 30 * 86400.0, lo_open=True)
+    duration: Annotated[float, quantity("time", 0.0, 30 * 86400.0, lo_open=True)]
     start_time: datetime = datetime(2026, 6, 21, 6, 0, tzinfo=UTC)
     stop_when_complete: bool = True
     origin: Origin
@@ -684,11 +709,13 @@ def _field_path(loc: tuple) -> str:
         if isinstance(part, int):
             out += f"[{part}]"
         else:
-            out += ("." if out else "") + str(part)
+            shown = part if part and part.isprintable() and not any(c.isspace() for c in part) else repr(part)
+            out += ("." if out else "") + shown
     return out or "(top level)"
 
 
-def _describe(err: dict) -> str:
+def describe_error(err: ErrorDetails) -> str:
+    """One line for a pydantic error: the field path and what is wrong."""
     path = _field_path(err["loc"])
     kind = err["type"]
     if kind == "extra_forbidden":
@@ -701,6 +728,8 @@ def _describe(err: dict) -> str:
     msg = err["msg"]
     for prefix in ("Value error, ", "Assertion failed, "):
         msg = msg.removeprefix(prefix)
+    if kind == "string_pattern_mismatch" and err["ctx"]["pattern"] == NAME_PATTERN:
+        msg = f"{err['input']!r} is not a name (no path separator, control character or leading dot)"
     if kind in ("greater_than_equal", "less_than_equal", "greater_than", "less_than"):
         msg = f"out of range: {msg.lower()} (got {err.get('input')!r})"
     return f"{path}: {msg}"
@@ -715,18 +744,11 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> Scenario:
     except ValidationError as exc:
         errors = exc.errors(include_url=False)
         more = f" (+{len(errors) - 1} more)" if len(errors) > 1 else ""
-        raise ScenarioError(f"{source}: {_describe(errors[0])}{more}") from None
+        raise ScenarioError(f"{source}: {describe_error(errors[0])}{more}") from None
 
 
 def load_scenario(path: str | Path) -> tuple[Scenario, str]:
     """Read and validate a TOML scenario; returns it with the file's text (kept in the log)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ScenarioError(f"{path}: cannot read scenario file ({exc.strerror})") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
-    return parse_scenario(data, str(path)), text
+    text = read_text(path, ScenarioError, "scenario")
+    return parse_scenario(parse_toml(text, str(path), ScenarioError), str(path)), text

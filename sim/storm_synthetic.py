@@ -90,7 +90,7 @@ class StormField:
         children = []
         for c in self.cells:
             if c.split_at is not None:
-                children += self._split(c, rng)
+                children += self._split(c, c.split_at, rng)
         self.cells += children
 
     def _random_cell(self, rng: np.random.Generator) -> Cell:
@@ -125,9 +125,8 @@ class StormField:
             c.split_at,
         )
 
-    def _split(self, c: Cell, rng: np.random.Generator) -> list[Cell]:
-        """Two children continuing from the split time with half the area each."""
-        t = c.split_at
+    def _split(self, c: Cell, t: float, rng: np.random.Generator) -> list[Cell]:
+        """Two children continuing from the split time ``t`` [s] with half the area each."""
         centre = c.centre + c.velocity * (t - c.born)
         side = np.array([-c.velocity[1], c.velocity[0]]) / (np.linalg.norm(c.velocity) + 1e-9)
         k = 1 / math.sqrt(2)
@@ -166,19 +165,24 @@ class StormField:
 
     def nowcast(self, t_issue: float, horizon_s: float = 3600.0, step_s: float = 300.0) -> list[StormSnapshot]:
         """Snapshots at t_issue + k step: observed cells extrapolated with their velocities."""
-        obs = self.truth(t_issue)
+        observed, vel = _union(*self.cell_shapes(t_issue))
         out = []
         for k in range(round(horizon_s / step_s) + 1):
             d = k * step_s
-            cells = tuple(shapely.affinity.translate(c, *(obs.velocities_ne[i] * d)) for i, c in enumerate(obs.cells))
-            out.append(StormSnapshot(t_issue + d, cells, obs.velocities_ne.copy()))
+            cells = tuple(shapely.affinity.translate(c, *(vel[i] * d)) for i, c in enumerate(observed))
+            out.append(StormSnapshot(t_issue + d, cells, vel.copy()))
         return out
 
 
 def merge_cells(t: float, shapes: list[Polygon], velocities: np.ndarray) -> StormSnapshot:
     """Union overlapping cells into one, with the area-weighted mean velocity."""
+    return StormSnapshot(t, *_union(shapes, velocities))
+
+
+def _union(shapes: list[Polygon], velocities: np.ndarray) -> tuple[tuple[Polygon, ...], np.ndarray]:
+    """Overlapping cells unioned, and their area-weighted mean velocities (N, 2) [m/s]."""
     if not shapes:
-        return StormSnapshot(t, (), np.zeros((0, 2)))
+        return (), np.zeros((0, 2))
     arr = np.asarray(shapes, object)
     merged = shapely.get_parts(shapely.union_all(arr))
     tree = shapely.STRtree(arr)
@@ -187,4 +191,4 @@ def merge_cells(t: float, shapes: list[Polygon], velocities: np.ndarray) -> Stor
     for m, geom in enumerate(merged):
         idx = tree.query(geom, predicate="intersects")
         vel[m] = (area[idx, None] * velocities[idx]).sum(0) / area[idx].sum()
-    return StormSnapshot(t, tuple(merged), vel)
+    return tuple(merged), vel

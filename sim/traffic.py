@@ -37,13 +37,13 @@ class TrafficObject:
         lat, lon, alt = ned_to_geodetic(p, self._origin)
         yaw = float(np.arctan2(self.v[1], self.v[0])) if np.any(self.v[:2]) else 0.0
         return VehicleState(
-            t,
-            p,
-            self.v.copy(),
-            np.array([0.0, 0.0, yaw]),
-            np.zeros(3),
-            float(alt),
-            float(lat),
-            float(lon),
-            float(np.linalg.norm(self.v)),
+            t=t,
+            pos_ned=p,
+            vel_ned=self.v.copy(),
+            euler=np.array([0.0, 0.0, yaw]),
+            rates_body=np.zeros(3),
+            alt_msl_m=float(alt),
+            lat_deg=float(lat),
+            lon_deg=float(lon),
+            tas_mps=float(np.linalg.norm(self.v)),
         )

@@ -67,13 +67,16 @@ def to_si(value, dimension: str) -> float:
     return v
 
 
-def quantity(dimension: str, lo: float | None = None, hi: float | None = None, *, lo_open: bool = False):
-    """A pydantic field type: parsed to SI, range-checked in the bare unit (``lo``/``hi`` are
-    given in that unit, e.g. degrees for angles) so that messages read as the file does."""
+def quantity(
+    dimension: str, lo: float | None = None, hi: float | None = None, *, lo_open: bool = False
+) -> BeforeValidator:
+    """The validator of a quantity field, ``Annotated[float, quantity(...)]``: parsed to SI,
+    range-checked in the bare unit (``lo``/``hi`` are given in that unit, e.g. degrees for
+    angles) so that messages read as the file does."""
     bare = _BARE_UNIT[dimension]
     scale = _UNITS[dimension][bare]
 
-    def parse(value) -> float:
+    def parse(value: object) -> float:
         si = to_si(value, dimension)
         shown = si / scale
         below = lo is not None and (shown <= lo if lo_open else shown < lo)
@@ -84,14 +87,14 @@ def quantity(dimension: str, lo: float | None = None, hi: float | None = None, *
             raise ValueError(f"out of range: {shown:g} {bare} not in {bracket}{lo_s}, {hi_s}] {bare}")
         return si
 
-    return Annotated[float, BeforeValidator(parse)]
+    return BeforeValidator(parse)
 
 
-Length = quantity("length")
+Length = Annotated[float, quantity("length")]
 """[m]; bare numbers are metres."""
-Speed = quantity("speed")
+Speed = Annotated[float, quantity("speed")]
 """[m/s]; bare numbers are m/s."""
-Angle = quantity("angle")
+Angle = Annotated[float, quantity("angle")]
 """[rad]; bare numbers are DEGREES (files are for people)."""
-Duration = quantity("time")
+Duration = Annotated[float, quantity("time")]
 """[s]; bare numbers are seconds."""

@@ -14,6 +14,7 @@ from datetime import UTC, datetime
 
 import numpy as np
 
+from aircraft.quadrotor.controller import MultirotorController
 from aircraft.registry import get_airframe
 from sim import log_schemas as S
 from sim import scenario as sc
@@ -65,7 +66,7 @@ class Vehicle:
             self.controller.reset(self.estimate)
             self._setpoint_schema = S.FIXED_WING_SETPOINT
         else:
-            self.controller.reset(self.estimate, landed=cfg.initial.on_ground)
+            self._multirotor().reset(self.estimate, landed=cfg.initial.on_ground)
             self._setpoint_schema = S.MULTIROTOR_SETPOINT
         self.power = self._make_power_system(log)
         sched = cfg.energy.altitude_schedule
@@ -162,6 +163,12 @@ class Vehicle:
         if entry is not None and entry.records is not None:
             entry.records(self.planner_records, self.planner, plan, t)
 
+    def _multirotor(self) -> MultirotorController:
+        """The controller of a multirotor (landing and take-off state, its limits)."""
+        if not isinstance(self.controller, MultirotorController):
+            raise TypeError(f"{self.name}: {type(self.controller).__name__} is not a multirotor controller")
+        return self.controller
+
     def event(self, t: float, text: str) -> None:
         """A ``/log`` event of this vehicle at sim time ``t`` [s]."""
         self.log.event(t, f"{self.name}: {text}", name=self.name)
@@ -177,12 +184,12 @@ class Vehicle:
             m = self._repeat_mission(t)
         if m.land and m.waypoints_done:  # descend, and stay down once landed
             last = m.waypoints[-1]
-            descent = self.controller.gains.limits.max_descent
+            descent = self._multirotor().gains.limits.max_descent
             sp = MultirotorSetpoint(np.array([last[0], last[1], np.nan]), np.array([0.0, 0.0, descent]), float("nan"))
         if self.altitude_manager is not None and self.power is not None:
             sp.altitude_m = self.altitude_manager.altitude(self.power.battery.soc)
         cmds = self.controller.update(self.estimate, sp, self._control_dt)
-        if m.land and m.waypoints_done and m.landed_t is None and self.controller.landed:
+        if m.land and m.waypoints_done and m.landed_t is None and self._multirotor().landed:
             m.landed_t = t
             self.event(t, "landed")
         if m.check_complete(t):

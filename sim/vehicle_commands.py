@@ -21,7 +21,8 @@ def apply_command(v: Vehicle, cmd: object, t: float) -> bool:
     """Act on a ground-station command at sim time ``t`` [s]; True when the mission changed."""
     multirotor = v.airframe.kind == "multirotor"
     if isinstance(cmd, MissionUpload):
-        wps = geodetic_to_ned(*np.asarray(cmd.waypoints, float).T, v.origin)
+        lat, lon, alt = np.asarray(cmd.waypoints, float).T
+        wps = geodetic_to_ned(lat, lon, alt, v.origin)
         m = v.mission
         v.mission = Mission(wps, m.cruise_speed, m.acceptance_radius, start=v.estimate.pos_ned.copy(), land=m.land)
         v.planner = v.make_mission_planner()

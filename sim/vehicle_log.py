@@ -32,6 +32,7 @@ from sim.core.state import VehicleState
 from sim.core.threats import Geofence, IntruderTrack, LidarScan, PrismObstacle, SphereThreat, StormSnapshot
 from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.mcap_log import McapLog
+from sim.planner_records import wallclock_metadata
 
 NED_FRAME = "ned"
 WORLD_FRAME = "world"
@@ -58,9 +59,12 @@ def state_dict(s: VehicleState) -> dict:
 
 def state_from_dict(d: dict) -> VehicleState:
     """A logged ``cosim.VehicleState`` message (plain dict) back into a VehicleState."""
-    vec = {k: np.asarray(d[k], float) for k in ("pos_ned", "vel_ned", "euler", "rates_body")}
     return VehicleState(
         t=float(d["t"]),
+        pos_ned=np.asarray(d["pos_ned"], float),
+        vel_ned=np.asarray(d["vel_ned"], float),
+        euler=np.asarray(d["euler"], float),
+        rates_body=np.asarray(d["rates_body"], float),
         alt_msl_m=float(d["alt_msl_m"]),
         lat_deg=float(d["lat_deg"]),
         lon_deg=float(d["lon_deg"]),
@@ -68,7 +72,6 @@ def state_from_dict(d: dict) -> VehicleState:
         eas_mps=float(d.get("eas_mps", 0.0)),
         alpha_rad=float(d.get("alpha_rad", 0.0)),
         beta_rad=float(d.get("beta_rad", 0.0)),
-        **vec,
     )
 
 
@@ -356,12 +359,18 @@ class VehicleLogWriter:
                 "diagnostics": plan.diagnostics,
             },
             S.PLAN,
-            {"frame": "local-level NED from the scenario origin"},
+            {"frame": "local-level NED from the scenario origin", **wallclock_metadata(plan.planner, "")},
         )
 
     def latency(self, t: float, seconds: float) -> None:
         """Wall-clock time [s] of a planner call that made a new plan."""
-        self.log.write_json(self.t_latency, t, {"t": t, "seconds": seconds}, S.WALL_TIMING, {"wallclock": "true"})
+        self.log.write_json(
+            self.t_latency,
+            t,
+            {"t": t, "seconds": seconds},
+            S.WALL_TIMING,
+            {"wallclock": "true", "wallclock_fields": "seconds"},
+        )
 
 
 def _prism_lines(footprint, d_top: float, d_bottom: float) -> list[tuple[float, float, float]]:

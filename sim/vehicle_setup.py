@@ -4,6 +4,7 @@ Frames: local-level NED from the scenario origin [m]; altitudes MSL [m]."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -48,7 +49,7 @@ def scenario_planner(
     """The scenario's planner for ``mission``; a fixed-wing planner turns within the controller's
     roll limit (``gains.roll_limit_rad`` [rad], 20 deg for gains without one); ``wind_ne_mps``:
     the scenario's steady wind (north, east) [m/s], the planners' forecast."""
-    roll_limit = getattr(gains, "roll_limit_rad", np.radians(20.0))
+    roll_limit = float(getattr(gains, "roll_limit_rad", math.radians(20.0)))
     return make_planner(cfg.planner.type, mission, af.kind, cfg.planner.options, roll_limit, wind_ne_mps)
 
 

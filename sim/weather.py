@@ -77,7 +77,7 @@ class WeatherService:
             mean_radius_m=cfg.radius,
             split_prob=cfg.split_probability,
             life_s=cfg.life,
-            centres=None if cfg.centres is None else [list(c) for c in cfg.centres],
+            centres=None if cfg.centres is None else np.array(cfg.centres, float),
         )
         self.nowcast: list[StormSnapshot] = []
         self.issued_t: float | None = None

@@ -9,6 +9,7 @@ so one seed fixes the whole run and adding a vehicle leaves the others' streams 
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import numpy as np
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
@@ -98,7 +99,7 @@ class World:
             v.schedule(sched, log_hz)
             if v.name in self.lidars:
                 sched.add_task(
-                    f"{v.name}.lidar", self.lidars[v.name][0].cfg.rate_hz, Stage.SENSE, lambda t, v=v: self._scan(v, t)
+                    f"{v.name}.lidar", self.lidars[v.name][0].cfg.rate_hz, Stage.SENSE, partial(self._scan, v)
                 )
         if self.objects:
             sched.add_task("world.log", log_hz, Stage.LOG, self._log_objects)

@@ -1,50 +1,42 @@
 """The loop closes on estimates: faults, wind, and proof that nothing flies on truth."""
 
 import dataclasses
-import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
-import tomli_w
 
 from sim.core.frames import euler_to_dcm
 from sim.estimator import PerfectEstimator
 from sim.replay.report import log_metrics
 from sim.replay.runlog import RunLog
-from sim.runner import run_scenario
-from sim.scenario import parse_scenario
 
-ROOT = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.closed_loop
 
 
-def _scenario(name: str) -> dict:
-    return tomllib.loads((ROOT / "scenarios" / f"{name}.toml").read_text())
+@pytest.fixture
+def hover(scenario_data):
+    """``hover(duration)``: the quadrotor holding its hover point level on the default estimator
+    (sensors + EKF) for ``duration`` [s]."""
+
+    def make(duration: float) -> dict:
+        data = scenario_data("quad_hover_offset")
+        data.update(duration=duration, stop_when_complete=False)
+        v = data["vehicle"][0]
+        v.pop("estimator")  # the default: sensors + EKF
+        v["initial"].update(roll=0, pitch=0)
+        v["mission"]["waypoints"][0]["hold"] = "600 s"
+        return data
+
+    return make
 
 
-def _run(tmp_path, data: dict, name: str = "run"):
-    path = tmp_path / f"{name}.mcap"
-    result = run_scenario(parse_scenario(data, name), path, scenario_text=tomli_w.dumps(data))
-    return result, RunLog(path)
-
-
-def _hover(duration: float) -> dict:
-    data = _scenario("quad_hover_offset")
-    data.update(duration=duration, stop_when_complete=False)
-    v = data["vehicle"][0]
-    v.pop("estimator")  # the default: sensors + EKF
-    v["initial"].update(roll=0, pitch=0)
-    v["mission"]["waypoints"][0]["hold"] = "600 s"
-    return data
-
-
-def test_gnss_loss_degrades_gracefully_and_recovers(tmp_path):
-    data = _hover(80.0)
+def test_gnss_loss_degrades_gracefully_and_recovers(fly, hover):
+    data = hover(80.0)
     data["fault"] = [{"vehicle": "quad", "kind": "gnss_loss", "at": 30.0, "duration": 20.0}]
     data["logging"] = {"rate_hz": 10}
-    result, log = _run(tmp_path, data)
-    assert result.status in ("completed", "duration_elapsed")
+    run = fly(data)
+    assert run.result.status in ("completed", "duration_elapsed")
+    log = run.log
     sig = log.topic("/quad/est/sigma3")
     horiz = np.asarray(sig["pos"])[:, 0]
     t = sig.t
@@ -66,29 +58,29 @@ def _mean_air_wind(log: RunLog, name: str) -> np.ndarray:
     return (np.asarray(tr["vel_ned"]) - air).mean(axis=0)
 
 
-def test_haps_mission_in_wind_and_turbulence(tmp_path):
-    data = _scenario("mixed_haps_quad")
+def test_haps_mission_in_wind_and_turbulence(fly, scenario_data):
+    data = scenario_data("mixed_haps_quad")
     data["vehicle"] = data["vehicle"][:1]  # the HAPS and its 4 km box
     data["wind"] = {"north": "-7.07 m/s", "east": "7.07 m/s", "turbulence": "moderate"}
-    result, log = _run(tmp_path, data)
-    assert result.status == "completed"
+    run = fly(data)
+    assert run.result.status == "completed"
     # it flew in the wind (mean -7.14, 7.16 m/s over the run: the turbulence averages out) ...
-    assert _mean_air_wind(log, "haps")[:2] == pytest.approx([-7.07, 7.07], abs=0.5)
-    tr = log_metrics(log)["vehicles"]["haps"]["tracking"]
+    assert _mean_air_wind(run.log, "haps")[:2] == pytest.approx([-7.07, 7.07], abs=0.5)
+    tr = log_metrics(run.log)["vehicles"]["haps"]["tracking"]
     # ... and held its box: cross-track max 1.9 m, altitude max 4.5 m, airspeed rms 0.35 m/s;
     # turbulence moves the airspeed by a few m/s at once, the autopilot holds it on average
     assert tr["cross_track_m"]["max_abs"] <= 10.0
     assert tr["altitude_error_m"]["max_abs"] <= 50.0 and tr["airspeed_error_mps"]["rms"] <= 1.5
 
 
-def test_multirotor_mission_in_wind(tmp_path):
-    data = _scenario("quad_square_mission")
+def test_multirotor_mission_in_wind(fly, scenario_data):
+    data = scenario_data("quad_square_mission")
     data["wind"] = {"north": "3 m/s", "east": "4 m/s", "turbulence": "light"}
-    result, log = _run(tmp_path, data)
-    assert result.status == "completed"
-    assert _mean_air_wind(log, "quad")[:2] == pytest.approx([3.0, 4.0], abs=1.0)  # 2.2, 4.2 m/s
+    run = fly(data)
+    assert run.result.status == "completed"
+    assert _mean_air_wind(run.log, "quad")[:2] == pytest.approx([3.0, 4.0], abs=1.0)  # 2.2, 4.2 m/s
     # on the EKF in 5 m/s: cross-track max 2.6 m, rms 1.15 m (docs/environment.md)
-    assert log_metrics(log)["vehicles"]["quad"]["tracking"]["cross_track_m"]["max_abs"] <= 4.0
+    assert log_metrics(run.log)["vehicles"]["quad"]["tracking"]["cross_track_m"]["max_abs"] <= 4.0
 
 
 class _OffsetEstimator(PerfectEstimator):
@@ -101,12 +93,11 @@ class _OffsetEstimator(PerfectEstimator):
         return dataclasses.replace(s, pos_ned=s.pos_ned + np.array([5.0, 0.0, 0.0]))
 
 
-def test_controllers_and_planners_follow_the_estimate_not_the_truth(tmp_path, monkeypatch):
+def test_controllers_and_planners_follow_the_estimate_not_the_truth(fly, hover, monkeypatch):
     monkeypatch.setattr(
         "sim.vehicle.make_estimator", lambda kind, plant, airframe, seed, origin, sensors: _OffsetEstimator(plant)
     )
-    data = _hover(20.0)
-    _, log = _run(tmp_path, data)
+    log = fly(hover(20.0)).log
     truth = log.topic("/quad/truth/state")["pos_ned"]
     est = log.topic("/quad/est/state")["pos_ned"]
     # the vehicle holds its ESTIMATE on the hold point, so in truth it sits 5 m south of it
@@ -114,15 +105,13 @@ def test_controllers_and_planners_follow_the_estimate_not_the_truth(tmp_path, mo
     assert truth[-1, 0] == pytest.approx(-5.0, abs=0.2)
 
 
-def test_lidar_in_the_loop_sees_the_map_obstacle(tmp_path):
-    data = _hover(2.0)
+def test_lidar_in_the_loop_sees_the_map_obstacle(fly, hover):
+    data = hover(2.0)
     data["vehicle"][0]["lidar"] = {"rate_hz": 5}
     data["obstacle"] = [
         {"id": "wall", "shape": "box", "north": 6.0, "east": 0.0, "length": 2.0, "width": 20.0, "top": 440.0}
     ]
-    _, log = _run(tmp_path, data)
-    hits = [m["lidar_hits"] for m in log.topic("/quad/threats").messages]
+    hits = [m["lidar_hits"] for m in fly(data).log.topic("/quad/threats").messages]
     assert min(hits) > 1000  # every plan saw the wall (the sweep runs before planning)
     data["obstacle"] = []
-    _, log = _run(tmp_path, data, "empty")
-    assert max(m["lidar_hits"] for m in log.topic("/quad/threats").messages) == 0
+    assert max(m["lidar_hits"] for m in fly(data, "empty").log.topic("/quad/threats").messages) == 0

@@ -9,25 +9,13 @@ sphere; the box is within its circumscribed sphere of radius √3 m, so the chec
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from sim.replay.runlog import RunLog
-from sim.runner import run_scenario
-from sim.scenario import load_scenario
 
-ROOT = Path(__file__).resolve().parents[1]
 BOX_HALF_DIAGONAL = np.sqrt(3.0)  # 2 m cube
 pytestmark = pytest.mark.closed_loop
-
-
-def fly(tmp_path: Path, name: str):
-    scenario, _ = load_scenario(ROOT / "scenarios" / "geometric" / f"{name}.toml")
-    out = tmp_path / f"{name}.mcap"
-    result = run_scenario(scenario, out)
-    return scenario, result, RunLog(out)
 
 
 def clearances(log: RunLog, vehicle: str = "quad") -> dict[str, tuple[float, float]]:
@@ -78,14 +66,16 @@ def chosen(ev: dict) -> dict:
     }
 
 
-def assert_clear_and_complete(result, log):
+def assert_clear_and_complete(run) -> dict[str, tuple[float, float]]:
+    """Clear of every object (clearance per object returned), and the mission completed."""
+    log = run.log
     cl = clearances(log)
     assert cl, "no objects logged"
     for oid, (c, t) in cl.items():
         assert c > BOX_HALF_DIAGONAL, f"{oid}: clearance {c:.2f} m at t = {t:.1f} s"
     events = [text for _, text in log.events()]
     assert "quad: mission complete" in events
-    assert result.status == "completed"
+    assert run.result.status == "completed"
     return cl
 
 
@@ -95,20 +85,22 @@ def first_avoid(log: RunLog) -> dict:
     return evs[0]
 
 
-def test_s1_160_solution_in_the_horizontal_plane_wider_for_the_larger_threat(tmp_path):
+def test_s1_160_solution_in_the_horizontal_plane_wider_for_the_larger_threat(fly):
     widths = {}
     for name, radius in (("s1_160_r1", 1.0), ("s1_160_r1p5", 1.5)):
-        _, result, log = fly(tmp_path, name)
-        assert_clear_and_complete(result, log)
+        run = fly(f"geometric/{name}")
+        assert_clear_and_complete(run)
+        log = run.log
         c = chosen(first_avoid(log))
         assert c["alpha"] == pytest.approx(0.0, abs=1e-6)  # horizontal plane
         widths[radius] = abs(c["omega"])
     assert widths[1.5] > widths[1.0]
 
 
-def test_s2_climbs_over(tmp_path):
-    _, result, log = fly(tmp_path, "s2_climb_over")
-    assert_clear_and_complete(result, log)
+def test_s2_climbs_over(fly):
+    run = fly("geometric/s2_climb_over")
+    assert_clear_and_complete(run)
+    log = run.log
     ev = first_avoid(log)
     c = chosen(ev)
     assert ev["main_threat_id"] == "main" and c["theta"] == pytest.approx(90.0)
@@ -119,9 +111,10 @@ def test_s2_climbs_over(tmp_path):
     assert (-st["vel_ned"][during, 2]).max() > 5.0 * np.sin(np.radians(20.0)) + 0.25
 
 
-def test_s3_static_descends_first_moving_goes_left_and_costs_more(tmp_path):
-    _, result, log = fly(tmp_path, "s3a_static_main")
-    assert_clear_and_complete(result, log)
+def test_s3_static_descends_first_moving_goes_left_and_costs_more(fly):
+    run = fly("geometric/s3a_static_main")
+    assert_clear_and_complete(run)
+    log = run.log
     ev = first_avoid(log)
     static = chosen(ev)
     pts = static["points"]
@@ -132,8 +125,9 @@ def test_s3_static_descends_first_moving_goes_left_and_costs_more(tmp_path):
     during = (st.t >= ev["t"]) & (st.t <= ev["t"] + 4.0)
     assert h[during].min() < -1.0 and h[during].max() < 0.5
     # moving main threat: a level path to the left (west of the northbound reference), costlier
-    _, result, log = fly(tmp_path, "s3b_moving_main")
-    assert_clear_and_complete(result, log)
+    run = fly("geometric/s3b_moving_main")
+    assert_clear_and_complete(run)
+    log = run.log
     ev = first_avoid(log)
     moving = chosen(ev)
     assert ev["main_threat_id"] == "main" and moving["alpha"] == pytest.approx(0.0, abs=1e-6)
@@ -143,7 +137,8 @@ def test_s3_static_descends_first_moving_goes_left_and_costs_more(tmp_path):
 
 
 @pytest.mark.parametrize("name", ["s1_174_r1p5", "env1_tuning", "env2_tuning", "env3_tuning", "env4_tuning"])
-def test_more_encounters_stay_clear_and_complete(tmp_path, name):
-    _, result, log = fly(tmp_path, name)
-    assert_clear_and_complete(result, log)
+def test_more_encounters_stay_clear_and_complete(fly, name):
+    run = fly(f"geometric/{name}")
+    assert_clear_and_complete(run)
+    log = run.log
     assert first_avoid(log)["main_threat_id"] == "main"

@@ -30,11 +30,11 @@ def test_omega_grid_and_path_counts():
     assert np.allclose(omega_grid(1.0, 4), [-3.2, -1.6, 1.6, 3.2])
     assert np.allclose(sorted(np.abs(omega_grid(1.0, 12))), np.repeat([16 / 15, 1.6, 32 / 15, 8 / 3, 3.2], 2))
     assert np.degrees(plane_angles(3)) == pytest.approx([0, 45, 90, 135])
-    for l, n in [(4, 3), (4, 1), (4, 5)]:
+    for n_l, n in [(4, 3), (4, 1), (4, 5)]:
         c = generate_candidates(
-            np.zeros(3), [1, 0, 0], 10.0, 1.0, GeometricConfig(l=l, n_planes=n, path_types=("simple",))
+            np.zeros(3), [1, 0, 0], 10.0, 1.0, GeometricConfig(l=n_l, n_planes=n, path_types=("simple",))
         )
-        assert len(c) == l * (n + 1)  # L = l(n+1), exact for l = 4
+        assert len(c) == n_l * (n + 1)  # L = l(n+1), exact for l = 4
     both = generate_candidates(np.zeros(3), [1, 0, 0], 10.0, 1.0, GeometricConfig())
     assert len(both) == 32 and set(both.n_pts) == {16, 21}
     # l = 12 keeps 10 offsets per plane, not l: the thesis count holds only for l = 4

@@ -24,7 +24,14 @@ REF = np.array([[0.0, 0.0, -20.0], [50.0, 0.0, -20.0], [120.0, 0.0, -20.0]])  # 
 
 def state(t: float, north: float, east: float = 0.0, down: float = -20.0, speed: float = 5.0) -> VehicleState:
     return VehicleState(
-        t, np.array([north, east, down]), np.array([speed, 0, 0]), np.zeros(3), np.zeros(3), -down, 47.0, 8.0
+        t=t,
+        pos_ned=np.array([north, east, down]),
+        vel_ned=np.array([speed, 0, 0]),
+        euler=np.zeros(3),
+        rates_body=np.zeros(3),
+        alt_msl_m=-down,
+        lat_deg=47.0,
+        lon_deg=8.0,
     )
 
 

@@ -2,8 +2,6 @@
 
 import itertools
 import math
-import subprocess
-import sys
 from collections import defaultdict
 from pathlib import Path
 
@@ -22,11 +20,9 @@ pytestmark = pytest.mark.closed_loop
 
 
 @pytest.fixture(scope="module")
-def box_run(tmp_path_factory):
-    scenario, text = load_scenario(SCENARIO)
-    path = tmp_path_factory.mktemp("box") / "box.mcap"
-    result = run_scenario(scenario, path, scenario_text=text)
-    return scenario, result, path
+def box_run(fly_in, tmp_path_factory):
+    run = fly_in(tmp_path_factory.mktemp("box"), "haps_box_mission", "box")
+    return run.scenario, run.result, run.path
 
 
 def test_box_mission_completes_with_tight_tracking(box_run):
@@ -83,12 +79,10 @@ def _payloads(path: Path) -> dict[str, list[tuple[int, bytes]]]:
     return out
 
 
-def test_same_seed_same_payloads(tmp_path):
-    scenario, text = load_scenario(SCENARIO)
-    a, b = tmp_path / "a.mcap", tmp_path / "b.mcap"
-    run_scenario(scenario, a, scenario_text=text, duration=240.0)
-    run_scenario(scenario, b, scenario_text=text, duration=240.0)
-    pa, pb = _payloads(a), _payloads(b)
+def test_same_seed_same_payloads(fly):
+    a = fly("haps_box_mission", "a", duration=240.0)
+    b = fly("haps_box_mission", "b", duration=240.0)
+    pa, pb = _payloads(a.path), _payloads(b.path)
     assert len(pa["/haps/truth/state"]) == 2401
     assert pa == pb
 
@@ -118,20 +112,12 @@ def test_run_killed_midway_leaves_log_to_last_tick(tmp_path, exc, status):
     assert read_topic(path, "/log")[-1][1].message.startswith(f"run ended: {status}")
 
 
-def test_cli_run_and_info(tmp_path):
+def test_cli_run_and_info(tmp_path, cosim):
     log = tmp_path / "cli.mcap"
-    run = subprocess.run(
-        [sys.executable, "-m", "sim.cli", "run", str(SCENARIO), "-o", str(log), "--duration", "20"],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=120,
-    )
+    run = cosim("run", SCENARIO, "-o", log, "--duration", "20", timeout=120)
     assert run.returncode == 0, run.stderr
     for word in ("duration_elapsed", "real-time factor", "mission haps", "0/4 waypoints", str(log)):
         assert word in run.stdout
-    info = subprocess.run(
-        [sys.executable, "-m", "sim.cli", "info", str(log)], capture_output=True, text=True, cwd=ROOT, timeout=60
-    )
+    info = cosim("info", log)
     assert info.returncode == 0, info.stderr
     assert "/haps/truth/state" in info.stdout and "haps_box_mission" in info.stdout

@@ -1,7 +1,9 @@
 """A pymavlink GCS on loopback during a closed-loop run: telemetry, mission upload, garbage."""
 
+import hashlib
 import math
 import os
+import random
 import socket
 import threading
 import time
@@ -21,6 +23,7 @@ from sim.runner import run_scenario
 from sim.scenario import parse_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
+
 pytestmark = pytest.mark.closed_loop
 ORIGIN = GeoPoint(47.0, 8.0, 400.0)
 TARGETS = np.array([[20.0, 0.0, -15.0], [20.0, 20.0, -15.0], [0.0, 20.0, -15.0]])  # NED [m]
@@ -33,13 +36,19 @@ def _free_port() -> int:
 
 
 class Gcs(threading.Thread):
-    """Waits for the vehicle, checks telemetry, uploads 3 waypoints, throws garbage at it."""
+    """Waits for the vehicle, checks telemetry, uploads 3 waypoints, throws garbage at it.
+    ``source_system``: the id it sends as (255 is the scenario's ground station); ``upload``
+    False: it only introduces itself and listens."""
 
-    def __init__(self, port: int):
+    def __init__(self, port: int, source_system: int = 255, upload: bool = True, key: bytes | None = None):
         super().__init__(daemon=True)
         self.conn = mavutil.mavlink_connection(
-            f"udpin:127.0.0.1:{port}", dialect="common", source_system=255, source_component=190
+            f"udpin:127.0.0.1:{port}", dialect="common", source_system=source_system, source_component=190
         )
+        if key is not None:  # sign what it sends; first try an unsigned mode switch with the same ids
+            self.conn.setup_signing(key, sign_outgoing=True)
+        self.key = key
+        self.upload = upload
         self.heartbeat = None
         self.positions = []
         self.ack = None
@@ -61,10 +70,17 @@ class Gcs(threading.Thread):
     def run(self):
         try:
             self.heartbeat = self.recv({"HEARTBEAT"})
+            self.conn.mav.heartbeat_send(mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0, 0)
             self.recv({"GLOBAL_POSITION_INT"})
             time.sleep(self.hold_off_s)
+            if not self.upload:
+                return
             # garbage first: the run must survive it and still take the mission
             vehicle = next(iter(self.conn.clients))  # the address the vehicle sends from
+            if self.key is not None:
+                unsigned = mav.MAVLink(None, 255, 190)
+                guided = unsigned.set_mode_encode(1, mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 3)
+                self.conn.port.sendto(guided.pack(unsigned), vehicle)
             self.conn.port.sendto(b"\xfd\x05garbage-not-mavlink", vehicle)
             self.conn.port.sendto(bytes(range(256)), vehicle)
             lat, lon, alt = ned_to_geodetic(TARGETS, ORIGIN)
@@ -94,13 +110,13 @@ class Gcs(threading.Thread):
             end = time.monotonic() + 30
             while time.monotonic() < end and self.recv({"GLOBAL_POSITION_INT"}, 1.0) is not None:
                 pass
-        except Exception as exc:  # reported by the test
+        except Exception as exc:  # noqa: BLE001 - reported by the test
             self.error = exc
 
 
-def test_gcs_uploads_a_mission_that_the_vehicle_flies(tmp_path):
+def test_gcs_uploads_a_mission_that_the_vehicle_flies(fly, scenario_data):
     port = _free_port()
-    data = tomllib.loads((ROOT / "scenarios" / "quad_square_mission.toml").read_text())
+    data = scenario_data("quad_square_mission")
     data.update(
         duration=60.0,
         stop_when_complete=True,
@@ -112,14 +128,13 @@ def test_gcs_uploads_a_mission_that_the_vehicle_flies(tmp_path):
     gcs = Gcs(port)
     gcs.hold_off_s = 2.0  # upload while the vehicle already holds at its first waypoint (the hold must end)
     gcs.start()
-    path = tmp_path / "mav.mcap"
-    result = run_scenario(parse_scenario(data, "mavlink test"), path)
+    run = fly(data, "mav")
+    result, log = run.result, run.log
     gcs.join(timeout=5)
     assert gcs.error is None
     assert gcs.heartbeat is not None and gcs.heartbeat.get_srcSystem() == 1 and gcs.heartbeat.get_srcComponent() == 1
     assert gcs.heartbeat.type == mav.MAV_TYPE_QUADROTOR
     assert gcs.ack is not None and gcs.ack.type == mav.MAV_MISSION_ACCEPTED
-    log = RunLog(path)
     events = [text for _, text in log.events()]
     assert "quad: mission uploaded: 3 waypoints, mode AUTO" in events
     assert [e for e in events if "waypoint" in e and e.endswith("/3 reached")] == [
@@ -132,3 +147,146 @@ def test_gcs_uploads_a_mission_that_the_vehicle_flies(tmp_path):
     lat, lon, alt = ned_to_geodetic(TARGETS[-1], ORIGIN)
     assert abs(last.lat / 1e7 - lat) < 2e-5 and abs(last.lon / 1e7 - lon) < 2e-5
     assert abs(last.alt / 1e3 - alt) < 1.0
+
+
+def _hover_scenario(port: int, duration: float = 20.0) -> dict:
+    """The quadrotor hovering at 15 m for 120 s (so that only a command could move it)."""
+    data = tomllib.loads((ROOT / "scenarios" / "quad_square_mission.toml").read_text())
+    data.update(
+        duration=duration,
+        stop_when_complete=True,
+        mavlink={"enabled": True, "base_port": port, "rate_hz": 5.0, "pace": 4.0},
+    )
+    v = data["vehicle"][0]
+    v["mission"]["land"] = False
+    v["mission"]["waypoints"] = [{"north": 0, "east": 0, "altitude": 415, "hold": "120 s"}]
+    return data
+
+
+def _fly(tmp_path, name: str, peer: threading.Thread) -> RunLog:
+    port = peer.port
+    peer.start()
+    path = tmp_path / f"{name}.mcap"
+    run_scenario(parse_scenario(_hover_scenario(port), name), path)
+    peer.join(timeout=5)
+    return RunLog(path)
+
+
+def _truth(log: RunLog) -> list:
+    return log.topic("/quad/truth/state").messages
+
+
+class _Listener(Gcs):
+    def __init__(self, port: int, **kw):
+        super().__init__(port, **kw)
+        self.port = port
+
+
+@pytest.fixture(scope="module")
+def undisturbed(tmp_path_factory) -> list:
+    """Truth states of the hover with the ground station only listening."""
+    port = _free_port()
+    return _truth(_fly(tmp_path_factory.mktemp("base"), "base", _Listener(port, upload=False)))
+
+
+def test_upload_from_another_system_id_is_refused_and_the_flight_unchanged(tmp_path, undisturbed):
+    port = _free_port()
+    gcs = _Listener(port, source_system=42)
+    log = _fly(tmp_path, "foreign", gcs)
+    assert gcs.error is None
+    assert gcs.ack is not None and gcs.ack.type == mav.MAV_MISSION_DENIED
+    assert not any("mission uploaded" in text for _, text in log.events())
+    assert any("unauthorised" in text for _, text in log.events())
+    assert _truth(log) == undisturbed
+
+
+class _Fuzzer(threading.Thread):
+    """The ground station introduces itself and listens; meanwhile senders with other system ids
+    throw mutated control frames (mode switches, arming, mission uploads, position targets under
+    ground) and random bytes at the vehicle until the run ends."""
+
+    def __init__(self, port: int, seed: int, senders: tuple[int, ...] = (1, 2, 42, 200, 254)):
+        super().__init__(daemon=True)
+        self.port = port
+        self.senders = senders
+        self.gcs = _Listener(port, upload=False)
+        self.rng = random.Random(seed)
+        self.sent = 0
+        self.stop = threading.Event()
+
+    def _frame(self) -> bytes:
+        rng = self.rng
+        enc = mav.MAVLink(None, rng.choice(self.senders), rng.choice([0, 1, 190]))
+        msg = rng.choice(
+            [
+                enc.set_mode_encode(1, mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 3),
+                enc.command_long_encode(1, 1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 0, 0, 21196, 0, 0, 0, 0, 0),
+                enc.mission_count_encode(1, 1, 1, mav.MAV_MISSION_TYPE_MISSION),
+                enc.mission_item_int_encode(
+                    1, 1, 0, mav.MAV_FRAME_GLOBAL_INT, 16, 0, 1, 0, 0, 0, 0, 470000000, 80000000, 100.0, 0
+                ),
+                enc.set_position_target_local_ned_encode(
+                    0, 1, 1, mav.MAV_FRAME_LOCAL_NED, 0b110111111000, 0, 0, 300, 0, 0, 0, 0, 0, 0, 0, 0
+                ),
+                enc.mission_clear_all_encode(1, 1, 0),
+            ]
+        )
+        buf = bytearray(msg.pack(enc))
+        for _ in range(rng.randint(0, 2)):
+            buf[rng.randrange(len(buf))] ^= rng.randint(1, 255)
+        return bytes(buf) if rng.random() < 0.9 else rng.randbytes(rng.randint(0, 400))
+
+    def run(self):
+        self.gcs.start()
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            while not self.gcs.conn.clients and not self.stop.is_set():
+                time.sleep(0.01)
+            vehicle = next(iter(self.gcs.conn.clients), None)
+            while vehicle is not None and not self.stop.wait(0.002):
+                s.sendto(self._frame(), vehicle)
+                self.sent += 1
+
+    def join(self, timeout=None):
+        self.stop.set()
+        super().join(timeout)
+        self.gcs.join(timeout)
+
+
+def test_fuzz_from_foreign_ids_does_not_change_the_flight(tmp_path, undisturbed):
+    fuzzer = _Fuzzer(_free_port(), seed=3)
+    log = _fly(tmp_path, "fuzz", fuzzer)
+    assert fuzzer.sent > 200
+    assert _truth(log) == undisturbed
+    mav_events = [text for _, text in log.events() if "mavlink" in text]
+    assert len(mav_events) < 60  # summarised at most once per second (5 s of wall time here)
+
+
+def test_with_signing_the_signed_gcs_is_obeyed_and_unsigned_commands_refused(tmp_path):
+    port = _free_port()
+    (tmp_path / "key").write_text("a passphrase")
+    data = _hover_scenario(port, duration=60.0)
+    data["mavlink"]["signing_key_file"] = str(tmp_path / "key")
+    gcs = Gcs(port, key=hashlib.sha256(b"a passphrase").digest())
+    gcs.start()
+    result = run_scenario(parse_scenario(data, "signed"), tmp_path / "signed.mcap")
+    gcs.join(timeout=5)
+    assert gcs.error is None and gcs.heartbeat is not None and gcs.heartbeat.get_signed()
+    assert gcs.ack is not None and gcs.ack.type == mav.MAV_MISSION_ACCEPTED
+    events = [text for _, text in RunLog(tmp_path / "signed.mcap").events()]
+    assert "quad: mission uploaded: 3 waypoints, mode AUTO" in events
+    assert not any("mode GUIDED" in e for e in events)  # the unsigned SET_MODE was dropped
+    assert any("bad_signature" in e for e in events)
+    assert result.status == "completed"
+
+
+def test_fuzz_from_the_ground_station_keeps_the_vehicle_in_its_envelope(tmp_path):
+    """The same traffic with the ground station's own ids (after its heartbeat): mode switches
+    and arming may act, but nothing under the ground is accepted and the run completes."""
+    fuzzer = _Fuzzer(_free_port(), seed=4, senders=(255,))
+    log = _fly(tmp_path, "gcs_fuzz", fuzzer)
+    assert fuzzer.sent > 200
+    events = [text for _, text in log.events()]
+    assert not any("mission uploaded" in e or "position target:" in e for e in events)
+    assert any("mission_invalid_item" in e or "position_target_refused" in e for e in events)
+    up = -log.topic("/quad/truth/state")["pos_ned"][:, 2]
+    assert up.min() > -0.5 and log.metadata["result"]["status"] != "failed"

@@ -203,9 +203,12 @@ def test_replay_without_scenario_falls_back_and_can_stop(tmp_path):
 def test_replay_of_damaged_log_is_a_clear_error(tmp_path):
     path = tmp_path / "cut.mcap"
     write_log(path)
+    full = sum(replay_to_gcs(path, speed=None).states.values())
     data = path.read_bytes()
-    path.write_bytes(data[: len(data) // 2])
-    with pytest.raises(LogReadError, match="cut.mcap"):
+    path.write_bytes(data[: len(data) // 2])  # unfinished: replayed up to its last complete chunk
+    assert sum(replay_to_gcs(path, speed=None).states.values()) < full
+    path.write_bytes(b"not an MCAP" + data[100:200])
+    with pytest.raises(LogReadError, match=r"cut\.mcap"):
         replay_to_gcs(path, speed=None)
     write_log(path)
     with pytest.raises(ValueError, match="no vehicle ghost"):

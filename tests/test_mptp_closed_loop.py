@@ -4,36 +4,29 @@ scenarios (two continuous avoidances, holding, moving goal) are flown at the sca
 turn radius relative to the storms (CI) and at full size (``-m slow``, ~2 h of flight each)."""
 
 import re
-import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
-import tomli_w
 
-from sim.testbeds import mptp_thesis as S
 from sim.replay.report import log_metrics
-from sim.replay.runlog import RunLog
-from sim.runner import run_scenario
 from sim.scenario import ScenarioError, parse_scenario
-from sim.testbeds.mptp_haps import matched_scale, scenario_data
+from sim.testbeds import mptp_thesis as S
+from sim.testbeds.mptp_haps import matched_scale
+from sim.testbeds.mptp_haps import scenario_data as thesis_scenario_data
 
-ROOT = Path(__file__).resolve().parents[1]
-SCENARIO = ROOT / "scenarios" / "mptp" / "storm_crossing.toml"
 pytestmark = pytest.mark.closed_loop
 
 
-def _fly(tmp_path, planner: str, estimator: str = "ekf"):
-    data = tomllib.loads(SCENARIO.read_text())
+def _fly(fly, scenario_data, planner: str, estimator: str = "ekf"):
+    data = scenario_data("mptp/storm_crossing")
     data["vehicle"][0]["planner"]["type"] = planner
     data["vehicle"][0]["estimator"] = estimator
-    path = tmp_path / f"{planner}.mcap"
-    result = run_scenario(parse_scenario(data, str(SCENARIO)), path, scenario_text=tomli_w.dumps(data))
-    return result, RunLog(path)
+    run = fly(data, planner)
+    return run.result, run.log
 
 
-def test_mptp_avoids_the_storms_and_reaches_the_goal(tmp_path):
-    result, log = _fly(tmp_path, "mptp")
+def test_mptp_avoids_the_storms_and_reaches_the_goal(fly, scenario_data):
+    result, log = _fly(fly, scenario_data, "mptp")
     assert result.status == "completed"
     haps = log_metrics(log)["vehicles"]["haps"]
     assert haps["storms"]["time_inside_s"] == 0.0
@@ -47,22 +40,20 @@ def test_mptp_avoids_the_storms_and_reaches_the_goal(tmp_path):
     assert log.has("/haps/plan/map") and log.has("/world/weather/storms")
 
 
-def test_without_mptp_the_same_flight_enters_a_storm(tmp_path):
-    result, log = _fly(tmp_path, "follow_mission", "perfect")  # the geometry alone decides this one
+def test_without_mptp_the_same_flight_enters_a_storm(fly, scenario_data):
+    result, log = _fly(fly, scenario_data, "follow_mission", "perfect")  # the geometry alone decides this one
     assert result.status == "completed"
     assert log_metrics(log)["vehicles"]["haps"]["storms"]["time_inside_s"] > 0.0
 
 
-def test_an_opening_corridor_is_waited_for_in_closed_loop(tmp_path):
+def test_an_opening_corridor_is_waited_for_in_closed_loop(fly):
     """Resolution completeness in closed loop: the gap between two storm walls is plugged by a
     cell drifting out of it; the HAPS reaches the goal through the gap after it opened (it
     would reach the walls 6 min after the start), is never inside a cell and is never told
     there is no solution."""
-    path = ROOT / "scenarios" / "mptp" / "opening_corridor.toml"
-    scenario = parse_scenario(tomllib.loads(path.read_text()), str(path))
-    result = run_scenario(scenario, tmp_path / "corridor.mcap", scenario_text=path.read_text())
-    assert result.status == "completed"
-    log = RunLog(tmp_path / "corridor.mcap")
+    run = fly("mptp/opening_corridor")
+    assert run.result.status == "completed"
+    scenario, log = run.scenario, run.log
     assert log_metrics(log)["vehicles"]["haps"]["storms"]["time_inside_s"] == 0.0
     assert all(m["status"] != "no_solution" for m in log.topic("/haps/plan").messages)
     wall, plug = np.array(scenario.weather.storm[0].points), scenario.weather.storm[2]
@@ -85,11 +76,11 @@ def test_an_opening_corridor_is_waited_for_in_closed_loop(tmp_path):
         ({"heuristic": "astar"}, "planner.options.heuristic: Input should be 'dijkstra', 'edh' or 'ssph'"),
     ],
 )
-def test_bad_mptp_options_are_one_line_scenario_errors(options, message):
-    data = tomllib.loads(SCENARIO.read_text())
+def test_bad_mptp_options_are_one_line_scenario_errors(scenario_data, options, message):
+    data = scenario_data("mptp/storm_crossing")
     data["vehicle"][0]["planner"]["options"] = options
     with pytest.raises(ScenarioError, match=re.escape(message)) as err:
-        parse_scenario(data, str(SCENARIO))
+        parse_scenario(data, "storm_crossing")
     assert "\n" not in str(err.value)
 
 
@@ -97,12 +88,11 @@ THESIS = [S.scenario_1, S.scenario_2, S.holding_scenario, S.moving_goal_scenario
 THESIS_IDS = ["scenario1", "scenario2", "holding", "moving_goal"]
 
 
-def _fly_thesis(tmp_path, make, full_size: bool):
+def _fly_thesis(fly, make, full_size: bool):
     sc = make()
-    data = scenario_data(sc, 1.0 if full_size else matched_scale(sc))
-    path = tmp_path / f"{data['name']}.mcap"
-    result = run_scenario(parse_scenario(data, data["name"]), path, scenario_text=tomli_w.dumps(data))
-    return sc, data, result, RunLog(path)
+    data = thesis_scenario_data(sc, 1.0 if full_size else matched_scale(sc))
+    run = fly(data, data["name"])
+    return sc, data, run.result, run.log
 
 
 def _check_thesis_flight(sc, data, result, log):
@@ -134,11 +124,11 @@ def _check_thesis_flight(sc, data, result, log):
 
 
 @pytest.mark.parametrize("make", THESIS, ids=THESIS_IDS)
-def test_thesis_scenarios_scaled(tmp_path, make):
-    _check_thesis_flight(*_fly_thesis(tmp_path, make, full_size=False))
+def test_thesis_scenarios_scaled(fly, make):
+    _check_thesis_flight(*_fly_thesis(fly, make, full_size=False))
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("make", THESIS, ids=THESIS_IDS)
-def test_thesis_scenarios_full_size(tmp_path, make):
-    _check_thesis_flight(*_fly_thesis(tmp_path, make, full_size=True))
+def test_thesis_scenarios_full_size(fly, make):
+    _check_thesis_flight(*_fly_thesis(fly, make, full_size=True))

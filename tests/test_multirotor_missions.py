@@ -1,34 +1,31 @@
 """Closed loop: the JSBSim quadrotor under its cascaded controller, read back from the MCAP."""
 
-import tomllib
-from pathlib import Path
-
 import numpy as np
 import pytest
-import tomli_w
 
 from sim.replay.report import log_metrics
-from sim.replay.runlog import RunLog
-from sim.runner import run_scenario
-from sim.scenario import parse_scenario
 
-ROOT = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.closed_loop
 
 
-def _fly(tmp_path, name: str, transform=None, **overrides):
-    path = ROOT / "scenarios" / f"{name}.toml"
-    data = tomllib.loads(path.read_text())
-    data.update(overrides)
-    if transform is not None:
-        data = transform(data)
-    out = tmp_path / f"{name}.mcap"
-    result = run_scenario(parse_scenario(data, str(path)), out, scenario_text=tomli_w.dumps(data))
-    return result, RunLog(out)
+@pytest.fixture
+def fly_edited(fly, scenario_data):
+    """``fly_edited(name, transform=None, **overrides)``: the shipped scenario ``name`` with its
+    top-level ``overrides`` and then ``transform(data)`` applied, flown; (result, log)."""
+
+    def run(name: str, transform=None, **overrides):
+        data = scenario_data(name)
+        data.update(overrides)
+        if transform is not None:
+            data = transform(data)
+        flight = fly(data, name)
+        return flight.result, flight.log
+
+    return run
 
 
-def test_hover_from_attitude_offsets_converges(tmp_path):
-    _, log = _fly(tmp_path, "quad_hover_offset")
+def test_hover_from_attitude_offsets_converges(fly_edited):
+    _, log = fly_edited("quad_hover_offset")
     st = log.topic("/quad/truth/state")
     euler, pos = st["euler"], st["pos_ned"]
     assert np.degrees(euler[0, :2]) == pytest.approx([5.0, 5.0])
@@ -38,8 +35,8 @@ def test_hover_from_attitude_offsets_converges(tmp_path):
     assert np.isfinite(pos).all()
 
 
-def test_position_step_with_yaw_settles(tmp_path):
-    _, log = _fly(tmp_path, "quad_step")
+def test_position_step_with_yaw_settles(fly_edited):
+    _, log = fly_edited("quad_step")
     st = log.topic("/quad/truth/state")
     t, pos, yaw = st.t, st["pos_ned"], st["euler"][:, 2]
     step = np.array([10.0, 5.0, -5.0])
@@ -60,20 +57,18 @@ def _ideal_sensors(data: dict) -> dict:
     return data
 
 
-def test_square_mission_on_the_ekf_tracks_within_the_gnss_error(tmp_path):
+def test_square_mission_on_the_ekf_tracks_within_the_gnss_error(fly_edited):
     # the truth cross-track is bounded below by the GNSS's correlated error (sigma ~0.55 m N/E)
-    result, log = _fly(tmp_path, "quad_square_mission")
+    result, log = fly_edited("quad_square_mission")
     m = log_metrics(log)["vehicles"]["quad"]
     assert result.status == "completed"
     assert m["tracking"]["cross_track_m"]["rms"] <= 2.5
     assert all(f >= 0.95 for f in m["estimation"]["pos_within_3sigma"])
 
 
-def test_square_mission_takeoff_tracking_landing(tmp_path):
+def test_square_mission_takeoff_tracking_landing(fly_edited):
     # the controller's tracking (issue 3) is judged with ideal sensors
-    result, log = _fly(
-        tmp_path, "quad_square_mission", stop_when_complete=False, duration=80.0, transform=_ideal_sensors
-    )
+    result, log = fly_edited("quad_square_mission", stop_when_complete=False, duration=80.0, transform=_ideal_sensors)
     m = log_metrics(log)["vehicles"]["quad"]
     assert m["mission"]["complete"] and m["mission"]["waypoints_reached"] == 5
     assert m["tracking"]["cross_track_m"]["rms"] <= 1.0
@@ -97,8 +92,8 @@ def test_square_mission_takeoff_tracking_landing(tmp_path):
     assert result.status == "completed"
 
 
-def test_mixed_haps_and_multirotor_in_one_log(tmp_path):
-    result, log = _fly(tmp_path, "mixed_haps_quad")
+def test_mixed_haps_and_multirotor_in_one_log(fly_edited):
+    result, log = fly_edited("mixed_haps_quad")
     assert result.status == "completed"
     assert set(log.vehicles) == {"haps", "quad"}
     metrics = log_metrics(log)

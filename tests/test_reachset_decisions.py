@@ -3,8 +3,6 @@ mission control (modes, waypoints, buffer replacement), the planner adapter and 
 
 import dataclasses
 import json
-import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -135,6 +133,20 @@ def test_last_resort_path_maximises_the_predicted_closest_approach():
     assert closest(runs[sel].path.node) > closest(straight_node()) + 1.0
 
 
+def flying(t: float, pos_ned, vel_ned) -> VehicleState:
+    """An estimate at ``t`` [s]: NED position [m] and velocity [m/s], level, 5 m above the origin."""
+    return VehicleState(
+        t=t,
+        pos_ned=np.array(pos_ned, float),
+        vel_ned=np.array(vel_ned, float),
+        euler=np.zeros(3),
+        rates_body=np.zeros(3),
+        alt_msl_m=5.0,
+        lat_deg=0.0,
+        lon_deg=0.0,
+    )
+
+
 def kin(n: float, e: float = 0.0, t: float = 0.0) -> KinState:
     return KinState(np.array([e, n, 0.0]), np.array([0.0, 0.0, np.pi / 2]), t, 1.0)  # GCF, heading north
 
@@ -163,9 +175,7 @@ def test_mission_control_modes_waypoints_and_buffer():
 def test_planner_adapter_returns_ned_plan_record_and_scene():
     mission = Mission(np.array([[20.0, 0.0, -5.0]]), cruise_speed=1.0, acceptance_radius=2.0)
     av = ReachSetAvoider(mission, thesis_automaton())
-    est = VehicleState(
-        0.0, np.array([0.0, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0
-    )
+    est = flying(0.0, [0.0, 0.0, -5.0], [1.0, 0.0, 0.0])
     wall = wall_scan()
     scan = LidarScan(0.0, est.pos_ned, wall.directions_ned, wall.ranges_m, wall.hit, 30.0)
     plan = av.plan(est, Threats(lidar=scan), 0.0)
@@ -182,9 +192,7 @@ def test_planner_adapter_returns_ned_plan_record_and_scene():
     assert ent.frame_id == "ned" and len(ent.cubes) == int((np.array(rec["cells"]["class"]) != 0).sum())
     assert len(ent.lines[0].points) == len(av.last_decision.reference.positions)
     assert scene.SerializeToString()
-    est_near = VehicleState(
-        15.0, np.array([19.0, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0
-    )
+    est_near = flying(15.0, [19.0, 0.0, -5.0], [1.0, 0.0, 0.0])
     near = av.plan(est_near, Threats(), 15.0)  # final approach: a leg ending exactly at the waypoint
     assert near.diagnostics["complete"] == 0 and near.labels.tolist() == [-1, 0]
     np.testing.assert_allclose(near.positions, [est_near.pos_ned, mission.waypoints[0]])
@@ -217,10 +225,10 @@ def test_goal_inside_the_turn_circle_is_flown_away_from_not_orbited():
     assert not ahead.path.away
 
 
-def test_lidar_shorter_than_the_grid_is_a_scenario_error():
+def test_lidar_shorter_than_the_grid_is_a_scenario_error(scenario_data):
     """A LiDAR whose range ends inside the reach-set grid leaves its far cells Uncertain, which
     blocks every path: the scenario is refused with one line naming the field."""
-    data = tomllib.loads((Path(__file__).resolve().parents[1] / "scenarios/reachset/building_lidar.toml").read_text())
+    data = scenario_data("reachset/building_lidar")
     parse_scenario(data)  # 60 m covers the 50 m grid of 5 m movements
     data["vehicle"][0]["lidar"] = {"max_range_m": 10.0}
     with pytest.raises(
@@ -254,15 +262,13 @@ def test_planning_heading_is_the_planned_one_within_a_yaw_increment():
     the measured course (velocity)."""
     mission = Mission(np.array([[40.0, 0.0, -5.0]]), cruise_speed=1.0, acceptance_radius=2.0)
     av = ReachSetAvoider(mission, thesis_automaton())
-    est = VehicleState(
-        0.0, np.array([0.0, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0
-    )
+    est = flying(0.0, [0.0, 0.0, -5.0], [1.0, 0.0, 0.0])
     av.plan(est, Threats(), 0.0)
     planned = av.last_decision.pose.psi  # heading at t = 1 s (GCF)
 
     def course(deg: float) -> VehicleState:
         v = np.array([np.cos(np.radians(deg)), np.sin(np.radians(deg)), 0.0])  # NED, from north
-        return VehicleState(1.0, np.array([1.0, 0.0, -5.0]), v, np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0)
+        return flying(1.0, [1.0, 0.0, -5.0], v)
 
     assert av.kin_state(course(10.0), 1.0).att[2] == pytest.approx(planned)
     assert av.kin_state(course(30.0), 1.0).att[2] == pytest.approx(np.pi / 2 - np.radians(30.0))

@@ -23,7 +23,16 @@ def fly(waypoints, planner_hz: float, cruise: float = 5.0, acceptance: float = 1
     every = round(1.0 / (planner_hz * dt))
     for k in range(int(t_end / dt)):
         t = k * dt
-        est = VehicleState(t, pos.copy(), vel.copy(), np.array([0.0, 0.0, yaw]), np.zeros(3), 420.0, 47.0, 8.0)
+        est = VehicleState(
+            t=t,
+            pos_ned=pos.copy(),
+            vel_ned=vel.copy(),
+            euler=np.array([0.0, 0.0, yaw]),
+            rates_body=np.zeros(3),
+            alt_msl_m=420.0,
+            lat_deg=47.0,
+            lon_deg=8.0,
+        )
         if k % every == 0:
             fol.set_plan(av.plan(est, Threats(), t))
         sp, passed = fol.update(est, t, dt)

@@ -7,25 +7,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import tomli_w
 
 from sim.replay.metrics import differing_keys, min_separation, straight_flight_mask
 from sim.replay.report import log_metrics, write_report
 from sim.replay.runlog import RunLog
 from sim.replay.trace import VehicleTrace
-from sim.runner import run_scenario
-from sim.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENARIO = ROOT / "scenarios" / "haps_box_mission.toml"
 
 
 @pytest.fixture(scope="module")
-def short_run(tmp_path_factory):
-    scenario, text = load_scenario(SCENARIO)
-    path = tmp_path_factory.mktemp("replay") / "run.mcap"
-    result = run_scenario(scenario, path, scenario_text=text, duration=900.0)
-    return result, path
+def short_run(fly_in, tmp_path_factory):
+    run = fly_in(tmp_path_factory.mktemp("replay"), "haps_box_mission", "run", duration=900.0)
+    return run.result, run.path
 
 
 def test_replayed_metrics_equal_live_metrics(short_run):
@@ -40,7 +34,7 @@ def test_replayed_metrics_equal_live_metrics(short_run):
     assert replayed["vehicles"]["haps"]["planner_latency"]["cache_hits"] == 0
 
 
-def test_report_and_compare_cli(short_run, tmp_path):
+def test_report_and_compare_cli(short_run, tmp_path, cosim):
     _, path = short_run
     report, metrics = write_report(path, tmp_path / "rep")
     text = report.read_text()
@@ -48,14 +42,7 @@ def test_report_and_compare_cli(short_run, tmp_path):
     for png in ("map.png", "haps_timeseries.png"):
         assert (tmp_path / "rep" / png).stat().st_size > 10_000
     assert json.loads((tmp_path / "rep" / "metrics.json").read_text()) == json.loads(json.dumps(metrics))
-    proc = subprocess.run(
-        [sys.executable, "-m", "sim.cli", "compare", str(path), str(path), "--changed"],
-        check=False,
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=120,
-    )
+    proc = cosim("compare", path, path, "--changed", timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "tracking" not in proc.stdout  # the same log twice: nothing changed
 
@@ -147,9 +134,7 @@ def test_planner_rerun_reproduces_recorded_decisions_and_flags_a_changed_planner
     assert "vertices differ" in other.differences[0]
 
 
-def test_clearance_geofence_and_well_clear_metrics_on_a_known_geometry(tmp_path):
-    from sim.scenario import parse_scenario
-
+def test_clearance_geofence_and_well_clear_metrics_on_a_known_geometry(fly):
     def quad(name, north):
         return {
             "name": name,
@@ -175,10 +160,9 @@ def test_clearance_geofence_and_well_clear_metrics_on_a_known_geometry(tmp_path)
         "metrics": {"well_clear_horizontal": "100 m", "well_clear_vertical": "20 m"},
         "vehicle": [quad("a", 0.0), quad("b", 60.0)],
     }
-    path = tmp_path / "geo.mcap"
-    result = run_scenario(parse_scenario(data, "geometry"), path, scenario_text=tomli_w.dumps(data))
-    m = log_metrics(RunLog(path))
-    assert differing_keys(result.metrics, m) == []
+    run = fly(data, "geometry")
+    m = log_metrics(run.log)
+    assert differing_keys(run.result.metrics, m) == []
     a = m["vehicles"]["a"]["clearance"]
     # 25 m to the mast's side, 10 m above its top -> sqrt(25^2 + 10^2) (hover holds to ~0.1 m)
     assert a["obstacle.mast"]["distance_m"] == pytest.approx(np.hypot(25.0, 10.0), abs=0.2)
@@ -206,14 +190,13 @@ def test_vehicles_of_different_plant_rates_share_their_log_times():
 
 
 @pytest.fixture(scope="module")
-def quad_runs(tmp_path_factory):
+def quad_runs(fly_in, tmp_path_factory):
     """The square mission of the 240 Hz quadrotor flown to completion (70 s) and cut at 40 s:
     (live metrics of the full run, its log, the cut run's log)."""
-    scenario, text = load_scenario(ROOT / "scenarios" / "quad_square_mission.toml")
     folder = tmp_path_factory.mktemp("quad")
-    result = run_scenario(scenario, folder / "full.mcap", scenario_text=text, duration=70.0)
-    run_scenario(scenario, folder / "cut.mcap", scenario_text=text, duration=40.0)
-    return result.metrics, folder / "full.mcap", folder / "cut.mcap"
+    full = fly_in(folder, "quad_square_mission", "full", duration=70.0)
+    cut = fly_in(folder, "quad_square_mission", "cut", duration=40.0)
+    return full.result.metrics, full.path, cut.path
 
 
 def test_replayed_metrics_equal_live_metrics_for_a_240_hz_quadrotor(quad_runs):

@@ -203,7 +203,7 @@ def test_filed_registration_of_a_peer_ranks_it():
     assert cfg.registration("haps", 5.0).priority() < cfg.registration("uas2", 5.0).priority()
     with pytest.raises(ValueError, match="unknown maneuverability 'jet'"):
         RulesConfig(filed={"haps": {"maneuverability": "jet"}})
-    with pytest.raises(ValueError, match="filed.haps: a table"):
+    with pytest.raises(ValueError, match=r"filed\.haps: a table"):
         RulesConfig(filed={"haps": "glider"})
 
 
@@ -375,7 +375,14 @@ def _avoider_with_traffic(cooperative: bool, ahead: float):
     decisions = []
     for t in (0.0, 1.0, 2.0):
         est = VehicleState(
-            t, np.array([t, 0.0, -5.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3), 5.0, 0.0, 0.0
+            t=t,
+            pos_ned=np.array([t, 0.0, -5.0]),
+            vel_ned=np.array([1.0, 0.0, 0.0]),
+            euler=np.zeros(3),
+            rates_body=np.zeros(3),
+            alt_msl_m=5.0,
+            lat_deg=0.0,
+            lon_deg=0.0,
         )
         av.plan(est, Threats(intruders=[peer(t)]), t)
         decisions.append(av.last_decision)

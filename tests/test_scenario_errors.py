@@ -1,7 +1,5 @@
 """Bad scenario files: one line naming the file and the field, exit code 2, no traceback."""
 
-import subprocess
-import sys
 import tomllib
 from pathlib import Path
 
@@ -139,17 +137,10 @@ CASES = [
 
 
 @pytest.mark.parametrize("kind,data,text,expected", CASES, ids=[c[0] for c in CASES])
-def test_bad_scenario_is_one_line_error_exit_2(tmp_path, kind, data, text, expected):
+def test_bad_scenario_is_one_line_error_exit_2(tmp_path, cosim, kind, data, text, expected):
     f = tmp_path / f"{kind}.toml"
     f.write_text(text if text is not None else tomli_w.dumps(data))
-    proc = subprocess.run(
-        [sys.executable, "-m", "sim.cli", "run", str(f), "-q"],
-        check=False,
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=60,
-    )
+    proc = cosim("run", f, "-q")
     assert proc.returncode == 2, proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1, proc.stderr
@@ -159,53 +150,25 @@ def test_bad_scenario_is_one_line_error_exit_2(tmp_path, kind, data, text, expec
     assert not (tmp_path / "logs").exists()
 
 
-def test_missing_file_is_exit_2(tmp_path):
-    proc = subprocess.run(
-        [sys.executable, "-m", "sim.cli", "run", str(tmp_path / "nope.toml")],
-        check=False,
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=60,
-    )
+def test_missing_file_is_exit_2(tmp_path, cosim):
+    proc = cosim("run", tmp_path / "nope.toml")
     assert proc.returncode == 2
     assert "cannot read scenario file" in proc.stderr and "Traceback" not in proc.stderr
 
 
-def test_unwritable_log_path_is_exit_2(tmp_path):
-    proc = subprocess.run(
-        [sys.executable, "-m", "sim.cli", "run", "scenarios/quad_hover_offset.toml", "-o", str(tmp_path)],
-        check=False,
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=60,
-    )
+def test_unwritable_log_path_is_exit_2(tmp_path, cosim):
+    proc = cosim("run", "scenarios/quad_hover_offset.toml", "-o", tmp_path)
     assert proc.returncode == 2
     assert "cannot write the log" in proc.stderr and "Traceback" not in proc.stderr
 
 
-def test_good_scenario_validates():
-    proc = subprocess.run(
-        [sys.executable, "-m", "sim.cli", "validate", "scenarios/haps_box_mission.toml"],
-        check=False,
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=60,
-    )
+def test_good_scenario_validates(cosim):
+    proc = cosim("validate", "scenarios/haps_box_mission.toml")
     assert proc.returncode == 0, proc.stderr
 
 
 @pytest.mark.parametrize("value", ["0", "-5", "nan", "inf", "ten"])
-def test_bad_duration_option_is_exit_2(value):
-    proc = subprocess.run(
-        [sys.executable, "-m", "sim.cli", "run", "scenarios/quad_hover_offset.toml", f"--duration={value}", "-q"],
-        check=False,
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=60,
-    )
+def test_bad_duration_option_is_exit_2(cosim, value):
+    proc = cosim("run", "scenarios/quad_hover_offset.toml", f"--duration={value}", "-q")
     assert proc.returncode == 2
     assert "argument --duration:" in proc.stderr and "Traceback" not in proc.stderr

@@ -22,7 +22,7 @@ def test_tasks_fire_at_their_rates_and_plants_step_exactly():
     assert sum(c[0] == "log" for c in calls) == 21
     assert sum(c[0] == "plan" for c in calls) == 3
     # each call sees the plants exactly at its time
-    for name, t, q, h in calls:
+    for _name, t, q, h in calls:
         assert q == round(t * 240) and h == round(t * 120)
     # at a shared tick: plan before control before log, whatever the registration order
     at0 = [c[0] for c in calls if c[1] == 0.0]

@@ -234,16 +234,16 @@ def test_config_defaults_fit_the_plant_rates():
 
 
 def test_config_errors_are_clear():
-    with pytest.raises(SensorConfigError, match="fusion_hz .* must divide the IMU rate"):
+    with pytest.raises(SensorConfigError, match=r"fusion_hz .* must divide the IMU rate"):
         SensorEstimatorConfig.for_kind("fixed_wing", fusion_hz=7.0)
     with pytest.raises(SensorConfigError, match="unknown airframe kind"):
         SensorEstimatorConfig.for_kind("blimp")
     with pytest.raises(SensorConfigError, match="bogus"):
         SensorEstimatorConfig.for_kind("multirotor", bogus=1)
     cfg = SensorEstimatorConfig.for_kind("fixed_wing")
-    with pytest.raises(SensorConfigError, match="imu.rate_hz: 60 Hz does not divide the plant rate 100 Hz"):
+    with pytest.raises(SensorConfigError, match=r"imu\.rate_hz: 60 Hz does not divide the plant rate 100 Hz"):
         cfg.check_rates(100.0)
-    with pytest.raises(SensorConfigError, match="sensors.imu is required"):
+    with pytest.raises(SensorConfigError, match=r"sensors\.imu is required"):
         SensorEstimatorConfig.build(sensors=cfg.sensors.model_copy(update={"imu": None}), fusion_hz=10.0)
 
 

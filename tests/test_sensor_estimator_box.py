@@ -13,27 +13,20 @@ so this copy of ``scenarios/haps_box_mission.toml`` flies 3 km legs 20 km north-
 from __future__ import annotations
 
 import math
-import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from sim.estimation.geodetic import LocalGeodetic
 from sim.geodesy import GeoPoint, LocalLevelFrame
-from sim.replay.runlog import RunLog
-from sim.runner import run_scenario
-from sim.scenario import parse_scenario
 
-ROOT = Path(__file__).resolve().parents[1]
-BOX = ROOT / "scenarios" / "haps_box_mission.toml"
 N0 = E0 = 20_000.0  # box corner [m] from the origin
 LEG = 3_000.0
 SETTLE_S = 60.0
 
 
-def box_scenario(duration_s: float = 420.0):
-    data = tomllib.loads(BOX.read_text(encoding="utf-8"))
+def box_scenario(data: dict, duration_s: float = 420.0) -> dict:
+    """The box mission's HAPS on the EKF, around a 3 km box offset from the origin."""
     data["name"] = "haps_box_3km_offset"
     data["duration"] = duration_s
     v = data["vehicle"][0]
@@ -41,15 +34,14 @@ def box_scenario(duration_s: float = 420.0):
     v["initial"] |= {"north": N0, "east": E0, "heading": 0}
     corners = [(LEG, 0.0), (LEG, LEG), (0.0, LEG), (0.0, 0.0)]
     v["mission"]["waypoints"] = [{"north": N0 + n, "east": E0 + e, "altitude": "18 km"} for n, e in corners]
-    return parse_scenario(data, "haps_box_3km_offset")
+    return data
 
 
 @pytest.fixture(scope="module")
-def box_log(tmp_path_factory):
-    path = tmp_path_factory.mktemp("box3") / "box3.mcap"
-    result = run_scenario(box_scenario(), path)
-    assert result.status in ("completed", "duration_elapsed"), result
-    return RunLog(path)
+def box_log(fly_in, scenario_data, tmp_path_factory):
+    run = fly_in(tmp_path_factory.mktemp("box3"), box_scenario(scenario_data("haps_box_mission")), "box3")
+    assert run.result.status in ("completed", "duration_elapsed"), run.result
+    return run.log
 
 
 @pytest.mark.closed_loop

@@ -193,7 +193,7 @@ def _build(cls: type, table: dict[str, Any], where: str) -> Any:
     for key, raw in table.items():
         name, factor = _field_name(key)
         kind = hints[name]
-        if is_dataclass(kind):
+        if isinstance(kind, type) and is_dataclass(kind):
             if not isinstance(raw, dict):
                 raise GainsError(f"{where}: [{key}] must be a table")
             values[name] = _build(kind, raw, f"{where} [{key}]")

@@ -60,7 +60,9 @@ class AvoidanceResult:
 
     @property
     def cost(self) -> float:
-        return float(self.costs.total[self.chosen]) if self.chosen is not None else float("nan")
+        if self.chosen is None or self.costs is None:
+            return float("nan")
+        return float(self.costs.total[self.chosen])
 
 
 def sweep_durations(

@@ -68,7 +68,7 @@ def timed_clearance(
 
 def with_rejoin_tail(
     points: np.ndarray, seg_vel: np.ndarray, tau: np.ndarray, seg_dt: np.ndarray, tail_vel: np.ndarray, horizon: float
-) -> tuple[np.ndarray, ...]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Segment arrays (starts, velocities, start times, durations) of K paths followed by the
     reference after the rejoin point, flown at ``tail_vel`` (3,) [m/s] until τ = ``horizon``."""
     end_t = tau[:, -1:]

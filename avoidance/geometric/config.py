@@ -110,7 +110,7 @@ class GeometricConfig:
       resumes the path when it is clear again.
     """
 
-    l: int = 4
+    l: int = 4  # noqa: E741 (the spec's symbol l, and the scenario key)
     n_planes: int = 3
     omega_factor: float = 3.2
     path_types: tuple[str, ...] = ("simple", "symmetric")

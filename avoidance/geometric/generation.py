@@ -22,11 +22,12 @@ from avoidance.geometric.frames import plane_angles, plane_elevation, uav_frame
 SIMPLE, SYMMETRIC = PATH_TYPES.index("simple"), PATH_TYPES.index("symmetric")
 
 
-def omega_grid(r_thr: float, l: int, factor: float = 3.2) -> np.ndarray:
-    """Lateral offsets ω [m]: linspace(-factor·R, factor·R, l+1) without |ω| <= R (eq. 3.6, G5)."""
+def omega_grid(r_thr: float, n_intervals: int, factor: float = 3.2) -> np.ndarray:
+    """Lateral offsets ω [m]: linspace(-factor·R, factor·R, l+1) without |ω| <= R, l =
+    ``n_intervals`` (eq. 3.6, G5)."""
     if not r_thr > 0:
         raise ValueError(f"threat radius must be > 0, got {r_thr!r}")
-    w = np.linspace(-factor * r_thr, factor * r_thr, l + 1)
+    w = np.linspace(-factor * r_thr, factor * r_thr, n_intervals + 1)
     return w[np.abs(w) > r_thr * (1.0 + 1e-12)]
 
 

@@ -30,11 +30,15 @@ import numpy as np
 from avoidance.geometric.avoider import AvoidanceResult, Status, path_clearance, plan_avoidance
 from avoidance.geometric.config import PATH_TYPES, GeometricConfig, VehicleParams
 from avoidance.geometric.conflict import find_main_threat
+from avoidance.geometric.generation import CandidateSet
+from avoidance.geometric.kinematics import Kinematics
 from avoidance.geometric.reference import ReferenceLine
 from avoidance.geometric.threats import Threat, ThreatArrays, inflate
 from sim.core.frames import enu_to_ned, ned_to_enu
 from sim.core.plan import Plan, PlanStatus, Threats
 from sim.core.state import VehicleState
+
+_Diagnostics = dict[str, float | int | str | None]  # None values are left out of the plan's diagnostics
 
 
 @dataclass(frozen=True, slots=True)
@@ -83,19 +87,28 @@ def sensed_threats(threats: Threats, t0: float, k_sigma: float) -> tuple[list[Th
     return out, ignored
 
 
-def _predicted(tid: str, p_ned, v_ned, radius: float, growth: float, age: float) -> Threat:
+def _predicted(tid: str, p_ned: np.ndarray, v_ned: np.ndarray, radius: float, growth: float, age: float) -> Threat:
     if not (np.isfinite(radius) and radius > 0):
         raise ValueError(f"threat {tid!r}: radius must be finite and > 0, got {radius!r}")
     v = ned_to_enu(v_ned)
     return Threat(tid, ned_to_enu(p_ned) + v * age, v, radius, growth)
 
 
-def _json(v):
+def _json(v: object) -> object:
     """Plain-JSON value: arrays to lists, NaN/inf to None."""
     a = np.asarray(v)
     if a.dtype.kind == "f":
-        return np.where(np.isfinite(a), a, None).tolist()
+        out = a.astype(object)
+        out[~np.isfinite(a)] = None
+        return out.tolist()
     return a.tolist()
+
+
+def _chosen(res: AvoidanceResult) -> tuple[CandidateSet, Kinematics, int]:
+    """The candidates, their kinematics and the chosen index of an ``AVOID`` result."""
+    if res.candidates is None or res.kinematics is None or res.chosen is None:
+        raise ValueError(f"a {res.status.value!r} result has no chosen candidate")
+    return res.candidates, res.kinematics, res.chosen
 
 
 class GeometricAvoider:
@@ -147,24 +160,25 @@ class GeometricAvoider:
         cfg = self.config
         s_now, cross = ref.project(pos)
         replan = ""
-        if self._commit is not None and not self._commit.passed(s_now, ref.length):
-            go, hold = self._commit_clearances(threats, t, estimate.pos_ned)
+        commit = self._commit
+        if commit is not None and not commit.passed(s_now, ref.length):
+            go, hold = self._commit_clearances(commit, threats, t, estimate.pos_ned)
             if go >= cfg.r_uav:
-                return self._with_diagnostics(self._commit.plan, {"status": "committed"}, t_start)
+                return self._with_diagnostics(commit.plan, {"status": "committed"}, t_start)
             replan = "invalid"
             if cross > cfg.replan_max_offset_m:  # candidates start on the reference, out of reach
-                diag = {"cross_track_m": cross, "clearance_go_m": go, "clearance_hold_m": hold}
+                diag: _Diagnostics = {"cross_track_m": cross, "clearance_go_m": go, "clearance_hold_m": hold}
                 if hold >= go:
                     return self._with_diagnostics(
                         self._hover_plan(t, estimate.pos_ned), {**diag, "status": "suspended"}, t_start
                     )
-                return self._with_diagnostics(self._commit.plan, {**diag, "status": "committed_unsafe"}, t_start)
+                return self._with_diagnostics(commit.plan, {**diag, "status": "committed_unsafe"}, t_start)
         self._commit = None
         v_along = min(max(float(vel @ ref.x_hat), 0.0), ref.speed)
         s_e = min(s_now + v_along * cfg.start_shift_s, ref.length)
         t_e = t + cfg.start_shift_s
         core, ignored = sensed_threats(threats, t_e, cfg.k_sigma)
-        base = {"cross_track_m": cross, "ignored_threats": ignored, "replan_reason": replan}
+        base: _Diagnostics = {"cross_track_m": cross, "ignored_threats": ignored, "replan_reason": replan}
         start = ref.point(s_e)
         ta = ThreatArrays.of(core)
         to_end = (ref.length - s_e) / ref.speed
@@ -193,8 +207,9 @@ class GeometricAvoider:
         if res.status is not Status.AVOID:
             return self._with_diagnostics(self._hover_plan(t, estimate.pos_ned), diag, t_start)
         diag |= {"chosen_index": res.chosen, "cost": res.cost}
-        plan = self._avoid_plan(t, s_now, s_e, t_e, res)
-        m = res.candidates.n_pts[res.chosen] + (s_e > s_now)  # [lead point +] the chosen path
+        cands, kin, k = _chosen(res)
+        plan = self._avoid_plan(t, s_now, s_e, t_e, cands, kin, k)
+        m = cands.n_pts[k] + (s_e > s_now)  # [lead point +] the chosen path
         pts = ned_to_enu(plan.positions[:m])
         self._commit = _Commitment(
             pts, (pts - ref.origin) @ ref.x_hat, plan.times[:m], plan, core[main.index].id, t_e + main.t_cpa
@@ -207,15 +222,18 @@ class GeometricAvoider:
         clear of the sensed threats with the rules used to choose it (the vehicle radius without
         ``select_margin_m``). False when nothing is committed or the rejoin point is passed."""
         c = self._commit
-        if c is None or c.passed(self.reference.project(ned_to_enu(pos_ned))[0], self.reference.length):
+        ref = self._require_reference()
+        if c is None or c.passed(ref.project(ned_to_enu(pos_ned))[0], ref.length):
             return False
-        return self._commit_clearances(threats, t, pos_ned)[0] >= self.config.r_uav
+        return self._commit_clearances(c, threats, t, pos_ned)[0] >= self.config.r_uav
 
-    def _commit_clearances(self, threats: Threats, t: float, pos_ned: np.ndarray) -> tuple[float, float]:
+    def _commit_clearances(
+        self, c: _Commitment, threats: Threats, t: float, pos_ned: np.ndarray
+    ) -> tuple[float, float]:
         """Smallest predicted clearances [m] to the sensed threats of (flying the rest of the
-        committed path re-timed to the vehicle's progress, holding position at ``pos_ned`` (NED
-        [m]) over the same time), from time ``t`` [s]."""
-        c, ref, cfg = self._commit, self.reference, self.config
+        committed path ``c`` re-timed to the vehicle's progress, holding position at ``pos_ned``
+        (NED [m]) over the same time), from time ``t`` [s]."""
+        ref, cfg = self._require_reference(), self.config
         here = ned_to_enu(pos_ned)
         pts, times = c.remaining(ref.project(here)[0])
         core, _ = sensed_threats(threats, t, cfg.k_sigma)
@@ -226,14 +244,16 @@ class GeometricAvoider:
         hold = path_clearance(np.vstack([here, here]), times[[0, -1]], ta, main_index, c.t_cpa - t, np.zeros(3), cfg)
         return go, hold
 
-    def candidate_log(self) -> dict | None:
+    def candidate_log(self) -> dict[str, object] | None:
         """The last planning event's candidates as plain lists/dicts (NED points K×N×3, n_pts,
         ω [m], θ/α [deg], type, availability, raw and normalised cost terms, total, choice,
         stage timings [s]); None before any candidates were generated."""
-        if self._last is None or self._last[1].candidates is None:
+        if self._last is None:
             return None
         t, res, core = self._last
-        c = res.candidates
+        c, available, clearance, costs = res.candidates, res.available, res.clearance, res.costs
+        if c is None or available is None or clearance is None or costs is None:
+            return None
         return {
             "t": t,
             "status": res.status.value,
@@ -246,11 +266,11 @@ class GeometricAvoider:
             "theta_deg": _json(np.degrees(c.theta)),
             "alpha_deg": _json(np.degrees(c.alpha)),
             "path_type": [PATH_TYPES[k] for k in c.kind],
-            "available": _json(res.available),
-            "min_clearance_m": _json(res.clearance.min(axis=1, initial=np.inf)),
-            "raw": {k: _json(v) for k, v in res.costs.raw.items()},
-            "normalised": {k: _json(v) for k, v in res.costs.normalised.items()},
-            "cost": _json(res.costs.total),
+            "available": _json(available),
+            "min_clearance_m": _json(clearance.min(axis=1, initial=np.inf)),
+            "raw": {k: _json(v) for k, v in costs.raw.items()},
+            "normalised": {k: _json(v) for k, v in costs.normalised.items()},
+            "cost": _json(costs.total),
             "timings_s": dict(res.timings),
         }
 
@@ -265,7 +285,7 @@ class GeometricAvoider:
         return self.reference
 
     def _reference_plan(self, t: float, s_now: float) -> Plan:
-        ref = self.reference
+        ref = self._require_reference()
         pos, times, idx, vel = ref.onward(s_now, t)
         first_v = enu_to_ned(ref.velocity) if len(idx) else np.zeros(3)
         return Plan(
@@ -289,13 +309,15 @@ class GeometricAvoider:
             self.name,
         )
 
-    def _avoid_plan(self, t: float, s_now: float, s_e: float, t_e: float, res: AvoidanceResult) -> Plan:
-        """[along-track point now (if the start was moved ahead)] + chosen path + rest of the reference."""
-        ref, k = self.reference, res.chosen
-        n = res.candidates.n_pts[k]
-        pts = res.candidates.points[k, :n]
-        vel = res.kinematics.wp_vel[k, :n]
-        times = t_e + res.kinematics.tau[k, :n]
+    def _avoid_plan(
+        self, t: float, s_now: float, s_e: float, t_e: float, cands: CandidateSet, kin: Kinematics, k: int
+    ) -> Plan:
+        """[along-track point now (if the start was moved ahead)] + candidate ``k`` + rest of the reference."""
+        ref = self._require_reference()
+        n = cands.n_pts[k]
+        pts = cands.points[k, :n]
+        vel = kin.wp_vel[k, :n]
+        times = t_e + kin.tau[k, :n]
         s_end, _ = ref.project(pts[-1])
         tail_pos, tail_t, tail_idx, tail_vel = ref.onward(s_end, times[-1])
         lead = s_e > s_now
@@ -311,7 +333,7 @@ class GeometricAvoider:
             self.name,
         )
 
-    def _with_diagnostics(self, plan: Plan, diag: dict, t_start: float) -> Plan:
-        d = {k: v for k, v in diag.items() if v is not None}
+    def _with_diagnostics(self, plan: Plan, diag: _Diagnostics, t_start: float) -> Plan:
+        d: dict[str, float | int | str] = {k: v for k, v in diag.items() if v is not None}
         d["t_total_s"] = time.perf_counter() - t_start
         return Plan(plan.t, plan.positions, plan.times, plan.labels, plan.status, plan.velocities, plan.planner, d)

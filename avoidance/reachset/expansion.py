@@ -118,7 +118,9 @@ class _Builder:
             )
         ids = np.arange(self.next_id, self.next_id + n)
         self.next_id += n
-        self.parent.append(b.id[par]), self.movement.append(mov), self.depth.append(b.depth[par] + 1)
+        self.parent.append(b.id[par])
+        self.movement.append(mov)
+        self.depth.append(b.depth[par] + 1)
         return _Batch(
             ids, samples[:, -1], att, sc[:, -1], b.depth[par] + 1, b.smooth[par] + (mov == M.STRAIGHT), sep, fp, tail
         )

@@ -71,7 +71,7 @@ class Decision:
     events: list[str]
     goal_index: int
     executing: int | None
-    buffer: list[int]
+    buffer: list[MovementType]
     pose: GridPose
     grid: AvoidanceGrid | None = None
     tree: ReachSetTree | None = None
@@ -115,7 +115,7 @@ class MissionControl:
         self.advance_on_reach = advance_on_reach
         self.goal = 0
         self.mode = Mode.NAVIGATION
-        self.buffer: list[int] = []
+        self.buffer: list[MovementType] = []
         self._segments: dict[int, SegmentPlanning] = {}
         self._cost_to_go: tuple[int, CostToGo] | None = None
 
@@ -286,7 +286,7 @@ class MissionControl:
         (D-18, :func:`least_threat_path`); alg. 6.6 there flew the kept course on towards them."""
         run = d.run
         node = plan.nodes[self.mode].get(tuple(self.buffer), -1) if self.buffer and d.selected >= 0 else -1
-        if node <= 0 or not run.fused.node_ok[node]:
+        if run is None or node <= 0 or not run.fused.node_ok[node]:
             return
         tree = plan.trees[self.mode]
         kept = dataclasses.replace(run.fused, node_ok=run.fused.node_ok & tree.subtree(node))
@@ -321,7 +321,10 @@ class MissionControl:
         else:
             d.runs, d.selected = emergency_runs(plan.grid, tree, parts, goal_lcf, threshold, steering, goal_cost)
             self._keep_course(d, plan, goal_lcf, steering, goal_cost, parts.intruder_motion)
-        run = d.run
+        chosen = d.run
+        if chosen is None:
+            raise RuntimeError("mission control: the grid run step made no run")
+        run = chosen
         if run.path.away:
             d.events.append("goal_in_turn_circle")
         if run.path.error == "waypoint not reachable" and self.goal < len(self.waypoints) - 1:

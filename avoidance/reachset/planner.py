@@ -102,7 +102,7 @@ class ReachSetAvoider:
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         """One decision frame per movement period; called more often, the last plan is returned
         until the frame is due (:meth:`frame_due`)."""
-        if not self.frame_due(t):
+        if self._last is not None and not self.frame_due(t):
             return self._last
         return self.decide(estimate, threats, t)
 
@@ -172,6 +172,8 @@ class ReachSetAvoider:
                 np.array([-1, ctl.goal]),
             )
         ref = d.reference
+        if ref is None:
+            raise RuntimeError(f"reach-set decision at t={d.t:g} s has no reference trajectory")
         ends = np.flatnonzero(ref.movement_end)
         gcf, times = ref.positions[ends], ref.times[ends]
         labels = np.full(len(gcf), -1)

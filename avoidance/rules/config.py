@@ -30,10 +30,11 @@ class RulesConfig:
     from which the own UAS takes part in cases (start transients of the estimator and the
     controller make early headings meaningless, and the head case fixes the roles);
     ``deadlock_frames`` frames in a row without a restricted navigation path before the peers go
-    to the emergency avoidance; ``plane_tolerance`` [unit] how far left of the right-plane a trajectory may reach (the plane
-    moves with the estimates: without slack every frame whose heading is a little left of the
-    line to the collision point disables all turns, docs/rules.md); ``time_margin`` [grid ranges at cruise]
-    how far ahead a closest approach opens a case; ``airspace`` ``uncontrolled`` (ball, 6.218)
+    to the emergency avoidance; ``plane_tolerance`` [unit] how far left of the right-plane a
+    trajectory may reach (the plane moves with the estimates: without slack every frame whose
+    heading is a little left of the line to the collision point disables all turns,
+    docs/rules.md); ``time_margin`` [grid ranges at cruise] how far ahead a closest approach
+    opens a case; ``airspace`` ``uncontrolled`` (ball, 6.218)
     or ``controlled`` (well-clear barrel of half height ``barrel_half_height`` [m], 6.219);
     ``navigation``: the planar separations of the ACAS-like navigation reach set the rules
     restrict (the [R] cooperative scenarios S9-S13 use ``horizontal``: a right-plane heading

@@ -21,8 +21,10 @@ from avoidance.utm.collision_case import CollisionCase
 from avoidance.utm.notification import PositionNotification
 
 if TYPE_CHECKING:
+    from avoidance.reachset.frames import GridPose
     from avoidance.reachset.gridrun import GridRun
     from avoidance.reachset.mission import Decision
+    from avoidance.reachset.tree import ReachSetTree
     from avoidance.rules.config import RulesConfig
 
 
@@ -63,6 +65,32 @@ class RuleContext:
     def unit(self) -> float:
         """The scale of the thesis' metre [m] (config)."""
         return self.cfg.unit
+
+    def current_case(self) -> CollisionCase:
+        """The case the running manoeuvre / restriction rule works on."""
+        if self.case is None:
+            raise RuntimeError("no collision case is selected")
+        return self.case
+
+    def current_decision(self) -> Decision:
+        """This frame's mission-control decision."""
+        if self.decision is None:
+            raise RuntimeError("the frame has no decision yet")
+        return self.decision
+
+    def current_run(self) -> GridRun:
+        """This frame's navigation run."""
+        if self.run is None:
+            raise RuntimeError("the frame has no navigation run yet")
+        return self.run
+
+    def navigation_tree(self) -> tuple[ReachSetTree, GridPose]:
+        """The reach-set tree of this frame's decision and the grid's pose (the restriction masks'
+        inputs)."""
+        d = self.current_decision()
+        if d.tree is None:
+            raise RuntimeError("the frame's decision has no reach-set tree")
+        return d.tree, d.pose
 
     def record(self, rule: str, case: CollisionCase | None = None, **info) -> None:
         """One rule decision: an event ``rule:<code>[:<own>-<peer>:<encounter>:<own role>]`` and a

@@ -34,8 +34,5 @@ class _RulesOptionsBase(ReachSetOptions):
         return self
 
 
-RulesOptions = create_model(
-    "RulesOptions",
-    __base__=_RulesOptionsBase,
-    **{f"rules_{name}": (Any, None) for name in RULES_FIELDS},  # typed and checked by RulesConfig
-)
+_RULES_FIELDS: dict[str, Any] = {f"rules_{name}": (Any, None) for name in RULES_FIELDS}  # checked by RulesConfig
+RulesOptions = create_model("RulesOptions", __base__=_RulesOptionsBase, **_RULES_FIELDS)

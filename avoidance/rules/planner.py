@@ -84,7 +84,7 @@ class RulesAvoider(ReachSetAvoider):
         return [own, *peers]
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
-        if not self.frame_due(t):
+        if self._last is not None and not self.frame_due(t):
             return self._last
         ctx = RuleContext(
             OWN,
@@ -109,8 +109,8 @@ class RulesAvoider(ReachSetAvoider):
         goal = max(ctl.goal, self.mission.next_index)
         override = ctx.goal_override if goal < len(ctl.waypoints) else None  # overtake: the rule's waypoint
         plan = self.decide(estimate, sensed, t, override, emergency_threats=threats)
-        d = self.last_decision
-        ctx.decision = d
+        ctx.decision = self.last_decision
+        d = ctx.current_decision()
         self.engine.invoke(DecisionPoint.AFTER_AVOIDANCE_RUN, ctx)
         self.emergency, self._deadlock_frames = ctx.emergency, ctx.deadlock_frames
         d.events.extend(ctx.events)

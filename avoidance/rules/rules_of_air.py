@@ -56,11 +56,11 @@ def _severity(case: CollisionCase):
 @dataclass(frozen=True)
 class DetectCollisionCases:
     """(tab. 6.10) Once the own UAS has flown ``settle`` seconds and reached
-    ``established_speed`` of its cruise speed (before, at the start, headings say nothing), update the case book from this frame's
-    notifications (the peers whose pair
-    could be assessed are managed by the rules, the rest stay intruders), re-target roundabout
-    members, report unresolved cases (separation below the case margin: handed to the
-    emergency avoidance), select the own cases to resolve (own role gives way) by severity."""
+    ``established_speed`` of its cruise speed (before, at the start, headings say nothing),
+    update the case book from this frame's notifications (the peers whose pair could be
+    assessed are managed by the rules, the rest stay intruders), re-target roundabout members,
+    report unresolved cases (separation below the case margin: handed to the emergency
+    avoidance), select the own cases to resolve (own role gives way) by severity."""
 
     code: str = "detect"
     point: DecisionPoint = DecisionPoint.BEFORE_AVOIDANCE_RUN
@@ -130,11 +130,11 @@ class ResolveCollisionCase:
         ctx.case = None
         points = [c.collision_point for c in ctx.resolve if c.encounter != Encounter.OVERTAKE]
         if ctx.disabled is not None and ctx.cfg.widest and points:  # of what is left, the widest berth per cell
-            d = ctx.decision
-            feasible = ctx.run.fused.node_ok & ~ctx.disabled
+            tree, pose = ctx.navigation_tree()
+            feasible = ctx.current_run().fused.node_ok & ~ctx.disabled
             ctx.disable(
                 "widest",
-                widest_per_cell(d.tree, feasible, path_clearance(d.tree, d.pose, np.array(points))),
+                widest_per_cell(tree, feasible, path_clearance(tree, pose, np.array(points))),
                 ctx.resolve[0],
             )
 
@@ -154,8 +154,9 @@ class Manoeuvre:
 
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
         extra = ctx.cfg.converging_extra if self.role == Role.CONVERGING else 0.0
-        ctx.margin = ctx.case.margin + (ctx.cfg.bloat + extra) * ctx.unit
-        ctx.record(self.code, ctx.case, margin_m=ctx.margin)
+        case = ctx.current_case()
+        ctx.margin = case.margin + (ctx.cfg.bloat + extra) * ctx.unit
+        ctx.record(self.code, case, margin_m=ctx.margin)
         engine.call("right_plane_heading", ctx)
         engine.call("safety_margin", ctx)
 
@@ -174,8 +175,8 @@ class Overtake:
         return ctx.case is not None and ctx.case.role_of(ctx.uas) == Role.OVERTAKING
 
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
-        case = ctx.case
-        peer = next(n for n in ctx.notifications if n.id == case.other(ctx.uas)).adjusted(ctx.decision.t_grid)
+        case = ctx.current_case()
+        peer = next(n for n in ctx.notifications if n.id == case.other(ctx.uas)).adjusted(ctx.current_decision().t_grid)
         ctx.margin = case.margin + ctx.cfg.bloat * ctx.unit
         ctx.record(self.code, case, margin_m=ctx.margin)
         ctx.case = replace(case, collision_point=peer.pos)
@@ -216,9 +217,10 @@ class RightPlaneHeading:
         return ctx.case is not None and ctx.run is not None
 
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
-        d = ctx.decision
-        mask = right_plane_heading_mask(d.tree, d.pose, ctx.case.collision_point, ctx.cfg.plane_tolerance * ctx.unit)
-        ctx.disable(self.code, mask, ctx.case)
+        tree, pose = ctx.navigation_tree()
+        case = ctx.current_case()
+        mask = right_plane_heading_mask(tree, pose, case.collision_point, ctx.cfg.plane_tolerance * ctx.unit)
+        ctx.disable(self.code, mask, case)
 
 
 @dataclass(frozen=True)
@@ -236,14 +238,14 @@ class EnforceSafetyMargin:
         return ctx.case is not None and ctx.run is not None
 
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
-        d, case = ctx.decision, ctx.case
+        (tree, pose), case = ctx.navigation_tree(), ctx.current_case()
         half = ctx.cfg.barrel_half_height if ctx.cfg.airspace == "controlled" else None
         tol = ctx.cfg.plane_tolerance * ctx.unit
-        mask = safety_margin_mask(d.tree, d.pose, case.collision_point, ctx.margin, half, tol)
+        mask = safety_margin_mask(tree, pose, case.collision_point, ctx.margin, half, tol)
         peer = next((n for n in ctx.notifications if n.id == case.other(ctx.uas)), None)
         if peer is not None:  # and around the peer flying on (its separation, not only the point's)
-            p = peer.adjusted(d.t_grid)
-            mask |= moving_margin_mask(d.tree, d.pose, p.pos, p.vel, case.margin + ctx.cfg.bloat * ctx.unit, tol)
+            p = peer.adjusted(ctx.current_decision().t_grid)
+            mask |= moving_margin_mask(tree, pose, p.pos, p.vel, case.margin + ctx.cfg.bloat * ctx.unit, tol)
         ctx.disable(self.code, mask, case)
 
 
@@ -262,7 +264,7 @@ class CloseCollisionCases:
         return bool(ctx.resolve) and ctx.decision is not None
 
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
-        d = ctx.decision
+        d = ctx.current_decision()
         ctx.deadlock_frames = ctx.deadlock_frames + 1 if ctx.path_found is False else 0
         if ctx.path_found is False:
             handover = ctx.deadlock_frames >= ctx.cfg.deadlock_frames

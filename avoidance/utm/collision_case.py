@@ -183,16 +183,17 @@ def compute_collision_case(
     n1: PositionNotification, n2: PositionNotification, t: float, cfg: UtmConfig = UtmConfig()
 ) -> CollisionCase | None:
     """The case of the pair at frame time ``t`` [s], or None when they cannot meet (different
-    flight levels) or one of them hovers (below ``min_speed``). ``flagged`` is set when the closest approach (trajectory intersection when
-    both predictions are known, else linear) lies in [0, time_margin] and within the collision
-    margin (6.186)."""
+    flight levels) or one of them hovers (below ``min_speed``). ``flagged`` is set when the
+    closest approach (trajectory intersection when both predictions are known, else linear) lies
+    in [0, time_margin] and within the collision margin (6.186)."""
     if not n1.shares_level(n2) or min(n1.speed, n2.speed) < cfg.min_speed:
         return None
     a1, a2 = n1.adjusted(t), n2.adjusted(t)
     t_cpa, dist, cp = closest_approach(a1.pos, a1.vel, a2.pos, a2.vel)
     trajectory = False
-    if a1.trajectory is not None and a2.trajectory is not None:
-        times = np.union1d(a1.trajectory_t, a2.trajectory_t)
+    t1, t2 = a1.trajectory_t, a2.trajectory_t
+    if a1.trajectory is not None and a2.trajectory is not None and t1 is not None and t2 is not None:
+        times = np.union1d(t1, t2)
         times = times[(times >= t) & (times <= t + cfg.time_margin)]
         if len(times) > 1:
             p1 = np.stack([a1.adjusted(s).pos for s in times])

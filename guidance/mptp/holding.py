@@ -42,10 +42,12 @@ def holding_orbit(
         pts, times, courses = [np.asarray(p0, float)], [t0], [course0]
         for leg in range(n_legs):
             q, chi = aux_states(pts[-1], courses[-1], cfg, sense, from_start=leg == 0)
-            pts.append(q[0]), times.append(times[-1] + cfg.dt_s), courses.append(float(chi[0]))
-        pts, times = np.array(pts), np.array(times)
-        if not _leg_conflicts(tl, pts, times):
-            return pts, times, np.array(courses)
+            pts.append(q[0])
+            times.append(times[-1] + cfg.dt_s)
+            courses.append(float(chi[0]))
+        p_arr, t_arr = np.array(pts), np.array(times)
+        if not _leg_conflicts(tl, p_arr, t_arr):
+            return p_arr, t_arr, np.array(courses)
     return None
 
 

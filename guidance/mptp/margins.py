@@ -52,7 +52,7 @@ def is_line_of_storms(hulls: np.ndarray, aspect: float) -> np.ndarray:
     for i, r in enumerate(rect):
         c = np.asarray(r.exterior.coords) if isinstance(r, Polygon) else None
         if c is not None and len(c) >= 4:
-            a, b = np.linalg.norm(c[1] - c[0]), np.linalg.norm(c[2] - c[1])
+            a, b = float(np.linalg.norm(c[1] - c[0])), float(np.linalg.norm(c[2] - c[1]))
             out[i] = max(a, b) >= aspect * max(min(a, b), 1e-9)
     return out
 

@@ -97,14 +97,9 @@ class MptpPlanner:
             )
         k = m.next_index
         issue = tuple((id(s), s.t) for s in threats.storms)
-        due = (
-            self.plan_ is None
-            or k != self._goal_index
-            or issue != self._issue
-            or t - self._t_plan >= self.cfg.replan_period_s - 1e-9
-        )
+        due = k != self._goal_index or issue != self._issue or t - self._t_plan >= self.cfg.replan_period_s - 1e-9
         self._issue = issue
-        if due:
+        if self.plan_ is None or due:
             self.plan_ = self._replan(estimate, threats.storms or [StormSnapshot(t, ())], t, k)
             self._t_plan, self._goal_index = t, k
         return self.plan_

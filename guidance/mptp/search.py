@@ -55,7 +55,7 @@ class Trajectory:
     status: str
     expanded: int
     runtime_s: float
-    start_space: FreeSpace
+    start_space: FreeSpace | None  # None when the start state was never expanded
 
     @property
     def length_m(self) -> float:

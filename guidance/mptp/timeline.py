@@ -24,6 +24,7 @@ from __future__ import annotations
 import itertools
 import math
 from functools import lru_cache
+from typing import overload
 
 import numpy as np
 import shapely
@@ -122,7 +123,12 @@ class ObstacleTimeline:
         return _PairSet(ta, tb, seqs, self.drift, self.t_issue)
 
     # --- queries ------------------------------------------------------------------------------
-    def level_time(self, j: int) -> float:
+    @overload
+    def level_time(self, j: int) -> float: ...
+    @overload
+    def level_time(self, j: np.ndarray) -> np.ndarray: ...
+    def level_time(self, j: int | np.ndarray) -> float | np.ndarray:
+        """Start time [s] of planning interval(s) ``j``."""
         return self.t_issue + j * self.dt
 
     def interval(self, t: np.ndarray | float) -> np.ndarray:

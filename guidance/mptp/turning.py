@@ -38,7 +38,7 @@ def bearing(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     return np.arctan2(d[..., 1], d[..., 0])
 
 
-def min_leg_m(dchi: np.ndarray, cfg: MptpConfig, to_goal: np.ndarray | bool = False) -> np.ndarray:
+def min_leg_m(dchi: np.ndarray | float, cfg: MptpConfig, to_goal: np.ndarray | bool = False) -> np.ndarray:
     """Shortest admissible leg [m] after a course change ``dchi`` [rad]."""
     reserve = np.where(to_goal, 0.0, math.tan(0.5 * cfg.course_change_max))
     return cfg.turn_radius_m * (np.tan(0.5 * np.abs(dchi)) + reserve)
@@ -141,7 +141,8 @@ def flyby_path(points: np.ndarray, course0: float, radius: float, step_deg: floa
         leg_in = float(np.linalg.norm(target - pos))
         if lead > leg_in + 1e-6 or lead > np.linalg.norm(points[i + 1] - target) + 1e-6:
             raise ValueError(f"the fly-by at state {i} does not fit its legs")
-        pos, chi = target - lead * _unit(chi_in), float(chi_in)
+        chi = float(chi_in)
+        pos = target - lead * _unit(chi)
         out.append(pos)
         n = int(abs(dchi) / step)
         for _ in range(n):

@@ -241,15 +241,16 @@ def trap(name: str, doc: str, duration: float) -> str:
 
 
 S6_DOC = """Spec §9.3 S6 (emergency converging, non-cooperative, [R] NS025-031) at L = 5 m: two JSBSim
-quadrotors with the reach-set avoider (ACAS-like horizontal reach sets, as the thesis), each sensing the other only through the surveillance
-model (ADS-B reports -> Kalman track -> intruder line + body + time model), no UTM. Thesis: initial
+quadrotors with the reach-set avoider (ACAS-like horizontal reach sets, as the thesis), each
+sensing the other only through the surveillance model (ADS-B reports -> Kalman track -> intruder
+line + body + time model), no UTM. Thesis: initial
 distance 28.3 m (141 m here), minimum ~2.9 m (14.5 m) at ~18 s, ~38 s. Pass: minimum separation
 above the 1.2 m line x5 = 6 m; both complete."""
 
 S7_DOC = """Spec §9.3 S7 (emergency head-on, non-cooperative, [R] NS032-038) at L = 5 m: two JSBSim
-quadrotors flying at each other (3-D harmonic / combined reach sets; the thesis: harmonic), each sensing the other only through the surveillance model.
-Thesis: minimum ~1.6 m (8 m here) at ~20 s, ~39 s. Pass: minimum separation above 1.2 m x5 = 6 m;
-both complete."""
+quadrotors flying at each other (3-D harmonic / combined reach sets; the thesis: harmonic), each
+sensing the other only through the surveillance model. Thesis: minimum ~1.6 m (8 m here) at
+~20 s, ~39 s. Pass: minimum separation above 1.2 m x5 = 6 m; both complete."""
 
 
 INTRUDER_MARGIN = 1.0 * SCALE - 0.45  # the thesis' 1 m intruder body x5, less the quadrotor's own 0.45 m

@@ -40,6 +40,7 @@ from typing import Literal
 
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
+from numpy.typing import ArrayLike
 from pydantic import Field
 
 from sim.core.constants import STANDARD_GRAVITY
@@ -350,7 +351,10 @@ class InsEkf:
         state, so this equals sequential updates to first order). Each is back-shifted by its
         lag (filter time - time of validity): GNSS as in :meth:`fuse_gnss`, baro height by
         ``v_D lag``. Returns the number of rows fused."""
-        zs, hs, Hs, rs = [], [], [], []
+        zs: list[ArrayLike] = []  # measured values
+        hs: list[ArrayLike] = []  # their predictions
+        Hs: list[np.ndarray] = []  # their Jacobians
+        rs: list[ArrayLike] = []  # their noise variances
         nav = self.nav
         for z in measurements:
             tz = type(z)

@@ -25,9 +25,11 @@ as one averaged record per fusion interval), :meth:`three_sigma`, :meth:`biases`
 from __future__ import annotations
 
 import math
-from typing import Literal
+from dataclasses import replace
+from typing import Any, Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 from pydantic import Field, model_validator
 
 from sim.core.state import VehicleState
@@ -39,9 +41,9 @@ from sim.sensors.baro import BaroConfig
 from sim.sensors.config import SensorConfigError, StrictConfig
 from sim.sensors.faults import SensorFault
 from sim.sensors.gnss import GnssConfig
-from sim.sensors.imu import ImuConfig
+from sim.sensors.imu import Imu, ImuConfig
 from sim.sensors.magnetometer import MagnetometerConfig
-from sim.sensors.measurements import AirspeedSample, BaroSample, GnssFix, MagSample
+from sim.sensors.measurements import AirspeedSample, BaroSample, GnssFix, MagSample, Measurement
 from sim.sensors.suite import SensorSuite, SensorSuiteConfig
 from sim.sensors.truth import TruthSampler
 
@@ -85,10 +87,8 @@ class SensorEstimatorConfig(StrictConfig):
     perturb_initial: bool = True
 
     @model_validator(mode="after")
-    def _check(self):
-        if self.sensors.imu is None:
-            raise ValueError("sensors.imu is required (the filter is IMU-driven)")
-        imu = self.sensors.imu.rate_hz
+    def _check(self) -> SensorEstimatorConfig:
+        imu = self.sense_hz
         k = imu / self.fusion_hz
         if abs(k - round(k)) > 1e-9 or round(k) < 1:
             raise ValueError(f"fusion_hz ({self.fusion_hz:g}) must divide the IMU rate ({imu:g} Hz)")
@@ -97,6 +97,8 @@ class SensorEstimatorConfig(StrictConfig):
     @property
     def sense_hz(self) -> float:
         """Rate of the ``sense`` task: the IMU rate [Hz]."""
+        if self.sensors.imu is None:
+            raise ValueError("sensors.imu is required (the filter is IMU-driven)")
         return self.sensors.imu.rate_hz
 
     def ekf_config(self) -> InsEkfConfig:
@@ -149,7 +151,7 @@ class SensorEstimatorConfig(StrictConfig):
         return cls.build(**(base | overrides))
 
 
-def _floats(v) -> list[float]:
+def _floats(v: ArrayLike) -> list[float]:
     """Plain floats of a vector (``tolist`` is ~10x faster than a comprehension)."""
     return np.asarray(v, dtype=float).tolist()
 
@@ -177,24 +179,25 @@ class SensorEstimator:
         r_suite, r_init = rng.spawn(2)
         self.suite = SensorSuite(config.sensors, r_suite)
         s = self.suite.sensors
-        self.imu = s["imu"]
+        imu = s.get("imu")
+        if not isinstance(imu, Imu):
+            raise SensorConfigError("SensorEstimator: sensors.imu is required (the filter is IMU-driven)")
+        self.imu = imu
         self._aiding = [x for n, x in s.items() if n != "imu"]
         ecfg = config.ekf_config()
         if config.local_gravity:
             ecfg = ecfg.model_copy(update={"gravity_mps2": normal_gravity(origin.lat_deg, initial.alt_msl_m)})
         init = initial
         if config.perturb_initial:
-            init = VehicleState(**{f: getattr(initial, f) for f in VehicleState.__slots__})
-            init.pos_ned = initial.pos_ned + r_init.normal(0.0, ecfg.init_pos_std_m, 3)
-            init.vel_ned = initial.vel_ned + r_init.normal(0.0, ecfg.init_vel_std_mps, 3)
-            init.euler = initial.euler + r_init.normal(0.0, 1.0, 3) * [
-                ecfg.init_tilt_std_rad,
-                ecfg.init_tilt_std_rad,
-                ecfg.init_yaw_std_rad,
-            ]
+            tilt, yaw = ecfg.init_tilt_std_rad, ecfg.init_yaw_std_rad
+            init = replace(  # drawn in this order: position, velocity, attitude
+                initial,
+                pos_ned=initial.pos_ned + r_init.normal(0.0, ecfg.init_pos_std_m, 3),
+                vel_ned=initial.vel_ned + r_init.normal(0.0, ecfg.init_vel_std_mps, 3),
+                euler=initial.euler + r_init.normal(0.0, 1.0, 3) * [tilt, tilt, yaw],
+            )
         self.ekf = InsEkf(ecfg, init, origin)
-        pm = plant.fdm.get_property_manager()
-        self._imu_nodes = [pm.get_node(p, False) for p in _IMU_PROPS]
+        self._imu_nodes = plant.property_nodes(_IMU_PROPS)
         self._truth = TruthSampler(plant)
         self._imu_period = 1.0 / config.sense_hz
         self._fuse_period = 1.0 / config.fusion_hz
@@ -203,10 +206,9 @@ class SensorEstimator:
         self._aid_next = -math.inf
         self._t_sensed = -math.inf
         self._block: list[tuple[float, ...]] = []
-        self._prev: np.ndarray | None = None  # newest measured IMU sample of the previous interval
-        self._t_fused: float | None = None
-        self._inbox: list = []
-        self._log: dict[str, list[dict]] = {}
+        self._fused: tuple[float, np.ndarray] | None = None  # last fusion time [s], its newest IMU sample
+        self._inbox: list[Measurement] = []
+        self._log: dict[str, list[Any]] = {}  # per sensor: "imu" (t, dt, mean) tuples, the others measurements
         self._cache: tuple[float, int, VehicleState] | None = None
         self._n_fusions = 0
 
@@ -252,17 +254,15 @@ class SensorEstimator:
 
     # -- internals ----------------------------------------------------------------------------
     def _poll_aiding(self, t: float) -> None:
-        due = any(t + _EPS >= s._next_k * s._period for s in self._aiding)
-        truth = self._truth.sample() if due else _Instant(t)  # deliveries only: no truth needed
+        due = any(t + _EPS >= s.next_sample_t() for s in self._aiding)
+        truth = self._truth.sample() if due else None  # deliveries only: no truth needed
         nxt = math.inf
         for s in self._aiding:
-            out = s.poll(truth)
+            out = s.poll(truth) if truth is not None else s.deliver(t)
             if out:
                 self._inbox.extend(out)
                 self._log.setdefault(s.name, []).extend(out)
-            nxt = min(nxt, s._next_k * s._period)
-            if s._pending:
-                nxt = min(nxt, s._pending[0][0])
+            nxt = min(nxt, s.next_sample_t(), s.next_delivery_t())
         self._aid_next = nxt
 
     def _fuse(self, t: float) -> None:
@@ -270,19 +270,19 @@ class SensorEstimator:
         self._block.clear()
         ts, y = self.imu.measure_block(block[:, 0], block[:, 1:], self._imu_period)
         if len(ts):
-            if self._t_fused is None:  # first sample: the start of the first interval
+            if self._fused is None:  # first sample: the start of the first interval
                 self.ekf.t = t
             else:  # trapezoid over [previous interval's last sample, this one's samples]
-                mean = (y.sum(axis=0) - 0.5 * y[-1] + 0.5 * self._prev) / len(ts)
-                dt = t - self._t_fused
+                t_prev, prev = self._fused
+                mean = (y.sum(axis=0) - 0.5 * y[-1] + 0.5 * prev) / len(ts)
+                dt = t - t_prev
                 self.ekf.predict_mean(mean[:3], mean[3:], dt, t, y[-1, 3:])
                 self._log.setdefault("imu", []).append((t, dt, mean))  # converted on demand
-            self._prev = y[-1].copy()
-            self._t_fused = t
-        elif self._t_fused is not None:  # IMU dropout: coast on the previous average
-            prev = self._prev if self._prev is not None else np.array([0.0, 0.0, -self.ekf.cfg.gravity_mps2, 0, 0, 0])
-            self.ekf.predict_mean(prev[:3], prev[3:], t - self._t_fused, t, prev[3:])
-            self._t_fused = t
+            self._fused = (t, y[-1].copy())
+        elif self._fused is not None:  # IMU dropout: coast on the previous interval's last sample
+            t_prev, prev = self._fused
+            self.ekf.predict_mean(prev[:3], prev[3:], t - t_prev, t, prev[3:])
+            self._fused = (t, prev)
         if self._inbox:
             self.ekf.fuse_batch(self._inbox)
             self._inbox.clear()
@@ -318,24 +318,13 @@ class SensorEstimator:
         return {"accel": _floats(nav.ba), "gyro": _floats(nav.bg), "baro": [float(nav.bb)], "gnss_gm": _floats(nav.gm)}
 
 
-class _Instant:
-    """Stands in for a truth sample when sensors only deliver (``SampledSensor.poll`` reads
-    ``t`` alone then)."""
-
-    __slots__ = ("t",)
-
-    def __init__(self, t: float):
-        self.t = t
-
-
-def _record(z) -> dict:
-    tz = type(z)
-    if tz is GnssFix:
+def _record(z: Measurement) -> dict[str, Any]:
+    if type(z) is GnssFix:
         return {"t": z.t, "pos_ned": _floats(z.pos_ned), "vel_ned": _floats(z.vel_ned)}
-    if tz is BaroSample:
+    if type(z) is BaroSample:
         return {"t": z.t, "pressure_pa": float(z.pressure_pa)}
-    if tz is AirspeedSample:
+    if type(z) is AirspeedSample:
         return {"t": z.t, "diff_pressure_pa": float(z.diff_pressure_pa)}
-    if tz is MagSample:
+    if type(z) is MagSample:
         return {"t": z.t, "field_body_ut": _floats(z.field_body_ut)}
     raise TypeError(f"unexpected measurement {z!r}")

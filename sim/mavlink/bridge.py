@@ -8,9 +8,19 @@ the configured GCS address. Identity: system id from :class:`LinkConfig`, compon
 (MAV_COMP_ID_AUTOPILOT1), MAV_AUTOPILOT_GENERIC.
 
 Per tick the runner calls :meth:`VehicleLink.publish` (rate limited inside by sim time) and
-:meth:`VehicleLink.poll` (non-blocking, returns typed commands). Nothing a peer sends can make
-either raise: malformed or unexpected packets are counted in :attr:`VehicleLink.stats` by kind and
-reported through ``on_event(text, level)`` (first occurrence of a kind, then at counts 10, 100...).
+:meth:`VehicleLink.poll` (non-blocking, returns typed commands; at most
+at most ``_MAX_DATAGRAMS_PER_POLL`` datagrams and ``_MAX_BYTES_PER_POLL`` bytes to parse are
+read per call, the rest waits for the next tick).
+Nothing a peer sends can make either raise: malformed, unexpected or unauthorised packets are
+counted in :attr:`VehicleLink.stats` by kind and summarised through ``on_event(text, level)`` at
+most once per second of wall time.
+
+Authority: commands, SET_MODE, mission uploads/clears and position targets are obeyed only from
+the configured ground station (``gcs_system_id``, and ``gcs_component_id`` unless ``None``), and
+only once a HEARTBEAT from it has arrived; others are refused (COMMAND_ACK DENIED, MISSION_ACK
+DENIED, targets dropped). Reads (telemetry requests, mission download, parameters) are answered
+to anyone. With a ``signing_key`` only frames signed with it are decoded at all. Every mission
+item and position target must lie in the link's :class:`~sim.mavlink.envelope.Envelope`.
 """
 
 from __future__ import annotations
@@ -21,7 +31,7 @@ import socket
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Self
 
 import numpy as np
@@ -29,17 +39,21 @@ from pymavlink.dialects.v20 import common as mav
 
 from sim.core.state import VehicleState
 from sim.core.threats import IntruderTrack
-from sim.geodesy import GeoPoint
+from sim.geodesy import GeoPoint, geodetic_to_ned
 from sim.mavlink import telemetry as tlm
+from sim.mavlink.anomalies import AnomalyCounter, EventFn
 from sim.mavlink.commands import Arm, Command, MissionUpload, PositionTarget, SetMode
 from sim.mavlink.datagram import DECODE_ERRORS, decode_datagram
+from sim.mavlink.envelope import Envelope, Refusal
 from sim.mavlink.mission import MissionServer, Reply, Waypoint
 from sim.mavlink.modes import MODES, decode_mode
+from sim.mavlink.signing import signing_state
 
 COMPONENT_ID = mav.MAV_COMP_ID_AUTOPILOT1
-EventFn = Callable[[str, str], None]  # (text, level in "debug" | "info" | "warning" | "error")
 
-_MAX_DATAGRAMS_PER_POLL = 256
+_MAX_DATAGRAMS_PER_POLL = 32
+_MAX_DATAGRAM_BYTES = 1024  # a MAVLink 2 frame is at most 280 bytes; larger datagrams are dropped unparsed
+_MAX_BYTES_PER_POLL = 8192
 _FORCE_ARM_MAGIC = 21196
 _MISSION_MESSAGES = {
     "MISSION_COUNT",
@@ -50,6 +64,18 @@ _MISSION_MESSAGES = {
     "MISSION_REQUEST",
     "MISSION_CLEAR_ALL",
     "MISSION_ACK",
+}
+# messages that change the vehicle: only from the authorised ground station
+_CONTROL_MESSAGES = {
+    "COMMAND_LONG",
+    "COMMAND_INT",
+    "SET_MODE",
+    "SET_POSITION_TARGET_LOCAL_NED",
+    "MISSION_COUNT",
+    "MISSION_ITEM_INT",
+    "MISSION_ITEM",
+    "MISSION_CLEAR_ALL",
+    "PARAM_SET",
 }
 _ACCEL_BITS = (
     mav.POSITION_TARGET_TYPEMASK_AX_IGNORE
@@ -65,9 +91,13 @@ class LinkConfig:
     ``vehicle_type``: the airframe kind, ``"fixed_wing"`` (MAV_TYPE_FIXED_WING) or
     ``"multirotor"`` (MAV_TYPE_QUADROTOR). ``rate_hz``: telemetry rate in sim time (SYS_STATUS,
     ATTITUDE, GLOBAL_POSITION_INT, VFR_HUD, MISSION_CURRENT, ADSB_VEHICLE); HEARTBEAT goes at
-    ``heartbeat_hz``. ``bind_host`` ``None``: loopback when the GCS is on loopback, else all
-    interfaces; ``bind_port`` 0 = any free port. Mission upload retry timer: ``mission_timeout_s``
-    of wall time per request, ``mission_retries`` repeats. IPv4 only."""
+    ``heartbeat_hz``. ``bind_host``: the local interface (IPv4 address); ``None`` = loopback,
+    which then requires a loopback ``gcs_host`` (a non-loopback bind must be asked for);
+    ``bind_port`` 0 = any free port. The ground station obeyed: ``gcs_system_id`` /
+    ``gcs_component_id`` (``None``: any component of that system). ``signing_key``: 32-byte
+    MAVLink 2 signing key (``None``: no signing; never shown in a repr). Mission upload retry
+    timer: ``mission_timeout_s`` of wall time per request, ``mission_retries`` repeats. IPv4
+    only."""
 
     system_id: int
     vehicle_type: str = "fixed_wing"
@@ -79,10 +109,17 @@ class LinkConfig:
     heartbeat_hz: float = 1.0
     mission_timeout_s: float = 1.5
     mission_retries: int = 5
+    gcs_system_id: int = 255
+    gcs_component_id: int | None = None
+    signing_key: bytes | None = field(default=None, repr=False)
 
     def __post_init__(self):
         if not 1 <= self.system_id <= 254:
             raise ValueError(f"MAVLink system id must be 1..254, got {self.system_id}")
+        if not 1 <= self.gcs_system_id <= 255 or self.gcs_system_id == self.system_id:
+            raise ValueError(f"GCS system id must be 1..255 and not the vehicle's, got {self.gcs_system_id}")
+        if self.signing_key is not None and len(self.signing_key) != 32:
+            raise ValueError("MAVLink signing key must be 32 bytes")
         if self.vehicle_type not in tlm.MAV_TYPES:
             raise ValueError(f"vehicle_type must be one of {sorted(tlm.MAV_TYPES)}, got {self.vehicle_type!r}")
         if not (self.rate_hz > 0.0 and self.heartbeat_hz > 0.0):
@@ -116,8 +153,21 @@ class _Every:
         return True
 
 
-def _bind_host(gcs_ip: str) -> str:
-    return "127.0.0.1" if ipaddress.ip_address(gcs_ip).is_loopback else "0.0.0.0"
+def _addresses(config: LinkConfig) -> tuple[tuple[str, int], str]:
+    """(GCS address, local interface) of ``config``; ValueError with one line when the GCS host
+    does not resolve or is off loopback without an explicit ``bind_host``."""
+    try:
+        gcs_ip = socket.gethostbyname(config.gcs_host)
+    except (OSError, UnicodeError) as exc:
+        raise ValueError(f"MAVLink gcs_host {config.gcs_host!r} does not resolve: {exc}") from None
+    if config.bind_host is not None:
+        return (gcs_ip, config.gcs_port), config.bind_host
+    if not ipaddress.ip_address(gcs_ip).is_loopback:
+        raise ValueError(
+            f"MAVLink gcs_host {config.gcs_host!r} is not on loopback: set bind_host to the interface to expose "
+            "the vehicle on (e.g. 0.0.0.0)"
+        )
+    return (gcs_ip, config.gcs_port), "127.0.0.1"
 
 
 def _finite_int(x: float) -> int | None:
@@ -128,27 +178,38 @@ class VehicleLink:
     """The MAVLink endpoint of one vehicle (see the module docstring)."""
 
     def __init__(
-        self, config: LinkConfig, on_event: EventFn | None = None, clock: Callable[[], float] = time.monotonic
+        self,
+        config: LinkConfig,
+        on_event: EventFn | None = None,
+        clock: Callable[[], float] = time.monotonic,
+        envelope: Envelope | None = None,
     ):
+        """``envelope``: where mission items and position targets may be (``None``: anywhere
+        finite on the globe)."""
         self.config = config
         self.sysid = config.system_id
+        self.envelope = envelope
         self._on_event = on_event
         self._clock = clock
-        self._gcs = (socket.gethostbyname(config.gcs_host), config.gcs_port)
+        self._gcs, bind_host = _addresses(config)
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
-            self._sock.bind((config.bind_host or _bind_host(self._gcs[0]), config.bind_port))
+            self._sock.bind((bind_host, config.bind_port))
         except OSError:
             self._sock.close()
             raise
         self._sock.setblocking(False)
         self._m = mav.MAVLink(None, self.sysid, COMPONENT_ID)
-        self.stats: Counter[str] = Counter()
+        self._signing = signing_state(config.signing_key) if config.signing_key is not None else None
+        if self._signing is not None:
+            self._m.signing = self._signing
+        self._anomalies = AnomalyCounter(self._event, clock)
         self.packets_rx = 0
         self.packets_tx = 0
         self.gcs_peers: set[tuple[int, int]] = set()
+        self.gcs_heard = False  # a HEARTBEAT from the authorised ground station has arrived
         self.mission = MissionServer(
-            self._m, self._anomaly, self._event, config.mission_timeout_s, config.mission_retries
+            self._m, self._anomaly, self._event, config.mission_timeout_s, config.mission_retries, self._check_item
         )
         self._heartbeat = _Every(1.0 / config.heartbeat_hz)
         self._telemetry = _Every(1.0 / config.rate_hz)
@@ -166,10 +227,16 @@ class VehicleLink:
         """(host, port) the link sends from and receives on."""
         return self._sock.getsockname()
 
+    @property
+    def stats(self) -> Counter[str]:
+        """Anomalies so far, by kind."""
+        return self._anomalies.stats
+
     def close(self) -> None:
         if not self.closed:
             self.closed = True
             self._sock.close()
+            self._anomalies.flush(force=True)
 
     def __enter__(self) -> Self:
         return self
@@ -181,7 +248,7 @@ class VehicleLink:
     def set_mission(self, waypoints: Sequence[Waypoint]) -> None:
         """The mission a GCS download returns: (lat [deg], lon [deg], alt MSL [m]) per waypoint.
         A completed upload replaces it too."""
-        self.mission.mission = [tuple(float(x) for x in wp) for wp in waypoints]
+        self.mission.mission = [(float(lat), float(lon), float(alt)) for lat, lon, alt in waypoints]
 
     def publish(
         self,
@@ -239,15 +306,22 @@ class VehicleLink:
         return the commands for the vehicle in arrival order."""
         now = self._clock()
         commands: list[Command] = []
+        parsed = 0
         for _ in range(_MAX_DATAGRAMS_PER_POLL):
+            if parsed >= _MAX_BYTES_PER_POLL:
+                break
             try:
-                data, addr = self._sock.recvfrom(65535)
+                data, addr = self._sock.recvfrom(_MAX_DATAGRAM_BYTES + 1)
             except (BlockingIOError, InterruptedError):
                 break
             except OSError as exc:  # e.g. ICMP port unreachable reported on some platforms
                 self._anomaly("socket_error", str(exc))
                 break
-            decoded = decode_datagram(data)
+            if len(data) > _MAX_DATAGRAM_BYTES:
+                self._anomaly("oversize", f"datagram over {_MAX_DATAGRAM_BYTES} bytes dropped (from {addr[0]})")
+                continue
+            parsed += len(data)
+            decoded = decode_datagram(data, self._signing)
             for kind, detail in decoded.anomalies:
                 self._anomaly(kind, f"{detail} (from {addr[0]}:{addr[1]})")
             for msg in decoded.messages:
@@ -260,7 +334,24 @@ class VehicleLink:
                 if cmd is not None:
                     commands.append(cmd)
         self.mission.check_timeout(now)
+        self._anomalies.flush(now)
         return commands
+
+    def _authorised(self, msg: mav.MAVLink_message) -> bool:
+        c = self.config
+        src_sys, src_comp = msg.get_srcSystem(), msg.get_srcComponent()
+        return src_sys == c.gcs_system_id and c.gcs_component_id in (None, src_comp)
+
+    def _refuse(self, msg: mav.MAVLink_message, reply: Reply) -> None:
+        """Answer a control message from a sender that is not (yet) the ground station."""
+        kind, src = msg.get_type(), (msg.get_srcSystem(), msg.get_srcComponent())
+        why = "before its heartbeat" if self._authorised(msg) else "not the ground station"
+        self._anomaly("unauthorised", f"{kind} from {src[0]}/{src[1]} refused: {why}")
+        if kind in ("COMMAND_LONG", "COMMAND_INT", "SET_MODE"):
+            cmd = msg.command if kind != "SET_MODE" else mav.MAVLINK_MSG_ID_SET_MODE
+            reply(self._m.command_ack_encode(cmd, mav.MAV_RESULT_DENIED, 0, 0, *src))
+        elif kind.startswith("MISSION_"):
+            reply(self._m.mission_ack_encode(*src, mav.MAV_MISSION_DENIED, msg.mission_type))
 
     def _dispatch(self, msg: mav.MAVLink_message, addr: tuple[str, int], now: float) -> Command | None:
         kind = msg.get_type()
@@ -273,6 +364,9 @@ class VehicleLink:
         def reply(out: mav.MAVLink_message) -> None:
             self._send(out, addr)
 
+        if kind in _CONTROL_MESSAGES and not (self.gcs_heard and self._authorised(msg)):
+            self._refuse(msg, reply)
+            return None
         if kind in _MISSION_MESSAGES:
             waypoints = self.mission.handle(msg, reply, now)
             return MissionUpload(tuple(waypoints)) if waypoints is not None else None
@@ -297,6 +391,9 @@ class VehicleLink:
 
     def _on_heartbeat(self, msg, addr) -> None:
         peer = (msg.get_srcSystem(), msg.get_srcComponent())
+        if not self.gcs_heard and self._authorised(msg):
+            self.gcs_heard = True
+            self._event(f"ground station {peer[0]}/{peer[1]} heard: commands accepted from it", "info")
         if peer not in self.gcs_peers:
             self.gcs_peers.add(peer)
             self._event(
@@ -375,7 +472,34 @@ class VehicleLink:
         if pos is None and vel is None and yaw is None and yaw_rate is None:
             self._anomaly("position_target_empty", f"type_mask {mask:#06x} ignores every field")
             return None
+        refusal = self._check_target(pos, vel, yaw, yaw_rate)
+        if refusal is not None:
+            self._anomaly("position_target_refused", refusal)
+            return None
         return PositionTarget(msg.time_boot_ms, pos, vel, yaw, yaw_rate)
+
+    def _check_target(
+        self, pos: np.ndarray | None, vel: np.ndarray | None, yaw: float | None, yaw_rate: float | None
+    ) -> str | None:
+        """Why a position target is refused, or ``None``: no infinite value (NaN marks an ignored
+        axis), a finite yaw and yaw rate, and a full position in the envelope."""
+        vectors = [v for v in (pos, vel) if v is not None]
+        if any(np.isinf(v).any() for v in vectors) or any(
+            x is not None and not math.isfinite(x) for x in (yaw, yaw_rate)
+        ):
+            return "non-finite value"
+        if pos is not None and not np.isnan(pos).any() and self.envelope is not None:
+            refusal = self.envelope.check(pos)
+            if refusal is not None:
+                return refusal.reason
+        return None
+
+    def _check_item(self, wp: Waypoint) -> Refusal | None:
+        if self.envelope is None:
+            return None
+        if self._origin is None:
+            return Refusal(mav.MAV_MISSION_ERROR, "home position not known yet")
+        return self.envelope.check(geodetic_to_ned(*wp, self._origin))
 
     # -- parameters (a small read-only set, so that GCSs finish connecting) ---------------------
     def _param_value(self, index: int) -> mav.MAVLink_message:
@@ -406,6 +530,4 @@ class VehicleLink:
             self._on_event(f"mavlink sys {self.sysid}: {text}", level)
 
     def _anomaly(self, kind: str, detail: str, level: str = "warning") -> None:
-        n = self.stats[kind] = self.stats[kind] + 1
-        if str(n).rstrip("0") == "1":  # 1, 10, 100, ...
-            self._event(f"{kind} (#{n}): {detail}", level)
+        self._anomalies.count(kind, detail, level)

@@ -15,7 +15,8 @@ rally lists are reported empty; uploads of them are refused (UNSUPPORTED). Clear
 (MISSION_CLEAR_ALL, or a count of 0) is refused (DENIED): a simulated vehicle always has a mission.
 
 Item coordinates: frames GLOBAL / GLOBAL_INT (altitude MSL) and GLOBAL_RELATIVE_ALT[_INT]
-(altitude above home = the scenario origin); other frames are refused (UNSUPPORTED_FRAME).
+(altitude above home = the scenario origin); other frames are refused (UNSUPPORTED_FRAME). Each
+waypoint must pass the ``check`` given (the vehicle's envelope: its MAV_MISSION_RESULT otherwise).
 NAV_WAYPOINT items are waypoints; the other positional NAV commands (loiter, take-off, land) are
 flown as plain waypoints at their position (warning event); DO_/CONDITION_ commands are skipped
 (info event); other NAV commands are refused (UNSUPPORTED).
@@ -29,10 +30,13 @@ from dataclasses import dataclass, field
 
 from pymavlink.dialects.v20 import common as mav
 
+from sim.mavlink.envelope import Refusal
+
 Waypoint = tuple[float, float, float]  # lat [deg], lon [deg], alt MSL [m]
 Reply = Callable[[mav.MAVLink_message], None]
 Anomaly = Callable[[str, str], None]  # (kind, detail)
 Event = Callable[[str, str], None]  # (text, level)
+Check = Callable[[Waypoint], Refusal | None]  # why a waypoint is refused, None if accepted
 
 _MSL_FRAMES = {mav.MAV_FRAME_GLOBAL, mav.MAV_FRAME_GLOBAL_INT}
 _RELATIVE_FRAMES = {mav.MAV_FRAME_GLOBAL_RELATIVE_ALT, mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT}
@@ -68,8 +72,17 @@ class MissionServer:
     """Mission protocol state of one vehicle. ``home_alt_m`` (MSL [m]) must be set before items
     with relative altitude can be accepted; ``mission`` is what a download returns."""
 
-    def __init__(self, encoder: mav.MAVLink, anomaly: Anomaly, event: Event, timeout_s: float = 1.5, retries: int = 5):
+    def __init__(
+        self,
+        encoder: mav.MAVLink,
+        anomaly: Anomaly,
+        event: Event,
+        timeout_s: float = 1.5,
+        retries: int = 5,
+        check: Check | None = None,
+    ):
         self._m = encoder
+        self._check = check
         self._anomaly = anomaly
         self._event = event
         self.timeout_s = timeout_s
@@ -124,7 +137,7 @@ class MissionServer:
             "mission_timeout",
             f"mission upload cancelled: item {up.next_seq} of {up.count} never arrived after {self.retries} retries",
         )
-        self._finish(mav.MAV_MISSION_OPERATION_CANCELLED)
+        self._finish(up, mav.MAV_MISSION_OPERATION_CANCELLED)
 
     # -- upload -----------------------------------------------------------------------------
     def _on_count(self, msg, src, reply: Reply, now: float) -> None:
@@ -156,13 +169,13 @@ class MissionServer:
             return None
         if msg.seq > up.next_seq:
             self._anomaly("mission_sequence", f"mission item {msg.seq} arrived, expected {up.next_seq}")
-            self._finish(mav.MAV_MISSION_INVALID_SEQUENCE)
+            self._finish(up, mav.MAV_MISSION_INVALID_SEQUENCE)
             return None
         try:
             wp = self._waypoint(msg)
         except _ItemError as err:
             self._anomaly("mission_invalid_item", f"mission item {msg.seq}: {err}")
-            self._finish(err.result)
+            self._finish(up, err.result)
             return None
         if wp is not None:
             up.waypoints.append(wp)
@@ -172,10 +185,10 @@ class MissionServer:
             return None
         if not up.waypoints:
             self._event("mission upload refused: no waypoint in it", "warning")
-            self._finish(mav.MAV_MISSION_DENIED)
+            self._finish(up, mav.MAV_MISSION_DENIED)
             return None
         self.mission, self.current_seq = list(up.waypoints), 0
-        self._finish(mav.MAV_MISSION_ACCEPTED)
+        self._finish(up, mav.MAV_MISSION_ACCEPTED)
         self._event(f"mission of {len(self.mission)} waypoints uploaded", "info")
         return list(self.mission)
 
@@ -183,8 +196,9 @@ class MissionServer:
         up.deadline = now + self.timeout_s
         up.reply(self._m.mission_request_int_encode(*up.src, up.next_seq, _MISSION))
 
-    def _finish(self, result: int) -> None:
-        up, self._upload = self._upload, None
+    def _finish(self, up: _Upload, result: int) -> None:
+        """End the upload ``up`` with ``result`` sent to its sender."""
+        self._upload = None
         up.reply(self._m.mission_ack_encode(*up.src, result, _MISSION))
 
     def _waypoint(self, msg) -> Waypoint | None:
@@ -206,12 +220,17 @@ class MissionServer:
         if not math.isfinite(z):
             raise _ItemError(mav.MAV_MISSION_INVALID_PARAM7, f"altitude {z} not finite")
         if msg.frame in _MSL_FRAMES:
-            return lat, lon, z
-        if msg.frame in _RELATIVE_FRAMES:
+            wp = (lat, lon, z)
+        elif msg.frame in _RELATIVE_FRAMES:
             if self.home_alt_m is None:
                 raise _ItemError(mav.MAV_MISSION_ERROR, "relative altitude before home is known")
-            return lat, lon, z + self.home_alt_m
-        raise _ItemError(mav.MAV_MISSION_UNSUPPORTED_FRAME, f"frame {msg.frame} not supported")
+            wp = (lat, lon, z + self.home_alt_m)
+        else:
+            raise _ItemError(mav.MAV_MISSION_UNSUPPORTED_FRAME, f"frame {msg.frame} not supported")
+        refusal = self._check(wp) if self._check is not None else None
+        if refusal is not None:
+            raise _ItemError(refusal.result, refusal.reason)
+        return wp
 
     # -- download ---------------------------------------------------------------------------
     def _on_request(self, msg, src, reply: Reply, as_int: bool) -> None:

@@ -34,7 +34,7 @@ from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.mavlink.bridge import EventFn, LinkConfig, VehicleLink
 from sim.mavlink.mission import Waypoint
 from sim.mavlink.pacing import WallClockPacer
-from sim.mcap_read import LogReadError, iter_messages, read_attached_scenario, read_info
+from sim.mcap_read import LogReadError, iter_messages, log_content, read_attached_scenario, read_info
 from sim.scenario import Scenario
 from sim.vehicle_log import state_from_dict
 
@@ -67,8 +67,9 @@ def _attached_scenario(path: Path, event: EventFn) -> Scenario | None:
     return sc
 
 
-def _mission(sc: Scenario, name: str, origin: GeoPoint) -> list[Waypoint]:
+def _mission(sc: Scenario, name: str) -> list[Waypoint]:
     """A scenario vehicle's waypoints (north, east [m], altitude MSL [m]) as (lat, lon, alt)."""
+    origin = sc.origin_point
     v = next((v for v in sc.vehicle if v.name == name), None)
     if v is None:
         return []
@@ -115,15 +116,16 @@ def replay_to_gcs(
             )
             links[n] = VehicleLink(cfg, on_event)
             if sc is not None:
-                links[n].set_mission(_mission(sc, n, origin))
+                links[n].set_mission(_mission(sc, n))
         current = dict.fromkeys(names, 0)
         topics = [f"/{n}/{s}" for n in names for s in ("truth/state", "mission/status")]
         for topic, t, msg in iter_messages(path, topics):
             name = topic.split("/")[1]
-            if topic.endswith("/mission/status"):
-                current[name] = int(msg["next_waypoint"])
-                continue
-            state = state_from_dict(msg)
+            with log_content(path):
+                if topic.endswith("/mission/status"):
+                    current[name] = int(msg["next_waypoint"])
+                    continue
+                state = state_from_dict(msg)
             if origin is None:
                 origin = GeoPoint(state.lat_deg, state.lon_deg, state.alt_msl_m + float(state.pos_ned[2]))
             if pacer is not None:

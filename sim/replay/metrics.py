@@ -8,11 +8,15 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import shapely
 
 from sim.replay.trace import VehicleTrace
+
+if TYPE_CHECKING:
+    from sim.weather import WeatherService
 
 FT = 0.3048
 
@@ -30,7 +34,7 @@ class MetricsWorld:
     objects: tuple = ()
     well_clear_h_m: float = 2000 * FT
     well_clear_v_m: float = 250 * FT
-    weather: object | None = None  # sim.weather.WeatherService: the true storm field
+    weather: WeatherService | None = None  # the true storm field
     nmac_h_m: float = 500 * FT  # near mid-air collision cylinder: horizontal radius [m] ...
     nmac_v_m: float = 100 * FT  # ... and vertical half height [m] (default RTCA DO-365)
 
@@ -91,7 +95,7 @@ def tracking_metrics(tr: VehicleTrace) -> dict:
     settled = straight_flight_mask(tr.t, sp["turning"], SETTLE_S[tr.kind])
     out = {
         "straight_fraction": float(settled.mean()) if settled.size else 0.0,
-        "cross_track_m": _stats(tr.truth_cross_track_m[settled]),
+        "cross_track_m": _stats(tr.true_cross_track()[settled]),
         "altitude_error_m": _stats((tr.alt_msl_m - sp["altitude_m"])[settled]),
         "max_bank_deg": float(np.degrees(np.max(np.abs(tr.euler[:, 0])))) if len(tr.t) else 0.0,
         "finite": bool(np.isfinite(tr.pos_ned).all() and np.isfinite(tr.euler).all()),
@@ -281,8 +285,8 @@ def estimation_metrics(tr: VehicleTrace) -> dict:
         "pos_rms_m": np.sqrt(np.mean(ep * ep, axis=0)).tolist(),
         "vel_rms_mps": np.sqrt(np.mean(ev * ev, axis=0)).tolist(),
     }
-    if tr.sigma3_pos is not None and len(tr.sigma3_pos) == len(tr.t):
-        sp, sv = tr.sigma3_pos, tr.sigma3_vel
+    sp, sv = tr.sigma3_pos, tr.sigma3_vel
+    if sp is not None and sv is not None and len(sp) == len(tr.t):
         out["pos_within_3sigma"] = np.mean(np.abs(ep) <= sp, axis=0).tolist()
         out["vel_within_3sigma"] = np.mean(np.abs(ev) <= sv, axis=0).tolist()
         nees = np.sum((ep / (sp / 3.0)) ** 2, axis=1) + np.sum((ev / (sv / 3.0)) ** 2, axis=1)

@@ -15,7 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from sim.mcap_read import read_attached_scenario
+from sim.mcap_read import log_content, read_attached_scenario
 from sim.replay.metrics import MetricsWorld, common_times, flatten, run_metrics
 from sim.replay.runlog import RunLog
 from sim.replay.trace import VehicleTrace
@@ -32,8 +32,9 @@ def load_world(log: RunLog) -> MetricsWorld:
 
 
 def log_metrics(log: RunLog) -> dict:
-    """The run's metrics recomputed from its log."""
-    return run_metrics(load_traces(log), load_world(log))
+    """The run's metrics recomputed from its log (LogReadError if its messages are not cosim's)."""
+    with log_content(log.path):
+        return run_metrics(load_traces(log), load_world(log))
 
 
 def _map_plot(traces: list[VehicleTrace], log: RunLog, path: Path) -> None:
@@ -71,7 +72,7 @@ def _time_plots(tr: VehicleTrace, path: Path) -> None:
         axes[1].plot(tm, speed, label="ground speed (3-D)")
         axes[1].set_ylabel("speed [m/s]")
     axes[2].plot(tm, np.degrees(tr.euler[:, 0]), label="bank")
-    axes[2].plot(tm, tr.truth_cross_track_m / 10.0, label="true cross-track / 10 [m]", alpha=0.7)
+    axes[2].plot(tm, tr.true_cross_track() / 10.0, label="true cross-track / 10 [m]", alpha=0.7)
     axes[2].set_ylabel("bank [deg]")
     axes[2].set_xlabel("sim time [min]")
     for ax in axes:
@@ -108,8 +109,14 @@ def write_report(log_path: str | Path, out_dir: str | Path) -> tuple[Path, dict]
     log = RunLog(log_path)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    with log_content(log.path):
+        return _write_report(log, out)
+
+
+def _write_report(log: RunLog, out: Path) -> tuple[Path, dict]:
     traces = load_traces(log)
     metrics = run_metrics(traces, load_world(log))
+    events = log.events()
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True))
     _map_plot(traces, log, out / "map.png")
     for tr in traces:
@@ -123,6 +130,11 @@ def write_report(log_path: str | Path, out_dir: str | Path) -> tuple[Path, dict]
         f"- log: `{log.path}`",
         f"- seed: {run.get('seed', '?')}; result: **{res.get('status', '?')}**; sim time {log.info.end_s:.1f} s",
         f"- versions: cosim {run.get('cosim_version', '?')}, jsbsim {run.get('jsbsim_version', '?')}",
+        *(
+            []
+            if log.info.finished
+            else ["- **unfinished log** (its writer never closed it): read up to its last complete chunk"]
+        ),
         "",
         "## Metrics",
         "",
@@ -136,7 +148,6 @@ def write_report(log_path: str | Path, out_dir: str | Path) -> tuple[Path, dict]
         lines += [f"## {tr.name}", "", f"![{tr.name}]({tr.name}_timeseries.png)", ""]
     if has_sep:
         lines += ["## Separation", "", "![separation](separation.png)", ""]
-    events = log.events()
     if events:
         lines += ["## Events", "", "| sim time [s] | event |", "|---|---|"]
         lines += [f"| {t:.1f} | {text} |" for t, text in events]

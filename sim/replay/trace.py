@@ -43,6 +43,12 @@ class VehicleTrace:
     truth_cross_track_m: np.ndarray | None = None  # (N,) true cross-track to the followed leg [m]
     plan_cache_hits: int = 0  # planner calls that kept the previous plan
 
+    def true_cross_track(self) -> np.ndarray:
+        """(N,) true cross-track to the followed leg [m]."""
+        if self.truth_cross_track_m is None:
+            raise ValueError(f"{self.name}: the trace has no true cross-track")
+        return self.truth_cross_track_m
+
     @property
     def mission_complete(self) -> bool:
         return self.complete_t is not None
@@ -90,6 +96,14 @@ class VehicleTrace:
         )
 
 
+_VECTORS = ("pos_ned", "vel_ned", "euler")
+
+
+def _array(key: str, values: list) -> np.ndarray:
+    a = np.asarray(values, dtype=float)
+    return a.reshape(-1, 3) if key in _VECTORS else a
+
+
 @dataclass
 class TraceRecorder:
     """Collects the values a vehicle logs, as they are logged (the live side)."""
@@ -98,7 +112,7 @@ class TraceRecorder:
     kind: str
     waypoints_total: int
     _state: dict[str, list] = field(default_factory=lambda: {k: [] for k in _STATE})
-    _setpoint: dict[str, list] = field(default_factory=dict)
+    _setpoint: dict[str, list] = field(default_factory=lambda: {k: [] for k in _SETPOINT})
     _latency: list[float] = field(default_factory=list)
     _cache_hits: int = 0
     _reached: list[float] = field(default_factory=list)
@@ -139,7 +153,8 @@ class TraceRecorder:
         self._complete_t = logged_time(t)
 
     def trace(self) -> VehicleTrace:
-        s = {k: np.asarray(v, dtype=float) for k, v in self._state.items()}
+        """The series so far; vectors are (N, 3) also when nothing was logged (N = 0)."""
+        s = {k: _array(k, v) for k, v in self._state.items()}
         return VehicleTrace(
             self.name,
             self.kind,
@@ -154,12 +169,12 @@ class TraceRecorder:
             list(self._reached),
             self._complete_t,
             self._command_arrays(),
-            np.asarray(self._est["pos_ned"], dtype=float),
-            np.asarray(self._est["vel_ned"], dtype=float),
-            self._sigma_array("pos"),
-            self._sigma_array("vel"),
-            s["vel_ned"],
-            np.asarray(self._cross, dtype=float),
+            est_pos_ned=_array("pos_ned", self._est["pos_ned"]),
+            est_vel_ned=_array("vel_ned", self._est["vel_ned"]),
+            sigma3_pos=self._sigma_array("pos"),
+            sigma3_vel=self._sigma_array("vel"),
+            truth_vel_ned=s["vel_ned"],
+            truth_cross_track_m=np.asarray(self._cross, dtype=float),
             plan_cache_hits=self._cache_hits,
         )
 

@@ -38,12 +38,15 @@ class AdsbConfig(StrictConfig):
 
 
 class _Link:
-    def __init__(self, cfg: AdsbConfig, rng: np.random.Generator):
-        self.next_t: float | None = None
+    """One intruder's error channels and report clock; first report at a random phase of the
+    ``period`` [s] after first contact at ``t`` [s]."""
+
+    def __init__(self, cfg: AdsbConfig, rng: np.random.Generator, t: float, period: float):
         self.last_t: float | None = None
         self.pos_ne = Channel(cfg.pos_ne, 2, rng)
         self.pos_d = Channel(cfg.pos_d, 1, rng)
         self.vel = Channel(cfg.vel, 3, rng)
+        self.next_t = t + period * float(rng.random())
 
 
 class AdsbReceiver:
@@ -67,8 +70,7 @@ class AdsbReceiver:
         for iid in sorted(intruders):
             link = self._links.get(iid)
             if link is None:
-                link = self._links[iid] = _Link(self.cfg, self.rng)
-                link.next_t = t + period * float(self.rng.random())
+                link = self._links[iid] = _Link(self.cfg, self.rng, t, period)
             if t + _EPS < link.next_t:
                 continue
             dt = period if link.last_t is None else t - link.last_t
@@ -83,10 +85,11 @@ class AdsbReceiver:
                 )
             )
             lost = self.rng.random() < self.cfg.dropout_probability
-            y = self.faults.apply(t, y)
-            if y is None or lost:
+            out_y = self.faults.apply(t, y)
+            if out_y is None or lost:
                 continue
-            self._pending.append((t + self.cfg.latency_s, AdsbReport(t, iid, y[:3], y[3:], self.cfg.cooperative)))
+            report = AdsbReport(t, iid, out_y[:3], out_y[3:], self.cfg.cooperative)
+            self._pending.append((t + self.cfg.latency_s, report))
         out = []
         while self._pending and self._pending[0][0] <= t + _EPS:
             out.append(self._pending.popleft()[1])

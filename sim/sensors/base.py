@@ -52,9 +52,18 @@ class SampledSensor(Generic[M]):
         """Schedule a fault (may be called at any time; effective from ``fault.t_start``)."""
         self.faults.add(fault)
 
+    def next_sample_t(self) -> float:
+        """Time [s] the next sample is due."""
+        return self._next_k * self._period
+
+    def next_delivery_t(self) -> float:
+        """Time [s] the oldest pending measurement is delivered (inf: none pending)."""
+        return self._pending[0][0] if self._pending else math.inf
+
     def poll(self, truth: TruthSample) -> list[M]:
+        """Sample ``truth`` if a sample is due at its time, then :meth:`deliver`."""
         t = truth.t
-        if t + _EPS >= self._next_k * self._period:
+        if t + _EPS >= self.next_sample_t():
             dt = self._period if self._last_t is None else t - self._last_t
             self._last_t = t
             self._next_k = math.floor((t + _EPS) / self._period) + 1
@@ -62,6 +71,10 @@ class SampledSensor(Generic[M]):
             lost = self.cfg.dropout > 0.0 and self.rng.random() < self.cfg.dropout
             if y is not None and not lost:
                 self._pending.append((t + self.cfg.latency_s, t, y))
+        return self.deliver(t)
+
+    def deliver(self, t: float) -> list[M]:
+        """The measurements whose latency has elapsed at ``t`` [s], oldest first."""
         out: list[M] = []
         pending = self._pending
         while pending and pending[0][0] <= t + _EPS:

@@ -33,8 +33,8 @@ class SensorFault(StrictConfig):
         if not self.t_end > self.t_start:
             raise ValueError(f"t_end ({self.t_end}) must be after t_start ({self.t_start})")
         if self.kind == "bias_step":
-            vals = self.value if isinstance(self.value, tuple) else (self.value,)
-            if self.value is None or not all(math.isfinite(v) for v in vals):
+            vals = () if self.value is None else self.value if isinstance(self.value, tuple) else (self.value,)
+            if not vals or not all(math.isfinite(v) for v in vals):
                 raise ValueError("bias_step needs a finite value (scalar or one per axis)")
         elif self.value is not None:
             raise ValueError(f"{self.kind} takes no value")
@@ -56,11 +56,14 @@ class SensorFaultSchedule:
         self._last: np.ndarray | None = None
 
     def add(self, fault: SensorFault) -> None:
-        if fault.kind == "bias_step" and isinstance(fault.value, tuple):
-            if self.dim is None or len(fault.value) != self.dim:
-                raise SensorConfigError(
-                    f"{self.sensor}: bias_step value has {len(fault.value)} axes, output has {self.dim}"
-                )
+        if (
+            fault.kind == "bias_step"
+            and isinstance(fault.value, tuple)
+            and (self.dim is None or len(fault.value) != self.dim)
+        ):
+            raise SensorConfigError(
+                f"{self.sensor}: bias_step value has {len(fault.value)} axes, output has {self.dim}"
+            )
         self.faults.append(fault)
         self._offsets.append(np.asarray(fault.value, float) if fault.kind == "bias_step" else 0.0)
 

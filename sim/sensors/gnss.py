@@ -37,6 +37,8 @@ class GnssConfig(SensorConfig):
 class Gnss(SampledSensor[GnssFix]):
     """Output vector: position N, E, D [m], velocity N, E, D [m/s]."""
 
+    cfg: GnssConfig
+
     name = "gnss"
     dim = 6
 

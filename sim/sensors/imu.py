@@ -74,7 +74,7 @@ class Imu(SampledSensor[ImuSample]):
         super().__init__(cfg, rng)
         self.accel = Channel(cfg.accel_channel(), 3, rng)
         self.gyro = Channel(cfg.gyro_channel(), 3, rng)
-        self._blk = None
+        self._blk: tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._walk = self._white = np.empty((0, 6))
         self._pool_i = 0
 

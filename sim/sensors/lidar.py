@@ -179,6 +179,8 @@ class Lidar(SampledSensor[LidarReturns]):
     """Output vector: one range per ray [m], NaN for no return (faults: ``bias_step`` with a
     scalar adds to every range, ``stuck`` repeats the last sweep, ``dropout`` drops sweeps)."""
 
+    cfg: LidarConfig
+
     name = "lidar"
 
     def __init__(self, cfg: LidarConfig, obstacles: Sequence[PrismObstacle], rng: np.random.Generator):

@@ -69,8 +69,7 @@ class TruthSampler:
 
     def __init__(self, plant: JSBSimPlant):
         self._plant = plant
-        pm = plant.fdm.get_property_manager()
-        self._nodes = [pm.get_node(p, False) for p in _PROPS]
+        self._nodes = plant.property_nodes(_PROPS)
 
     def sample(self, state: VehicleState | None = None) -> TruthSample:
         """Truth now; pass ``state`` if the caller already read ``plant.truth()`` this tick."""

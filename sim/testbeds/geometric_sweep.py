@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from avoidance.geometric.avoider import RAW_TERMS, Status
+from avoidance.geometric.avoider import RAW_TERMS
 from avoidance.geometric.config import GeometricConfig, VehicleParams
 from avoidance.geometric.threats import Threat
 from sim.testbeds.geometric_encounters import Encounter
@@ -72,7 +72,7 @@ def run_sweep(envs, cfg: GeometricConfig, veh: VehicleParams) -> dict[str, np.nd
     out: dict[str, list[np.ndarray]] = {k: [] for k in (*RAW_TERMS, "env", "candidate")}
     for e in envs:
         res = sweep_encounter(int(e)).plan(cfg, veh)
-        if res.status is Status.TOO_CLOSE:
+        if res.available is None or res.costs is None:  # too close: nothing evaluated
             continue
         idx = np.flatnonzero(res.available)
         for k in RAW_TERMS:

@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from aircraft.registry import get_airframe
+from aircraft.haps.gains import HapsGains
 from guidance.mptp.config import MptpConfig
 from sim.testbeds.mptp_thesis import ORIGIN, Scenario
 
@@ -38,7 +38,7 @@ NOWCAST_STEP_S = 300.0  # the thesis's Rad-TRAM step and issue period [s]
 
 def haps_config() -> MptpConfig:
     """The MPTP aircraft parameters of the HAPS (speed, the autopilot's bank limit)."""
-    bank = get_airframe("haps").make_controller().gains.roll_limit_rad
+    bank = HapsGains.load().roll_limit_rad
     return MptpConfig(tas_mps=HAPS_TAS_MPS, bank_max=bank)
 
 

@@ -73,7 +73,15 @@ def vehicle_state(
     gs = speed if wind_ne is None else float(ground_speed(course, speed, np.asarray(wind_ne, float)))
     vel = gs * np.array([np.cos(course), np.sin(course), 0.0])
     return VehicleState(
-        t, np.array([ne[0], ne[1], 0.0]), vel, np.array([0.0, 0.0, course]), np.zeros(3), 0.0, 0.0, 0.0, tas_mps=speed
+        t=t,
+        pos_ned=np.array([ne[0], ne[1], 0.0]),
+        vel_ned=vel,
+        euler=np.array([0.0, 0.0, course]),
+        rates_body=np.zeros(3),
+        alt_msl_m=0.0,
+        lat_deg=0.0,
+        lon_deg=0.0,
+        tas_mps=speed,
     )
 
 

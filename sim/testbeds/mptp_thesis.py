@@ -11,6 +11,7 @@ the aircraft (6.1), a cell over the goal that drifts off it after about half an 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,7 +50,7 @@ class Scenario:
 
 
 def _storms(
-    seed: int, centres_km: list[tuple[float, float]], speed: float = 10.0, radius_km: float = 7.0
+    seed: int, centres_km: Sequence[tuple[float, float]], speed: float = 10.0, radius_km: float = 7.0
 ) -> StormField:
     v = speed * np.array([math.cos(STORM_COURSE), math.sin(STORM_COURSE)])
     return StormField(

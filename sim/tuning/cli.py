@@ -173,16 +173,16 @@ def _loop_rows(args):
     from aircraft.quadrotor.gains import MultirotorGains
     from sim.tuning.loops import RatePid, identify_rotor_axis, quad_axis_loops
 
-    g = MultirotorGains.load()
+    mg = MultirotorGains.load()
     rows = []
     # yaw is left out: the motors' reaction torque leads (it follows the current, then decays as
     # the rpm changes), which the first-order plant fit of identify_rotor_axis does not describe
     for axis in ("roll", "pitch"):
         ax = identify_rotor_axis(axis)
-        r = getattr(g.rate, axis)
-        kp_att = getattr(g.attitude, f"kp_{axis}")
+        r = getattr(mg.rate, axis)
+        kp_att = getattr(mg.attitude, f"kp_{axis}")
         l_rate, t_rate, l_att, t_att = quad_axis_loops(
-            ax, RatePid(r.kp, r.ki, r.kd, 2 * math.pi * g.rate.d_cutoff_hz), kp_att
+            ax, RatePid(r.kp, r.ki, r.kd, 2 * math.pi * mg.rate.d_cutoff_hz), kp_att
         )
         rows += [
             analyse(f"{axis} rate (K {ax.K:.0f} rad/s2, tau {1000 * ax.tau_s:.0f} ms)", l_rate, t_rate),

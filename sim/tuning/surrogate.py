@@ -41,23 +41,33 @@ R_EARTH = 6_371_000.0
 _M2_PER_FT2 = 0.3048**2
 
 
-def _table(root: ET.Element, xpath: str) -> tuple[np.ndarray, np.ndarray]:
+def _find(root: ET.Element, xpath: str) -> ET.Element:
     node = root.find(xpath)
     if node is None:
-        raise ValueError(f"table {xpath!r} not found")
-    rows = np.array([[float(v) for v in line.split()] for line in node.text.strip().splitlines()])
+        raise ValueError(f"element {xpath!r} not found")
+    return node
+
+
+def _text(node: ET.Element) -> str:
+    if node.text is None:
+        raise ValueError(f"element <{node.tag}> has no text")
+    return node.text
+
+
+def _table(root: ET.Element, xpath: str) -> tuple[np.ndarray, np.ndarray]:
+    rows = np.array([[float(v) for v in line.split()] for line in _text(_find(root, xpath)).strip().splitlines()])
     return rows[:, 0], rows[:, 1]
 
 
 def _function_value(root: ET.Element, name: str) -> float:
     for fn in root.iter("function"):
         if fn.get("name") == name:
-            return float(fn.find(".//value").text)
+            return float(_text(_find(fn, ".//value")))
     raise ValueError(f"function {name!r} not found in haps.xml")
 
 
 def _si(node: ET.Element, factors: dict[str, float]) -> float:
-    return float(node.text) * factors.get(node.get("unit", ""), 1.0)
+    return float(_text(node)) * factors.get(node.get("unit", ""), 1.0)
 
 
 @dataclass(frozen=True)
@@ -99,11 +109,11 @@ class HapsAeroData:
         j2, cp = _table(prop, ".//table[@name='C_POWER']/tableData")
         assert np.allclose(j, j2)
         elev = next(g for g in ac.iter("pure_gain") if g.get("name") == "fcs/elevator-pos-rad")
-        area = ac.find("metrics/wingarea")
+        area = _find(ac, "metrics/wingarea")
         return cls(
-            mass_kg=_si(ac.find("mass_balance/emptywt"), {"KG": 1.0, "LBS": 0.45359237}),
-            wing_area_m2=float(area.text) * (1.0 if area.get("unit") == "M2" else _M2_PER_FT2),
-            chord_m=_si(ac.find("metrics/chord"), length),
+            mass_kg=_si(_find(ac, "mass_balance/emptywt"), {"KG": 1.0, "LBS": 0.45359237}),
+            wing_area_m2=float(_text(area)) * (1.0 if area.get("unit") == "M2" else _M2_PER_FT2),
+            chord_m=_si(_find(ac, "metrics/chord"), length),
             cl_alpha_deg=cla,
             cl_table=clt,
             cd_stall_alpha_deg=cda,
@@ -114,13 +124,13 @@ class HapsAeroData:
             cm0=_function_value(ac, "aero/coefficient/Cm_0"),
             cm_alpha=_function_value(ac, "aero/coefficient/Cm_alpha"),
             cm_de=_function_value(ac, "aero/coefficient/Cm_de"),
-            elevator_max_rad=float(elev.find("gain").text),
-            alpha_max_rad=math.radians(float(ac.find("aerodynamics/alphalimits/max").text)),
-            prop_diameter_m=_si(prop.find("diameter"), length),
+            elevator_max_rad=float(_text(_find(elev, "gain"))),
+            alpha_max_rad=math.radians(float(_text(_find(ac, "aerodynamics/alphalimits/max")))),
+            prop_diameter_m=_si(_find(prop, "diameter"), length),
             prop_j=j,
             prop_ct=ct,
             prop_cp=cp,
-            motor_power_w=_si(motor.find("power"), {"WATTS": 1.0, "HP": 745.69987}),
+            motor_power_w=_si(_find(motor, "power"), {"WATTS": 1.0, "HP": 745.69987}),
             n_motors=len(ac.findall("propulsion/engine")),
         )
 

@@ -63,19 +63,21 @@ def propose_roll_attitude_gain(
     def resp(w: float) -> complex:
         return complex(h(1j * w))
 
-    if crossover_rad_s is None:
+    if phase_margin_deg is not None:  # then no crossover is given
         target = math.radians(-180.0 + phase_margin_deg)
 
-        def phase(w):
-            return np.unwrap([np.angle(resp(v)) for v in np.geomspace(1e-3, w, 200)])[-1]
+        def phase(w: float) -> float:
+            return float(np.unwrap([np.angle(resp(v)) for v in np.geomspace(1e-3, w, 200)])[-1])
 
         ws = np.geomspace(0.1, 500, 400)
         ph = np.unwrap([np.angle(resp(v)) for v in ws])
         k = int(np.argmax(ph < target))
         if k == 0:
             raise ValueError(f"phase margin {phase_margin_deg} deg not reachable with this rate loop")
-        crossover_rad_s = brentq(lambda w: phase(w) - target, ws[k - 1], ws[k])
-    kp = 1.0 / abs(resp(crossover_rad_s))
+        w_c = float(brentq(lambda w: phase(w) - target, ws[k - 1], ws[k]))
+    elif crossover_rad_s is not None:
+        w_c = crossover_rad_s
+    kp = 1.0 / abs(resp(w_c))
     _, _, l_att, t_att = quad_axis_loops(axis, _rate_pid(g), kp)
     return Proposal(kp, analyse("roll attitude (proposed)", l_att, t_att))
 
