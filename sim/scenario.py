@@ -350,7 +350,7 @@ def _profile_rows(levels: list[WindLevel]) -> list[WindLevel]:
 class WindHour(_Strict):
     """A wind profile valid at ``time`` [s after the start]; profiles are interpolated in time."""
 
-    time: quantity("time", 0.0, 30 * 86400.0)
+    time: Annotated[float, quantity("time", 0.0, 30 * 86400.0)]
     levels: Annotated[list[WindLevel], Field(min_length=2)]
 
     @field_validator("levels")
