@@ -35,6 +35,20 @@ def _raise_interrupt(signum, frame):
     raise KeyboardInterrupt
 
 
+def _progress(counter: str, quiet: bool) -> Progress:
+    """A transient progress bar on stderr: description, bar, ``counter`` (a rich column
+    template), elapsed wall time."""
+    return Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        TextColumn(counter),
+        TimeElapsedColumn(),
+        console=err,
+        disable=quiet,
+        transient=True,
+    )
+
+
 def _fmt_duration(s: float) -> str:
     h, rem = divmod(s, 3600)
     m, sec = divmod(rem, 60)
@@ -52,15 +66,7 @@ def cmd_run(args) -> int:
     path = Path(args.output) if args.output else path_under(Path("logs"), f"{scenario.name}.mcap")
     duration = args.duration if args.duration is not None else scenario.duration
     signal.signal(signal.SIGTERM, _raise_interrupt)
-    progress = Progress(
-        TextColumn("[bold]{task.description}"),
-        BarColumn(),
-        TextColumn("{task.fields[sim]} / {task.fields[end]} sim"),
-        TimeElapsedColumn(),
-        console=err,
-        disable=args.quiet,
-        transient=True,
-    )
+    progress = _progress("{task.fields[sim]} / {task.fields[end]} sim", args.quiet)
     with progress:
         task = progress.add_task(scenario.name, total=duration, sim=_fmt_duration(0), end=_fmt_duration(duration))
 
@@ -261,15 +267,7 @@ def cmd_encounters(args) -> int:
 
         client = Client(args.dask)
         executor = client.get_executor()
-    progress = Progress(
-        TextColumn("[bold]{task.description}"),
-        BarColumn(),
-        TextColumn("{task.completed}/{task.total} runs"),
-        TimeElapsedColumn(),
-        console=err,
-        disable=args.quiet,
-        transient=True,
-    )
+    progress = _progress("{task.completed}/{task.total} runs", args.quiet)
     try:
         with progress:
             task = progress.add_task(campaign.name, total=len(campaign.runs))
