@@ -126,8 +126,7 @@ def test_in_a_true_wind_the_air_frame_plans_predict_the_flown_arrival():
 def test_closed_loop_in_wind_predicted_arrival_matches_the_flight(tmp_path):
     """JSBSim HAPS on its EKF in the scenario's steady 15 m/s wind, from the MCAP: the first
     complete plan's predicted arrival is within 3 % of the flown one with the forecast and off
-    by more without; never inside a true cell. Needs the engine's steady wind to blow (issue
-    15: JSBSim's IC run resets it); skipped while the truth's ground speed equals its TAS."""
+    by more without; never inside a true cell."""
     from sim.replay.report import log_metrics
     from sim.replay.runlog import RunLog
     from sim.runner import run_scenario
@@ -141,9 +140,6 @@ def test_closed_loop_in_wind_predicted_arrival_matches_the_flight(tmp_path):
         run_scenario(parse_scenario(data, str(SCENARIO)), path, scenario_text=tomli_w.dumps(data))
         return RunLog(path)
 
-    truth = fly("scenario", 30.0).topic("/haps/truth/state")
-    if np.abs(np.hypot(*truth["vel_ned"][:, :2].T) - truth["tas_mps"]).max() < 1.0:
-        pytest.skip("the engine's steady wind does not blow yet (issue 15)")
     errors = {}
     for forecast in ("scenario", "none"):
         log = fly(forecast)
