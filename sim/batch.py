@@ -256,6 +256,7 @@ def run_batch(
     own = executor is None
     ex = executor or ProcessPoolExecutor(max_workers=workers, initializer=_die_with_parent, initargs=(os.getpid(),))
     futures: dict = {}
+    interrupted = False
     try:
         futures = {ex.submit(run_one, spec): spec for spec in todo}
         for k, fut in enumerate(as_completed(futures), 1):
@@ -270,13 +271,15 @@ def run_batch(
     except KeyboardInterrupt:
         # workers interrupted with us (Ctrl-C reaches the process group) store what finished;
         # the others are killed with this process and flown again on resume
+        interrupted = True
         wait(futures, timeout=_INTERRUPT_GRACE_S)
-        if own:
-            ex.shutdown(wait=False, cancel_futures=True)
+        if own:  # runs still flying (a SIGTERM reaches this process alone) are flown again on resume
+            for worker in list(getattr(ex, "_processes", {}).values()):
+                worker.kill()
         raise
     finally:
         if own:
-            ex.shutdown(cancel_futures=True)
+            ex.shutdown(wait=not interrupted, cancel_futures=True)
     ordered = [rows[s.run_id] for s in runs]
     write_csv(out / "results.csv", ordered)
     return ordered

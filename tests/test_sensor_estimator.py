@@ -129,7 +129,7 @@ def test_haps_estimate_within_3_sigma_and_flies_the_route(haps):
 
 @pytest.mark.closed_loop
 def test_haps_biases_converge(haps):
-    run, est, _, _ = haps
+    run, est, _ = haps
     err, sig = run["err"][-1], run["sig3"][-1]
     gyro_err, gyro_sig = err[12:15], sig[12:15]
     assert np.all(np.abs(gyro_err) < gyro_sig)
@@ -264,7 +264,7 @@ def test_normal_gravity_matches_jsbsim_at_18_km():
 def test_accessors_are_json_ready_and_runs_reproducible():
     runs = []
     for _ in range(2):
-        run, est, _, _, _ = _fly_quad(3.0, seed=9)
+        run, est, _, _ = _fly_quad(3.0, seed=9)
         meas = est.measurements()
         assert set(meas) == {"imu", "gnss", "baro", "mag"}
         json.dumps(meas | {"sig": est.three_sigma(), "bias": est.biases()})
