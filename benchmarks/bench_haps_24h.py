@@ -26,10 +26,10 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from aircraft.registry import get_airframe  # noqa: E402
-from sim.geodesy import GeoPoint  # noqa: E402
-from sim.jsbsim_plant import InitialConditions, JSBSimPlant  # noqa: E402
+from bench_closed_loop import bare_steps_per_s  # noqa: E402
+
 from sim.mcap_read import read_topic  # noqa: E402
 
 CASES = {
@@ -37,17 +37,6 @@ CASES = {
     "december": "haps_station_december_60n",
     "june_schedule": "haps_station_june_47n_altitude_schedule",
 }
-
-
-def bare_steps_per_s(steps: int = 200_000) -> float:
-    plant = JSBSimPlant("haps", 1.0 / 120, GeoPoint(47.0, 8.0), get_airframe("haps").folder)
-    plant.initialise(InitialConditions(GeoPoint(47.0, 8.0, 18_000.0), tas_mps=26.0))
-    plant.trim()
-    run = plant.fdm.run
-    t0 = time.perf_counter()
-    for _ in range(steps):
-        run()
-    return steps / (time.perf_counter() - t0)
 
 
 def fly(scenario: str, hours: float, out: Path) -> dict:
@@ -108,7 +97,7 @@ def main() -> int:
     ap.add_argument("--hours", type=float, default=24.0)
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "haps_24h.json"))
     args = ap.parse_args()
-    bare = bare_steps_per_s()
+    bare = bare_steps_per_s("haps", "haps", 120, 200_000)  # the HAPS trimmed at 18 km, 120 Hz
     results: dict = {"bare_jsbsim_steps_per_s": bare, "cases": {}}
     for case in CASES if args.case == "all" else [args.case]:
         with tempfile.TemporaryDirectory() as d:

@@ -38,7 +38,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from aircraft.registry import get_airframe  # noqa: E402
-from avoidance.reachset.threats.intruders import IntruderModel  # noqa: E402
+from avoidance.reachset.threats.intruders import (  # noqa: E402
+    IntruderModel,
+    _perpendicular_basis,
+    _time_rate,
+)
 from sim.core.plan import Planner, Threats  # noqa: E402
 from sim.core.state import VehicleState  # noqa: E402
 from sim.core.threats import IntruderTrack  # noqa: E402
@@ -59,21 +63,6 @@ def _unit_ball(step: float) -> np.ndarray:
     u = np.arange(-1.0, 1.0 + 1e-9, step)
     p = np.stack(np.meshgrid(u, u, u, indexing="ij"), axis=-1).reshape(-1, 3)
     return p[np.einsum("ij,ij->i", p, p) <= 1.0 + 1e-9]
-
-
-def _perpendicular_basis(e1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    e2 = np.cross([0.0, 0.0, 1.0], e1)
-    n = np.linalg.norm(e2)
-    e2 = e2 / n if n > 1e-9 else np.array([0.0, 1.0, 0.0])
-    return e2, np.cross(e1, e2)
-
-
-def _time_rate(i_e: np.ndarray, i_l: np.ndarray, u_e: np.ndarray, u_l: np.ndarray) -> np.ndarray:
-    span = u_l - u_e
-    overlap = np.clip(np.minimum(i_l, u_l) - np.maximum(i_e, u_e), 0.0, None)
-    inst = ((u_e >= i_e) & (u_e <= i_l)).astype(float)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(span > 1e-9, overlap / span, inst)
 
 
 class LatticeIntruderModel:
