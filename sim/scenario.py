@@ -147,11 +147,8 @@ class _PlannerBase(_Strict):
 def _planner_model(entry: PlannerType) -> type[_PlannerBase]:
     """``[vehicle.planner]`` of one planner type: ``type``, ``rate_hz`` [Hz] and ``options``,
     the type's own options model (``sim.planner_registry``)."""
-    try:
-        entry.options.model_validate({})
-        options: object = Field(default_factory=entry.options)
-    except ValidationError:
-        options = ...  # the type has required options
+    required = any(f.is_required() for f in entry.options.model_fields.values())
+    options: object = ... if required else Field(default_factory=entry.options)
     return create_model(
         f"{entry.name.title().replace('_', '')}Planner",
         __base__=_PlannerBase,
