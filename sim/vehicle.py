@@ -14,6 +14,7 @@ from datetime import UTC, datetime
 
 import numpy as np
 
+from aircraft.nav_inputs import ATTITUDE_SOURCE, ESTIMATE_PROPERTIES, estimate_values
 from aircraft.quadrotor.controller import MultirotorController
 from aircraft.registry import get_airframe
 from sim import log_schemas as S
@@ -57,6 +58,10 @@ class Vehicle:
         self.wind_ne = (wind.north, wind.east)  # the scenario's steady wind, the planners' forecast [m/s]
         self.mission = mission_from_config(cfg, origin)
         self.estimator = make_estimator(cfg.estimator, self.plant, af, seed, origin, cfg.sensors)
+        self._inner_nodes = []  # the inner loops' estimate inputs (aircraft.nav_inputs)
+        if isinstance(self.estimator, SensorEstimator):
+            self.plant[ATTITUDE_SOURCE] = 1.0
+            self._inner_nodes = self.plant.property_nodes(ESTIMATE_PROPERTIES)
         self.controller = af.make_controller(cfg.gains)
         self.planner: Planner = self.make_mission_planner()
         self.mode = "AUTO"  # AUTO: the mission; HOLD: hover in place; GUIDED: ground-station targets
@@ -128,7 +133,7 @@ class Vehicle:
         if self.wind.varies:  # error <= max shear * climb rate / control rate (sim.wind_field)
             sched.add_task(f"{n}.wind", af.control_hz, Stage.ENVIRONMENT, self._wind)
         if isinstance(self.estimator, SensorEstimator):
-            sched.add_task(f"{n}.sense", self.estimator.sense_hz, Stage.SENSE, self.estimator.sense)
+            sched.add_task(f"{n}.sense", self.estimator.sense_hz, Stage.SENSE, self._sense)
         sched.add_task(f"{n}.estimator", af.control_hz, Stage.ESTIMATE, self._estimate)
         sched.add_task(f"{n}.planner", self.cfg.planner.rate_hz, Stage.PLAN, self.plan_now)
         sched.add_task(f"{n}.control", af.control_hz, Stage.CONTROL, self._control)
@@ -138,6 +143,17 @@ class Vehicle:
 
     def _wind(self, t: float) -> None:
         self.plant.set_wind(self.wind.at(self.plant.truth().alt_msl_m, t))
+
+    def _sense(self, t: float) -> None:
+        """Sample the sensors; hand the inner loops the newest gyro-propagated attitude and
+        bias-corrected rates (held by the FCS until the next gyro sample)."""
+        est = self.estimator
+        assert isinstance(est, SensorEstimator)
+        est.sense(t)
+        sample = est.attitude.sample
+        if sample is not None and sample.t == t:
+            for node, value in zip(self._inner_nodes, estimate_values(sample), strict=True):
+                node.set_double_value(value)
 
     def _estimate(self, t: float) -> None:
         self.estimate = self.estimator.update(t)

@@ -7,6 +7,8 @@ Frames and units (SI throughout):
 - attitude: roll, pitch, yaw (3-2-1 Euler, body FRD to NED) [rad], yaw in (-pi, pi].
 - body rates p, q, r about body FRD axes [rad/s].
 - airspeeds: true (TAS) and equivalent (EAS) [m/s].
+
+``AttitudeSample`` is what an airframe's inner attitude/rate loops see at one gyro sample.
 """
 
 from __future__ import annotations
@@ -54,3 +56,13 @@ class VehicleState:
     def course_rad(self) -> float:
         """Ground track angle from north, positive east [rad]."""
         return float(np.arctan2(self.vel_ned[1], self.vel_ned[0]))
+
+
+@dataclass(frozen=True, slots=True)
+class AttitudeSample:
+    """Inner-loop inputs at sim time ``t`` [s]: attitude ``euler`` (roll, pitch, yaw; 3-2-1 Euler,
+    body FRD to NED) [rad] and body rates ``rates_body`` (p, q, r about body FRD) [rad/s]."""
+
+    t: float
+    euler: tuple[float, float, float]
+    rates_body: tuple[float, float, float]

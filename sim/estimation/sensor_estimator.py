@@ -8,13 +8,16 @@ Tasks the world schedules (both rates must divide the plant rate; the config che
     sched.add_task(f"{name}.estimator", control_hz, Stage.ESTIMATE, est.update)    # -> VehicleState
 
 ``sense(t)`` samples the IMU (specific force and body rates only: seven JSBSim property
-reads), appends the sample to the current fusion interval, polls the aiding sensors when one is
-due (GNSS, baro, airspeed, magnetometer, from a full truth sample), and at every fusion tick
-(``fusion_hz``, a divisor of the IMU rate) applies the IMU error model to the interval's
-samples in one vectorised call, runs ONE EKF predict with their trapezoidal average (PX4 EKF2
+reads) through its error model, appends the output to the current fusion interval, polls the
+aiding sensors when one is due (GNSS, baro, airspeed, magnetometer, from a full truth sample),
+and at every fusion tick (``fusion_hz``, a divisor of the IMU rate) runs ONE EKF predict with
+the interval's trapezoidal average (PX4 EKF2
 style downsampled IMU: the mid-interval attitude makes this exact for constant rate and
 specific force, coning/sculling are second order) and ONE stacked update with every aiding
-measurement delivered in the interval. ``update(t)`` returns the estimate at ``t`` (calls
+measurement delivered in the interval. Every gyro sample also updates :attr:`attitude`
+(:class:`sim.estimation.gyro_attitude.GyroAttitude`): the inner loops' attitude, restarted from
+the posterior at each fusion and propagated with the bias-corrected gyro in between, and the
+bias-corrected rates. ``update(t)`` returns the estimate at ``t`` (calls
 ``sense(t)`` first if the world did not). The EKF (:class:`sim.estimation.ins_ekf.InsEkf`)
 keeps its per-sample filterpy path for stand-alone use; this component uses its fast paths.
 
@@ -33,6 +36,7 @@ from numpy.typing import ArrayLike
 from pydantic import Field, model_validator
 
 from sim.core.state import VehicleState
+from sim.estimation.gyro_attitude import GyroAttitude
 from sim.estimation.ins_ekf import InsEkf, InsEkfConfig
 from sim.geodesy import GeoPoint
 from sim.jsbsim_plant import JSBSimPlant
@@ -122,15 +126,17 @@ class SensorEstimatorConfig(StrictConfig):
 
     @classmethod
     def for_kind(cls, kind: Literal["fixed_wing", "multirotor"], **overrides) -> SensorEstimatorConfig:
-        """Defaults per airframe kind (rates dividing the registry's plant rates):
-        - ``fixed_wing`` (HAPS, plant 120 Hz): IMU 60 Hz, EKF predict 10 Hz, GNSS, baro, pitot
+        """Defaults per airframe kind (rates dividing the registry's plant rates; the IMU at the
+        plant rate, so the inner loops, which JSBSim runs every plant step, get a fresh gyro
+        sample every step as an autopilot's rate loop does):
+        - ``fixed_wing`` (HAPS, plant 120 Hz): IMU 120 Hz, EKF predict 10 Hz, GNSS, baro, pitot
           and magnetometer 5 Hz (slow dynamics; one stacked update every other fusion tick);
-        - ``multirotor`` (plant 240 Hz): IMU 120 Hz, EKF 60 Hz, GNSS 5 Hz, baro and
+        - ``multirotor`` (plant 240 Hz): IMU 240 Hz, EKF 60 Hz, GNSS 5 Hz, baro and
           magnetometer 20 Hz, no pitot.
         ``overrides``: fields of this config (e.g. ``fusion_hz=20``, ``sensors=...``)."""
         if kind == "fixed_wing":
             sensors = SensorSuiteConfig(
-                imu=ImuConfig(rate_hz=60.0),
+                imu=ImuConfig(rate_hz=120.0),
                 gnss=GnssConfig(rate_hz=5.0),
                 baro=BaroConfig(rate_hz=5.0),
                 airspeed=AirspeedConfig(rate_hz=5.0),
@@ -139,7 +145,7 @@ class SensorEstimatorConfig(StrictConfig):
             base = {"sensors": sensors, "fusion_hz": 10.0}
         elif kind == "multirotor":
             sensors = SensorSuiteConfig(
-                imu=ImuConfig(rate_hz=120.0),
+                imu=ImuConfig(rate_hz=240.0),
                 gnss=GnssConfig(rate_hz=5.0),
                 baro=BaroConfig(rate_hz=20.0),
                 airspeed=None,
@@ -205,7 +211,13 @@ class SensorEstimator:
         self._fuse_next = -math.inf
         self._aid_next = -math.inf
         self._t_sensed = -math.inf
-        self._block: list[tuple[float, ...]] = []
+        self._block: list[list[float]] = []  # the fusion interval's IMU outputs (accel, gyro)
+        self._block_t: list[float] = []  # their times [s]
+        self._imu_in = np.empty((1, 6))  # one true sample (specific force, rates), reused
+        self._t_in = np.empty(1)
+        self._t_gyro = -math.inf  # time of the newest gyro sample [s]
+        # inner-loop inputs: the attitude propagated with the bias-corrected gyro between fusions
+        self.attitude = GyroAttitude(self.ekf.nav.q, tuple(self.ekf.nav.bg.tolist()))
         self._fused: tuple[float, np.ndarray] | None = None  # last fusion time [s], its newest IMU sample
         self._inbox: list[Measurement] = []
         self._log: dict[str, list[Any]] = {}  # per sensor: "imu" (t, dt, mean) tuples, the others measurements
@@ -230,16 +242,32 @@ class SensorEstimator:
         if t <= self._t_sensed + _EPS:
             return
         self._t_sensed = t
+        gyro = None
         if t + _EPS >= self._imu_next:
             fx, fy, fz, mass, p, q, r = [n.get_double_value() for n in self._imu_nodes]
             k = _LBF / (mass * _SLUG)
-            self._block.append((t, fx * k, fy * k, fz * k, p, q, r))
+            self._imu_in[0] = (fx * k, fy * k, fz * k, p, q, r)
+            self._t_in[0] = t
+            ts, y = self.imu.measure_block(self._t_in, self._imu_in, self._imu_period)
+            if len(ts):  # a sample a fault dropped leaves the inner loops on the previous one
+                row = y[0].tolist()
+                self._block_t.append(t)
+                self._block.append(row)
+                gyro = (row[3], row[4], row[5])
             self._imu_next = (math.floor((t + _EPS) / self._imu_period) + 1) * self._imu_period
         if t + _EPS >= self._aid_next:
             self._poll_aiding(t)
         if t + _EPS >= self._fuse_next:
             self._fuse_next = (math.floor((t + _EPS) / self._fuse_period) + 1) * self._fuse_period
             self._fuse(t)
+            if self._fused is not None:
+                nav = self.ekf.nav
+                w = gyro if gyro is not None else tuple(self._fused[1][3:].tolist())
+                self.attitude.restart(t, nav.q, tuple(nav.bg.tolist()), w)
+        elif gyro is not None:
+            self.attitude.step(t, gyro, t - self._t_gyro)
+        if gyro is not None:
+            self._t_gyro = t
 
     def update(self, t: float) -> VehicleState:
         """Estimator protocol: the estimate at ``t`` [s] (for controllers, guidance, planners)."""
@@ -266,15 +294,15 @@ class SensorEstimator:
         self._aid_next = nxt
 
     def _fuse(self, t: float) -> None:
-        block = np.array(self._block).reshape(-1, 7)
+        y = np.array(self._block).reshape(-1, 6)
         self._block.clear()
-        ts, y = self.imu.measure_block(block[:, 0], block[:, 1:], self._imu_period)
-        if len(ts):
+        self._block_t.clear()
+        if len(y):
             if self._fused is None:  # first sample: the start of the first interval
                 self.ekf.t = t
             else:  # trapezoid over [previous interval's last sample, this one's samples]
                 t_prev, prev = self._fused
-                mean = (y.sum(axis=0) - 0.5 * y[-1] + 0.5 * prev) / len(ts)
+                mean = (y.sum(axis=0) - 0.5 * y[-1] + 0.5 * prev) / len(y)
                 dt = t - t_prev
                 self.ekf.predict_mean(mean[:3], mean[3:], dt, t, y[-1, 3:])
                 self._log.setdefault("imu", []).append((t, dt, mean))  # converted on demand
