@@ -38,6 +38,7 @@ class _Task:
     stage: Stage
     order: int
     fn: Callable[[float], None]
+    plant: str | None  # the only plant it reads or writes (None: any plant)
 
 
 class SchedulerError(ValueError):
@@ -69,16 +70,21 @@ class LockstepScheduler:
         """A plant integrated at ``rate_hz``; ``step(n)`` advances it n steps."""
         d = self.divisor_for(rate_hz, name)
         for t in self._tasks:
-            self._check(t.name, t.divisor, d)
+            if t.plant in (None, name):
+                self._check(t.name, t.divisor, d)
         self._plants.append(_Plant(name, d, step))
 
-    def add_task(self, name: str, rate_hz: float, stage: Stage, fn: Callable[[float], None]) -> None:
-        """``fn(t)`` called at ``rate_hz``; the rate must be a sub-multiple of every plant rate,
-        so that tasks always see plants at exactly the tick time."""
+    def add_task(
+        self, name: str, rate_hz: float, stage: Stage, fn: Callable[[float], None], plant: str | None = None
+    ) -> None:
+        """``fn(t)`` called at ``rate_hz``; the rate must be a sub-multiple of every plant rate
+        (of ``plant``'s only, for a task that touches no other plant), so that tasks always see
+        plants at exactly the tick time."""
         d = self.divisor_for(rate_hz, name)
         for p in self._plants:
-            self._check(name, d, p.divisor)
-        self._tasks.append(_Task(name, d, stage, len(self._tasks), fn))
+            if plant in (None, p.name):
+                self._check(name, d, p.divisor)
+        self._tasks.append(_Task(name, d, stage, len(self._tasks), fn, plant))
         self._tasks.sort(key=lambda t: (t.stage, t.order))
 
     def _check(self, task: str, task_div: int, plant_div: int) -> None:

@@ -133,7 +133,7 @@ class Vehicle:
         if self.wind.varies:  # error <= max shear * climb rate / control rate (sim.wind_field)
             sched.add_task(f"{n}.wind", af.control_hz, Stage.ENVIRONMENT, self._wind)
         if isinstance(self.estimator, SensorEstimator):
-            sched.add_task(f"{n}.sense", self.estimator.sense_hz, Stage.SENSE, self._sense)
+            sched.add_task(f"{n}.sense", self.estimator.sense_hz, Stage.SENSE, self._sense, plant=f"{n}.plant")
         sched.add_task(f"{n}.estimator", af.control_hz, Stage.ESTIMATE, self._estimate)
         sched.add_task(f"{n}.planner", self.cfg.planner.rate_hz, Stage.PLAN, self.plan_now)
         sched.add_task(f"{n}.control", af.control_hz, Stage.CONTROL, self._control)

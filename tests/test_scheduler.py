@@ -40,6 +40,21 @@ def test_rate_must_divide_base_and_plants():
         s2.add_task("x", 240, Stage.LOG, lambda t: None)
 
 
+def test_a_task_of_one_plant_runs_at_that_plants_rate_beside_a_slower_plant():
+    s = LockstepScheduler(240)
+    steps = {"quad": 0, "haps": 0}
+    seen: list[tuple[float, int, int]] = []
+    s.add_plant("quad", 240, lambda n: steps.__setitem__("quad", steps["quad"] + n))
+    s.add_task("quad.sense", 240, Stage.SENSE, lambda t: seen.append((t, steps["quad"], steps["haps"])), plant="quad")
+    s.add_plant("haps", 120, lambda n: steps.__setitem__("haps", steps["haps"] + n))  # the quad task is not its
+    with pytest.raises(SchedulerError, match="haps.sense: its rate 240 Hz is not a sub-multiple of a plant rate 120"):
+        s.add_task("haps.sense", 240, Stage.SENSE, lambda t: None, plant="haps")
+    s.run(240)
+    assert steps == {"quad": 240, "haps": 120}
+    assert len(seen) == 241
+    assert all(q == round(t * 240) and h == int(t * 120 + 1e-9) for t, q, h in seen)
+
+
 def test_stop_is_checked_after_each_tick():
     s = LockstepScheduler(100)
     seen = []
