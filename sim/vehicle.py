@@ -44,6 +44,10 @@ class SimulationDiverged(RuntimeError):
 
 
 class Vehicle:
+    # the inner loops close on the estimate when the estimator has sensors; False keeps them on
+    # JSBSim's truth (the comparison of tests/test_inner_loop_estimate.py and the benchmark)
+    inner_loops_on_estimate = True
+
     def __init__(self, cfg: sc.VehicleSpec, origin: GeoPoint, log: McapLog, seed: int, wind: sc.Wind = sc.Wind()):
         """``seed``: this vehicle's own seed (its JSBSim turbulence and sensor noise)."""
         self.name = cfg.name
@@ -59,7 +63,7 @@ class Vehicle:
         self.mission = mission_from_config(cfg, origin)
         self.estimator = make_estimator(cfg.estimator, self.plant, af, seed, origin, cfg.sensors)
         self._inner_nodes = []  # the inner loops' estimate inputs (aircraft.nav_inputs)
-        if isinstance(self.estimator, SensorEstimator):
+        if isinstance(self.estimator, SensorEstimator) and self.inner_loops_on_estimate:
             self.plant[ATTITUDE_SOURCE] = 1.0
             self._inner_nodes = self.plant.property_nodes(ESTIMATE_PROPERTIES)
         self.controller = af.make_controller(cfg.gains)
@@ -151,7 +155,7 @@ class Vehicle:
         assert isinstance(est, SensorEstimator)
         est.sense(t)
         sample = est.attitude.sample
-        if sample is not None and sample.t == t:
+        if self._inner_nodes and sample is not None and sample.t == t:
             for node, value in zip(self._inner_nodes, estimate_values(sample), strict=True):
                 node.set_double_value(value)
 

@@ -47,7 +47,7 @@ def test_a_task_of_one_plant_runs_at_that_plants_rate_beside_a_slower_plant():
     s.add_plant("quad", 240, lambda n: steps.__setitem__("quad", steps["quad"] + n))
     s.add_task("quad.sense", 240, Stage.SENSE, lambda t: seen.append((t, steps["quad"], steps["haps"])), plant="quad")
     s.add_plant("haps", 120, lambda n: steps.__setitem__("haps", steps["haps"] + n))  # the quad task is not its
-    with pytest.raises(SchedulerError, match="haps.sense: its rate 240 Hz is not a sub-multiple of a plant rate 120"):
+    with pytest.raises(SchedulerError, match=r"haps\.sense: its rate 240 Hz is not a sub-multiple of a plant rate 120"):
         s.add_task("haps.sense", 240, Stage.SENSE, lambda t: None, plant="haps")
     s.run(240)
     assert steps == {"quad": 240, "haps": 120}
