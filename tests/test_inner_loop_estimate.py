@@ -144,7 +144,8 @@ def quad_square(scenario_data: Callable[[str], dict], duration: float) -> dict[s
 TRACKING = {"quad": (quad_square, 55.0, 8.0), "haps": (haps_turns, 120.0, 10.0)}
 # [deg], from 20 seeds (docs/sensors.md): rms of true - commanded roll and pitch on the EKF, and
 # its growth per seed when the inner loops close on the estimate instead of the truth
-BOUNDS = {"quad": {"rms": 4.5, "cost": 0.4}, "haps": {"rms": 1.5, "cost": 0.3}}
+# (20-seed worst: quad 3.9 and 0.33, HAPS 1.48 and 0.23)
+BOUNDS = {"quad": {"rms": 4.5, "cost": 0.5}, "haps": {"rms": 2.0, "cost": 0.4}}
 
 
 def tracking_table(fly, scenario_data, name: str, seeds: range, estimator: str = "ekf") -> np.ndarray:
