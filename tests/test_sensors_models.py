@@ -284,3 +284,19 @@ def test_adsb_latency_rate_dropouts_and_quantised_altitude():
         assert np.allclose(d / 7.62, np.round(d / 7.62))
         err = np.array([r.pos_ned[0] - (100 + 10 * r.t) for _, r in reps])
         assert abs(err.std() - 3.0) < 0.8
+
+
+@pytest.mark.parametrize("fault", [None, SensorFault(kind="bias_step", t_start=1.0, value=(0, 0, 0, 0.1, 0, 0))])
+def test_imu_per_sample_path_gives_the_block_path_numbers(fault):
+    """``measure_one`` (the inner loops' per-sample path) equals ``measure_block`` row by row,
+    across noise-pool refills (4096 rows) and with a fault active."""
+    one, block = (Imu(ImuConfig(rate_hz=240.0), np.random.default_rng(1)) for _ in range(2))
+    if fault is not None:
+        one.inject(fault)
+        block.inject(fault)
+    true = np.random.default_rng(2).normal(size=(5000, 6))
+    for k in range(len(true)):
+        t = k / 240.0
+        _, y = block.measure_block(np.array([t]), true[k : k + 1], 1.0 / 240.0)
+        assert one.measure_one(t, tuple(true[k]), 1.0 / 240.0) == y[0].tolist()
+    assert np.array_equal(one.gyro.bias, block.gyro.bias) and np.array_equal(one.accel.bias, block.accel.bias)

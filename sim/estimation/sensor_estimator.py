@@ -213,8 +213,6 @@ class SensorEstimator:
         self._t_sensed = -math.inf
         self._block: list[list[float]] = []  # the fusion interval's IMU outputs (accel, gyro)
         self._block_t: list[float] = []  # their times [s]
-        self._imu_in = np.empty((1, 6))  # one true sample (specific force, rates), reused
-        self._t_in = np.empty(1)
         self._t_gyro = -math.inf  # time of the newest gyro sample [s]
         # inner-loop inputs: the attitude propagated with the bias-corrected gyro between fusions
         self.attitude = GyroAttitude(self.ekf.nav.q, tuple(self.ekf.nav.bg.tolist()))
@@ -246,11 +244,8 @@ class SensorEstimator:
         if t + _EPS >= self._imu_next:
             fx, fy, fz, mass, p, q, r = [n.get_double_value() for n in self._imu_nodes]
             k = _LBF / (mass * _SLUG)
-            self._imu_in[0] = (fx * k, fy * k, fz * k, p, q, r)
-            self._t_in[0] = t
-            ts, y = self.imu.measure_block(self._t_in, self._imu_in, self._imu_period)
-            if len(ts):  # a sample a fault dropped leaves the inner loops on the previous one
-                row = y[0].tolist()
+            row = self.imu.measure_one(t, (fx * k, fy * k, fz * k, p, q, r), self._imu_period)
+            if row is not None:  # a sample a fault dropped leaves the inner loops on the previous one
                 self._block_t.append(t)
                 self._block.append(row)
                 gyro = (row[3], row[4], row[5])

@@ -76,6 +76,8 @@ class Imu(SampledSensor[ImuSample]):
         self.gyro = Channel(cfg.gyro_channel(), 3, rng)
         self._blk: tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._walk = self._white = np.empty((0, 6))
+        self._rows: tuple[list[list[float]], list[list[float]]] = ([], [])  # the pool as lists
+        self._one: tuple[list[float], list[float], list[bool]] = ([], [], [])  # scale, quantum, mask
         self._pool_i = 0
 
     def _measure(self, truth: TruthSample, dt: float) -> np.ndarray:
@@ -86,15 +88,9 @@ class Imu(SampledSensor[ImuSample]):
     def _package(self, t: float, y: np.ndarray) -> ImuSample:
         return ImuSample(t, y[:3], y[3:])
 
-    def measure_block(self, t: np.ndarray, true: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """Samples taken at times ``t`` (n,) every ``dt`` [s] from the true specific force and
-        rates ``true`` (n, 6: accel x, y, z, gyro x, y, z): the per-sample error model of
-        :meth:`poll` (scale, bias random walk per sample, white noise, quantisation) applied to
-        the whole block at once (the estimator's fast path). The noise comes from a pool of
-        4096 rows drawn from this IMU's generator at a time, pre-scaled, with the bias random
-        walk pre-summed (reproducible, but not the same numbers as :meth:`poll`). Faults apply
-        per sample; dropped samples are left out. Returns (times (k,), outputs (k, 6))."""
-        n = len(t)
+    def _take(self, n: int, dt: float) -> int:
+        """Reserve ``n`` rows of the noise pool for samples every ``dt`` [s]; the first row's
+        index. Sets the channels' biases to the last reserved row's."""
         if self._blk is None or self._blk[0] != dt:
             a, g = self.accel.cfg, self.gyro.cfg
             q = np.array([a.quantum] * 3 + [g.quantum] * 3)
@@ -106,19 +102,46 @@ class Imu(SampledSensor[ImuSample]):
                 q > 0.0,
                 np.concatenate((self.accel.scale, self.gyro.scale)),
             )
+            self._one = (self._blk[5].tolist(), self._blk[3].tolist(), self._blk[4].tolist())
             self._pool_i = len(self._walk)  # refill with this dt
-        _, rw, noise, quantum, q_mask, scale = self._blk
         i = self._pool_i
         if i + n > len(self._walk):
             m = max(4096, n)
             base = np.concatenate((self.accel.bias, self.gyro.bias))
-            self._walk = np.cumsum(self.rng.standard_normal((m, 6)) * rw, axis=0) + base
-            self._white = self.rng.standard_normal((m, 6)) * noise
+            self._walk = np.cumsum(self.rng.standard_normal((m, 6)) * self._blk[1], axis=0) + base
+            self._white = self.rng.standard_normal((m, 6)) * self._blk[2]
+            self._rows = (self._walk.tolist(), self._white.tolist())
             i = 0
         self._pool_i = i + n
         b = self._walk[i + n - 1]
         self.accel.bias = b[:3].copy()
         self.gyro.bias = b[3:].copy()
+        return i
+
+    def measure_one(self, t: float, true: tuple[float, ...], dt: float) -> list[float] | None:
+        """One sample of :meth:`measure_block` (the same model and noise pool: the same numbers)
+        in plain floats, ``None`` when a fault drops it: the estimator's per-sample path."""
+        if self.faults.faults:
+            ts, y = self.measure_block(np.array([t]), np.array([true]), dt)
+            return y[0].tolist() if len(ts) else None
+        i = self._take(1, dt)
+        scale, quantum, q_mask = self._one
+        walk, white = self._rows[0][i], self._rows[1][i]
+        y = [x * s + w + e for x, s, w, e in zip(true, scale, walk, white, strict=True)]
+        return [round(v / q) * q if m else v for v, q, m in zip(y, quantum, q_mask, strict=True)]
+
+    def measure_block(self, t: np.ndarray, true: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Samples taken at times ``t`` (n,) every ``dt`` [s] from the true specific force and
+        rates ``true`` (n, 6: accel x, y, z, gyro x, y, z): the per-sample error model of
+        :meth:`poll` (scale, bias random walk per sample, white noise, quantisation) applied to
+        the whole block at once (the estimator's fast path). The noise comes from a pool of
+        4096 rows drawn from this IMU's generator at a time, pre-scaled, with the bias random
+        walk pre-summed (reproducible, but not the same numbers as :meth:`poll`). Faults apply
+        per sample; dropped samples are left out. Returns (times (k,), outputs (k, 6))."""
+        n = len(t)
+        i = self._take(n, dt)
+        assert self._blk is not None  # set by _take
+        quantum, q_mask, scale = self._blk[3:]
         y = true * scale
         y += self._walk[i : i + n]
         y += self._white[i : i + n]
