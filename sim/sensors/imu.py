@@ -122,8 +122,8 @@ class Imu(SampledSensor[ImuSample]):
         """One sample of :meth:`measure_block` (the same model and noise pool: the same numbers)
         in plain floats, ``None`` when a fault drops it: the estimator's per-sample path."""
         if self.faults.faults:
-            ts, y = self.measure_block(np.array([t]), np.array([true]), dt)
-            return y[0].tolist() if len(ts) else None
+            ts, block = self.measure_block(np.array([t]), np.array([true]), dt)
+            return block[0].tolist() if len(ts) else None
         i = self._take(1, dt)
         scale, quantum, q_mask = self._one
         walk, white = self._rows[0][i], self._rows[1][i]
