@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import copy
 import importlib.util
+import json
 import typing
 from collections.abc import Callable
 from pathlib import Path
@@ -24,8 +25,15 @@ import pytest
 import tomli_w
 from pydantic import BaseModel
 
+from aircraft.registry import get_airframe
 from sim import scenario as sc
+from sim.core.plan import Plan, Planner, Threats
+from sim.core.state import VehicleState
+from sim.planner_records import WALLCLOCK_FIELDS, RecordSink
+from sim.planner_registry import PLANNERS
+from sim.replay.rerun import RerunReport, rerun_planner
 from sim.runner import run_scenario
+from sim.vehicle_setup import scenario_planner
 
 ROOT = Path(__file__).resolve().parents[1]
 _spec = importlib.util.spec_from_file_location("compare_log_payloads", ROOT / "scripts" / "compare_log_payloads.py")
@@ -390,6 +398,311 @@ SHOWN_ELSEWHERE = {
 EFFECTS |= _sensor_effects()
 
 
+# --- planner options: decisions on the recorded inputs of a short encounter per planner type ---
+#
+# A planner option acts where the planner decides: each type has a short encounter baseline
+# (traffic, obstacles, storms), flown once per module. The planner is then built from the
+# scenario twice, through the runner's own construction (``scenario_planner``), before and after
+# the option's change, and re-run on the baseline's recorded inputs (``rerun_planner``); its
+# plans and its own log records (wall-clock fields left out) must differ at some call. Inputs
+# equal up to that call, the closed loop logs a different plan or record there.
+
+
+def _uas(name: str, north: float, east: float, heading: float, goal: tuple[float, float], options: dict) -> dict:
+    return {
+        "name": name,
+        "aircraft": "quadrotor",
+        "estimator": "perfect",
+        "initial": {"north": north, "east": east, "altitude": 420.0, "heading": heading},
+        "mission": {
+            "cruise_speed": 5.0,
+            "acceptance_radius": 1.0,
+            "waypoints": [{"north": goal[0], "east": goal[1], "altitude": 420.0}],
+        },
+        "planner": {"type": "reachset", "rate_hz": 1.0, "options": options},
+    }
+
+
+_ORIGIN = {"lat": 47.0, "lon": 8.0, "altitude": 400.0}
+_TRACKER = {
+    "rate_hz": 10,
+    "latency": 0.1,
+    "position_noise_horizontal": 0.3,
+    "position_noise_vertical": 0.3,
+    "velocity_noise": 0.2,
+}
+_RULES = ["detect", "resolve", "close", "head_on", "converging", "overtake", "right_plane_heading", "safety_margin"]
+
+
+def _sphere(name: str, radius: float, north: float, east: float, alt: float, **more: object) -> dict:
+    return {"id": name, "radius": radius, "north": north, "east": east, "altitude": alt, **more}
+
+
+ENCOUNTERS: dict[str, dict] = {
+    # a quadrotor meets a climbing main threat, two diagonal ones, two spheres that appear on
+    # either side of its avoidance path at 0.6 s and one far down the reference
+    "geometric": {
+        "name": "silent_geometric",
+        "seed": 3,
+        "duration": 1.0,
+        "origin": _ORIGIN,
+        "surveillance": _TRACKER,
+        "object": [
+            _sphere("main", 2.0, 14.0, 0.0, 418.0, velocity={"down": -1.0}),
+            _sphere("diag_a", 1.0, 8.0, 8.0, 424.0, velocity={"north": 1.5, "east": -1.5}),
+            _sphere("diag_b", 1.0, 22.0, -8.0, 424.0, velocity={"north": -1.5, "east": 1.5}),
+            _sphere("late_west", 1.5, 11.5, -6.0, 420.0, appear=0.6),
+            _sphere("late_east", 1.5, 11.5, 6.0, 420.0, appear=0.6),
+            _sphere("far", 1.0, 55.0, 0.0, 420.0),
+        ],
+        "vehicle": [
+            {
+                "name": "quad",
+                "aircraft": "quadrotor",
+                "estimator": "perfect",
+                "initial": {"altitude": 420.0},
+                "mission": {
+                    "cruise_speed": 5.0,
+                    "acceptance_radius": 2.0,
+                    "waypoints": [{"north": 60.0, "east": 0.0, "altitude": 420.0}],
+                },
+                "planner": {"type": "geometric", "rate_hz": 10.0},
+            }
+        ],
+    },
+    # three reach-set quadrotors (head-on and converging) by a building, under a keep-in
+    # ceiling and beside a keep-out zone
+    "reachset": {
+        "name": "silent_reachset",
+        "seed": 3,
+        "duration": 3.0,
+        "origin": _ORIGIN,
+        "surveillance": _TRACKER | {"rate_hz": 2},
+        "obstacle": [
+            {"id": "mast", "shape": "box", "north": 6.0, "east": 10.0, "length": 2.0, "width": 2.0, "top": 440.0}
+        ],
+        "geofence": [
+            {"id": "zone", "points": [[-60, -60], [-60, 100], [60, 100], [60, -60]], "floor": 300.0, "ceiling": 430.0},
+            {
+                "id": "nofly",
+                "keep_in": False,
+                "points": [[-3, 12], [-3, 22], [-12, 12]],
+                "floor": 300.0,
+                "ceiling": 500.0,
+            },
+        ],
+        "vehicle": [
+            _uas("uas1", 0.0, 0.0, 90.0, (0.0, 80.0), {}),
+            _uas("uas2", 0.0, 40.0, 270.0, (0.0, -40.0), {}),
+            _uas("uas3", -25.0, 25.0, 0.0, (40.0, 25.0), {}),
+        ],
+    },
+    # the same three under the rules of the air in open air: a head-on and a converging case open
+    "rules": {
+        "name": "silent_rules",
+        "seed": 3,
+        "duration": 5.0,
+        "origin": _ORIGIN,
+        "surveillance": _TRACKER | {"rate_hz": 2},
+        "vehicle": [
+            _uas("uas1", 0.0, 0.0, 90.0, (0.0, 80.0), {"rules": _RULES}),
+            _uas("uas2", 0.0, 60.0, 270.0, (0.0, -40.0), {"rules": _RULES}),
+            _uas("uas3", -30.0, 30.0, 0.0, (40.0, 30.0), {"rules": _RULES}),
+        ],
+    },
+    # a quadrotor pursues one of two others
+    "pursuit": {
+        "name": "silent_pursuit",
+        "seed": 3,
+        "duration": 1.0,
+        "origin": _ORIGIN,
+        "surveillance": _TRACKER,
+        "vehicle": [
+            _uas("uas1", 0.0, 0.0, 90.0, (0.0, 80.0), {}) | {"planner": {"type": "follow_mission"}},
+            _uas("uas2", 30.0, 0.0, 90.0, (30.0, 80.0), {}) | {"planner": {"type": "follow_mission"}},
+            _uas("chaser", 15.0, -20.0, 90.0, (15.0, 80.0), {})
+            | {"planner": {"type": "pursuit", "rate_hz": 2.0, "options": {"target": "uas1"}}},
+        ],
+    },
+    # the HAPS at 18 km before a line of three storm cells (shipped mptp/storm_crossing.toml),
+    # heading north, a right angle off its goal (its first legs turn)
+    "mptp": {
+        "name": "silent_mptp",
+        "seed": 5,
+        "duration": 2.0,
+        "start_time": "2026-06-21T14:00:00Z",
+        "origin": {"lat": 47.0, "lon": 8.0, "altitude": 0.0},
+        "weather": {
+            "cells": 3,
+            "size": 60000.0,
+            "drift_east": 2.0,
+            "drift_spread": 0.5,
+            "radius": 3000.0,
+            "split_probability": 0.0,
+            "life": 18000.0,
+            "centres": [[0, 22000], [9000, 30000], [-9000, 32000]],
+            "nowcast_period": 300.0,
+        },
+        "vehicle": [
+            {
+                "name": "haps",
+                "aircraft": "haps",
+                "estimator": "perfect",
+                "initial": {"altitude": 18000.0, "airspeed": 26.0, "heading": 0.0},
+                "mission": {
+                    "cruise_speed": 26.0,
+                    "acceptance_radius": 500.0,
+                    "waypoints": [{"north": 0.0, "east": 50000.0, "altitude": 18000.0}],
+                },
+                "planner": {"type": "mptp", "rate_hz": 1.0},
+            }
+        ],
+    },
+}
+
+
+def _options(**values: object) -> Callable[[dict], None]:
+    """Sets planner options of every vehicle whose planner has options (or is of the type)."""
+
+    def change(d: dict) -> None:
+        for v in d["vehicle"]:
+            if v["planner"]["type"] not in ("follow_mission",):
+                v["planner"].setdefault("options", {}).update(values)
+
+    return change
+
+
+_GEOMETRIC = {
+    "caps": {"time_lo": 1.0, "time_hi": 5.0, "energy_lo": 100.0, "energy_hi": 900.0},
+    "cmo_max_objects": 1,
+    "cmo_max_range_m": 5.0,
+    "cmo_min_distance": 2.0,
+    "cmo_threat_samples": 3,
+    "collision_radius": 6.0,
+    "conflict_horizon_s": 0.5,
+    "dynamic_mode": "swept",
+    "g": 5.0,
+    "hover_literal_ki": True,
+    "k1": 0.9,
+    "k2": 0.1,
+    "k_p": 3.0,
+    "k_sigma": 2.0,
+    "l": 6,
+    "log_limits": [[-1.0, 1.0], [-1.0, 1.0], [-1.0, 0.001]],
+    "main_threat_extension_s": 3.0,
+    "max_cost": 0.01,
+    "min_replan_interval_s": 5.0,
+    "min_sep_factor": 4.0,
+    "n_planes": 1,
+    "omega_factor": 5.0,
+    "path_types": ["simple"],
+    "rejoin_check_s": 8.0,
+    "replan_max_offset_m": 0.0,
+    "rho": 0.3,
+    "select_margin_m": 3.0,
+    "smoothness": "std",
+    "start_shift_s": 0.0,
+    "uav_shape": "sphere_circumscribed",
+    "weights": [0.8, 0.1, 0.1],
+    "x_step_fraction": 0.3,
+}
+_REACHSET = {
+    "period": 0.5,
+    "constraint_margin": 3.0,
+    "constraint_mode": "circle",
+    "intruder_margin": 4.0,
+    "separations": ["horizontal"],
+}
+_RULES_OPTIONS = {
+    "rules": [r for r in _RULES if r != "head_on"],
+    "rules_unit": 2.0,
+    "rules_universal": 8.0,
+    "rules_head_on": 9.0,
+    "rules_converging": 12.0,
+    "rules_overtake": 9.0,
+    "rules_plane_tolerance": 3.0,
+    "rules_widest": False,
+    "rules_bloat": 3.0,
+    "rules_time_margin": 0.5,
+    "rules_established_speed": 0.2,
+    "rules_settle": 5.0,
+    "rules_deadlock_frames": 1,
+    "rules_navigation": ["vertical"],
+    "rules_navigation_spread": 2,
+    "rules_filed": {"uas2": {"category": "balloon"}, "uas3": {"category": "balloon"}},
+}
+_MPTP = {
+    "bank_max": 0.2,
+    "cluster_eps_m": 9000.0,
+    "course_change_max": 0.5,
+    "dt_s": 45.0,
+    "g": 5.0,
+    "goal_track": [[0.0, 0.0, 50000.0], [3600.0, 10000.0, 50000.0]],
+    "heuristic": "dijkstra",
+    "horizon_s": 600.0,
+    "line_aspect": 1.1,
+    "max_expansions": 5,
+    "mission_area": [[-20000, -5000], [-20000, 60000], [5000, 60000], [5000, -5000]],
+    "prob_margin_max_m": 1000.0,
+    "probability": 0.5,
+    "replan_period_s": 1.0,
+    "ring_segments": 8,
+    "safety_single_m": [1000.0, 1000.0, 1000.0],
+    "sigma_back_mps": 3.0,
+    "sigma_front_mps": 3.0,
+    "simplify_tol_m": 2000.0,
+    "tas_mps": 20.0,
+    "turning": "left",
+    "wind_error_ne_mps": [5.0, 5.0],
+}
+
+# (encounter, preparation applied before and after or None, the change)
+Decision = tuple[str, Callable[[dict], None] | None, Callable[[dict], None]]
+_PLANNER_MODEL = {
+    "geometric": "GeometricPlanner",
+    "reachset": "ReachsetPlanner",
+    "rules": "ReachsetPlanner",
+    "pursuit": "PursuitPlanner",
+    "mptp": "MptpPlanner",
+}
+
+
+def _decision_table() -> dict[str, Decision]:
+    out: dict[str, Decision] = {}
+    for kind, values in (
+        ("geometric", _GEOMETRIC),
+        ("reachset", _REACHSET),
+        ("rules", _RULES_OPTIONS),
+        ("mptp", _MPTP),
+    ):
+        for k, v in values.items():
+            out[f"vehicle.planner<{_PLANNER_MODEL[kind]}>.options.{k}"] = (kind, None, _options(**{k: v}))
+    prefix = "vehicle.planner<GeometricPlanner>.options."
+    out[prefix + "main_threat_extension_s"] = (
+        "geometric",
+        _options(dynamic_mode="swept"),
+        _options(main_threat_extension_s=3.0),
+    )
+    prefix = "vehicle.planner<MptpPlanner>.options."
+    out[prefix + "safety_line_m"] = ("mptp", _options(line_aspect=1.0), _options(safety_line_m=[1000.0] * 3))
+    out[prefix + "wind_forecast"] = ("mptp", _set("wind.east", 10.0), _options(wind_forecast="none"))
+    out["vehicle.planner<PursuitPlanner>.options.target"] = ("pursuit", None, _options(target="uas2"))
+    return out
+
+
+DECISIONS = _decision_table()
+
+# the planner's call rate acts in the closed loop: the calls are at other times
+for _kind, _model in _PLANNER_MODEL.items():
+    if _kind != "rules":
+        _chaser = 2 if _kind == "pursuit" else 0
+        EFFECTS[f"vehicle.planner<{_model}>.rate_hz"] = (
+            ENCOUNTERS[_kind],
+            None,
+            _set(f"vehicle.{_chaser}.planner.rate_hz", 0.5),
+        )
+
+
 def _planner_fields() -> list[str]:
     return [f for f in schema_fields() if f.startswith("vehicle.planner<")]
 
@@ -425,7 +738,7 @@ NOT_YET_SHOWN = {
     **{
         f: "planner option: needs an encounter baseline per planner type"
         for f in _planner_fields()
-        if f not in EFFECTS and not f.endswith(".type")
+        if f not in EFFECTS and f not in DECISIONS and not f.endswith(".type")
     },
 }
 LABELS |= {f: "the planner union's tag" for f in _planner_fields() if f.endswith(".type")}
@@ -433,7 +746,13 @@ LABELS |= {f: "the planner union's tag" for f in _planner_fields() if f.endswith
 
 def test_every_field_is_accounted_for():
     fields = set(schema_fields())
-    lists = {"EFFECTS": EFFECTS, "LABELS": LABELS, "SHOWN_ELSEWHERE": SHOWN_ELSEWHERE, "NOT_YET_SHOWN": NOT_YET_SHOWN}
+    lists = {
+        "EFFECTS": EFFECTS,
+        "DECISIONS": DECISIONS,
+        "LABELS": LABELS,
+        "SHOWN_ELSEWHERE": SHOWN_ELSEWHERE,
+        "NOT_YET_SHOWN": NOT_YET_SHOWN,
+    }
     placed = [f for d in lists.values() for f in d]
     twice = sorted({f for f in placed if placed.count(f) > 1})
     assert not twice, f"fields in more than one list: {twice}"
@@ -469,3 +788,98 @@ def test_field_changes_the_log(field, tmp_path):
     diff = _digests(after, tmp_path, "after")
     changed = sorted(t for t in diff.keys() | _BASELINES[key].keys() if diff.get(t) != _BASELINES[key].get(t))
     assert changed, f"{field}: the log is identical"
+
+
+class _Records:
+    """Stands in for the run log of a planner's own records: keeps each record (topic, sim time,
+    payload) with the planner type's wall-clock fields left out."""
+
+    epoch_ns = 0
+
+    def __init__(self, kind: str) -> None:
+        self.kind = kind
+        self.out: list[tuple] = []
+
+    def write_json(self, topic: str, t: float, payload: dict, *_schema: object) -> None:
+        payload = copy.deepcopy(payload)
+        for dotted in WALLCLOCK_FIELDS.get(self.kind, {}).get(topic.split("/plan", 1)[1], ()):
+            *head, last = dotted.split(".")
+            node = payload
+            for part in head:
+                node = node.get(part, {})
+            node.pop(last, None)
+        self.out.append((topic, t, json.dumps(payload, sort_keys=True, default=str)))
+
+    def write_proto(self, topic: str, t: float, message: typing.Any, *_metadata: object) -> None:
+        self.out.append((topic, t, message.SerializeToString(deterministic=True)))
+
+
+def _decisions(path: Path, data: dict, vehicle: str) -> tuple[RerunReport, list[tuple]]:
+    """``vehicle``'s planner built from the scenario ``data`` as the runner builds it, re-run on
+    the log at ``path``: the report against the logged plans, and every new plan and record."""
+    scenario = sc.parse_scenario(data, "decisions")
+    cfg = next(v for v in scenario.vehicle if v.name == vehicle)
+    af = get_airframe(cfg.aircraft)
+    gains = af.make_controller(cfg.gains).gains
+    records = PLANNERS[cfg.planner.type].records
+    log = _Records(cfg.planner.type)
+    sink = RecordSink(typing.cast(typing.Any, log), f"/{vehicle}/plan", scenario.origin_point)
+
+    class Recorded:
+        def __init__(self, inner: Planner) -> None:
+            self.inner, self.name = inner, inner.name
+
+        def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
+            p = self.inner.plan(estimate, threats, t)
+            if p.t == t:
+                log.out.append(
+                    ("plan", t, p.status.value, p.positions.tobytes(), p.times.tobytes(), p.labels.tobytes())
+                )
+            if records is not None:
+                records(sink, self.inner, p, t)
+            return p
+
+    wind = (scenario.wind.north, scenario.wind.east)
+    report = rerun_planner(path, vehicle, lambda m: Recorded(scenario_planner(cfg, m, af, gains, wind)))
+    return report, log.out
+
+
+_FLOWN: dict[str, Path] = {}
+_REPLAYED: dict[tuple[str, str, str], list[tuple]] = {}
+
+
+def _replayed(kind: str, data: dict, vehicle: str, tmp_path_factory: pytest.TempPathFactory) -> list[tuple]:
+    """Decisions of ``vehicle`` planned from ``data`` on the flown encounter ``kind`` (each
+    encounter flown once per module and checked to re-run plan for plan)."""
+    if kind not in _FLOWN:
+        base = ENCOUNTERS[kind]
+        path = tmp_path_factory.mktemp(kind) / "run.mcap"
+        run_scenario(sc.parse_scenario(base, kind), path, scenario_text=tomli_w.dumps(base))
+        for v in _planned(base):
+            report, _ = _decisions(path, base, v)
+            assert report.plans > 0 and report.differences == [], f"{kind}: {vehicle} does not re-run its plans"
+        _FLOWN[kind] = path
+    key = (kind, tomli_w.dumps(data), vehicle)
+    if key not in _REPLAYED:
+        _REPLAYED[key] = _decisions(_FLOWN[kind], data, vehicle)[1]
+    return _REPLAYED[key]
+
+
+def _planned(data: dict) -> list[str]:
+    return [v["name"] for v in data["vehicle"] if v["planner"]["type"] != "follow_mission"]
+
+
+@pytest.mark.closed_loop
+@pytest.mark.parametrize("field", sorted(DECISIONS))
+def test_planner_option_changes_a_decision(field, tmp_path_factory):
+    kind, prepare, change = DECISIONS[field]
+    before = copy.deepcopy(ENCOUNTERS[kind])
+    if prepare is not None:
+        prepare(before)
+    after = copy.deepcopy(before)
+    change(after)
+    assert after != before, "the change changes nothing in the scenario"
+    assert any(
+        _replayed(kind, after, v, tmp_path_factory) != _replayed(kind, before, v, tmp_path_factory)
+        for v in _planned(before)
+    ), f"{field}: every plan and planner record is the same"
