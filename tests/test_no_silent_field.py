@@ -510,6 +510,18 @@ ENCOUNTERS: dict[str, dict] = {
             _uas("uas3", -30.0, 30.0, 0.0, (40.0, 30.0), {"rules": _RULES}),
         ],
     },
+    # two of them under the rules of the air: one converging case, resolved, then closed at 10 s
+    "rules_pair": {
+        "name": "silent_rules_pair",
+        "seed": 3,
+        "duration": 11.0,
+        "origin": _ORIGIN,
+        "surveillance": _TRACKER | {"rate_hz": 2},
+        "vehicle": [
+            _uas("uas1", 0.0, 0.0, 90.0, (0.0, 80.0), {"rules": _RULES}),
+            _uas("uas3", -30.0, 30.0, 0.0, (40.0, 30.0), {"rules": _RULES}),
+        ],
+    },
     # a quadrotor pursues one of two others
     "pursuit": {
         "name": "silent_pursuit",
@@ -662,6 +674,7 @@ _PLANNER_MODEL = {
     "geometric": "GeometricPlanner",
     "reachset": "ReachsetPlanner",
     "rules": "ReachsetPlanner",
+    "rules_pair": "ReachsetPlanner",
     "pursuit": "PursuitPlanner",
     "mptp": "MptpPlanner",
 }
@@ -686,6 +699,22 @@ def _decision_table() -> dict[str, Decision]:
     prefix = "vehicle.planner<MptpPlanner>.options."
     out[prefix + "safety_line_m"] = ("mptp", _options(line_aspect=1.0), _options(safety_line_m=[1000.0] * 3))
     out[prefix + "wind_forecast"] = ("mptp", _set("wind.east", 10.0), _options(wind_forecast="none"))
+    prefix = "vehicle.planner<ReachsetPlanner>.options.rules_"
+    filed = _options(rules_filed={"uas3": {"category": "uas_autonomous", "maneuverability": "vtol"}})
+    out[prefix + "converging_extra"] = ("rules_pair", None, _options(rules_converging_extra=4.0))
+    out[prefix + "category"] = ("rules_pair", filed, _options(rules_category="manned"))
+    out[prefix + "maneuverability"] = ("rules_pair", filed, _options(rules_maneuverability="linear_propulsion"))
+    out[prefix + "barrel_half_height"] = (
+        "rules_pair",
+        _options(rules_airspace="controlled"),
+        _options(rules_barrel_half_height=0.5),
+    )
+    out[prefix + "airspace"] = (
+        "rules_pair",
+        _options(rules_barrel_half_height=0.5),
+        _options(rules_airspace="controlled"),
+    )
+    out[prefix + "close_after"] = ("rules_pair", None, _options(rules_close_after=5))
     out["vehicle.planner<PursuitPlanner>.options.target"] = ("pursuit", None, _options(target="uas2"))
     return out
 
@@ -694,7 +723,7 @@ DECISIONS = _decision_table()
 
 # the planner's call rate acts in the closed loop: the calls are at other times
 for _kind, _model in _PLANNER_MODEL.items():
-    if _kind != "rules":
+    if not _kind.startswith("rules"):
         _chaser = 2 if _kind == "pursuit" else 0
         EFFECTS[f"vehicle.planner<{_model}>.rate_hz"] = (
             ENCOUNTERS[_kind],
