@@ -29,6 +29,7 @@ from aircraft.registry import get_airframe
 from sim import scenario as sc
 from sim.core.plan import Plan, Planner, Threats
 from sim.core.state import VehicleState
+from sim.mcap_read import read_info
 from sim.planner_records import WALLCLOCK_FIELDS, RecordSink
 from sim.planner_registry import PLANNERS
 from sim.replay.rerun import RerunReport, rerun_planner
@@ -732,6 +733,17 @@ for _kind, _model in _PLANNER_MODEL.items():
         )
 
 
+# the metrics thresholds act on the run's metrics report (the log's ``metrics`` metadata): field ->
+# (its changed value [m], the kite clearance flag it turns off). The kite passes about 23 m off
+# and 3 m above the quadrotor, inside every default volume.
+REPORT = {
+    "metrics.well_clear_horizontal": (10.0, "lowc"),
+    "metrics.well_clear_vertical": (1.0, "lowc"),
+    "metrics.nmac_horizontal": (10.0, "nmac"),
+    "metrics.nmac_vertical": (1.0, "nmac"),
+}
+
+
 def _planner_fields() -> list[str]:
     return [f for f in schema_fields() if f.startswith("vehicle.planner<")]
 
@@ -739,8 +751,6 @@ def _planner_fields() -> list[str]:
 # planner types and their options act only in encounters (traffic, obstacles, storms): each
 # needs its own short encounter baseline
 NOT_YET_SHOWN = {
-    "metrics.well_clear_horizontal": "acts on the report's metrics, not on the log",
-    "metrics.well_clear_vertical": "acts on the report's metrics, not on the log",
     "weather.nowcast_files": "nowcast GeoJSON files from disk (new on main): needs a nowcast-file fixture",
     **{
         f"mavlink.{k}": "new on main (MAVLink hardening): needs a ground-station socket, not checked here"
@@ -748,8 +758,6 @@ NOT_YET_SHOWN = {
     },
     **dict.fromkeys(
         (
-            "metrics.nmac_horizontal",
-            "metrics.nmac_vertical",
             "vehicle.energy.altitude_schedule.ceiling",
             "vehicle.energy.altitude_schedule.floor",
             "vehicle.energy.altitude_schedule.soc_high",
@@ -778,6 +786,7 @@ def test_every_field_is_accounted_for():
     lists = {
         "EFFECTS": EFFECTS,
         "DECISIONS": DECISIONS,
+        "REPORT": REPORT,
         "LABELS": LABELS,
         "SHOWN_ELSEWHERE": SHOWN_ELSEWHERE,
         "NOT_YET_SHOWN": NOT_YET_SHOWN,
@@ -912,3 +921,26 @@ def test_planner_option_changes_a_decision(field, tmp_path_factory):
         _replayed(kind, after, v, tmp_path_factory) != _replayed(kind, before, v, tmp_path_factory)
         for v in _planned(before)
     ), f"{field}: every plan and planner record is the same"
+
+
+def _kite_clearance(data: dict, tmp: Path, tag: str) -> dict:
+    """The quadrotor's clearance record of the kite in the run's metrics, read from its log."""
+    path = tmp / f"{tag}.mcap"
+    run_scenario(sc.parse_scenario(data, tag), path, scenario_text=tomli_w.dumps(data))
+    metrics = json.loads(read_info(path).metadata["metrics"]["json"])
+    return metrics["vehicles"]["quad"]["clearance"]["object.kite"]
+
+
+@pytest.mark.closed_loop
+@pytest.mark.parametrize("field", sorted(REPORT))
+def test_metrics_threshold_changes_the_report(field, tmp_path):
+    value, flag = REPORT[field]
+    before = copy.deepcopy(_QUAD)
+    before["object"][0]["altitude"] = 424.0
+    key = tomli_w.dumps(before)
+    if key not in _BASELINES:
+        _BASELINES[key] = _kite_clearance(before, tmp_path, "before")
+    assert _BASELINES[key]["lowc"] and _BASELINES[key]["nmac"], "the kite must start inside both default volumes"
+    after = copy.deepcopy(before)
+    _set(field, value)(after)
+    assert not _kite_clearance(after, tmp_path, "after")[flag], f"{field}: the kite is still inside"
