@@ -1,13 +1,18 @@
-"""No silent field: every field of the scenario schema acts on the run's log, or is a label.
+"""No silent field: every field of the scenario schema acts on the run, or is a label.
 
 The walk covers the whole schema (nested sections, every member of a tagged union, the planner
 types' options from the registry). Each field must be in exactly one of:
 
-- ``EFFECTS``: a change of the field, applied to a short baseline run (3 s of sim time, ideal
+- ``EFFECTS``: a change of the field, applied to a short baseline run (1-11 s of sim time, ideal
   sensors unless the field is a sensor's), must change the MCAP log (some channel's messages);
+- ``DECISIONS``: planner options. The type's planner, built from the scenario as the runner
+  builds it, re-run on the recorded inputs of a short encounter of that type (traffic,
+  obstacles, storms; flown once per module), must make another plan or planner record at some
+  call (inputs equal up to that call: the closed loop logs the difference there);
+- ``REPORT``: metrics thresholds, which must change the run's metrics report in the log;
 - ``LABELS``: names and tags that only identify things;
-- ``SHOWN_ELSEWHERE``: fields whose effect needs more than a short run, with the test that shows it;
-- ``NOT_YET_SHOWN``: fields no test shows acting yet (issue 15 work list; must only shrink).
+- ``SHOWN_ELSEWHERE``: fields that need a ground-station socket or have one valid value, with
+  the tests that show them (checked to exist).
 
 A new schema field fails ``test_every_field_is_accounted_for`` until it is placed.
 """
@@ -17,6 +22,7 @@ from __future__ import annotations
 import copy
 import importlib.util
 import json
+import re
 import typing
 from collections.abc import Callable
 from pathlib import Path
@@ -198,6 +204,7 @@ def _scheduled(soc: float) -> Callable[[dict], None]:
     return prepare
 
 
+_NOWCASTS = str(ROOT / "scenarios" / "mptp" / "nowcasts") + "/"
 _QUAD_MISSION_HIGH = {"cruise_speed": 4.0, "waypoints": [{"north": 5.0, "east": 0.0, "altitude": 18000.0}]}
 
 # (baseline, preparation applied to both runs or None, the change)
@@ -244,6 +251,11 @@ EFFECTS: dict[str, Effect] = {
     "weather.centres": (_QUAD, _set("weather", _WEATHER), _set("weather.centres", [[1000.0, 1000.0]] * 4)),
     "weather.seed": (_QUAD, _set("weather", _WEATHER), _set("weather.seed", 11)),
     "weather.pop_up": (_QUAD, _set("weather", _WEATHER), _set("weather.pop_up", False)),
+    "weather.nowcast_files": (
+        _QUAD,
+        _set("weather", {"nowcast_files": [_NOWCASTS + "nowcast_00000s.geojson"]}),
+        _set("weather.nowcast_files", [_NOWCASTS + "nowcast_00300s.geojson"]),  # issued at 300 s
+    ),
     "weather.storm.points": (
         _QUAD,
         _set("weather", _WEATHER | {"storm": [{"points": [[0, 0], [0, 900], [900, 0]]}]}),
@@ -436,14 +448,29 @@ LABELS = {
     **{f"fault<{k}>.kind": "the union's tag" for k in _FAULTS},
 }
 
+_WIRED = "tests/test_mavlink_authority.py::test_scenario_mavlink_settings_reach_every_link (scenario to every link)"
 SHOWN_ELSEWHERE = {
     "vehicle.sensors.imu.dropout": "only 0 is valid (the IMU drives the filter): tests/test_sensors_config.py",
     "vehicle.sensors.imu.latency_s": "only 0 is valid (the IMU is the time base): tests/test_sensors_config.py",
-    "mavlink.enabled": "tests/test_mavlink_live.py (needs a ground-station socket)",
-    "mavlink.gcs_host": "tests/test_mavlink_live.py",
-    "mavlink.base_port": "tests/test_mavlink_live.py",
-    "mavlink.rate_hz": "tests/test_mavlink_live.py",
-    "mavlink.pace": "tests/test_mavlink_live.py",
+    # MAVLink needs a ground-station socket: the scenario's settings reach every link, and each
+    # link setting acts in its own test
+    "mavlink.enabled": "tests/test_mavlink_live.py::test_gcs_uploads_a_mission_that_the_vehicle_flies",
+    "mavlink.base_port": f"{_WIRED}; tests/test_mavlink_live.py::test_gcs_uploads_a_mission_that_the_vehicle_flies",
+    "mavlink.gcs_host": f"{_WIRED}; tests/test_mavlink_authority.py::"
+    "test_non_loopback_gcs_needs_an_explicit_bind_and_loopback_is_the_default",
+    "mavlink.bind_host": f"{_WIRED}; tests/test_mavlink_authority.py::"
+    "test_non_loopback_gcs_needs_an_explicit_bind_and_loopback_is_the_default",
+    "mavlink.rate_hz": f"{_WIRED}; tests/test_mavlink_bridge.py::test_rates_are_limited_by_sim_time",
+    "mavlink.pace": f"{_WIRED}; tests/test_mavlink_replay.py::test_pacer_holds_sim_time_to_n_times_wall_time",
+    "mavlink.gcs_system_id": f"{_WIRED}; tests/test_mavlink_live.py::"
+    "test_upload_from_another_system_id_is_refused_and_the_flight_unchanged",
+    "mavlink.gcs_component_id": f"{_WIRED}; tests/test_mavlink_authority.py::test_configured_component_is_required",
+    "mavlink.signing_key_file": "tests/test_mavlink_live.py::"
+    "test_with_signing_the_signed_gcs_is_obeyed_and_unsigned_commands_refused",
+    "mavlink.max_height": f"{_WIRED}; tests/test_mavlink_authority.py::"
+    "test_position_targets_outside_the_envelope_are_dropped",
+    "mavlink.max_range": f"{_WIRED}; tests/test_mavlink_authority.py::"
+    "test_mission_items_outside_the_envelope_are_refused",
 }
 EFFECTS |= _sensor_effects()
 
@@ -797,20 +824,6 @@ def _planner_fields() -> list[str]:
     return [f for f in schema_fields() if f.startswith("vehicle.planner<")]
 
 
-# planner types and their options act only in encounters (traffic, obstacles, storms): each
-# needs its own short encounter baseline
-NOT_YET_SHOWN = {
-    "weather.nowcast_files": "nowcast GeoJSON files from disk (new on main): needs a nowcast-file fixture",
-    **{
-        f"mavlink.{k}": "new on main (MAVLink hardening): needs a ground-station socket, not checked here"
-        for k in ("bind_host", "gcs_component_id", "gcs_system_id", "max_height", "max_range", "signing_key_file")
-    },
-    **{
-        f: "planner option: needs an encounter baseline per planner type"
-        for f in _planner_fields()
-        if f not in EFFECTS and f not in DECISIONS and not f.endswith(".type")
-    },
-}
 LABELS |= {f: "the planner union's tag" for f in _planner_fields() if f.endswith(".type")}
 
 
@@ -822,13 +835,19 @@ def test_every_field_is_accounted_for():
         "REPORT": REPORT,
         "LABELS": LABELS,
         "SHOWN_ELSEWHERE": SHOWN_ELSEWHERE,
-        "NOT_YET_SHOWN": NOT_YET_SHOWN,
     }
     placed = [f for d in lists.values() for f in d]
     twice = sorted({f for f in placed if placed.count(f) > 1})
     assert not twice, f"fields in more than one list: {twice}"
     assert not sorted(fields - set(placed)), "fields with no shown effect and no label"
     assert not sorted(set(placed) - fields), "listed fields that are not in the schema"
+
+
+def test_tests_named_as_showing_a_field_exist():
+    named = {ref for where in SHOWN_ELSEWHERE.values() for ref in re.findall(r"(tests/\w+\.py)(?:::(\w+))?", where)}
+    for file, test in sorted(named):
+        assert (ROOT / file).is_file(), file
+        assert not test or re.search(rf"^def {test}\(", (ROOT / file).read_text(), re.M), f"{file}::{test}"
 
 
 _BASELINES: dict[str, dict[str, tuple]] = {}
@@ -859,7 +878,6 @@ def test_field_changes_the_log(field, tmp_path):
     diff = _digests(after, tmp_path, "after")
     changed = sorted(t for t in diff.keys() | _BASELINES[key].keys() if diff.get(t) != _BASELINES[key].get(t))
     assert changed, f"{field}: the log is identical"
-    print(field, changed)
 
 
 class _Records:
