@@ -614,7 +614,8 @@ ENCOUNTERS: dict[str, dict] = {
         ],
     },
     # the HAPS at 18 km before a line of three storm cells (shipped mptp/storm_crossing.toml),
-    # heading north, a right angle off its goal (its first legs turn)
+    # heading north, a right angle off its goal (its first legs turn); 40 search expansions
+    # keep each replan cheap
     "mptp": {
         "name": "silent_mptp",
         "seed": 5,
@@ -643,7 +644,7 @@ ENCOUNTERS: dict[str, dict] = {
                     "acceptance_radius": 500.0,
                     "waypoints": [{"north": 0.0, "east": 50000.0, "altitude": 18000.0}],
                 },
-                "planner": {"type": "mptp", "rate_hz": 1.0},
+                "planner": {"type": "mptp", "rate_hz": 1.0, "options": {"max_expansions": 40}},
             }
         ],
     },
