@@ -665,19 +665,19 @@ _GEOMETRIC = {
     "caps": {"time_lo": 1.0, "time_hi": 5.0, "energy_lo": 100.0, "energy_hi": 900.0},
     "cmo_max_objects": 1,
     "cmo_max_range_m": 5.0,
-    "cmo_min_distance": 2.0,
+    "cmo_min_distance": 5.0,
     "cmo_threat_samples": 3,
     "collision_radius": 6.0,
     "conflict_horizon_s": 0.5,
     "dynamic_mode": "swept",
     "g": 5.0,
     "hover_literal_ki": True,
-    "k1": 0.9,
-    "k2": 0.1,
-    "k_p": 3.0,
+    "k1": 5.0,
+    "k2": 5.0,
+    "k_p": 100.0,
     "k_sigma": 2.0,
     "l": 6,
-    "log_limits": [[-1.0, 1.0], [-1.0, 1.0], [-1.0, 0.001]],
+    "log_limits": [[-3.0, 2.5], [-0.1, 0.1], [-3.0, 0.001]],
     "main_threat_extension_s": 3.0,
     "max_cost": 0.01,
     "min_replan_interval_s": 5.0,
@@ -689,7 +689,7 @@ _GEOMETRIC = {
     "replan_max_offset_m": 0.0,
     "rho": 0.3,
     "select_margin_m": 3.0,
-    "smoothness": "std",
+    "smoothness": "second_derivative",
     "start_shift_s": 0.0,
     "uav_shape": "sphere_circumscribed",
     "weights": [0.8, 0.1, 0.1],
@@ -707,7 +707,6 @@ _RULES_OPTIONS = {
     "rules_unit": 2.0,
     "rules_universal": 8.0,
     "rules_head_on": 9.0,
-    "rules_converging": 12.0,
     "rules_overtake": 9.0,
     "rules_plane_tolerance": 3.0,
     "rules_widest": False,
@@ -716,8 +715,6 @@ _RULES_OPTIONS = {
     "rules_established_speed": 0.2,
     "rules_settle": 5.0,
     "rules_deadlock_frames": 1,
-    "rules_navigation": ["vertical"],
-    "rules_navigation_spread": 2,
     "rules_filed": {"uas2": {"category": "balloon"}, "uas3": {"category": "balloon"}},
 }
 _MPTP = {
@@ -768,6 +765,11 @@ def _decision_table() -> dict[str, Decision]:
         for k, v in values.items():
             out[f"vehicle.planner<{_PLANNER_MODEL[kind]}>.options.{k}"] = (kind, None, _options(**{k: v}))
     prefix = "vehicle.planner<GeometricPlanner>.options."
+    out[prefix + "uav_shape"] = (
+        "geometric",
+        _options(collision_radius=4.0),
+        _options(uav_shape="sphere_circumscribed"),
+    )
     out[prefix + "main_threat_extension_s"] = (
         "geometric",
         _options(dynamic_mode="swept"),
@@ -778,6 +780,9 @@ def _decision_table() -> dict[str, Decision]:
     out[prefix + "wind_forecast"] = ("mptp", _set("wind.east", 10.0), _options(wind_forecast="none"))
     prefix = "vehicle.planner<ReachsetPlanner>.options.rules_"
     filed = _options(rules_filed={"uas3": {"category": "uas_autonomous", "maneuverability": "vtol"}})
+    out[prefix + "converging"] = ("rules_pair", None, _options(rules_converging=20.0))
+    out[prefix + "navigation"] = ("rules_pair", None, _options(rules_navigation=["vertical"]))
+    out[prefix + "navigation_spread"] = ("rules_pair", None, _options(rules_navigation_spread=50))
     out[prefix + "converging_extra"] = ("rules_pair", None, _options(rules_converging_extra=4.0))
     out[prefix + "category"] = ("rules_pair", filed, _options(rules_category="manned"))
     out[prefix + "maneuverability"] = ("rules_pair", filed, _options(rules_maneuverability="linear_propulsion"))
