@@ -7,8 +7,9 @@ types' options from the registry). Each field must be in exactly one of:
   sensors unless the field is a sensor's), must change the MCAP log (some channel's messages);
 - ``DECISIONS``: planner options. The type's planner, built from the scenario as the runner
   builds it, re-run on the recorded inputs of a short encounter of that type (traffic,
-  obstacles, storms; flown once per module), must make another plan or planner record at some
-  call (inputs equal up to that call: the closed loop logs the difference there);
+  obstacles, storms; flown once per module), must make another plan at some call (inputs equal
+  up to that call: the closed loop logs the difference there); the few ``RECORDS_ONLY``
+  options must make another planner record (candidate costs, rule decisions);
 - ``REPORT``: metrics thresholds, which must change the run's metrics report in the log;
 - ``LABELS``: names and tags that only identify things;
 - ``SHOWN_ELSEWHERE``: fields that need a ground-station socket or have one valid value, with
@@ -803,6 +804,32 @@ def _decision_table() -> dict[str, Decision]:
 
 DECISIONS = _decision_table()
 
+# options that change the planner's logged decision records but not the plan flown in their
+# encounter: the geometric avoider's energy and hover-power terms (g, rho, hover_literal_ki) are
+# diagnostics outside the cost (spec avoidance-geometric.md §5); the others change candidate
+# clearances and costs, or the rules' disabled nodes, case margins and chains, without moving
+# the chosen path in a few seconds of flight
+RECORDS_ONLY = {
+    *(
+        f"vehicle.planner<GeometricPlanner>.options.{k}"
+        for k in ("cmo_threat_samples", "dynamic_mode", "g", "hover_literal_ki", "main_threat_extension_s", "rho")
+    ),
+    *(
+        f"vehicle.planner<ReachsetPlanner>.options.rules_{k}"
+        for k in (
+            "airspace",
+            "barrel_half_height",
+            "bloat",
+            "close_after",
+            "converging_extra",
+            "filed",
+            "overtake",
+            "plane_tolerance",
+            "widest",
+        )
+    ),
+}
+
 # the planner's call rate acts in the closed loop: the calls are at other times
 for _kind, _model in _PLANNER_MODEL.items():
     if not _kind.startswith("rules"):
@@ -844,6 +871,7 @@ def test_every_field_is_accounted_for():
     placed = [f for d in lists.values() for f in d]
     twice = sorted({f for f in placed if placed.count(f) > 1})
     assert not twice, f"fields in more than one list: {twice}"
+    assert not RECORDS_ONLY - DECISIONS.keys(), "records-only options must be planner options"
     assert not sorted(fields - set(placed)), "fields with no shown effect and no label"
     assert not sorted(set(placed) - fields), "listed fields that are not in the schema"
 
@@ -974,10 +1002,17 @@ def test_planner_option_changes_a_decision(field, tmp_path_factory):
     after = copy.deepcopy(before)
     change(after)
     assert after != before, "the change changes nothing in the scenario"
+    what = "record" if field in RECORDS_ONLY else "plan"
     assert any(
-        _replayed(kind, after, v, tmp_path_factory) != _replayed(kind, before, v, tmp_path_factory)
+        _of(what, _replayed(kind, after, v, tmp_path_factory))
+        != _of(what, _replayed(kind, before, v, tmp_path_factory))
         for v in _planned(before)
-    ), f"{field}: every plan and planner record is the same"
+    ), f"{field}: every {what} is the same"
+
+
+def _of(what: str, decisions: list[tuple]) -> list[tuple]:
+    """The plans (``what`` = "plan") or the planner's own records of a re-run."""
+    return [d for d in decisions if (d[0] == "plan") == (what == "plan")]
 
 
 _KITE: dict[str, object] = {}
