@@ -1,4 +1,5 @@
-"""MCAP run log: Foxglove protobuf types where one fits, this project's JSON schemas elsewhere.
+"""MCAP run log: Foxglove protobuf types where one fits, this project's protobuf messages
+(:mod:`sim.log_proto`) for the high-rate topics, this project's JSON schemas elsewhere.
 
 Log time of a message = scenario epoch + sim time [ns]; publish time = log time, so that two runs
 of the same scenario and seed write byte-identical messages. Channels whose content is wall-clock
@@ -35,6 +36,7 @@ import orjson
 from foxglove_schemas_protobuf.Log_pb2 import Log
 from mcap_protobuf.schema import build_file_descriptor_set
 
+from sim import log_proto
 from sim.mcap_writer import RecordWriter
 
 LEVELS = {"debug": Log.DEBUG, "info": Log.INFO, "warning": Log.WARNING, "error": Log.ERROR, "fatal": Log.FATAL}
@@ -94,9 +96,18 @@ class _WriterProcess:
 class McapLog:
     """Writes one run to ``path``. Topics are registered on first write."""
 
-    def __init__(self, path: str | Path, epoch_ns: int, chunk_size: int = 512 * 1024, background: bool = True):
-        """``background``: write in a child process (else in this one, e.g. to debug the writer)."""
+    def __init__(
+        self,
+        path: str | Path,
+        epoch_ns: int,
+        chunk_size: int = 512 * 1024,
+        background: bool = True,
+        compact: bool = True,
+    ):
+        """``background``: write in a child process (else in this one, e.g. to debug the writer);
+        ``compact``: :meth:`write_record` writes protobuf where it can (else JSON throughout)."""
         self.path = Path(path)
+        self.compact = compact
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.epoch_ns = int(epoch_ns)
         try:  # open errors surface here, in the caller, not later from the writer process
@@ -166,6 +177,22 @@ class McapLog:
             sid = self._schema(schema["title"], "jsonschema", lambda: json.dumps(schema, sort_keys=True).encode())
             cid = self._channel(topic, "json", sid, metadata or {})
         self._add(cid, t, orjson.dumps(obj, option=orjson.OPT_SERIALIZE_NUMPY))
+
+    def write_record(
+        self, topic: str, t: float, obj: dict[str, Any], schema: dict, metadata: dict[str, str] | None = None
+    ) -> None:
+        """``obj`` as in :meth:`write_json`, in protobuf when the log is compact and
+        :mod:`sim.log_proto` has the schema's message (NaN then stays NaN on the wire and reads
+        back as None, as JSON's null does), else in JSON."""
+        title = schema["title"]
+        if not (self.compact and log_proto.has_schema(title)):
+            self.write_json(topic, t, obj, schema, metadata)
+            return
+        cid = self._channels.get(topic)
+        if cid is None:
+            sid = self._schema(title, "protobuf", log_proto.schema_data)
+            cid = self._channel(topic, "protobuf", sid, metadata or {})
+        self._add(cid, t, log_proto.encode(title, obj))
 
     def write_proto(self, topic: str, t: float, message, metadata: dict[str, str] | None = None) -> None:
         """A protobuf message (e.g. a Foxglove schema) on ``topic``."""
