@@ -29,7 +29,7 @@ PACKAGE = "cosim"
 FILE_NAME = "cosim/log.proto"
 
 _F = descriptor_pb2.FieldDescriptorProto
-D, I, B, S, BYTES = _F.TYPE_DOUBLE, _F.TYPE_SINT64, _F.TYPE_BOOL, _F.TYPE_STRING, _F.TYPE_BYTES
+D, INT, B, S, BYTES = _F.TYPE_DOUBLE, _F.TYPE_SINT64, _F.TYPE_BOOL, _F.TYPE_STRING, _F.TYPE_BYTES
 _MAP = "map"  # a map<string, double>
 
 # message -> [(field, scalar type or message name or _MAP, repeated)]; field numbers in order
@@ -49,13 +49,13 @@ MESSAGES: dict[str, list[tuple[str, Any, bool]]] = {
         ("alpha_rad", D, False),
         ("beta_rad", D, False),
     ],
-    "Tracking": [("t", D, False), ("cross_track_m", D, False), ("leg", I, False)],
+    "Tracking": [("t", D, False), ("cross_track_m", D, False), ("leg", INT, False)],
     "FixedWingSetpoint": [
         ("t", D, False),
         ("roll_rad", D, False),
         ("altitude_m", D, False),
         ("tas_mps", D, False),
-        ("leg", I, False),
+        ("leg", INT, False),
         ("cross_track_m", D, False),
         ("turning", B, False),
     ],
@@ -65,7 +65,7 @@ MESSAGES: dict[str, list[tuple[str, Any, bool]]] = {
         ("vel_ned", D, _VEC),
         ("yaw_rad", D, False),
         ("altitude_m", D, False),
-        ("leg", I, False),
+        ("leg", INT, False),
         ("cross_track_m", D, False),
         ("turning", B, False),
     ],
@@ -129,9 +129,9 @@ MESSAGES: dict[str, list[tuple[str, Any, bool]]] = {
         ("elevation_step_deg", D, False),
         ("max_range_m", D, False),
         ("range_resolution_m", D, False),
-        ("rays", I, False),
+        ("rays", INT, False),
         ("hit", BYTES, False),
-        ("hit_range_steps", I, _VEC),
+        ("hit_range_steps", INT, _VEC),
     ],
 }
 OMIT_EMPTY = frozenset({"Sensors"})  # messages whose empty lists the JSON message leaves out
@@ -191,23 +191,34 @@ def _finite(x: float) -> float | None:
     return x if math.isfinite(x) else None
 
 
+def _finite_map(v: Any) -> dict[str, float | None]:
+    return {k: _finite(x) for k, x in v.items()}
+
+
+def _finite_list(v: Any) -> list[float | None]:
+    return [_finite(x) for x in v]
+
+
+def _same(v: Any) -> Any:
+    return v
+
+
+def _field_converter(f: FieldDescriptor) -> Callable[[Any], Any]:
+    """Turns a field's value into its JSON-equivalent."""
+    if f.message_type is not None and f.message_type.GetOptions().map_entry:
+        return _finite_map
+    if f.message_type is not None:
+        sub = _converter(f.message_type)
+        return (lambda v: [sub(m) for m in v]) if f.is_repeated else sub
+    if f.type == FieldDescriptor.TYPE_DOUBLE:
+        return _finite_list if f.is_repeated else _finite
+    return list if f.is_repeated else _same
+
+
 def _converter(desc: Descriptor) -> Callable[[Message], dict[str, Any]]:
     """A function turning a message of ``desc`` into its JSON-equivalent dict."""
     omit = desc.name in OMIT_EMPTY
-    steps: list[tuple[str, Callable[[Any], Any], bool]] = []
-    for f in desc.fields:
-        if f.message_type is not None and f.message_type.GetOptions().map_entry:
-            conv: Callable[[Any], Any] = lambda v: {k: _finite(x) for k, x in v.items()}  # noqa: E731
-        elif f.message_type is not None:
-            sub = _converter(f.message_type)
-            conv = (lambda v, sub=sub: [sub(m) for m in v]) if _repeated(f) else sub
-        elif f.type == FieldDescriptor.TYPE_DOUBLE:
-            conv = (lambda v: [_finite(x) for x in v]) if _repeated(f) else _finite
-        elif _repeated(f):
-            conv = list
-        else:
-            conv = _same
-        steps.append((f.name, conv, omit and _repeated(f)))
+    steps = [(f.name, _field_converter(f), omit and f.is_repeated) for f in desc.fields]
 
     def convert(msg: Message) -> dict[str, Any]:
         out = {}
@@ -219,14 +230,6 @@ def _converter(desc: Descriptor) -> Callable[[Message], dict[str, Any]]:
         return out
 
     return convert
-
-
-def _same(v: Any) -> Any:
-    return v
-
-
-def _repeated(f: FieldDescriptor) -> bool:
-    return f.is_repeated
 
 
 _CONVERTERS: dict[Descriptor, Callable[[Message], dict[str, Any]]] = {}  # per descriptor: per file read

@@ -57,6 +57,18 @@ class LogWriteError(RuntimeError):
     """The log could not be written (e.g. disk full); says why."""
 
 
+PIPE_BYTES = 1 << 20  # the simulation runs this far ahead of a busy writer before a hand-over waits
+
+
+def _widen_pipe(pipe: IO[bytes]) -> None:
+    """Grow the pipe's kernel buffer to PIPE_BYTES (Linux; elsewhere, or above the system's
+    limit, it keeps its size)."""
+    with contextlib.suppress(ImportError, AttributeError, OSError):
+        import fcntl
+
+        fcntl.fcntl(pipe.fileno(), fcntl.F_SETPIPE_SZ, PIPE_BYTES)
+
+
 class _WriterProcess:
     """The writer process (``python -m sim.mcap_writer``, a fresh interpreter: nothing of the
     caller's ``__main__`` is re-run): pickled record batches in on its stdin, ``None`` last; its
@@ -75,6 +87,7 @@ class _WriterProcess:
         if self._proc.stdin is None or self._proc.stdout is None:
             raise LogWriteError(f"{path}: the writer process has no pipes")
         self._stdin: IO[bytes] = self._proc.stdin
+        _widen_pipe(self._stdin)
         self._stdout: IO[bytes] = self._proc.stdout
 
     def send(self, batch: list[tuple], last: bool = False) -> None:

@@ -124,19 +124,20 @@ def threats_dict(t: float, th: Threats, with_scan: bool = True) -> dict:
             for s in th.storms
         ],
         "lidar_hits": int(lidar.hit.sum()) if lidar is not None else 0,
-        "lidar": None
-        if lidar is None
-        else {
-            "t": lidar.t,
-            "origin_ned": lidar.origin_ned.tolist(),
-            "directions_ned": lidar.directions_ned.tolist(),
-            "ranges_m": lidar.ranges_m.tolist(),
-            "hit": lidar.hit.tolist(),
-            "max_range_m": lidar.max_range_m,
-        },
     }
-    if not with_scan:
-        del d["lidar"]
+    if with_scan:
+        d["lidar"] = (
+            None
+            if lidar is None
+            else {
+                "t": lidar.t,
+                "origin_ned": lidar.origin_ned.tolist(),
+                "directions_ned": lidar.directions_ned.tolist(),
+                "ranges_m": lidar.ranges_m.tolist(),
+                "hit": lidar.hit.tolist(),
+                "max_range_m": lidar.max_range_m,
+            }
+        )
     return d
 
 
