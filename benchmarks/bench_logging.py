@@ -69,14 +69,15 @@ class _Clock:
     def wrap(self, fn: Callable[..., Any]) -> Callable[..., Any]:
         @functools.wraps(fn)
         def timed(*args: Any, **kwargs: Any) -> Any:
-            self.depth += 1
+            if self.depth:  # inside a timed call: not timed again
+                return fn(*args, **kwargs)
+            self.depth = 1
             t0 = time.process_time()
             try:
                 return fn(*args, **kwargs)
             finally:
-                self.depth -= 1
-                if self.depth == 0:
-                    self.seconds += time.process_time() - t0
+                self.seconds += time.process_time() - t0
+                self.depth = 0
 
         return timed
 

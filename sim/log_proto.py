@@ -235,15 +235,20 @@ def _converter(desc: Descriptor) -> Callable[[Message], dict[str, Any]]:
 _CONVERTERS: dict[Descriptor, Callable[[Message], dict[str, Any]]] = {}  # per descriptor: per file read
 
 
-def to_dict(msg: Message) -> dict[str, Any]:
-    """A decoded cosim message as the dict its JSON message gives (see the module docstring);
-    ``cosim.LidarScan`` as :func:`scan_dict`."""
+def record_dict(msg: Message) -> dict[str, Any]:
+    """A decoded cosim message as the dict of its fields, as its JSON message would give."""
     desc = msg.DESCRIPTOR
     conv = _CONVERTERS.get(desc)
     if conv is None:
         conv = _CONVERTERS[desc] = _converter(desc)
-    d = conv(msg)
-    return scan_dict(d) if desc.full_name == f"{PACKAGE}.LidarScan" else d
+    return conv(msg)
+
+
+def to_dict(msg: Message) -> dict[str, Any]:
+    """A decoded cosim message as its reader's dict: :func:`record_dict`, and for
+    ``cosim.LidarScan`` the scan's arrays (:func:`scan_dict`)."""
+    d = record_dict(msg)
+    return scan_dict(d) if msg.DESCRIPTOR.full_name == f"{PACKAGE}.LidarScan" else d
 
 
 # -- the LiDAR scan --------------------------------------------------------------------------

@@ -252,7 +252,7 @@ LIDAR_SCAN = _obj(
         "max_range_m": (_NUM, "sensor range; the range of a ray without a return [m]"),
         "range_resolution_m": (_NUM, "range step: every return is a whole number of steps [m]"),
         "rays": ({"type": "integer"}, "rays in the pattern (elevation-major)"),
-        "hit": ({"type": "string"}, "bytes: a bit per ray in pattern order, set where it returned (little bit order)"),
+        "hit": ({}, "bytes: a bit per ray in pattern order, set where it returned (little bit order)"),
         "hit_range_steps": (
             {"type": "array", "items": {"type": "integer"}},
             "the returns' ranges in range steps, each as the difference to the previous return's",
