@@ -48,7 +48,7 @@ from sim.scenario import parse_scenario  # noqa: E402
 CASES = {  # case: (scenario file, sim seconds)
     "haps": ("haps_box_mission.toml", 300.0),
     "quad": ("quad_square_mission.toml", 60.0),
-    "building_lidar": ("reachset/building_lidar.toml", 40.0),
+    "building_lidar": ("reachset/building_lidar.toml", 80.0),
 }
 ENCODINGS = ("json", "protobuf")
 LOGGING = [  # (owner, method): the logging work of a run

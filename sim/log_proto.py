@@ -5,10 +5,12 @@ Each message mirrors the JSON Schema of the same title in :mod:`sim.log_schemas`
 (names, units, frames there), so a protobuf message decodes to the dict the JSON message would
 have given: every field present, NaN and infinities as ``None`` (JSON has no NaN), an empty
 measurement list of ``cosim.Sensors`` omitted (the JSON message leaves out a sensor that
-delivered nothing). Precision: every float is a ``double`` (values read back bit-identical: live
-and replayed metrics stay equal); the LiDAR scan is compact (``cosim.LidarScan`` below).
+delivered nothing). Precision: every float is a ``double`` (read back bit-identical: live and
+replayed metrics stay equal, a re-run planner sees what the live one saw) except the measured
+values of ``cosim.Sensors`` (float32: no metric or re-run reads them, and float32 resolves far
+below each sensor's noise); the LiDAR scan is compact (``cosim.LidarScan`` below).
 
-MCAP profile: schema encoding ``protobuf`` with a FileDescriptorSet (file ``cosim/log.proto``),
+MCAP profile: schema encoding ``protobuf`` with a FileDescriptorSet (:func:`schema_data`),
 message encoding ``protobuf``: Foxglove shows the fields by name.
 """
 
@@ -29,7 +31,8 @@ PACKAGE = "cosim"
 FILE_NAME = "cosim/log.proto"
 
 _F = descriptor_pb2.FieldDescriptorProto
-D, INT, B, S, BYTES = _F.TYPE_DOUBLE, _F.TYPE_SINT64, _F.TYPE_BOOL, _F.TYPE_STRING, _F.TYPE_BYTES
+D, F32, INT, B = _F.TYPE_DOUBLE, _F.TYPE_FLOAT, _F.TYPE_SINT64, _F.TYPE_BOOL
+S, BYTES = _F.TYPE_STRING, _F.TYPE_BYTES
 _MAP = "map"  # a map<string, double>
 
 # message -> [(field, scalar type or message name or _MAP, repeated)]; field numbers in order
@@ -70,11 +73,13 @@ MESSAGES: dict[str, list[tuple[str, Any, bool]]] = {
         ("turning", B, False),
     ],
     "Commands": [("t", D, False), ("properties", _MAP, False), ("debug", _MAP, False)],
-    "ImuRecord": [("t", D, False), ("dt", D, False), ("accel_body", D, _VEC), ("gyro_body", D, _VEC)],
-    "GnssRecord": [("t", D, False), ("pos_ned", D, _VEC), ("vel_ned", D, _VEC)],
-    "BaroRecord": [("t", D, False), ("pressure_pa", D, False)],
-    "AirspeedRecord": [("t", D, False), ("diff_pressure_pa", D, False)],
-    "MagRecord": [("t", D, False), ("field_body_ut", D, _VEC)],
+    # measured values in float32 (relative resolution 6e-8, far below every sensor's noise: 1 mm
+    # of GNSS position at 20 km, 0.008 Pa of 1e5 Pa); their times in double
+    "ImuRecord": [("t", D, False), ("dt", D, False), ("accel_body", F32, _VEC), ("gyro_body", F32, _VEC)],
+    "GnssRecord": [("t", D, False), ("pos_ned", F32, _VEC), ("vel_ned", F32, _VEC)],
+    "BaroRecord": [("t", D, False), ("pressure_pa", F32, False)],
+    "AirspeedRecord": [("t", D, False), ("diff_pressure_pa", F32, False)],
+    "MagRecord": [("t", D, False), ("field_body_ut", F32, _VEC)],
     "Sensors": [
         ("t", D, False),
         ("imu", "ImuRecord", _VEC),
@@ -164,12 +169,26 @@ _POOL.Add(FILE)
 CLASSES: dict[str, type[Message]] = {
     f"{PACKAGE}.{n}": message_factory.GetMessageClass(_POOL.FindMessageTypeByName(f"{PACKAGE}.{n}")) for n in MESSAGES
 }
-_SCHEMA_DATA = descriptor_pb2.FileDescriptorSet(file=[FILE]).SerializeToString(deterministic=True)
 
 
-def schema_data() -> bytes:
-    """The MCAP schema record's data of every cosim message: a serialised FileDescriptorSet."""
-    return _SCHEMA_DATA
+def _uses(name: str) -> list[str]:
+    """``name`` and the messages its fields hold, each once, dependencies first."""
+    out: list[str] = []
+    for _, ftype, _ in MESSAGES[name]:
+        if isinstance(ftype, str) and ftype != _MAP:
+            out += [m for m in _uses(ftype) if m not in out]
+    return [*out, name]
+
+
+def schema_data(title: str) -> bytes:
+    """The MCAP schema record's data of message ``title``: a serialised FileDescriptorSet of
+    one file (``cosim/<Name>.proto``) holding it and the messages it uses (a few hundred bytes,
+    stored once per message type)."""
+    name = title.removeprefix(f"{PACKAGE}.")
+    by_name = {m.name: m for m in FILE.message_type}
+    fd = descriptor_pb2.FileDescriptorProto(name=f"{PACKAGE}/{name}.proto", package=PACKAGE, syntax="proto3")
+    fd.message_type.extend(by_name[m] for m in _uses(name))
+    return descriptor_pb2.FileDescriptorSet(file=[fd]).SerializeToString(deterministic=True)
 
 
 def encode(title: str, obj: dict[str, Any]) -> bytes:
@@ -210,7 +229,7 @@ def _field_converter(f: FieldDescriptor) -> Callable[[Any], Any]:
     if f.message_type is not None:
         sub = _converter(f.message_type)
         return (lambda v: [sub(m) for m in v]) if f.is_repeated else sub
-    if f.type == FieldDescriptor.TYPE_DOUBLE:
+    if f.type in (FieldDescriptor.TYPE_DOUBLE, FieldDescriptor.TYPE_FLOAT):
         return _finite_list if f.is_repeated else _finite
     return list if f.is_repeated else _same
 

@@ -203,7 +203,7 @@ class McapLog:
             return
         cid = self._channels.get(topic)
         if cid is None:
-            sid = self._schema(title, "protobuf", log_proto.schema_data)
+            sid = self._schema(title, "protobuf", lambda: log_proto.schema_data(title))
             cid = self._channel(topic, "protobuf", sid, metadata or {})
         self._add(cid, t, log_proto.encode(title, obj))
 

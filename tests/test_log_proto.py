@@ -1,6 +1,7 @@
 """Compact logs: the protobuf messages of sim/log_proto.py read back as the dicts their JSON
-messages give (doubles bit-identical, NaN as None), mirror the JSON Schemas field for field, and
-the LiDAR scan reads back bit-identical from its compact form."""
+messages give (doubles bit-identical, NaN as None; measured sensor values as their float32
+rounding), mirror the JSON Schemas field for field, and the LiDAR scan reads back bit-identical
+from its compact form."""
 
 import math
 
@@ -33,6 +34,30 @@ _STATE = {
     "alpha_rad": -1.5202395027020168,
     "beta_rad": -0.0,
 }
+_SENSORS = {
+    "t": 4.0,
+    "imu": [
+        {"t": 3.95, "dt": 0.05, "accel_body": [0.1, -0.2, -9.81], "gyro_body": [1e-3, 2e-3, -3e-3]},
+        {"t": 4.0, "dt": 0.05, "accel_body": [0.2, -0.1, -9.8], "gyro_body": [0.0, 0.0, 0.0]},
+    ],
+    "gnss": [{"t": 3.8, "pos_ned": [15234.567891, -2.0, -18000.25], "vel_ned": [4.0, 5.0, 6.0]}],
+    "baro": [{"t": 3.9, "pressure_pa": 7565.2}],
+    "mag": [{"t": 3.9, "field_body_ut": [20.0, 1.0, 43.0]}],
+}
+
+
+def _float32(sensors: dict) -> dict:
+    """The measured values (not the times) rounded to float32, as cosim.Sensors stores them."""
+
+    def rnd(v):
+        return [float(np.float32(x)) for x in v] if isinstance(v, list) else float(np.float32(v))
+
+    return {
+        k: v if k == "t" else [{f: x if f in ("t", "dt") else rnd(x) for f, x in r.items()} for r in v]
+        for k, v in sensors.items()
+    }
+
+
 # (JSON Schema, message as written, as it reads back)
 CASES = [
     (S.VEHICLE_STATE, _STATE, _STATE),
@@ -78,20 +103,7 @@ CASES = [
         {"t": 3.0, "properties": {"fcs/throttle-cmd-norm": 0.7, "ap/armed": 1.0}, "debug": {"x": NAN}},
         {"t": 3.0, "properties": {"fcs/throttle-cmd-norm": 0.7, "ap/armed": 1.0}, "debug": {"x": None}},
     ),
-    (
-        S.SENSORS,
-        {
-            "t": 4.0,
-            "imu": [
-                {"t": 3.95, "dt": 0.05, "accel_body": [0.1, -0.2, -9.81], "gyro_body": [1e-3, 2e-3, -3e-3]},
-                {"t": 4.0, "dt": 0.05, "accel_body": [0.2, -0.1, -9.8], "gyro_body": [0.0, 0.0, 0.0]},
-            ],
-            "gnss": [{"t": 3.8, "pos_ned": [1.0, 2.0, 3.0], "vel_ned": [4.0, 5.0, 6.0]}],
-            "baro": [{"t": 3.9, "pressure_pa": 7565.2}],
-            "mag": [{"t": 3.9, "field_body_ut": [20.0, 1.0, 43.0]}],
-        },
-        None,
-    ),
+    (S.SENSORS, _SENSORS, _float32(_SENSORS)),
     (
         S.ESTIMATE_SIGMA,
         {
@@ -166,7 +178,7 @@ def test_protobuf_topics_read_back_the_values_written(tmp_path):
 def test_protobuf_and_json_logs_read_back_the_same_dicts(tmp_path):
     proto, js = _write_read(tmp_path, compact=True), _write_read(tmp_path, compact=False)
     for (schema, _, _), a, b in zip(CASES, proto, js, strict=True):
-        assert a == b, schema["title"]  # JSON: -0.0 and 0.0 are both written as numbers, ints stay ints
+        assert a == (_float32(b) if schema is S.SENSORS else b), schema["title"]
     with McapLog(tmp_path / "c.mcap", 0, background=False) as log:
         log.write_record("/v/state", 0.0, _STATE, S.VEHICLE_STATE)
         log.write_record(
