@@ -6,9 +6,10 @@ of the same scenario and seed write byte-identical messages. Channels whose cont
 time (planner latency, planner runtimes) carry the channel metadata ``wallclock=true`` and
 ``wallclock_fields`` (the dotted paths of those fields) and are the only exception.
 
-Writing: the simulation process only serialises messages (JSON with orjson, protobuf) and hands
-them in batches to a writer process that owns the file and the ``mcap`` writer (record framing,
-indexes, zstd chunks: about half the cost of logging, taken off the simulation's core). The file
+Writing: the simulation process only serialises messages (JSON with orjson, Foxglove protobuf;
+this project's protobuf messages as pickled dicts, encoded by the writer) and hands them in
+batches to a writer process that owns the file and the ``mcap`` writer (record framing, indexes,
+zstd chunks, the compact messages' encoding: taken off the simulation's core). The file
 is finished in ``close()``, which the runner calls in a ``finally``; if the simulation process dies
 without it (a crash of the flight model, SIGKILL), the writer process sees the pipe close and
 finishes the file with every message it received, so the log stays readable. The writer is a
@@ -166,13 +167,23 @@ class McapLog:
     def _flush(self) -> None:
         batch, self._pending = self._pending, []
         if self._inline is not None:
-            self._inline.apply(batch)
+            self._apply_inline(batch)
         elif self._proc is not None:
             try:
                 self._proc.send(batch)  # handed over now: a crash after this loses none of it
             except OSError:
                 self._failure = f"{self.path}: {self._proc.error()}"
                 raise LogWriteError(self._failure) from None
+
+    def _apply_inline(self, batch: list[tuple]) -> None:
+        """Write ``batch`` here; a message that does not encode is a LogWriteError, as from the
+        writer process."""
+        assert self._inline is not None
+        try:
+            self._inline.apply(batch)
+        except ValueError as exc:
+            self._failure = f"{self.path}: ValueError: {exc}"
+            raise LogWriteError(self._failure) from None
 
     # -- writing -------------------------------------------------------------------------
     def _add(self, cid: int, t: float, data: bytes) -> None:
@@ -196,7 +207,10 @@ class McapLog:
     ) -> None:
         """``obj`` as in :meth:`write_json`, in protobuf when the log is compact and
         :mod:`sim.log_proto` has the schema's message (NaN then stays NaN on the wire and reads
-        back as None, as JSON's null does), else in JSON."""
+        back as None, as JSON's null does), else in JSON. The protobuf encoding is done by the
+        writer (off the simulation's core: here ``obj`` is only pickled, at once); a key the
+        message lacks stops the writer, and the next hand-over or ``close`` raises
+        LogWriteError saying so."""
         title = schema["title"]
         if not (self.compact and log_proto.has_schema(title)):
             self.write_json(topic, t, obj, schema, metadata)
@@ -205,7 +219,9 @@ class McapLog:
         if cid is None:
             sid = self._schema(title, "protobuf", lambda: log_proto.schema_data(title))
             cid = self._channel(topic, "protobuf", sid, metadata or {})
-        self._add(cid, t, log_proto.encode(title, obj))
+        seq = self._seq[cid] = self._seq[cid] + 1
+        obj_now = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)  # later changes to obj are not logged
+        self._record(("proto", cid, self.epoch_ns + sim_ns(t), title, obj_now, seq))
 
     def write_proto(self, topic: str, t: float, message, metadata: dict[str, str] | None = None) -> None:
         """A protobuf message (e.g. a Foxglove schema) on ``topic``."""
@@ -243,7 +259,7 @@ class McapLog:
             raise LogWriteError(self._failure)
         if self._inline is not None:
             try:
-                self._inline.apply(self._pending)
+                self._apply_inline(self._pending)
             finally:
                 self._inline.finish()
             return

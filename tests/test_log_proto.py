@@ -13,7 +13,7 @@ from sim import log_proto
 from sim import log_schemas as S
 from sim.core.state import VehicleState
 from sim.core.threats import PrismObstacle
-from sim.mcap_log import McapLog
+from sim.mcap_log import LogWriteError, McapLog
 from sim.mcap_read import iter_messages, read_info
 from sim.sensors.lidar import Lidar, LidarConfig
 from sim.sensors.truth import TruthSample
@@ -191,6 +191,14 @@ def test_protobuf_and_json_logs_read_back_the_same_dicts(tmp_path):
 def test_a_key_the_message_lacks_is_a_clear_error():
     with pytest.raises(ValueError, match=r"cosim\.Tracking"):
         log_proto.encode("cosim.Tracking", {"t": 1.0, "cross_track": 2.0})
+
+
+@pytest.mark.parametrize("background", [False, True])
+def test_a_key_the_message_lacks_fails_the_log_with_its_name(tmp_path, background):
+    log = McapLog(tmp_path / "bad.mcap", 0, background=background)
+    log.write_record("/v/tracking", 0.0, {"t": 0.0, "cross_track": 1.0}, S.TRACKING)
+    with pytest.raises(LogWriteError, match=r"cosim\.Tracking.*cross_track"):
+        log.close()
 
 
 def test_every_message_mirrors_its_json_schema():
