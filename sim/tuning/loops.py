@@ -37,9 +37,13 @@ class LoopReport:
 
 
 def analyse(name: str, L, T) -> LoopReport:
-    """Margins of open loop ``L`` and step/bandwidth figures of closed loop ``T``."""
+    """Margins of open loop ``L`` and step/bandwidth figures of closed loop ``T`` (step figures
+    NaN when the step never rises through 90 % within python-control's horizon)."""
     gm, pm, _, wpc, wgc, _ = ct.stability_margins(L)
-    info = ct.step_info(T, SettlingTimeThreshold=0.02)
+    try:
+        info = ct.step_info(T, SettlingTimeThreshold=0.02)
+    except IndexError:
+        info = dict.fromkeys(("Overshoot", "RiseTime", "SettlingTime"), math.nan)
     bw = ct.bandwidth(T)
     return LoopReport(
         name,

@@ -1,0 +1,164 @@
+"""Every tunable loop of both airframes: its gains, its transfer functions and its JSBSim step.
+
+A :class:`Loop` is opened where all of its gains act, so multiplying those gains by one factor
+multiplies its open loop L by the same factor (what :mod:`sim.tuning.tuner` solves for). Cascades
+are built from the inside out with the inner loops closed at the gains given.
+
+=========  =====================  ==============================  =========================
+airframe   loop                   gains (``gains.toml`` keys)     opened at
+=========  =====================  ==============================  =========================
+haps       roll                   inner.kp/ki/kd_roll             aileron command
+haps       pitch                  inner.kp/ki/kd_pitch            elevator command
+quadrotor  rate (roll)            rate.roll.kp/ki/kd              roll-torque command
+quadrotor  attitude (roll)        attitude.kp_roll                roll-rate command
+quadrotor  velocity (horizontal)  velocity.kp/ki/kd_xy            acceleration demand
+quadrotor  position (horizontal)  position.kp_xy                  velocity demand
+=========  =====================  ==============================  =========================
+
+Gains are addressed by their dataclass field path (``kp_roll`` on :class:`HapsGains`,
+``rate.roll.kp`` on :class:`MultirotorGains`); :func:`file_key` gives the ``gains.toml`` key.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, fields, replace
+from typing import Any
+
+from aircraft.haps.gains import HapsGains
+from aircraft.quadrotor.gains import MultirotorGains
+from sim.tuning import steps
+
+AIRFRAME_LOOPS = {"haps": ("roll", "pitch"), "quadrotor": ("rate", "attitude", "velocity", "position")}
+HAPS_STEP = {"roll": math.radians(5.0), "pitch": math.radians(2.0)}  # [rad]
+HAPS_STEP_S = {"roll": 10.0, "pitch": 30.0}  # record length [s]: beyond the linear settling time
+
+
+@dataclass(frozen=True)
+class Loop:
+    """One loop: ``build(gains) -> (L, T)`` (open loop at ``opened_at``, closed loop from its
+    command to its output), ``step(gains)`` its JSBSim step, ``gains`` the field paths scaled
+    together, ``unit`` of its command and output."""
+
+    airframe: str
+    name: str
+    opened_at: str
+    unit: str
+    gains: tuple[str, ...]
+    build: Callable[[Any], tuple[Any, Any]]
+    step: Callable[[Any], steps.StepResponse]
+    sample_hz: float
+
+    @property
+    def max_crossover_rad_s(self) -> float:
+        """A tenth of the sample frequency [rad/s]: beyond it the half-step delay no longer
+        stands for the zero-order hold."""
+        return 2 * math.pi * self.sample_hz / 10.0
+
+
+def gain_value(gains: Any, path: str) -> float:
+    """The gain at dotted field ``path``."""
+    obj = gains
+    for part in path.split("."):
+        obj = getattr(obj, part)
+    return float(obj)
+
+
+def with_gains(gains: Any, values: dict[str, float]) -> Any:
+    """A copy of the (frozen, nested) gains with the dotted field paths set to ``values``."""
+    for path, v in values.items():
+        head, _, rest = path.partition(".")
+        gains = replace(gains, **{head: with_gains(getattr(gains, head), {rest: v}) if rest else v})
+    return gains
+
+
+def scaled(gains: Any, paths: tuple[str, ...], factor: float) -> Any:
+    """The gains with those at ``paths`` multiplied by ``factor``."""
+    return with_gains(gains, {p: factor * gain_value(gains, p) for p in paths})
+
+
+def file_key(airframe: str, path: str) -> str:
+    """``section.key`` of a gain in the airframe's ``gains.toml``."""
+    if airframe == "haps":
+        section = {f.name: f.metadata["section"] for f in fields(HapsGains)}[path]
+        return f"{section}.{path}"
+    return path
+
+
+def default_gains(airframe: str) -> Any:
+    return HapsGains.load() if airframe == "haps" else MultirotorGains.load()
+
+
+def haps_loops(alt_m: float = 20_000.0, tas_mps: float = 29.7) -> list[Loop]:
+    """The HAPS roll and pitch holds at a JSBSim trim (``alt_m`` MSL, ``tas_mps`` TAS)."""
+    from sim.tuning.evaluator import JSBSimEvaluator
+    from sim.tuning.linearize import linearize
+    from sim.tuning.loops_haps import HapsTrimContext, haps_pitch_loops, haps_roll_loops
+    from sim.tuning.trim_haps import jsbsim_trim
+
+    pt, plant = jsbsim_trim(alt_m, tas_mps)
+    if plant is None:
+        raise ValueError(f"HAPS does not trim at {alt_m:.0f} m, {tas_mps:.1f} m/s: {pt.reason}")
+    ctx = HapsTrimContext.of(plant, HapsGains.load())
+    lm = linearize(JSBSimEvaluator(plant))
+
+    def pitch(g: HapsGains):
+        l_el, _, t = haps_pitch_loops(lm, g, ctx)
+        return l_el, t
+
+    def step(axis: str) -> Callable[[HapsGains], steps.StepResponse]:
+        return lambda g: steps.haps_attitude_step(axis, g, HAPS_STEP[axis], HAPS_STEP_S[axis], alt_m, tas_mps)
+
+    return [
+        Loop(
+            "haps",
+            "roll",
+            "aileron command",
+            "rad",
+            ("kp_roll", "ki_roll", "kd_roll"),
+            lambda g: haps_roll_loops(lm, g, ctx),
+            step("roll"),
+            120.0,
+        ),
+        Loop(
+            "haps",
+            "pitch",
+            "elevator command",
+            "rad",
+            ("kp_pitch", "ki_pitch", "kd_pitch"),
+            pitch,
+            step("pitch"),
+            120.0,
+        ),
+    ]
+
+
+def quad_loops() -> list[Loop]:
+    """The quadrotor's roll-axis rate and attitude loops and its horizontal velocity and position
+    loops (east), on the roll plant identified in JSBSim at hover."""
+    from sim.tuning.loops_quad import identify_rotor_axis
+    from sim.tuning.loops_quad import quad_loops as build_all
+
+    axis = identify_rotor_axis("roll")
+
+    def part(name: str) -> Callable[[MultirotorGains], tuple[Any, Any]]:
+        return lambda g: getattr(build_all(axis, g), name)
+
+    rate, vel = ("rate.roll.kp", "rate.roll.ki", "rate.roll.kd"), ("velocity.kp_xy", "velocity.ki_xy", "velocity.kd_xy")
+    spec = (
+        ("rate", "roll-torque command", "rad/s", rate, steps.quad_rate_step, 240.0),
+        ("attitude", "roll-rate command", "rad", ("attitude.kp_roll",), steps.quad_attitude_step, 240.0),
+        ("velocity", "acceleration demand", "m/s", vel, steps.quad_velocity_step, 60.0),
+        ("position", "velocity demand", "m", ("position.kp_xy",), steps.quad_position_step, 60.0),
+    )
+    return [Loop("quadrotor", n, at, unit, paths, part(n), fn, hz) for n, at, unit, paths, fn, hz in spec]
+
+
+def loops_of(airframe: str, alt_m: float = 20_000.0, tas_mps: float = 29.7) -> list[Loop]:
+    """Every loop of ``airframe`` (``haps`` at the given trim point)."""
+    if airframe == "haps":
+        return haps_loops(alt_m, tas_mps)
+    if airframe == "quadrotor":
+        return quad_loops()
+    raise ValueError(f"unknown airframe {airframe!r} (known: {', '.join(AIRFRAME_LOOPS)})")
