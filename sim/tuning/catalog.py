@@ -29,17 +29,18 @@ from typing import Any
 from aircraft.haps.gains import HapsGains
 from aircraft.quadrotor.gains import MultirotorGains
 from sim.tuning import steps
+from sim.tuning.loops import LoopReport, StepResponse, analyse
 
 AIRFRAME_LOOPS = {"haps": ("roll", "pitch"), "quadrotor": ("rate", "attitude", "velocity", "position")}
 HAPS_STEP = {"roll": math.radians(5.0), "pitch": math.radians(2.0)}  # [rad]
-HAPS_STEP_S = {"roll": 10.0, "pitch": 30.0}  # record length [s]: beyond the linear settling time
 
 
 @dataclass(frozen=True)
 class Loop:
     """One loop: ``build(gains) -> (L, T)`` (open loop at ``opened_at``, closed loop from its
-    command to its output), ``step(gains)`` its JSBSim step, ``gains`` the field paths scaled
-    together, ``unit`` of its command and output."""
+    command to its output), ``fly(gains, seconds)`` its JSBSim step, ``gains`` the field paths
+    scaled together, ``unit`` of its command and output, ``sample_hz`` its update rate,
+    ``record_s`` the step's length (beyond its settling time at the shipped gains)."""
 
     airframe: str
     name: str
@@ -47,8 +48,17 @@ class Loop:
     unit: str
     gains: tuple[str, ...]
     build: Callable[[Any], tuple[Any, Any]]
-    step: Callable[[Any], steps.StepResponse]
+    fly: Callable[[Any, float], StepResponse]
     sample_hz: float
+    record_s: float
+
+    def step(self, gains: Any) -> StepResponse:
+        """The JSBSim step with ``gains`` over ``record_s``."""
+        return self.fly(gains, self.record_s)
+
+    def analyse(self, gains: Any) -> LoopReport:
+        """Margins and linear step figures with ``gains`` (same record as :meth:`step`)."""
+        return analyse(f"{self.airframe} {self.name}", *self.build(gains), self.record_s)
 
     @property
     def max_crossover_rad_s(self) -> float:
@@ -107,8 +117,8 @@ def haps_loops(alt_m: float = 20_000.0, tas_mps: float = 29.7) -> list[Loop]:
         l_el, _, t = haps_pitch_loops(lm, g, ctx)
         return l_el, t
 
-    def step(axis: str) -> Callable[[HapsGains], steps.StepResponse]:
-        return lambda g: steps.haps_attitude_step(axis, g, HAPS_STEP[axis], HAPS_STEP_S[axis], alt_m, tas_mps)
+    def step(axis: str) -> Callable[[HapsGains, float], StepResponse]:
+        return lambda g, s: steps.haps_attitude_step(axis, g, HAPS_STEP[axis], s, alt_m, tas_mps)
 
     return [
         Loop(
@@ -120,6 +130,7 @@ def haps_loops(alt_m: float = 20_000.0, tas_mps: float = 29.7) -> list[Loop]:
             lambda g: haps_roll_loops(lm, g, ctx),
             step("roll"),
             120.0,
+            10.0,
         ),
         Loop(
             "haps",
@@ -130,6 +141,7 @@ def haps_loops(alt_m: float = 20_000.0, tas_mps: float = 29.7) -> list[Loop]:
             pitch,
             step("pitch"),
             120.0,
+            30.0,
         ),
     ]
 
@@ -147,12 +159,15 @@ def quad_loops() -> list[Loop]:
 
     rate, vel = ("rate.roll.kp", "rate.roll.ki", "rate.roll.kd"), ("velocity.kp_xy", "velocity.ki_xy", "velocity.kd_xy")
     spec = (
-        ("rate", "roll-torque command", "rad/s", rate, steps.quad_rate_step, 240.0),
-        ("attitude", "roll-rate command", "rad", ("attitude.kp_roll",), steps.quad_attitude_step, 240.0),
-        ("velocity", "acceleration demand", "m/s", vel, steps.quad_velocity_step, 60.0),
-        ("position", "velocity demand", "m", ("position.kp_xy",), steps.quad_position_step, 60.0),
+        ("rate", "roll-torque command", "rad/s", rate, steps.quad_rate_step, 240.0, 2.0),
+        ("attitude", "roll-rate command", "rad", ("attitude.kp_roll",), steps.quad_attitude_step, 240.0, 1.5),
+        ("velocity", "acceleration demand", "m/s", vel, steps.quad_velocity_step, 60.0, 12.0),
+        ("position", "velocity demand", "m", ("position.kp_xy",), steps.quad_position_step, 60.0, 10.0),
     )
-    return [Loop("quadrotor", n, at, unit, paths, part(n), fn, hz) for n, at, unit, paths, fn, hz in spec]
+    return [
+        Loop("quadrotor", n, at, unit, paths, part(n), lambda g, s, fn=fn: fn(g, seconds=s), hz, rec)
+        for n, at, unit, paths, fn, hz, rec in spec
+    ]
 
 
 def loops_of(airframe: str, alt_m: float = 20_000.0, tas_mps: float = 29.7) -> list[Loop]:

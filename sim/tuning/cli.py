@@ -164,14 +164,15 @@ def cmd_linearize(args) -> int:
 def _margin_rows(args) -> list[dict]:
     """Per loop: its margins and closed-loop figures, and (unless ``--no-steps``) its JSBSim step."""
     from sim.tuning.catalog import default_gains, loops_of
-    from sim.tuning.loops import analyse, second_order_overshoot
+    from sim.tuning.loops import second_order_overshoot
     from sim.tuning.tuner import LOW_MARGIN_DEG
 
     gains = default_gains(args.airframe)
     rows = []
     for loop in loops_of(args.airframe, args.alt, args.tas):
-        r = analyse(loop.name, *loop.build(gains))
+        r = loop.analyse(gains)
         row = r.row() | {
+            "name": loop.name,
             "opened_at": loop.opened_at,
             "second_order_overshoot_pct": second_order_overshoot(r.phase_margin_deg),
         }
@@ -203,7 +204,7 @@ def cmd_margins(args) -> int:
         "Ts JSB": "jsbsim_settling_time_s",
     }
     for c in cols:
-        t.add_column(c)
+        t.add_column(c, no_wrap=c == "loop")
     for r in rows:
         t.add_row(*(_f(r.get(k, math.nan), 3) for k in cols.values()))
     out.print(t)

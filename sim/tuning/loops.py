@@ -2,7 +2,8 @@
 
 Margins from ``control.stability_margins`` (gain margin [dB], phase margin [deg], their
 frequencies [rad/s]); bandwidth of the closed loop (-3 dB) [rad/s]; step info of the closed loop
-(overshoot [%], 10-90 % rise time [s], 2 % settling time [s]). The loops themselves are built in
+(overshoot [%], 10-90 % rise time [s], 2 % settling time [s]) over a given record, as
+:class:`StepResponse` computes them for the JSBSim steps. The loops themselves are built in
 :mod:`sim.tuning.loops_haps` and :mod:`sim.tuning.loops_quad`; :mod:`sim.tuning.catalog` lists
 them per airframe.
 """
@@ -36,25 +37,59 @@ class LoopReport:
         return dict(self.__dict__)
 
 
-def analyse(name: str, L, T) -> LoopReport:
-    """Margins of open loop ``L`` and step/bandwidth figures of closed loop ``T`` (step figures
-    NaN when the step never rises through 90 % within python-control's horizon)."""
+@dataclass(frozen=True)
+class StepResponse:
+    """Response ``y`` (minus its pre-step value) at times ``t`` [s] to a step of size ``step``."""
+
+    t: np.ndarray
+    y: np.ndarray
+    step: float
+
+    @property
+    def overshoot_pct(self) -> float:
+        """(peak - step) / step [%], 0 when the response stays below the step."""
+        return max(0.0, 100.0 * (float(np.max(self.y / self.step)) - 1.0))
+
+    def settling_time_s(self, band: float = 0.02) -> float:
+        """Time [s] after which the response stays within ``band`` x step of the step (NaN when
+        it is still outside at the end of the record)."""
+        out = np.abs(self.y / self.step - 1.0) > band
+        if out[-1]:
+            return math.nan
+        k = np.flatnonzero(out)
+        return float(self.t[k[-1] + 1]) if k.size else float(self.t[0])
+
+    @property
+    def rise_time_s(self) -> float:
+        """10-90 % rise time [s] (NaN when the response never reaches 90 %)."""
+        r = self.y / self.step
+        hi = np.flatnonzero(r >= 0.9)
+        if not hi.size:
+            return math.nan
+        return float(self.t[hi[0]] - self.t[np.flatnonzero(r >= 0.1)[0]])
+
+    @property
+    def final_ratio(self) -> float:
+        """Last sample over the step."""
+        return float(self.y[-1] / self.step)
+
+
+def analyse(name: str, L, T, seconds: float) -> LoopReport:
+    """Margins of open loop ``L``, bandwidth of closed loop ``T`` and its unit-step figures over
+    ``seconds`` (the same figures and record length as the loop's JSBSim step)."""
     gm, pm, _, wpc, wgc, _ = ct.stability_margins(L)
-    try:
-        info = ct.step_info(T, SettlingTimeThreshold=0.02)
-    except IndexError:
-        info = dict.fromkeys(("Overshoot", "RiseTime", "SettlingTime"), math.nan)
-    bw = ct.bandwidth(T)
+    t = np.linspace(0.0, seconds, 4001)
+    st = StepResponse(t, np.asarray(ct.step_response(T, t).outputs, float).reshape(-1), 1.0)
     return LoopReport(
         name,
         float(wgc),
         float(pm),
         20 * math.log10(gm) if np.isfinite(gm) and gm > 0 else math.inf,
         float(wpc),
-        float(bw),
-        float(info["Overshoot"]),
-        float(info["RiseTime"]),
-        float(info["SettlingTime"]),
+        float(ct.bandwidth(T)),
+        st.overshoot_pct,
+        st.rise_time_s,
+        st.settling_time_s(),
     )
 
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
@@ -28,38 +28,11 @@ from aircraft.quadrotor.controller import MultirotorController
 from aircraft.quadrotor.gains import MultirotorGains
 from sim.core.setpoints import MultirotorSetpoint
 from sim.jsbsim_plant import JSBSimPlant
+from sim.tuning.loops import StepResponse
 
 RATE_PROBE_KP = 1e-4  # [1/s]
 QUAD_ALT_M = 100.0
 _SETTLE_S = 1.0  # hover on the controller before the step [s]
-
-
-@dataclass(frozen=True)
-class StepResponse:
-    """Response ``y`` (minus its pre-step value) at times ``t`` [s] to a step of size ``step``."""
-
-    t: np.ndarray
-    y: np.ndarray
-    step: float
-
-    @property
-    def overshoot_pct(self) -> float:
-        """(peak - step) / step [%], 0 when the response stays below the step."""
-        return max(0.0, 100.0 * (float(np.max(self.y / self.step)) - 1.0))
-
-    def settling_time_s(self, band: float = 0.02) -> float:
-        """Time [s] after which the response stays within ``band`` x step of the step (NaN when
-        it is still outside at the end of the record)."""
-        out = np.abs(self.y / self.step - 1.0) > band
-        if out[-1]:
-            return math.nan
-        k = np.flatnonzero(out)
-        return float(self.t[k[-1] + 1]) if k.size else float(self.t[0])
-
-    @property
-    def final_ratio(self) -> float:
-        """Last sample over the step."""
-        return float(self.y[-1] / self.step)
 
 
 def _record(plant: JSBSimPlant, read: Callable[[], float], seconds: float, step: float, before=None) -> StepResponse:

@@ -30,7 +30,7 @@ import control as ct
 import numpy as np
 
 from sim.tuning.catalog import Loop, file_key, gain_value, scaled
-from sim.tuning.loops import LoopReport, analyse, second_order_overshoot
+from sim.tuning.loops import LoopReport, second_order_overshoot
 
 LOW_MARGIN_DEG = 30.0
 MIN_CROSSOVER_RATIO = 0.1  # lowest crossover searched, per the loop's crossover at the given gains
@@ -107,7 +107,7 @@ def _band(loop: Loop, l1) -> tuple[np.ndarray, np.ndarray]:
     """Grid indices of the reachable crossover band and the phase margin [deg] at every grid point."""
     pm = _margin_deg(l1)
     _, _, _, _, own_wc, _ = ct.stability_margins(l1)
-    ok = _closed_loop_stable(l1) & (loop.max_crossover_rad_s >= _GRID) & (_GRID >= MIN_CROSSOVER_RATIO * own_wc)
+    ok = _closed_loop_stable(l1) & (loop.max_crossover_rad_s >= _GRID) & (MIN_CROSSOVER_RATIO * own_wc <= _GRID)
     lo, hi = _stable_band(pm, ok, float(own_wc))
     if hi < lo:
         raise ValueError(f"{loop.airframe} {loop.name} loop: no crossover gives a stable closed loop")
@@ -154,8 +154,7 @@ def propose(
         w_c = float(_GRID[band[k]] * (_GRID[band[k + 1]] / _GRID[band[k]]) ** f)
     factor = 1.0 / abs(complex(l1(1j * w_c)))
     new = scaled(gains, loop.gains, factor)
-    l_new, t_new = loop.build(new)
-    rep = analyse(f"{loop.airframe} {loop.name} (proposed)", l_new, t_new)
+    rep = loop.analyse(new)
     p = Proposal(
         loop.airframe,
         loop.name,
