@@ -164,10 +164,7 @@ def quad_loops() -> list[Loop]:
         ("velocity", "acceleration demand", "m/s", vel, steps.quad_velocity_step, 60.0, 12.0),
         ("position", "velocity demand", "m", ("position.kp_xy",), steps.quad_position_step, 60.0, 10.0),
     )
-    return [
-        Loop("quadrotor", n, at, unit, paths, part(n), lambda g, s, fn=fn: fn(g, seconds=s), hz, rec)
-        for n, at, unit, paths, fn, hz, rec in spec
-    ]
+    return [Loop("quadrotor", n, at, unit, paths, part(n), fn, hz, rec) for n, at, unit, paths, fn, hz, rec in spec]
 
 
 def loops_of(airframe: str, alt_m: float = 20_000.0, tas_mps: float = 29.7) -> list[Loop]:

@@ -98,7 +98,7 @@ def _hover_on_fcs(gains: MultirotorGains) -> JSBSimPlant:
 
 
 def quad_attitude_step(
-    gains: MultirotorGains | None = None, step: float = math.radians(5.0), seconds: float = 1.5
+    gains: MultirotorGains | None = None, seconds: float = 1.5, step: float = math.radians(5.0)
 ) -> StepResponse:
     """Bank command stepped by ``step`` [rad] at hover."""
     plant = _hover_on_fcs(gains or MultirotorGains.load())
@@ -106,7 +106,7 @@ def quad_attitude_step(
     return _record(plant, _prop(plant, "attitude/phi-rad"), seconds, step)
 
 
-def quad_rate_step(gains: MultirotorGains | None = None, step: float = 0.5, seconds: float = 2.0) -> StepResponse:
+def quad_rate_step(gains: MultirotorGains | None = None, seconds: float = 2.0, step: float = 0.5) -> StepResponse:
     """Roll-rate command stepped by ``step`` [rad/s] at hover (module docstring)."""
     g = gains or MultirotorGains.load()
     plant = _hover_on_fcs(replace(g, attitude=replace(g.attitude, kp_roll=RATE_PROBE_KP)))
@@ -143,11 +143,11 @@ def _controller_step(gains: MultirotorGains, seconds: float, step: float, *, vel
     return _record(plant, east, seconds, step, control(sp))
 
 
-def quad_velocity_step(gains: MultirotorGains | None = None, step: float = 1.0, seconds: float = 12.0) -> StepResponse:
+def quad_velocity_step(gains: MultirotorGains | None = None, seconds: float = 12.0, step: float = 1.0) -> StepResponse:
     """East velocity demand stepped by ``step`` [m/s] at hover (north and down positions held)."""
     return _controller_step(gains or MultirotorGains.load(), seconds, step, velocity=True)
 
 
-def quad_position_step(gains: MultirotorGains | None = None, step: float = 1.0, seconds: float = 10.0) -> StepResponse:
+def quad_position_step(gains: MultirotorGains | None = None, seconds: float = 10.0, step: float = 1.0) -> StepResponse:
     """East position demand stepped by ``step`` [m] at hover."""
     return _controller_step(gains or MultirotorGains.load(), seconds, step, velocity=False)
