@@ -154,6 +154,8 @@ def propose(
         w_c = float(_GRID[band[k]] * (_GRID[band[k + 1]] / _GRID[band[k]]) ** f)
     factor = 1.0 / abs(complex(l1(1j * w_c)))
     new = scaled(gains, loop.gains, factor)
+    if np.any(ct.poles(loop.build(new)[1]).real >= 0):  # the grid's stability sampling missed it
+        raise ValueError(f"{what}: the closed loop at crossover {w_c:.3g} rad/s is unstable; {_range_text(band, pm)}")
     rep = loop.analyse(new)
     p = Proposal(
         loop.airframe,
