@@ -16,7 +16,7 @@ def test_linearize_writes_model(tmp_path, capsys):
 def test_margins_haps(tmp_path, capsys):
     assert tune_main(["margins", "haps", "--out", str(tmp_path)]) == 0
     rows = json.loads((tmp_path / "margins_haps.json").read_text())
-    assert [r["name"] for r in rows] == ["roll", "pitch"]
+    assert [r["name"] for r in rows] == ["roll", "pitch", "tecs-pitch", "tecs-throttle"]
     assert all(r["phase_margin_deg"] > 0 and r["jsbsim_overshoot_pct"] > 0 and not r["warning"] for r in rows)
 
 

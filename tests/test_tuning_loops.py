@@ -26,7 +26,7 @@ OS_TOL_POINTS, OS_TOL_REL = 2.0, 0.15
 TS_TOL_REL = 0.15
 SECOND_ORDER_TOL = 4.0
 SECOND_ORDER_LOOPS = {("haps", "roll"), ("quadrotor", "attitude"), ("quadrotor", "position")}
-ALL_LOOPS = [("haps", "roll"), ("haps", "pitch")] + [
+ALL_LOOPS = [("haps", n) for n in ("roll", "pitch", "tecs-pitch", "tecs-throttle")] + [
     ("quadrotor", n) for n in ("rate", "attitude", "velocity", "position")
 ]
 
@@ -130,6 +130,24 @@ def test_low_margin_proposal_warns_in_cli_and_file_and_overshoots_in_jsbsim(tmp_
     assert "warning" not in capsys.readouterr().out
     assert json.loads((tmp_path / "proposal_quadrotor_attitude.json").read_text())["warnings"] == []
     assert LOW_MARGIN_DEG == 30.0
+
+
+def test_tecs_loops_are_not_scaled_by_the_tuner(loops):
+    with pytest.raises(ValueError, match=r"haps tecs-throttle loop: not tunable by one factor"):
+        propose(loops[("haps", "tecs-throttle")], default_gains("haps"), phase_margin_deg=50.0)
+
+
+def test_thrust_lag_matches_the_power_model():
+    """Settled thrust per unit throttle against eta P_max / (V m) of gains.toml's feed-forward
+    model, and an rpm lag of seconds (propeller inertia at 20 km)."""
+    from sim.tuning.loops_tecs import thrust_lag
+    from sim.tuning.trim_haps import jsbsim_trim
+
+    _, plant = jsbsim_trim(20_000.0, 29.7)
+    lag = thrust_lag(plant)
+    g = HapsGains.load()
+    assert lag.b_thr[0] == pytest.approx(g.prop_efficiency * g.power_max_w / (29.7 * g.mass_kg), rel=0.1)
+    assert 1.0 < lag.tau_s < 10.0
 
 
 def test_roll_gain_for_the_haps(tmp_path, capsys):

@@ -9,6 +9,8 @@ airframe   loop                   gains (``gains.toml`` keys)     opened at
 =========  =====================  ==============================  =========================
 haps       roll                   inner.kp/ki/kd_roll             aileron command
 haps       pitch                  inner.kp/ki/kd_pitch            elevator command
+haps       tecs-pitch             (not a single-factor loop)      pitch command
+haps       tecs-throttle          (not a single-factor loop)      throttle
 quadrotor  rate (roll)            rate.roll.kp/ki/kd              roll-torque command
 quadrotor  attitude (roll)        attitude.kp_roll                roll-rate command
 quadrotor  velocity (horizontal)  velocity.kp/ki/kd_xy            acceleration demand
@@ -26,13 +28,25 @@ from collections.abc import Callable
 from dataclasses import dataclass, fields, replace
 from typing import Any
 
+import numpy as np
+
 from aircraft.haps.gains import HapsGains
 from aircraft.quadrotor.gains import MultirotorGains
 from sim.tuning import steps
 from sim.tuning.loops import LoopReport, StepResponse, analyse
 
-AIRFRAME_LOOPS = {"haps": ("roll", "pitch"), "quadrotor": ("rate", "attitude", "velocity", "position")}
+AIRFRAME_LOOPS = {
+    "haps": ("roll", "pitch", "tecs-pitch", "tecs-throttle"),
+    "quadrotor": ("rate", "attitude", "velocity", "position"),
+}
 HAPS_STEP = {"roll": math.radians(5.0), "pitch": math.radians(2.0)}  # [rad]
+TECS_STEP_M, TECS_RATE_MPS = 2.0, 0.5  # altitude setpoint ramp of the TECS step
+
+
+def tecs_drive(t: np.ndarray) -> np.ndarray:
+    """[h_ref, h_ref_rate] of the TECS step, per metre of the final change."""
+    ramp_s = TECS_STEP_M / TECS_RATE_MPS
+    return np.vstack([np.clip(t / ramp_s, 0.0, 1.0), np.where(t < ramp_s, 1.0 / ramp_s, 0.0)])
 
 
 @dataclass(frozen=True)
@@ -51,6 +65,12 @@ class Loop:
     fly: Callable[[Any, float], StepResponse]
     sample_hz: float
     record_s: float
+    drive: Callable[[np.ndarray], np.ndarray] | None = None  # T's inputs for a unit change; None: unit step
+
+    @property
+    def tunable(self) -> bool:
+        """Whether scaling ``gains`` scales the open loop (false for the TECS loops)."""
+        return bool(self.gains)
 
     def step(self, gains: Any) -> StepResponse:
         """The JSBSim step with ``gains`` over ``record_s``."""
@@ -58,7 +78,7 @@ class Loop:
 
     def analyse(self, gains: Any) -> LoopReport:
         """Margins and linear step figures with ``gains`` (same record as :meth:`step`)."""
-        return analyse(f"{self.airframe} {self.name}", *self.build(gains), self.record_s)
+        return analyse(f"{self.airframe} {self.name}", *self.build(gains), self.record_s, self.drive)
 
     @property
     def max_crossover_rad_s(self) -> float:
@@ -105,6 +125,7 @@ def haps_loops(alt_m: float = 20_000.0, tas_mps: float = 29.7) -> list[Loop]:
     from sim.tuning.evaluator import JSBSimEvaluator
     from sim.tuning.linearize import linearize
     from sim.tuning.loops_haps import HapsTrimContext, haps_pitch_loops, haps_roll_loops
+    from sim.tuning.loops_tecs import tecs_loops, thrust_lag
     from sim.tuning.trim_haps import jsbsim_trim
 
     pt, plant = jsbsim_trim(alt_m, tas_mps)
@@ -112,6 +133,17 @@ def haps_loops(alt_m: float = 20_000.0, tas_mps: float = 29.7) -> list[Loop]:
         raise ValueError(f"HAPS does not trim at {alt_m:.0f} m, {tas_mps:.1f} m/s: {pt.reason}")
     ctx = HapsTrimContext.of(plant, HapsGains.load())
     lm = linearize(JSBSimEvaluator(plant))
+    lag = thrust_lag(plant)
+
+    def tecs(channel: int) -> Callable[[HapsGains], tuple[Any, Any]]:
+        def build(g: HapsGains) -> tuple[Any, Any]:
+            loops = tecs_loops(lm, lag, g, ctx)
+            return loops[channel], loops[2]
+
+        return build
+
+    def tecs_fly(g: HapsGains, seconds: float) -> StepResponse:
+        return steps.haps_tecs_step(g, seconds, TECS_STEP_M, TECS_RATE_MPS, alt_m, tas_mps)
 
     def pitch(g: HapsGains):
         l_el, _, t = haps_pitch_loops(lm, g, ctx)
@@ -143,6 +175,8 @@ def haps_loops(alt_m: float = 20_000.0, tas_mps: float = 29.7) -> list[Loop]:
             120.0,
             30.0,
         ),
+        Loop("haps", "tecs-pitch", "pitch command", "m", (), tecs(0), tecs_fly, 10.0, 80.0, tecs_drive),
+        Loop("haps", "tecs-throttle", "throttle", "m", (), tecs(1), tecs_fly, 10.0, 80.0, tecs_drive),
     ]
 
 

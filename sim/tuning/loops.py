@@ -11,6 +11,7 @@ them per airframe.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import control as ct
@@ -74,19 +75,23 @@ class StepResponse:
         return float(self.y[-1] / self.step)
 
 
-def analyse(name: str, L, T, seconds: float) -> LoopReport:
-    """Margins of open loop ``L``, bandwidth of closed loop ``T`` and its unit-step figures over
-    ``seconds`` (the same figures and record length as the loop's JSBSim step)."""
-    gm, pm, _, wpc, wgc, _ = ct.stability_margins(L)
+def analyse(name: str, L, T, seconds: float, drive: Callable[[np.ndarray], np.ndarray] | None = None) -> LoopReport:
+    """Margins of open loop ``L``, bandwidth of closed loop ``T`` and its response figures over
+    ``seconds`` (the same figures and record length as the loop's JSBSim step): to a unit step,
+    or to the inputs ``drive(t)`` [n_inputs x len(t)] that end at a unit change of the output
+    (bandwidth then NaN: T has several inputs)."""
+    with np.errstate(over="ignore"):  # the order-46 TECS loops overflow a polynomial at high frequency
+        gm, pm, _, wpc, wgc, _ = ct.stability_margins(L)  # (same margins as from their frequency response)
     t = np.linspace(0.0, seconds, 4001)
-    st = StepResponse(t, np.asarray(ct.step_response(T, t).outputs, float).reshape(-1), 1.0)
+    resp = ct.step_response(T, t) if drive is None else ct.forced_response(T, t, drive(t))
+    st = StepResponse(t, np.asarray(resp.outputs, float).reshape(-1), 1.0)
     return LoopReport(
         name,
         float(wgc),
         float(pm),
         20 * math.log10(gm) if np.isfinite(gm) and gm > 0 else math.inf,
         float(wpc),
-        float(ct.bandwidth(T)),
+        float(ct.bandwidth(T)) if drive is None else math.nan,
         st.overshoot_pct,
         st.rise_time_s,
         st.settling_time_s(),

@@ -41,12 +41,14 @@ class HapsTrimContext:
     tas_mps: float  # true airspeed [m/s]
     theta0_rad: float  # trim pitch [rad]
     bi2vel_s: float  # b / (2 V) [s]
+    eas_mps: float  # equivalent airspeed [m/s]
 
     @classmethod
     def of(cls, plant: JSBSimPlant, gains: HapsGains) -> HapsTrimContext:
         qref = gains.fcs_properties()["ap/qbar-ref-psf"]
         sched = min(max(qref / plant["aero/qbar-psf"], gains.sched_min), gains.sched_max)
-        return cls(sched, plant["velocities/vt-fps"] * 0.3048, plant["attitude/theta-rad"], plant["aero/bi2vel"])
+        tas = plant["velocities/vt-fps"] * 0.3048
+        return cls(sched, tas, plant["attitude/theta-rad"], plant["aero/bi2vel"], plant.truth().eas_mps)
 
 
 def _tf(sys, k: int):

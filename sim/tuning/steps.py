@@ -3,6 +3,8 @@ outer loops by the airframe's own Python controller, with the gains given (defau
 
 - :func:`haps_attitude_step`: HAPS trimmed (JSBSim trim), roll and pitch hold engaged, throttle
   held at trim; the roll or pitch command stepped by ``step`` [rad] at t = 0.
+- :func:`haps_tecs_step`: HAPS trimmed, its TECS autopilot in the loop, altitude setpoint ramped
+  up (the TECS altitude loop's reference and its rate, as its demand shaping passes them).
 - :func:`quad_rate_step`: quadrotor hovering on its FCS; roll-rate command stepped (the attitude
   P is set to ``RATE_PROBE_KP`` and the bank command offset by step / kp, so the rate command is
   the step to within kp x bank, 1e-4 rad/s per rad).
@@ -26,11 +28,13 @@ import numpy as np
 from aircraft.haps.gains import HapsGains
 from aircraft.quadrotor.controller import MultirotorController
 from aircraft.quadrotor.gains import MultirotorGains
-from sim.core.setpoints import MultirotorSetpoint
+from sim.core.setpoints import FixedWingSetpoint, MultirotorSetpoint
 from sim.jsbsim_plant import JSBSimPlant
 from sim.tuning.loops import StepResponse
 
 RATE_PROBE_KP = 1e-4  # [1/s]
+TECS_DT = 0.1  # HAPS outer-loop period [s]
+M_TO_FT = 1.0 / 0.3048
 QUAD_ALT_M = 100.0
 _SETTLE_S = 1.0  # hover on the controller before the step [s]
 
@@ -72,6 +76,41 @@ def haps_attitude_step(
     cmd[f"ap/{axis}-cmd-rad"] += step
     plant.set_many({"ap/engage": 1.0, **cmd})
     return _record(plant, _prop(plant, prop), seconds, step)
+
+
+def haps_tecs_step(
+    gains: HapsGains | None = None,
+    seconds: float = 80.0,
+    step: float = 2.0,
+    rate: float = 0.5,
+    alt_m: float = 20_000.0,
+    tas_mps: float = 29.7,
+) -> StepResponse:
+    """HAPS on :class:`aircraft.haps.autopilot.HapsAutopilot` (10 Hz, truth state) from the
+    JSBSim trim, altitude setpoint ramped up by ``step`` [m] at ``rate`` [m/s] (below the climb
+    limit, so the TECS reference follows it exactly); the altitude change minus that of the same
+    flight without the ramp (the trim's residual drift), over ``seconds``."""
+    from aircraft.haps.autopilot import HapsAutopilot
+    from sim.tuning.trim_haps import jsbsim_trim
+
+    def fly(ramp: float) -> StepResponse:
+        pt, plant = jsbsim_trim(alt_m, tas_mps)
+        if plant is None:
+            raise RuntimeError(f"HAPS does not trim at {alt_m} m, {tas_mps} m/s: {pt.reason}")
+        ap = HapsAutopilot(gains or HapsGains.load())
+        s0 = plant.truth()
+        ap.reset(s0, throttle=plant["fcs/throttle-cmd-norm[0]"])
+        every = round(TECS_DT / plant.dt)
+
+        def before(k: int) -> None:
+            if k % every == 0:
+                sp = FixedWingSetpoint(0.0, s0.alt_msl_m + min(ramp * k * plant.dt, step), s0.tas_mps)
+                plant.set_many(ap.update(plant.truth(), sp, every * plant.dt))
+
+        return _record(plant, _prop(plant, "position/h-sl-ft"), seconds, step * M_TO_FT, before)
+
+    flown, still = fly(rate), fly(0.0)
+    return StepResponse(flown.t, (flown.y - still.y) / M_TO_FT, step)
 
 
 def _hover_on_fcs(gains: MultirotorGains) -> JSBSimPlant:

@@ -134,6 +134,11 @@ def propose(
     reachable range when the request cannot be met."""
     if (crossover_rad_s is None) == (phase_margin_deg is None):
         raise ValueError("give exactly one of a crossover and a phase margin")
+    if not loop.tunable:
+        raise ValueError(
+            f"{loop.airframe} {loop.name} loop: not tunable by one factor (its demand terms close the loop "
+            "too); its margins: cosim tune margins"
+        )
     l1, _ = loop.build(gains)
     band, pm = _band(loop, l1)
     what = f"{loop.airframe} {loop.name} loop"
