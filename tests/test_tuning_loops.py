@@ -58,28 +58,33 @@ def test_margins_of_each_loop_match_its_jsbsim_step(loops, key):
 
 
 @pytest.mark.parametrize(
-    ("key", "pm"),
+    ("key", "ask"),
     [
-        (("haps", "roll"), 65.0),
-        (("quadrotor", "rate"), 50.0),
-        (("quadrotor", "attitude"), 40.0),
-        (("quadrotor", "velocity"), 60.0),
-        (("quadrotor", "position"), 40.0),
+        (("haps", "roll"), {"phase_margin_deg": 65.0}),
+        (("haps", "pitch"), {"crossover_rad_s": 1.5}),
+        (("quadrotor", "rate"), {"phase_margin_deg": 50.0}),
+        (("quadrotor", "attitude"), {"phase_margin_deg": 40.0}),
+        (("quadrotor", "velocity"), {"phase_margin_deg": 60.0}),
+        (("quadrotor", "position"), {"phase_margin_deg": 40.0}),
     ],
-    ids=lambda v: "-".join(v) if isinstance(v, tuple) else f"pm{v:g}",
+    ids=lambda v: "-".join(v) if isinstance(v, tuple) else "-".join(f"{k}{x:g}" for k, x in v.items()),
 )
-def test_proposal_meets_request_and_jsbsim_agrees(loops, key, pm):
+def test_proposal_meets_request_and_jsbsim_agrees(loops, key, ask):
     loop = loops[key]
     g = default_gains(key[0])
-    p = propose(loop, g, phase_margin_deg=pm)
-    assert p.linear.phase_margin_deg == pytest.approx(pm, abs=0.5)
+    p = propose(loop, g, **ask)
+    if "phase_margin_deg" in ask:
+        assert p.linear.phase_margin_deg == pytest.approx(ask["phase_margin_deg"], abs=0.5)
+    else:
+        assert p.linear.crossover_rad_s == pytest.approx(ask["crossover_rad_s"], rel=0.01)
     assert p.factor != pytest.approx(1.0, abs=0.02)  # the request moved the gains
     assert not p.warnings
     # the proposal file's gains are the scaled shipped ones, under their gains.toml keys
     assert p.gains == {file_key(key[0], k): pytest.approx(p.factor * gain_value(g, k)) for k in loop.gains}
     verify_in_jsbsim(loop, p)
-    _agrees(p.linear, loop.step(p.new_gains), p.linear.phase_margin_deg, key)
-    assert p.jsbsim_overshoot_pct == pytest.approx(loop.step(p.new_gains).overshoot_pct)
+    step = loop.step(p.new_gains)
+    _agrees(p.linear, step, p.linear.phase_margin_deg, key)
+    assert p.jsbsim_overshoot_pct == pytest.approx(step.overshoot_pct)
 
 
 def test_crossover_request_is_met(loops):
