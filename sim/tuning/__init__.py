@@ -11,6 +11,7 @@ Modules (one concept each):
 - :mod:`sim.tuning.linearize`   central-difference A, B from JSBSim; :mod:`sim.tuning.modes`
 - :mod:`sim.tuning.loops`       margins and step figures of a loop (shared analysis)
 - :mod:`sim.tuning.loops_haps`  HAPS roll and pitch holds as transfer functions
+- :mod:`sim.tuning.loops_tecs`  HAPS TECS loops (thrust lag measured in JSBSim)
 - :mod:`sim.tuning.loops_quad`  quadrotor rate, attitude, velocity and position loops
 - :mod:`sim.tuning.catalog`     every loop of both airframes: gains, transfer functions, step
 - :mod:`sim.tuning.steps`       closed-loop JSBSim step of each loop
