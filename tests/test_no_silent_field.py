@@ -654,11 +654,12 @@ ENCOUNTERS: dict[str, dict] = {
 
 
 def _options(**values: object) -> Callable[[dict], None]:
-    """Sets planner options of every vehicle whose planner has options (or is of the type)."""
+    """A change setting planner options of every vehicle whose planner takes options (all but
+    follow_mission)."""
 
     def change(d: dict) -> None:
         for v in d["vehicle"]:
-            if v["planner"]["type"] not in ("follow_mission",):
+            if v["planner"]["type"] != "follow_mission":
                 v["planner"].setdefault("options", {}).update(values)
 
     return change
