@@ -399,7 +399,7 @@ for _k, _v in _LIDAR.items():
 
 # sensor fields act on the EKF baseline (the HAPS for the pitot: a multirotor has none); the
 # rates must divide the plant rate (quadrotor 240 Hz, HAPS 120 Hz) and be multiples of the fusion rate
-_SENSOR_RATES = {"imu": 240.0, "gnss": 10.0, "baro": 40.0, "airspeed": 10.0, "mag": 40.0}
+_SENSOR_RATES = {"imu": 120.0, "gnss": 10.0, "baro": 40.0, "airspeed": 10.0, "mag": 40.0}  # IMU default: 240
 
 
 def _sensor_value(sensor: str, field: str, default: object) -> float:
