@@ -6,15 +6,19 @@ arrival). Expanding a state x_in computes EX_free(x_in); its adjacent states are
 tangent vertices of EX_obs(x_in), the goal when visible, and the auxiliary turning states, each
 kept only when flyable from x_in (course change and leg length, see turning.py). An edge is a
 straight leg at constant speed, so arrival times grow along every path (time monotone) and G is
-the flight time. States are "the same" (closed list) on a lattice of 1 % of the auxiliary leg,
-1 % of dt and 1 deg of course: revisiting a place later is a different state, which lets the
-search wait by circling (holding patterns) and keeps it resolution complete in time.
+the flight time.
 
 Waiting is an action of its own: from every state but the start and the goal, holding for
 HOLD_LAPS laps of the holding orbit (turning.hold_orbit: back at the state on its course, so the
 legs around it are unchanged), each kept when the orbit's footprint stays out of the obstacle
 envelopes over the whole wait and the wait ends within the planning horizon; holds chain, so any
 number of laps up to the horizon is reachable. The cost of a hold is its duration.
+
+Closed list (which states are "the same"): position on a lattice of 1 % of the auxiliary leg,
+course to 1 deg and kind; a hold or goal state also by its time (1 % of dt). So a place and
+course is expanded once, at its earliest arrival: a later arrival there is what a hold from the
+earlier one gives, to within a lap (dominance; where no hold fits, the later arrival is lost).
+The open list is ordered by G + w H (``search_weight`` w, astar.py).
 """
 
 from __future__ import annotations
@@ -35,9 +39,11 @@ from guidance.mptp.statespace import FreeSpace, free_space
 from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.turning import SENSES, admissible, aux_states, hold_lap_s, hold_orbit, min_leg_m
 from guidance.mptp.visibility import blocked, visible_vertices
+from guidance.mptp.waitbound import WaitBound
 
 START, VERTEX, AUX, GOAL, HOLD = "start", "vertex", "aux", "goal", "hold"
 HOLD_LAPS = (1, 2, 4, 8, 16, 32)  # wait choices per expansion [laps]
+WAIT_SUBSTEPS = 3  # time steps of the wait bound per planning interval
 TOUCH_M2 = 1.0  # a holding footprint may touch an envelope by this area [m^2]
 
 
@@ -108,6 +114,8 @@ class _Expander:
         self.escape_m = 2.0 * float(min_leg_m(cfg.course_change_max, cfg))
         self.availability = GoalAvailability(tl, goal)
         self.static: StaticBound | None = None  # SSPH bound of the start state
+        self.wait: WaitBound | None = None
+        self.t_start = 0.0  # time of the start state [s]
         self.t_end = math.inf  # holds end by this time [s] (the planning horizon)
         self.lap_s = hold_lap_s(cfg)
         self.hold_senses = SENSES[turning][:1] + tuple(x for x in (1.0, -1.0) if x != SENSES[turning][0])
@@ -171,11 +179,20 @@ class _Expander:
     def _heuristic(self, fs: FreeSpace, t_goal: float, pts: np.ndarray, times: np.ndarray) -> np.ndarray:
         if self.cfg.heuristic == "dijkstra" or not len(pts):
             return np.zeros(len(pts))
-        euclid = edh(pts, times, self.goal, self.cfg.tas_mps, self.availability)
+        euclid = np.maximum(
+            edh(pts, times, self.goal, self.cfg.tas_mps, self.availability),
+            self._wait_bound().arrival(pts, times) - times,
+        )
         if self.cfg.heuristic == "edh":
             return euclid
         static = self._static_bound(fs, t_goal).arrival(pts, times) - times
         return np.where(np.isfinite(static), np.maximum(static, euclid), euclid)
+
+    def _wait_bound(self) -> WaitBound:
+        """The wait bound of this search (built at the first call, from the start state's time)."""
+        if self.wait is None:
+            self.wait = WaitBound(self.tl, self.goal, self.w, self.t_start, self.cfg.tas_mps, WAIT_SUBSTEPS)
+        return self.wait
 
     def _static_bound(self, fs: FreeSpace, t_goal: float) -> StaticBound:
         """SSPH bound of the start state for the whole search (one reduced visibility graph per
@@ -207,15 +224,22 @@ def plan_trajectory(
     ends = goal.at(np.array([t0, t0 + cfg.horizon_s]))
     w = workspace if workspace is not None else default_workspace(np.vstack([p0, ends]), cfg, cfg.mission_area)
     exp = _Expander(tl, goal, cfg, w, turning or cfg.turning)
-    exp.t_end = t0 + cfg.horizon_s
+    exp.t_start, exp.t_end = t0, t0 + cfg.horizon_s
     q_p, q_t, q_c = 0.01 * cfg.leg_m, 0.01 * cfg.dt_s, math.radians(1.0)
 
     def key(s: State):
-        return round(s.p[0] / q_p), round(s.p[1] / q_p), round(s.t / q_t), round(s.course / q_c) % 360, s.kind == GOAL
+        when = round(s.t / q_t) if s.kind in (HOLD, GOAL) else None
+        return round(s.p[0] / q_p), round(s.p[1] / q_p), round(s.course / q_c) % 360, s.kind, when
 
     start = State((float(p0[0]), float(p0[1])), float(t0), float(course0), START)
     res = astar(
-        start, exp, lambda s: s.kind == GOAL, key, cfg.max_expansions, partial_ok=lambda s: s.t >= t0 + min_partial_s
+        start,
+        exp,
+        lambda s: s.kind == GOAL,
+        key,
+        cfg.max_expansions,
+        partial_ok=lambda s: s.t >= t0 + min_partial_s,
+        weight=cfg.search_weight,
     )
     path = res.path if res.status == "ok" else res.partial
     positions, times, courses, kinds = _states_with_orbits(path, cfg)
