@@ -15,9 +15,10 @@ envelopes over the whole wait and the wait ends within the planning horizon; hol
 number of laps up to the horizon is reachable. The cost of a hold is its duration.
 
 Closed list (which states are "the same"): position on a lattice of 1 % of the auxiliary leg,
-course to 1 deg and kind; a hold or goal state also by its time (1 % of dt). So a place and
-course is expanded once, at its earliest arrival: a later arrival there is what a hold from the
-earlier one gives, to within a lap (dominance; where no hold fits, the later arrival is lost).
+course to 1 deg, kind, and time: a hold or goal state to 1 % of dt, any other state by the
+window of ``dominance_s`` it falls in. So a place and course is expanded once per window, at
+its earliest arrival in it: a later arrival in the same window is taken as dominated (what a
+hold from the earlier one gives, to within a lap; where no hold fits, it is lost).
 The open list is ordered by G + w H (``search_weight`` w, astar.py).
 """
 
@@ -228,7 +229,7 @@ def plan_trajectory(
     q_p, q_t, q_c = 0.01 * cfg.leg_m, 0.01 * cfg.dt_s, math.radians(1.0)
 
     def key(s: State):
-        when = round(s.t / q_t) if s.kind in (HOLD, GOAL) else None
+        when = round(s.t / q_t) if s.kind in (HOLD, GOAL) else ("bucket", math.floor(s.t / cfg.dominance_s))
         return round(s.p[0] / q_p), round(s.p[1] / q_p), round(s.course / q_c) % 360, s.kind, when
 
     start = State((float(p0[0]), float(p0[1])), float(t0), float(course0), START)
