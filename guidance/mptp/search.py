@@ -166,16 +166,14 @@ class _Expander:
         j0, j1 = int(self.tl.interval(s.t)), int(self.tl.interval(s.t + durations[-1]))
         envs = self.tl.envelopes(np.arange(j0, j1 + 1), np.arange(j0 + 1, j1 + 2))
         last = self.tl.interval(s.t + durations) - j0
-        out, sides = [], []
+        sides = np.zeros(len(durations))
         for side in self.hold_senses:
             lap = hold_orbit(np.array(s.p), s.course, 1, self.cfg, side)
             footprint = shapely.convex_hull(shapely.multipoints(lap))
             hit = shapely.area(shapely.intersection(footprint, envs)) > TOUCH_M2
             free_until = int(np.argmax(hit)) - 1 if hit.any() else len(envs) - 1
-            ok = (last <= free_until) & ~np.isin(durations, out)
-            out += list(durations[ok])
-            sides += [side] * int(ok.sum())
-        return np.array(out), np.array(sides)
+            sides[(sides == 0) & (last <= free_until)] = side
+        return durations[sides != 0], sides[sides != 0]
 
     def _heuristic(self, fs: FreeSpace, t_goal: float, pts: np.ndarray, times: np.ndarray) -> np.ndarray:
         if self.cfg.heuristic == "dijkstra" or not len(pts):
