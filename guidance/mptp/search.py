@@ -190,7 +190,7 @@ class _Expander:
     def _wait_bound(self) -> WaitBound:
         """The wait bound of this search (built at the first call, from the start state's time)."""
         if self.wait is None:
-            self.wait = WaitBound(self.tl, self.goal, self.w, self.t_start, self.cfg.tas_mps, WAIT_SUBSTEPS)
+            self.wait = WaitBound(self.tl, self.goal, self.w, self.t_start, self.t_end, self.cfg.tas_mps, WAIT_SUBSTEPS)
         return self.wait
 
     def _static_bound(self, fs: FreeSpace, t_goal: float) -> StaticBound:

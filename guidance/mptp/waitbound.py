@@ -40,11 +40,19 @@ ERODE_SLACK = 1.0 / math.cos(math.pi / 16)  # the buffer's chords (4 per quarter
 
 
 class WaitBound:
-    """B(c, k) of ``tl`` for ``goal`` over ``workspace`` from ``t0`` [s] on, at ``speed`` [m/s],
-    on time steps of dt / ``substeps`` and cells of side ``speed`` dt / ``substeps`` [m]."""
+    """B(c, k) of ``tl`` for ``goal`` over ``workspace`` from ``t0`` to ``t_end`` [s] (later steps
+    are left out: the last step's bound is its direct term, a relaxation), at ``speed`` [m/s], on
+    time steps of dt / ``substeps`` and cells of side ``speed`` dt / ``substeps`` [m]."""
 
     def __init__(
-        self, tl: ObstacleTimeline, goal: GoalTrack, workspace: Polygon, t0: float, speed: float, substeps: int
+        self,
+        tl: ObstacleTimeline,
+        goal: GoalTrack,
+        workspace: Polygon,
+        t0: float,
+        t_end: float,
+        speed: float,
+        substeps: int,
     ):
         tau = tl.dt / substeps
         cell = speed * tau
@@ -54,7 +62,7 @@ class WaitBound:
         cx, cy = np.meshgrid(x0 + (np.arange(nx) + 0.5) * cell, y0 + (np.arange(ny) + 0.5) * cell, indexing="ij")
         r = cell / math.sqrt(2.0)
         self.j0 = int(tl.interval(t0))
-        levels = np.arange(self.j0, tl.n_levels)
+        levels = np.arange(self.j0, max(self.j0, int(tl.interval(t_end))) + 1)
         eroded = shapely.buffer(tl.envelopes(levels, levels + 1), -(r * ERODE_SLACK + 1.0), quad_segs=4)
         blocked = np.stack([shapely.contains_xy(e, cx, cy) for e in eroded])
         t_k = tl.level_time(self.j0) + tau * np.arange(len(levels) * substeps)
