@@ -104,3 +104,15 @@ def test_planner_arrival_within_two_percent_of_the_exhaustive_optimum(seed):
     # admissibility (SSPH >= EDH, so EDH too): no heuristic exceeds the true cost-to-go
     h, c2g = np.array([c for c in oracle.checks if math.isfinite(c[1])]).T
     assert len(h) > 10 and np.all(h <= c2g + 1e-6), f"h exceeds the cost-to-go by {np.max(h - c2g):.1f} s"
+
+
+def test_the_dominance_window_changes_the_search():
+    """``dominance_s``: a place and course expanded once per window at its earliest arrival.
+    With a window of 1 ms (every arrival time its own state) the capped search spends its
+    expansions on the same places at other times, and some instance's plan changes."""
+    changed = []
+    for seed in range(12):
+        tl, p0, goal, cfg = _instance(seed)
+        plans = [plan_trajectory(tl, p0, 0.0, 0.0, goal, cfg.with_(dominance_s=d)) for d in (cfg.dominance_s, 1e-3)]
+        changed.append(plans[0].status != plans[1].status or not np.array_equal(plans[0].times, plans[1].times))
+    assert any(changed)
