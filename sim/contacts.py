@@ -1,0 +1,170 @@
+"""Crashes found from the TRUE states: ground, obstacles, other vehicles and traffic objects.
+
+Checked at a fixed rate (the world's contact rate); between two checks every body is taken to
+move in a straight line, so contacts between checks are not missed (swept tests):
+
+- **ground** (flat, at the origin altitude): the airframe's contact hull (``sim.hull``, the
+  JSBSim model's contact points) placed with the true CG height and attitude. A vehicle crashes
+  when a hull point that is not landing gear touches (it is on its side or back), or when its
+  gear first touches while the sink rate just before contact exceeded the airframe's
+  ``crash_sink_mps``; a gentler touchdown is a landing.
+- **obstacles** (prisms between two heights): the vehicle's sphere (``radius_m``) swept from its
+  last checked position to its current one meets the footprint (shapely ``dwithin`` on a
+  ``STRtree``) within the prism's height band (the band of the swept segment, widened by the
+  radius).
+- **vehicles and objects**: two spheres whose closest approach over the interval, with both
+  moving linearly, is below the sum of their radii (candidate pairs from a k-d tree).
+
+Frames and units: local-level NED from the scenario origin [m, m/s]; heights up = -D [m].
+Impact speed [m/s]: the vehicle's speed relative to what it hit (for the ground, the speed just
+before first contact, before the gear's springs act).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from scipy.spatial import cKDTree
+
+from sim.core.threats import PrismObstacle
+from sim.hull import Hull
+
+
+@dataclass(frozen=True, slots=True)
+class Crash:
+    """``vehicle`` hit ``hit`` (``"ground"``, an obstacle id, a vehicle name or an object id;
+    ``kind`` says which) at sim time ``t`` [s] at ``impact_speed_mps`` [m/s], at ``pos_ned`` [m]."""
+
+    t: float
+    vehicle: str
+    kind: str  # "ground" | "obstacle" | "vehicle" | "object"
+    hit: str
+    impact_speed_mps: float
+    pos_ned: tuple[float, float, float]
+
+    def describe(self) -> str:
+        """One line: what was hit and how fast."""
+        what = "the ground" if self.kind == "ground" else f"{self.kind} {self.hit!r}"
+        return f"{self.vehicle} hit {what} at {self.impact_speed_mps:.2f} m/s"
+
+    def record(self) -> dict:
+        return {
+            "t": self.t,
+            "vehicle": self.vehicle,
+            "kind": self.kind,
+            "hit": self.hit,
+            "impact_speed_mps": self.impact_speed_mps,
+            "pos_ned": list(self.pos_ned),
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class Bodies:
+    """Moving spheres at one check: ids, positions and velocities NED (N, 3) [m, m/s], radii (N,) [m]."""
+
+    ids: list[str]
+    pos: np.ndarray
+    vel: np.ndarray
+    radius: np.ndarray
+
+
+class ContactMonitor:
+    """Finds the crashes of ``names`` (vehicles with sphere ``radius_m`` (N,), contact hulls and
+    ground sink-rate limits ``crash_sink_mps`` (N,) [m/s]) against the ground, ``obstacles`` and
+    each other; call :meth:`check` at a fixed rate."""
+
+    def __init__(
+        self,
+        names: list[str],
+        radius_m: np.ndarray,
+        hulls: list[Hull],
+        crash_sink_mps: np.ndarray,
+        obstacles: list[PrismObstacle],
+    ):
+        self.names = list(names)
+        self.radius = np.asarray(radius_m, float)
+        self.sink_limit = np.asarray(crash_sink_mps, float)
+        self._groups = [
+            (h, np.array([i for i, g in enumerate(hulls) if g is h], dtype=np.int64))
+            for h in {id(h): h for h in hulls}.values()
+        ]
+        self.obstacles = obstacles
+        self._tree = shapely.STRtree([o.footprint for o in obstacles]) if obstacles else None
+        self._band = np.array([(o.up_min_m, o.up_max_m) for o in obstacles], float).reshape(-1, 2)
+        self._prev: dict[str, np.ndarray] = {}  # last checked position of every body
+        self._prev_vel: np.ndarray | None = None  # the vehicles' velocities at the last check
+        self._touching = np.zeros(len(self.names), bool)
+
+    def check(self, t: float, pos: np.ndarray, vel: np.ndarray, euler: np.ndarray, others: Bodies) -> list[Crash]:
+        """Crashes at this check: the vehicles' true positions, velocities NED (N, 3) [m, m/s]
+        and Euler angles (N, 3) [rad], and the other bodies (traffic objects) now."""
+        pos, vel, euler = (np.asarray(a, float) for a in (pos, vel, euler))
+        prev = np.array([self._prev.get(n, p) for n, p in zip(self.names, pos, strict=True)])
+        crashes = self._ground(t, pos, vel, euler)
+        crashes += self._obstacles(t, prev, pos, vel)
+        crashes += self._bodies(t, prev, pos, vel, others)
+        self._prev = dict(zip(self.names + others.ids, np.vstack([pos, others.pos]), strict=True))
+        self._prev_vel = vel
+        return crashes
+
+    def _ground(self, t: float, pos: np.ndarray, vel: np.ndarray, euler: np.ndarray) -> list[Crash]:
+        n = len(self.names)
+        touch, structure = np.zeros(n, bool), np.zeros(n, bool)
+        for hull, idx in self._groups:
+            h = hull.heights(-pos[idx, 2], euler[idx, 0], euler[idx, 1]) <= 0.0
+            touch[idx] = h.any(axis=1)
+            structure[idx] = h[:, ~hull.gear].any(axis=1)
+        before = vel if self._prev_vel is None else self._prev_vel
+        first = touch & ~self._touching & (self._prev_vel is not None)
+        crashed = structure | (first & (before[:, 2] > self.sink_limit))
+        self._touching = touch
+        speed = np.linalg.norm(np.where(first[:, None], before, vel), axis=1)
+        return [self._crash(t, i, "ground", "ground", speed[i], pos) for i in np.flatnonzero(crashed)]
+
+    def _obstacles(self, t: float, prev: np.ndarray, pos: np.ndarray, vel: np.ndarray) -> list[Crash]:
+        if self._tree is None:
+            return []
+        segments = shapely.linestrings(np.stack([prev[:, :2], pos[:, :2]], axis=1))
+        veh, obs = self._tree.query(segments, predicate="dwithin", distance=self.radius)
+        up_lo = np.minimum(-prev[veh, 2], -pos[veh, 2]) - self.radius[veh]
+        up_hi = np.maximum(-prev[veh, 2], -pos[veh, 2]) + self.radius[veh]
+        hit = (up_lo <= self._band[obs, 1]) & (up_hi >= self._band[obs, 0])
+        speed = np.linalg.norm(vel, axis=1)
+        first: dict[int, int] = {}
+        for i, k in zip(veh[hit].tolist(), obs[hit].tolist(), strict=True):
+            first.setdefault(i, k)  # one crash per vehicle: the first obstacle in scenario order
+        return [self._crash(t, i, "obstacle", self.obstacles[k].id, speed[i], pos) for i, k in sorted(first.items())]
+
+    def _bodies(self, t: float, prev: np.ndarray, pos: np.ndarray, vel: np.ndarray, others: Bodies) -> list[Crash]:
+        n = len(self.names)
+        if n + len(others.ids) < 2:
+            return []
+        ids = self.names + others.ids
+        p1 = np.vstack([pos, others.pos])
+        o_prev = [self._prev.get(i, p) for i, p in zip(others.ids, others.pos, strict=True)]
+        p0 = np.vstack([prev, np.reshape(o_prev, (-1, 3))])
+        v = np.vstack([vel, others.vel])
+        r = np.concatenate([self.radius, others.radius])
+        reach = 2.0 * r.max() + 2.0 * np.linalg.norm(p1 - p0, axis=1).max()
+        pairs = cKDTree(p1).query_pairs(reach, output_type="ndarray")
+        pairs = pairs[pairs[:, 0] < n]  # at least one vehicle (i < j)
+        if not len(pairs):
+            return []
+        i, j = pairs.T
+        d0, d1 = p0[i] - p0[j], p1[i] - p1[j]
+        dd = d1 - d0
+        s = np.clip(-np.einsum("ij,ij->i", d0, dd) / np.maximum(np.einsum("ij,ij->i", dd, dd), 1e-12), 0.0, 1.0)
+        touch = np.linalg.norm(d0 + s[:, None] * dd, axis=1) <= r[i] + r[j]
+        out = []
+        for a, b in zip(i[touch].tolist(), j[touch].tolist(), strict=True):
+            speed = float(np.linalg.norm(v[a] - v[b]))
+            out.append(self._crash(t, a, "vehicle" if b < n else "object", ids[b], speed, pos))
+            if b < n:
+                out.append(self._crash(t, b, "vehicle", ids[a], speed, pos))
+        return out
+
+    def _crash(self, t: float, i: int, kind: str, hit: str, speed: float, pos: np.ndarray) -> Crash:
+        p = pos[i]
+        return Crash(t, self.names[i], kind, hit, float(speed), (float(p[0]), float(p[1]), float(p[2])))
