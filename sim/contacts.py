@@ -45,9 +45,9 @@ class Crash:
     pos_ned: tuple[float, float, float]
 
     def describe(self) -> str:
-        """One line: what was hit and how fast."""
+        """What was hit and how fast, e.g. ``hit obstacle 'tower' at 5.02 m/s``."""
         what = "the ground" if self.kind == "ground" else f"{self.kind} {self.hit!r}"
-        return f"{self.vehicle} hit {what} at {self.impact_speed_mps:.2f} m/s"
+        return f"hit {what} at {self.impact_speed_mps:.2f} m/s"
 
     def record(self) -> dict:
         return {

@@ -123,7 +123,7 @@ def run_scenario(
         sched.run(round(end * world.base_hz), stop=lambda: world.crashed() or complete())
         if world.crashed():
             result.status = "crashed"
-            result.error = "; ".join(c.describe() for c in world.crashes)
+            result.error = "; ".join(f"{c.vehicle} {c.describe()}" for c in world.crashes)
         else:
             result.status = "completed" if world.all_complete() else "duration_elapsed"
     except KeyboardInterrupt:

@@ -148,7 +148,7 @@ class World:
             others,
         )
         for c in found:
-            self.log.event(t, f"crash: {c.describe()}", "error", c.vehicle)
+            self.log.event(t, f"{c.vehicle}: crash: {c.describe()}", "error", c.vehicle)
             self.log.write_json(
                 "/world/crash", t, c.record(), S.CRASH, {"frame": "local-level NED from the scenario origin"}
             )

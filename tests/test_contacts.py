@@ -1,0 +1,102 @@
+"""Crash detection from true states (sim/contacts.py, sim/hull.py) on hand-made states: the
+quadrotor's JSBSim contact hull, the sink-rate limit at first touch, swept obstacle and
+body-body tests between two checks."""
+
+import math
+
+import numpy as np
+import pytest
+from shapely.geometry import Polygon
+
+from aircraft.registry import get_airframe
+from sim.contacts import Bodies, ContactMonitor
+from sim.core.threats import PrismObstacle
+from sim.hull import load_hull
+
+QUAD = get_airframe("quadrotor")
+HULL = load_hull(QUAD.jsbsim_file)
+GEAR_DEPTH = 0.1524  # the quadrotor's gear contacts below its CG [m] (quadrotor.xml)
+NONE = Bodies([], np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
+
+
+def monitor(n: int = 1, obstacles: list[PrismObstacle] | None = None) -> ContactMonitor:
+    return ContactMonitor(
+        [f"q{i}" for i in range(n)],
+        np.full(n, QUAD.radius_m),
+        [HULL] * n,
+        np.full(n, QUAD.crash_sink_mps),
+        obstacles or [],
+    )
+
+
+def check(m: ContactMonitor, t: float, pos, vel=(0.0, 0.0, 0.0), euler=(0.0, 0.0, 0.0), others=NONE):
+    pos = np.atleast_2d(np.asarray(pos, float))
+    vel, euler = (np.broadcast_to(np.asarray(a, float), pos.shape) for a in (vel, euler))
+    return m.check(t, pos, vel, euler, others)
+
+
+def test_hull_is_the_models_contact_points():
+    assert HULL.gear.sum() == 3 and (~HULL.gear).sum() == 5
+    assert np.allclose(HULL.points_frd[HULL.gear, 2], GEAR_DEPTH)  # below the CG: +down
+    level = HULL.heights(GEAR_DEPTH, 0.0, 0.0)
+    assert np.allclose(level[HULL.gear], 0.0) and (level[~HULL.gear] > 0.15).all()
+    inverted = HULL.heights(0.1, math.pi, 0.0)
+    assert inverted[~HULL.gear].min() == pytest.approx(0.1 - 0.06)  # the top plate lowest
+
+
+@pytest.mark.parametrize(("sink", "crash"), [(QUAD.crash_sink_mps - 0.1, False), (QUAD.crash_sink_mps + 0.1, True)])
+def test_gear_touchdown_is_a_crash_only_above_the_sink_limit(sink, crash):
+    m = monitor()
+    assert check(m, 0.0, (0, 0, -0.5), (0, 0, sink)) == []
+    found = check(m, 0.1, (0, 0, -GEAR_DEPTH + 0.01), (0, 0, 0.2))  # springs already slowing it
+    assert bool(found) is crash
+    if crash:
+        assert (found[0].kind, found[0].hit) == ("ground", "ground")
+        assert found[0].impact_speed_mps == pytest.approx(sink)  # the speed before contact
+
+
+def test_resting_on_the_gear_is_not_a_crash_but_tipping_over_is():
+    m = monitor()
+    for k in range(5):
+        assert check(m, 0.1 * k, (0, 0, -GEAR_DEPTH + 0.002)) == []
+    found = check(m, 0.5, (0, 0, -0.1), euler=(math.radians(80), 0.0, 0.0))
+    assert [c.kind for c in found] == ["ground"]
+
+
+def wall(top_up: float = 50.0) -> PrismObstacle:
+    return PrismObstacle("wall", Polygon([(10, -5), (10.2, -5), (10.2, 5), (10, 5)]), 0.0, top_up)
+
+
+def test_obstacle_crossed_between_two_checks_is_hit():
+    m = monitor(obstacles=[wall()])
+    assert check(m, 0.0, (9.0, 0, -20)) == []
+    found = check(m, 0.1, (11.0, 0, -20), vel=(20.0, 0, 0))  # jumped through the 0.2 m wall
+    assert [(c.kind, c.hit, c.impact_speed_mps) for c in found] == [("obstacle", "wall", 20.0)]
+
+
+def test_obstacle_passed_over_or_beside_is_not_hit():
+    m = monitor(obstacles=[wall(top_up=19.0)])
+    assert check(m, 0.0, (9.0, 0, -20)) == []
+    assert check(m, 0.1, (11.0, 0, -20)) == []  # 1 m above the top, radius 0.45 m
+    m = monitor(obstacles=[wall()])
+    assert check(m, 0.0, (9.0, 6.0, -20)) == []
+    assert check(m, 0.1, (11.0, 6.0, -20)) == []  # 1 m beside its end
+
+
+def test_two_vehicles_crossing_between_checks_both_crash():
+    m = monitor(2)
+    assert check(m, 0.0, [(0, 0, -20), (4, 0, -20)]) == []
+    found = check(m, 0.1, [(4, 0, -20), (0, 0, -20)], vel=[(40, 0, 0), (-40, 0, 0)])
+    assert sorted((c.vehicle, c.kind, c.hit, c.impact_speed_mps) for c in found) == [
+        ("q0", "vehicle", "q1", 80.0),
+        ("q1", "vehicle", "q0", 80.0),
+    ]
+
+
+def test_vehicles_passing_apart_and_objects_are_judged_by_their_radii():
+    m = monitor(2)
+    assert check(m, 0.0, [(0, 0, -20), (4, 1.0, -20)]) == []
+    assert check(m, 0.1, [(4, 0, -20), (0, 1.0, -20)]) == []  # 1.0 m > 0.9 m apart
+    balloon = Bodies(["balloon"], np.array([[4.0, 3.5, -20.0]]), np.zeros((1, 3)), np.array([2.0]))
+    found = check(m, 0.2, [(4, 1.2, -20), (0, 1.0, -20)], others=balloon)  # 2.3 m < 2.45 m
+    assert [(c.vehicle, c.kind, c.hit) for c in found] == [("q0", "object", "balloon")]
