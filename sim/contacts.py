@@ -1,13 +1,17 @@
 """Crashes found from the TRUE states: ground, obstacles, other vehicles and traffic objects.
 
-Checked at a fixed rate (the world's contact rate); between two checks every body is taken to
-move in a straight line, so contacts between checks are not missed (swept tests):
+- **ground** (flat, at the origin altitude), after EVERY plant step (:class:`GroundWatch`; a hard
+  impact can compress the contact springs and throw the vehicle back up within one check
+  interval): the airframe's contact hull (``sim.hull``, the JSBSim model's contact points) placed
+  with the true CG height and attitude, evaluated only within the hull's reach of the ground (one
+  property read per step otherwise). A vehicle crashes when a hull point that is not landing gear
+  touches (it is on its side or back), or when its gear first touches while the sink rate at the
+  step before contact exceeded the airframe's ``crash_sink_mps``; a gentler touchdown is a landing.
 
-- **ground** (flat, at the origin altitude): the airframe's contact hull (``sim.hull``, the
-  JSBSim model's contact points) placed with the true CG height and attitude. A vehicle crashes
-  when a hull point that is not landing gear touches (it is on its side or back), or when its
-  gear first touches while the sink rate just before contact exceeded the airframe's
-  ``crash_sink_mps``; a gentler touchdown is a landing.
+The rest is checked at a fixed rate (the world's contact rate, :class:`ContactMonitor`); between
+two checks every body is taken to move in a straight line, so contacts between checks are not
+missed (swept tests):
+
 - **obstacles** (prisms between two heights): the vehicle's sphere (``radius_m``) swept from its
   last checked position to its current one meets the footprint (shapely ``dwithin`` on a
   ``STRtree``) within the prism's height band (the band of the swept segment, widened by the
@@ -28,8 +32,20 @@ import numpy as np
 import shapely
 from scipy.spatial import cKDTree
 
+from sim.core.constants import FT
 from sim.core.threats import PrismObstacle
 from sim.hull import Hull
+from sim.jsbsim_plant import JSBSimPlant
+
+NEAR_GROUND_M = 1.0  # [m] beyond the hull's reach: closer, the hull is placed every step
+_WATCH_PROPS = (
+    "position/h-agl-ft",
+    "attitude/phi-rad",
+    "attitude/theta-rad",
+    "velocities/v-north-fps",
+    "velocities/v-east-fps",
+    "velocities/v-down-fps",
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -70,58 +86,88 @@ class Bodies:
     radius: np.ndarray
 
 
+class GroundWatch:
+    """Ground contact of one vehicle with contact ``hull`` and sink-rate limit ``crash_sink_mps``
+    [m/s], fed the true state after every plant step; ``crash`` holds (t [s], impact speed [m/s])
+    once it crashed, ``crash_pos`` the true position NED [m] then (when watching a plant)."""
+
+    def __init__(self, hull: Hull, crash_sink_mps: float):
+        self.hull = hull
+        self.limit = float(crash_sink_mps)
+        self.near_m = float(np.linalg.norm(hull.points_frd, axis=1).max()) + NEAR_GROUND_M
+        self.crash: tuple[float, float] | None = None
+        self.crash_pos: np.ndarray | None = None
+        self._prev_vel: np.ndarray | None = None  # velocity NED at the previous near-ground step
+        self._touching = False
+
+    def observe(self, t: float, up_cg_m: float, roll: float, pitch: float, vel_ned: np.ndarray) -> None:
+        """The state after one step: CG height above the ground [m], attitude [rad], velocity NED [m/s]."""
+        if self.crash is not None:
+            return
+        if up_cg_m > self.near_m:
+            self._prev_vel, self._touching = None, False
+            return
+        h = self.hull.heights(up_cg_m, roll, pitch) <= 0.0
+        before = vel_ned if self._prev_vel is None else self._prev_vel
+        first = bool(h.any()) and not self._touching
+        speed = float(np.linalg.norm(before if first else vel_ned))
+        if h[~self.hull.gear].any() or (first and before[2] > self.limit):
+            self.crash = (t, speed)
+        self._prev_vel, self._touching = vel_ned, bool(h.any())
+
+    def attach(self, plant: JSBSimPlant) -> None:
+        """Watch ``plant``'s true state after each of its steps (its terrain is the ground)."""
+        agl, phi, theta, vn, ve, vd = (n.get_double_value for n in plant.property_nodes(_WATCH_PROPS))
+        near_ft = self.near_m / FT
+
+        def after_step() -> None:
+            h = agl()
+            if h <= near_ft and self.crash is None:
+                self.observe(plant.time, h * FT, phi(), theta(), np.array([vn(), ve(), vd()]) * FT)
+                if self.crash is not None:
+                    self.crash_pos = plant.truth().pos_ned.copy()
+            elif self._touching or self._prev_vel is not None:
+                self._prev_vel, self._touching = None, False
+
+        plant.after_step = after_step
+
+
 class ContactMonitor:
-    """Finds the crashes of ``names`` (vehicles with sphere ``radius_m`` (N,), contact hulls and
-    ground sink-rate limits ``crash_sink_mps`` (N,) [m/s]) against the ground, ``obstacles`` and
-    each other; call :meth:`check` at a fixed rate."""
+    """Finds the crashes of ``names`` (vehicles with sphere ``radius_m`` (N,) and ground watches)
+    against the ground, ``obstacles`` and each other; call :meth:`check` at a fixed rate."""
 
     def __init__(
-        self,
-        names: list[str],
-        radius_m: np.ndarray,
-        hulls: list[Hull],
-        crash_sink_mps: np.ndarray,
-        obstacles: list[PrismObstacle],
+        self, names: list[str], radius_m: np.ndarray, ground: list[GroundWatch], obstacles: list[PrismObstacle]
     ):
         self.names = list(names)
         self.radius = np.asarray(radius_m, float)
-        self.sink_limit = np.asarray(crash_sink_mps, float)
-        self._groups = [
-            (h, np.array([i for i, g in enumerate(hulls) if g is h], dtype=np.int64))
-            for h in {id(h): h for h in hulls}.values()
-        ]
+        self.ground = ground
+        self._reported = np.zeros(len(self.names), bool)
         self.obstacles = obstacles
         self._tree = shapely.STRtree([o.footprint for o in obstacles]) if obstacles else None
         self._band = np.array([(o.up_min_m, o.up_max_m) for o in obstacles], float).reshape(-1, 2)
         self._prev: dict[str, np.ndarray] = {}  # last checked position of every body
-        self._prev_vel: np.ndarray | None = None  # the vehicles' velocities at the last check
-        self._touching = np.zeros(len(self.names), bool)
 
-    def check(self, t: float, pos: np.ndarray, vel: np.ndarray, euler: np.ndarray, others: Bodies) -> list[Crash]:
-        """Crashes at this check: the vehicles' true positions, velocities NED (N, 3) [m, m/s]
-        and Euler angles (N, 3) [rad], and the other bodies (traffic objects) now."""
-        pos, vel, euler = (np.asarray(a, float) for a in (pos, vel, euler))
+    def check(self, t: float, pos: np.ndarray, vel: np.ndarray, others: Bodies) -> list[Crash]:
+        """Crashes at this check: ground contacts the watches found since the last check, and
+        the vehicles' true positions and velocities NED (N, 3) [m, m/s] against the obstacles
+        and the other bodies (traffic objects) now."""
+        pos, vel = np.asarray(pos, float), np.asarray(vel, float)
         prev = np.array([self._prev.get(n, p) for n, p in zip(self.names, pos, strict=True)])
-        crashes = self._ground(t, pos, vel, euler)
+        crashes = self._ground(pos)
         crashes += self._obstacles(t, prev, pos, vel)
         crashes += self._bodies(t, prev, pos, vel, others)
         self._prev = dict(zip(self.names + others.ids, np.vstack([pos, others.pos]), strict=True))
-        self._prev_vel = vel
         return crashes
 
-    def _ground(self, t: float, pos: np.ndarray, vel: np.ndarray, euler: np.ndarray) -> list[Crash]:
-        n = len(self.names)
-        touch, structure = np.zeros(n, bool), np.zeros(n, bool)
-        for hull, idx in self._groups:
-            h = hull.heights(-pos[idx, 2], euler[idx, 0], euler[idx, 1]) <= 0.0
-            touch[idx] = h.any(axis=1)
-            structure[idx] = h[:, ~hull.gear].any(axis=1)
-        before = vel if self._prev_vel is None else self._prev_vel
-        first = touch & ~self._touching & (self._prev_vel is not None)
-        crashed = structure | (first & (before[:, 2] > self.sink_limit))
-        self._touching = touch
-        speed = np.linalg.norm(np.where(first[:, None], before, vel), axis=1)
-        return [self._crash(t, i, "ground", "ground", speed[i], pos) for i in np.flatnonzero(crashed)]
+    def _ground(self, pos: np.ndarray) -> list[Crash]:
+        out = []
+        for i, w in enumerate(self.ground):
+            if w.crash is not None and not self._reported[i]:
+                self._reported[i] = True
+                at = pos[i] if w.crash_pos is None else w.crash_pos
+                out.append(self._crash(w.crash[0], i, "ground", "ground", w.crash[1], at))
+        return out
 
     def _obstacles(self, t: float, prev: np.ndarray, pos: np.ndarray, vel: np.ndarray) -> list[Crash]:
         if self._tree is None:
@@ -135,7 +181,7 @@ class ContactMonitor:
         first: dict[int, int] = {}
         for i, k in zip(veh[hit].tolist(), obs[hit].tolist(), strict=True):
             first.setdefault(i, k)  # one crash per vehicle: the first obstacle in scenario order
-        return [self._crash(t, i, "obstacle", self.obstacles[k].id, speed[i], pos) for i, k in sorted(first.items())]
+        return [self._crash(t, i, "obstacle", self.obstacles[k].id, speed[i], pos[i]) for i, k in sorted(first.items())]
 
     def _bodies(self, t: float, prev: np.ndarray, pos: np.ndarray, vel: np.ndarray, others: Bodies) -> list[Crash]:
         n = len(self.names)
@@ -160,11 +206,11 @@ class ContactMonitor:
         out = []
         for a, b in zip(i[touch].tolist(), j[touch].tolist(), strict=True):
             speed = float(np.linalg.norm(v[a] - v[b]))
-            out.append(self._crash(t, a, "vehicle" if b < n else "object", ids[b], speed, pos))
+            out.append(self._crash(t, a, "vehicle" if b < n else "object", ids[b], speed, pos[a]))
             if b < n:
-                out.append(self._crash(t, b, "vehicle", ids[a], speed, pos))
+                out.append(self._crash(t, b, "vehicle", ids[a], speed, pos[b]))
         return out
 
-    def _crash(self, t: float, i: int, kind: str, hit: str, speed: float, pos: np.ndarray) -> Crash:
-        p = pos[i]
+    def _crash(self, t: float, i: int, kind: str, hit: str, speed: float, p: np.ndarray) -> Crash:
+        """Vehicle ``i``'s crash at position ``p`` NED [m]."""
         return Crash(t, self.names[i], kind, hit, float(speed), (float(p[0]), float(p[1]), float(p[2])))

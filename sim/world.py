@@ -16,7 +16,7 @@ from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
 from sim import log_schemas as S
 from sim.broad_phase import relevant
-from sim.contacts import Bodies, ContactMonitor, Crash
+from sim.contacts import Bodies, ContactMonitor, Crash, GroundWatch
 from sim.environment import geofence, obstacle_prism
 from sim.faults import FaultSchedule
 from sim.geodesy import ned_to_geodetic
@@ -84,13 +84,15 @@ class World:
             if c.lidar is not None
         }
         hulls: dict[str, Hull] = {}
+        watches = []
         for v in self.vehicles:
-            hulls.setdefault(v.airframe.name, load_hull(v.airframe.jsbsim_file))
+            hull = hulls.setdefault(v.airframe.name, load_hull(v.airframe.jsbsim_file))
+            watches.append(GroundWatch(hull, v.airframe.crash_sink_mps))
+            watches[-1].attach(v.plant)
         self.contacts = ContactMonitor(
             [v.name for v in self.vehicles],
             np.array([v.airframe.radius_m for v in self.vehicles]),
-            [hulls[v.airframe.name] for v in self.vehicles],
-            np.array([v.airframe.crash_sink_mps for v in self.vehicles]),
+            watches,
             self.obstacles,
         )
         self.crashes: list[Crash] = []
@@ -141,11 +143,7 @@ class World:
             np.array([o.radius_m for o in live]),
         )
         found = self.contacts.check(
-            t,
-            np.array([s.pos_ned for s in truth]),
-            np.array([s.vel_ned for s in truth]),
-            np.array([s.euler for s in truth]),
-            others,
+            t, np.array([s.pos_ned for s in truth]), np.array([s.vel_ned for s in truth]), others
         )
         for c in found:
             self.log.event(t, f"{c.vehicle}: crash: {c.describe()}", "error", c.vehicle)

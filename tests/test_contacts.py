@@ -1,6 +1,6 @@
 """Crash detection from true states (sim/contacts.py, sim/hull.py) on hand-made states: the
-quadrotor's JSBSim contact hull, the sink-rate limit at first touch, swept obstacle and
-body-body tests between two checks."""
+quadrotor's JSBSim contact hull, the sink-rate limit at first touch (per plant step), swept
+obstacle and body-body tests between two checks."""
 
 import math
 
@@ -9,7 +9,7 @@ import pytest
 from shapely.geometry import Polygon
 
 from aircraft.registry import get_airframe
-from sim.contacts import Bodies, ContactMonitor
+from sim.contacts import Bodies, ContactMonitor, GroundWatch
 from sim.core.threats import PrismObstacle
 from sim.hull import load_hull
 
@@ -20,19 +20,13 @@ NONE = Bodies([], np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
 
 
 def monitor(n: int = 1, obstacles: list[PrismObstacle] | None = None) -> ContactMonitor:
-    return ContactMonitor(
-        [f"q{i}" for i in range(n)],
-        np.full(n, QUAD.radius_m),
-        [HULL] * n,
-        np.full(n, QUAD.crash_sink_mps),
-        obstacles or [],
-    )
+    watches = [GroundWatch(HULL, QUAD.crash_sink_mps) for _ in range(n)]
+    return ContactMonitor([f"q{i}" for i in range(n)], np.full(n, QUAD.radius_m), watches, obstacles or [])
 
 
-def check(m: ContactMonitor, t: float, pos, vel=(0.0, 0.0, 0.0), euler=(0.0, 0.0, 0.0), others=NONE):
+def check(m: ContactMonitor, t: float, pos, vel=(0.0, 0.0, 0.0), others=NONE):
     pos = np.atleast_2d(np.asarray(pos, float))
-    vel, euler = (np.broadcast_to(np.asarray(a, float), pos.shape) for a in (vel, euler))
-    return m.check(t, pos, vel, euler, others)
+    return m.check(t, pos, np.broadcast_to(np.asarray(vel, float), pos.shape), others)
 
 
 def test_hull_is_the_models_contact_points():
@@ -46,21 +40,37 @@ def test_hull_is_the_models_contact_points():
 
 @pytest.mark.parametrize(("sink", "crash"), [(QUAD.crash_sink_mps - 0.1, False), (QUAD.crash_sink_mps + 0.1, True)])
 def test_gear_touchdown_is_a_crash_only_above_the_sink_limit(sink, crash):
-    m = monitor()
-    assert check(m, 0.0, (0, 0, -0.5), (0, 0, sink)) == []
-    found = check(m, 0.1, (0, 0, -GEAR_DEPTH + 0.01), (0, 0, 0.2))  # springs already slowing it
-    assert bool(found) is crash
+    w = GroundWatch(HULL, QUAD.crash_sink_mps)
+    w.observe(0.0, 0.5, 0.0, 0.0, np.array([0.0, 0.0, sink]))
+    w.observe(1 / 240, GEAR_DEPTH - 0.01, 0.0, 0.0, np.array([0.0, 0.0, 0.2]))  # springs already slowing it
+    assert (w.crash is not None) is crash
     if crash:
-        assert (found[0].kind, found[0].hit) == ("ground", "ground")
-        assert found[0].impact_speed_mps == pytest.approx(sink)  # the speed before contact
+        assert w.crash == (1 / 240, pytest.approx(sink))  # the speed at the step before contact
 
 
 def test_resting_on_the_gear_is_not_a_crash_but_tipping_over_is():
-    m = monitor()
+    w = GroundWatch(HULL, QUAD.crash_sink_mps)
     for k in range(5):
-        assert check(m, 0.1 * k, (0, 0, -GEAR_DEPTH + 0.002)) == []
-    found = check(m, 0.5, (0, 0, -0.1), euler=(math.radians(80), 0.0, 0.0))
-    assert [c.kind for c in found] == ["ground"]
+        w.observe(k / 240, GEAR_DEPTH - 0.002, 0.0, 0.0, np.zeros(3))
+    assert w.crash is None
+    w.observe(5 / 240, 0.1, math.radians(80), 0.0, np.array([0.0, 0.5, 0.0]))
+    assert w.crash == (5 / 240, 0.5)
+
+
+def test_far_from_the_ground_the_hull_is_not_placed_and_forgets_its_speed():
+    w = GroundWatch(HULL, QUAD.crash_sink_mps)
+    w.observe(0.0, 0.5, 0.0, 0.0, np.array([0.0, 0.0, 10.0]))
+    w.observe(0.1, w.near_m + 0.1, math.pi, 0.0, np.zeros(3))  # inverted, but far up: nothing
+    w.observe(0.2, GEAR_DEPTH - 0.01, 0.0, 0.0, np.array([0.0, 0.0, 1.0]))
+    assert w.crash is None  # judged on its own 1 m/s, not the 10 m/s before it left
+
+
+def test_ground_crashes_are_reported_once_by_the_monitor():
+    m = monitor(2)
+    m.ground[1].crash = (0.01, 12.0)
+    found = check(m, 0.02, [(0, 0, -20), (5, 0, -0.1)])
+    assert [(c.vehicle, c.kind, c.t, c.impact_speed_mps) for c in found] == [("q1", "ground", 0.01, 12.0)]
+    assert check(m, 0.04, [(0, 0, -20), (5, 0, -0.1)]) == []
 
 
 def wall(top_up: float = 50.0) -> PrismObstacle:

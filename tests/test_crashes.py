@@ -39,14 +39,15 @@ def test_motor_failure_at_30m_falls_with_finite_states_until_it_crashes(fly, sce
         (c,) = crashes(f)
         assert (c["vehicle"], c["kind"], c["hit"]) == ("quad", "ground", "ground")
         assert crash_events(f) == [f"quad: crash: hit the ground at {c['impact_speed_mps']:.2f} m/s"]
-        assert c["t"] == f.result.sim_time_s > 2.0  # the run ends at the impact
+        # the run ends at the first contact check after the impact (JSBSim's clock: 1e-9 s rounding)
+        assert 2.0 < c["t"] < f.result.sim_time_s + 1e-9 < c["t"] + 1.0 / QUAD.control_hz
         assert abs(c["pos_ned"][2]) < 0.5  # at the ground (CG within the hull's reach)
         speeds.append(c["impact_speed_mps"])
     speeds = np.array(speeds)
-    # a fall from 30 m: faster than the gear takes, not faster than three motors at full thrust
-    # could push it (T/W of the three: 3.45; 30 m at (1 + 3.45) g gives 51 m/s)
+    # a fall from 30 m: faster than the gear takes, slower than a drag-free fall (24.3 m/s: drag
+    # and the tumbling rotors' thrust brake it; a contact that springs it back up would not)
     assert np.isfinite(speeds).all() and (speeds > QUAD.crash_sink_mps).all()
-    assert (speeds < math.sqrt(2 * 4.45 * G0 * 30.0)).all(), speeds
+    assert (speeds < math.sqrt(2 * G0 * 30.0)).all(), speeds
 
 
 def test_quadrotor_flown_into_a_building_crashes_naming_it(fly, scenario_data):
