@@ -110,3 +110,24 @@ def test_vehicles_passing_apart_and_objects_are_judged_by_their_radii():
     balloon = Bodies(["balloon"], np.array([[4.0, 3.5, -20.0]]), np.zeros((1, 3)), np.array([2.0]))
     found = check(m, 0.2, [(4, 1.2, -20), (0, 1.0, -20)], others=balloon)  # 2.3 m < 2.45 m
     assert [(c.vehicle, c.kind, c.hit) for c in found] == [("q0", "object", "balloon")]
+
+
+def test_quadrotor_dropped_on_its_back_rests_on_its_hull_with_finite_states():
+    """The model's STRUCTURE contacts carry it: without them it sank through the ground until a
+    gear foot, metres deep, threw it back out (non-finite rates within 0.05 s)."""
+    from sim.geodesy import GeoPoint
+    from sim.jsbsim_plant import InitialConditions, JSBSimPlant
+
+    ground = GeoPoint(47.0, 8.0, 400.0)
+    plant = JSBSimPlant(QUAD.jsbsim_model, 1.0 / QUAD.plant_hz, ground, QUAD.folder)
+    plant.initialise(
+        InitialConditions(GeoPoint(47.0, 8.0, 402.0), roll_rad=math.radians(170), terrain_alt_m=ground.alt_m)
+    )
+    ups = []
+    for _ in range(3 * QUAD.plant_hz // 10):
+        plant.step(10)
+        s = plant.truth()
+        assert np.isfinite(np.concatenate([s.pos_ned, s.vel_ned, s.rates_body])).all()
+        ups.append(s.alt_msl_m - ground.alt_m)
+    top = HULL.heights(0.0, math.pi, 0.0)[~HULL.gear].min()  # the top plate, 0.06 m over the CG
+    assert min(ups) > 0.0 and ups[-1] == pytest.approx(-top, abs=0.02)
