@@ -40,7 +40,7 @@ def main() -> None:
     args = ap.parse_args()
     base = tomllib.loads((ROOT / "scenarios" / "quad_motor_failure.toml").read_text())
     quad = get_airframe("quadrotor")
-    gear_depth = float(load_hull(quad.jsbsim_file).points_frd[0, 2])
+    gear_depth = load_hull(quad.jsbsim_file).points[0][2]
     crash_t, impact, sink = [], [], []
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)

@@ -94,7 +94,7 @@ class GroundWatch:
     def __init__(self, hull: Hull, crash_sink_mps: float):
         self.hull = hull
         self.limit = float(crash_sink_mps)
-        self.near_m = float(np.linalg.norm(hull.points_frd, axis=1).max()) + NEAR_GROUND_M
+        self.near_m = hull.reach_m + NEAR_GROUND_M
         self.crash: tuple[float, float] | None = None
         self.crash_pos: np.ndarray | None = None
         self._prev_vel: np.ndarray | None = None  # velocity NED at the previous near-ground step
@@ -107,13 +107,12 @@ class GroundWatch:
         if up_cg_m > self.near_m:
             self._prev_vel, self._touching = None, False
             return
-        h = self.hull.heights(up_cg_m, roll, pitch) <= 0.0
+        touch, structure = self.hull.touching(up_cg_m, roll, pitch)
         before = vel_ned if self._prev_vel is None else self._prev_vel
-        first = bool(h.any()) and not self._touching
-        speed = float(np.linalg.norm(before if first else vel_ned))
-        if h[~self.hull.gear].any() or (first and before[2] > self.limit):
-            self.crash = (t, speed)
-        self._prev_vel, self._touching = vel_ned, bool(h.any())
+        first = touch and not self._touching
+        if structure or (first and before[2] > self.limit):
+            self.crash = (t, float(np.linalg.norm(before if first else vel_ned)))
+        self._prev_vel, self._touching = vel_ned, touch
 
     def attach(self, plant: JSBSimPlant) -> None:
         """Watch ``plant``'s true state after each of its steps (its terrain is the ground)."""
@@ -146,6 +145,7 @@ class ContactMonitor:
         self.obstacles = obstacles
         self._tree = shapely.STRtree([o.footprint for o in obstacles]) if obstacles else None
         self._band = np.array([(o.up_min_m, o.up_max_m) for o in obstacles], float).reshape(-1, 2)
+        self._bounds = np.array([o.footprint.bounds for o in obstacles], float).reshape(-1, 4)
         self._prev: dict[str, np.ndarray] = {}  # last checked position of every body
 
     def check(self, t: float, pos: np.ndarray, vel: np.ndarray, others: Bodies) -> list[Crash]:
@@ -172,11 +172,25 @@ class ContactMonitor:
     def _obstacles(self, t: float, prev: np.ndarray, pos: np.ndarray, vel: np.ndarray) -> list[Crash]:
         if self._tree is None:
             return []
-        segments = shapely.linestrings(np.stack([prev[:, :2], pos[:, :2]], axis=1))
-        veh, obs = self._tree.query(segments, predicate="dwithin", distance=self.radius)
-        up_lo = np.minimum(-prev[veh, 2], -pos[veh, 2]) - self.radius[veh]
-        up_hi = np.maximum(-prev[veh, 2], -pos[veh, 2]) + self.radius[veh]
-        hit = (up_lo <= self._band[obs, 1]) & (up_hi >= self._band[obs, 0])
+        r = self.radius[:, None]
+        lo = np.minimum(prev, pos) - r  # swept boxes widened by the radius, (N, 3)
+        hi = np.maximum(prev, pos) + r
+        b, band = self._bounds, self._band
+        near = (  # box overlap with the prisms' bounding boxes (N, M): the exact test only for these
+            (lo[:, None, 0] <= b[None, :, 2])
+            & (hi[:, None, 0] >= b[None, :, 0])
+            & (lo[:, None, 1] <= b[None, :, 3])
+            & (hi[:, None, 1] >= b[None, :, 1])
+            & (-hi[:, None, 2] <= band[None, :, 1])
+            & (-lo[:, None, 2] >= band[None, :, 0])
+        )
+        cand = np.flatnonzero(near.any(axis=1))
+        if not len(cand):
+            return []
+        segments = shapely.linestrings(np.stack([prev[cand, :2], pos[cand, :2]], axis=1))
+        k, obs = self._tree.query(segments, predicate="dwithin", distance=self.radius[cand])
+        veh = cand[k]
+        hit = near[veh, obs]
         speed = np.linalg.norm(vel, axis=1)
         first: dict[int, int] = {}
         for i, k in zip(veh[hit].tolist(), obs[hit].tolist(), strict=True):

@@ -9,6 +9,7 @@ arms, top plate), which touch the ground only in a crash.
 
 from __future__ import annotations
 
+import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,21 +25,29 @@ class HullError(ValueError):
 
 @dataclass(frozen=True, slots=True)
 class Hull:
-    """Contact points ``points_frd`` (K, 3) [m] from the CG, body FRD; ``gear`` (K,) true for
-    landing gear; ``names`` as in the model."""
+    """Contact points ``points`` (x, y, z) [m] from the CG, body FRD; ``gear`` true for landing
+    gear; ``names`` as in the model. Plain tuples: it is evaluated after every plant step."""
 
-    points_frd: np.ndarray
-    gear: np.ndarray
+    points: tuple[tuple[float, float, float], ...]
+    gear: tuple[bool, ...]
     names: tuple[str, ...]
 
-    def heights(self, up_cg_m: np.ndarray | float, roll: np.ndarray | float, pitch: np.ndarray | float) -> np.ndarray:
-        """Height of every point above the ground [m] for CG heights ``up_cg_m`` above it and
-        attitudes ``roll``, ``pitch`` [rad] (yaw does not move points vertically); shape
-        (..., K) for inputs of shape (...)."""
-        up, r, p = (np.asarray(a, float)[..., None] for a in (up_cg_m, roll, pitch))
-        x, y, z = self.points_frd.T
-        down = -np.sin(p) * x + np.sin(r) * np.cos(p) * y + np.cos(r) * np.cos(p) * z  # row 3 of FRD->NED
-        return up - down
+    @property
+    def reach_m(self) -> float:
+        """The farthest point's distance from the CG [m]."""
+        return max(math.hypot(*p) for p in self.points)
+
+    def heights(self, up_cg_m: float, roll: float, pitch: float) -> list[float]:
+        """Height of every point above the ground [m] for a CG ``up_cg_m`` above it and attitude
+        ``roll``, ``pitch`` [rad] (yaw does not move points vertically)."""
+        sr, cr, sp, cp = math.sin(roll), math.cos(roll), math.sin(pitch), math.cos(pitch)
+        a, b, c = -sp, sr * cp, cr * cp  # row 3 of FRD->NED
+        return [up_cg_m - (a * x + b * y + c * z) for x, y, z in self.points]
+
+    def touching(self, up_cg_m: float, roll: float, pitch: float) -> tuple[bool, bool]:
+        """(any point touches the ground, a point that is not gear touches)."""
+        h = self.heights(up_cg_m, roll, pitch)
+        return any(v <= 0.0 for v in h), any(v <= 0.0 for v, g in zip(h, self.gear, strict=True) if not g)
 
 
 def _location_m(elem: ET.Element | None, what: str) -> np.ndarray:
@@ -57,11 +66,13 @@ def load_hull(xml_path: Path) -> Hull:
     contacts = root.findall("ground_reactions/contact")
     if not contacts:
         raise HullError(f"{xml_path}: no <ground_reactions> contacts")
-    names, gear, pts = [], [], []
+    names: list[str] = []
+    gear: list[bool] = []
+    pts: list[tuple[float, float, float]] = []
     for k, c in enumerate(contacts):
         name = c.get("name", f"contact[{k}]")
         s = _location_m(c.find("location"), f"{xml_path}: {name}") - cg
-        pts.append((-s[0], s[1], -s[2]))
+        pts.append((-float(s[0]), float(s[1]), -float(s[2])))
         gear.append(c.get("type", "BOGEY").upper() == "BOGEY")
         names.append(name)
-    return Hull(np.array(pts, float), np.array(gear, bool), tuple(names))
+    return Hull(tuple(pts), tuple(gear), tuple(names))

@@ -30,12 +30,15 @@ def check(m: ContactMonitor, t: float, pos, vel=(0.0, 0.0, 0.0), others=NONE):
 
 
 def test_hull_is_the_models_contact_points():
-    assert HULL.gear.sum() == 3 and (~HULL.gear).sum() == 5
-    assert np.allclose(HULL.points_frd[HULL.gear, 2], GEAR_DEPTH)  # below the CG: +down
-    level = HULL.heights(GEAR_DEPTH, 0.0, 0.0)
-    assert np.allclose(level[HULL.gear], 0.0) and (level[~HULL.gear] > 0.15).all()
-    inverted = HULL.heights(0.1, math.pi, 0.0)
-    assert inverted[~HULL.gear].min() == pytest.approx(0.1 - 0.06)  # the top plate lowest
+    gear, pts = np.array(HULL.gear), np.array(HULL.points)
+    assert gear.sum() == 3 and (~gear).sum() == 5
+    assert np.allclose(pts[gear, 2], GEAR_DEPTH)  # below the CG: +down
+    level = np.array(HULL.heights(GEAR_DEPTH, 0.0, 0.0))
+    assert np.allclose(level[gear], 0.0) and (level[~gear] > 0.15).all()
+    assert HULL.touching(GEAR_DEPTH, 0.0, 0.0) == (True, False)
+    inverted = np.array(HULL.heights(0.1, math.pi, 0.0))
+    assert inverted[~gear].min() == pytest.approx(0.1 - 0.06)  # the top plate lowest
+    assert HULL.touching(0.05, math.pi, 0.0) == (True, True)
 
 
 @pytest.mark.parametrize(("sink", "crash"), [(QUAD.crash_sink_mps - 0.1, False), (QUAD.crash_sink_mps + 0.1, True)])
@@ -129,5 +132,5 @@ def test_quadrotor_dropped_on_its_back_rests_on_its_hull_with_finite_states():
         s = plant.truth()
         assert np.isfinite(np.concatenate([s.pos_ned, s.vel_ned, s.rates_body])).all()
         ups.append(s.alt_msl_m - ground.alt_m)
-    top = HULL.heights(0.0, math.pi, 0.0)[~HULL.gear].min()  # the top plate, 0.06 m over the CG
+    top = min(h for h, g in zip(HULL.heights(0.0, math.pi, 0.0), HULL.gear, strict=True) if not g)  # top plate
     assert min(ups) > 0.0 and ups[-1] == pytest.approx(-top, abs=0.02)
