@@ -82,7 +82,7 @@ def run_scenario(
     end = float(duration if duration is not None else scenario.duration)
     if not (math.isfinite(end) and end > 0.0):
         raise ValueError(f"duration: must be a finite number of seconds > 0, got {end!r}")
-    log = McapLog(out, scenario.epoch_ns)
+    log = McapLog(out, scenario.epoch_ns, compact=scenario.logging.encoding == "protobuf")
     result = RunResult(scenario.name, Path(out), "failed", 0.0, 0.0)
     wall0 = time.perf_counter()
     sched: LockstepScheduler | None = None
