@@ -246,8 +246,9 @@ def cmd_batch(args) -> int:
             client.close()
     failed = sum(r.get("status") == "failed" for r in rows)
     cut = sum(r.get("status") == "interrupted" for r in rows)
+    crashed = sum(r.get("status") == "crashed" for r in rows)
     out.print(
-        f"{len(rows)} runs, {failed} failed, {cut} interrupted (flown again on resume); "
+        f"{len(rows)} runs, {failed} failed, {crashed} crashed, {cut} interrupted (flown again on resume); "
         f"results: {out_dir / 'results.csv'}",
         soft_wrap=True,
         highlight=False,

@@ -259,3 +259,18 @@ LIDAR_SCAN = _obj(
         ),
     },
 )
+
+CRASH = _obj(
+    "cosim.Crash",
+    {
+        "t": (_NUM, "sim time of the contact [s]"),
+        "vehicle": ({"type": "string"}, "the vehicle that crashed"),
+        "kind": (
+            {"enum": ["ground", "obstacle", "vehicle", "object"]},
+            "what it hit: the ground, an obstacle, another vehicle or a traffic object",
+        ),
+        "hit": ({"type": "string"}, "\"ground\", the obstacle's id, the other vehicle's name or the object's id"),
+        "impact_speed_mps": (_NUM, "speed relative to what it hit [m/s] (ground: just before first contact)"),
+        "pos_ned": (_VEC3, "true position at the contact, local-level NED from the scenario origin [m]"),
+    },
+)

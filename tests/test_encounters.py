@@ -200,7 +200,10 @@ def test_ci_campaign_outcomes_match_hand_computed_geometry(tmp_path):
     assert summary["n"] == 20 and summary["nmac_unmitigated"] == len(zero)
     assert summary["nmac_mitigated"] == sum(r["nmac"] == "True" for r in mit)
     assert summary["risk_ratio"] == pytest.approx(summary["nmac_mitigated"] / len(zero))
-    assert summary["induced_nmac"] == 0 and summary["completion_rate"] == 1.0
+    # a mitigated run that touches the sphere crashes (sim/contacts.py) and so does not complete
+    crashed = [r for r in mit if r["status"] == "crashed"]
+    assert all(r["nmac"] == "True" for r in crashed)
+    assert summary["induced_nmac"] == 0 and summary["completion_rate"] == 1.0 - len(crashed) / 20
     assert json.loads((out / "summary.json").read_text())["geometric"]["n"] == 20
     assert "risk_ratio" in (out / "report.md").read_text() and (out / "separation.png").is_file()
     kept = {r["mcap"] for r in rows if r["mcap"]}
