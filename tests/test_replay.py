@@ -62,6 +62,7 @@ def _trace(name, t, pos):
         np.zeros(0),
         0,
         [],
+        truth_cross_track_m=z,
     )
 
 
@@ -82,7 +83,7 @@ def test_object_clearance_matches_analytic_crossing():
     its surface; before it appears it is not counted."""
     from sim import scenario as sc
     from sim.geodesy import GeoPoint
-    from sim.replay.metrics import MetricsWorld, object_metrics
+    from sim.replay.metrics import MetricsWorld, run_metrics
     from sim.traffic import TrafficObject
 
     origin = GeoPoint(47.0, 8.0, 400.0)
@@ -100,10 +101,14 @@ def test_object_clearance_matches_analytic_crossing():
     )
     t = np.arange(0.0, 60.0, 0.1)
     a = np.stack([np.zeros_like(t), 10 * t, np.zeros_like(t)], axis=1)
-    m = object_metrics(_trace("a", t, a), MetricsWorld(objects=(obj,)))["object.ball"]
+
+    def object_metrics(tr):
+        return run_metrics([tr], MetricsWorld(objects=(obj,)))["vehicles"]["a"]["clearance"]
+
+    m = object_metrics(_trace("a", t, a))["object.ball"]
     assert m["distance_m"] == pytest.approx(45.0, abs=1e-6)
     assert m["t"] == pytest.approx(30.0)
-    early = object_metrics(_trace("a", t[:50], a[:50]), MetricsWorld(objects=(obj,)))["object.ball"]
+    early = object_metrics(_trace("a", t[:50], a[:50]))["object.ball"]
     assert early["distance_m"] is None
 
 

@@ -26,9 +26,13 @@ def load_traces(log: RunLog) -> list[VehicleTrace]:
 
 
 def load_world(log: RunLog) -> MetricsWorld:
-    """Obstacles, geofences and thresholds of the run, from its attached scenario."""
+    """Obstacles, geofences, thresholds and planned duration of the run, from its attached
+    scenario and its ``run`` metadata."""
     scenario = read_attached_scenario(log.path)
-    return MetricsWorld.from_scenario(scenario) if scenario is not None else MetricsWorld()
+    duration = log.metadata.get("run", {}).get("duration_s")
+    if scenario is None:
+        return MetricsWorld()
+    return MetricsWorld.from_scenario(scenario, None if duration is None else float(duration))
 
 
 def log_metrics(log: RunLog) -> dict:
