@@ -2,7 +2,8 @@
 
 ``RunLog(path).topic("/haps/truth/state")`` gives a :class:`Series`: sim times ``t`` (N,) [s] and
 one numpy array per numeric field (vectors as (N, k) arrays), built once and cached. Protobuf
-messages (Foxglove types) are kept as objects in ``Series.messages``.
+messages (Foxglove types) are kept as objects in ``Series.messages``. ``RunLog(path).frame(topic)``
+gives the topic as a pandas DataFrame.
 """
 
 from __future__ import annotations
@@ -11,11 +12,15 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from sim.mcap_read import LogInfo, LogReadError, iter_messages, read_info
+from sim.replay.frame import frame
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 @dataclass
@@ -75,6 +80,12 @@ class RunLog:
             return self._series[name]
         except KeyError:
             raise LogReadError(f"{self.path}: no topic {name!r} (has: {', '.join(self.topics)})") from None
+
+    def frame(self, name: str) -> pd.DataFrame:
+        """The topic as a pandas DataFrame: one row per message, nested fields as dotted
+        columns, indexed by sim time [s] (:mod:`sim.replay.frame`)."""
+        s = self.topic(name)
+        return frame(s.t, s.messages)
 
     @cached_property
     def vehicles(self) -> list[str]:
