@@ -8,10 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim.replay.metrics import differing_keys, min_separation, straight_flight_mask
+from sim.replay.metrics import differing_keys
+from sim.replay.pair_metrics import min_separation
 from sim.replay.report import log_metrics, write_report
 from sim.replay.runlog import RunLog
 from sim.replay.trace import VehicleTrace
+from sim.replay.vehicle_metrics import straight_flight_mask
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -185,7 +187,7 @@ def test_vehicles_of_different_plant_rates_share_their_log_times():
     """A 120 Hz and a 240 Hz plant log the same tick with times that differ in the last bit."""
     from types import SimpleNamespace
 
-    from sim.replay.metrics import common_times
+    from sim.replay.pair_metrics import common_times
 
     t240 = np.cumsum(np.full(2400, 1 / 240))[23::24]  # 0.1, 0.2, ... as accumulated 240 Hz steps
     t120 = np.cumsum(np.full(1200, 1 / 120))[11::12]

@@ -2,431 +2,38 @@
 
 A live run feeds each vehicle's trace in chunks of ``CHUNK`` log ticks as it flies; a replay cuts
 the logged trace into the same chunks, so both give the same numbers. Memory does not grow with
-the run's duration.
-
-All values SI: [m], [m/s], [rad] (reported in degrees where the key says ``_deg``), sim [s].
+the run's duration. Per vehicle: :mod:`sim.replay.vehicle_metrics`; per pair:
+:mod:`sim.replay.pair_metrics`; the world they are measured against:
+:mod:`sim.replay.metrics_world`.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
-import numpy as np
-import shapely
-
-from sim.replay.reducers import CylinderSeparation, Intervals, LatencySketch, RunningMin, RunningStats
+from sim.replay.metrics_world import EMPTY_WORLD, MetricsWorld
+from sim.replay.pair_metrics import PairMatcher, PairMetrics, common_times
 from sim.replay.trace import CHUNK, VehicleTrace
+from sim.replay.vehicle_metrics import VehicleMetrics
 
-if TYPE_CHECKING:
-    from sim.weather import WeatherService
-
-FT = 0.3048
-
-
-@dataclass(frozen=True, slots=True)
-class MetricsWorld:
-    """What metrics measure against besides the vehicles: map obstacles and geofences
-    (``sim.core.threats`` types), scripted traffic objects (``sim.traffic.TrafficObject``) and
-    the well-clear volume (horizontal radius, vertical half height [m]; default ASTM F3442
-    small-UAS well clear, 2000 ft / 250 ft) and the NMAC cylinder (default RTCA DO-365 500 ft /
-    100 ft)."""
-
-    obstacles: tuple = ()
-    geofences: tuple = ()
-    objects: tuple = ()
-    well_clear_h_m: float = 2000 * FT
-    well_clear_v_m: float = 250 * FT
-    weather: WeatherService | None = None  # the true storm field
-    nmac_h_m: float = 500 * FT  # near mid-air collision cylinder: horizontal radius [m] ...
-    nmac_v_m: float = 100 * FT  # ... and vertical half height [m] (default RTCA DO-365)
-    duration_s: float = 0.0  # the run's planned duration [s] (sets how often storms are checked)
-
-    @classmethod
-    def from_scenario(cls, scenario, duration_s: float | None = None) -> MetricsWorld:
-        """The scenario's world; ``duration_s``: the planned duration if not the scenario's [s]."""
-        from sim.environment import geofence, obstacle_prism
-        from sim.traffic import TrafficObject
-        from sim.weather import WeatherService
-        from sim.world import seed_streams, weather_seed
-
-        alt0 = scenario.origin.altitude
-        m = scenario.metrics
-        weather = (
-            WeatherService(scenario.weather, weather_seed(seed_streams(scenario.seed)[2]), scenario.origin_point)
-            if scenario.weather is not None
-            else None
-        )
-        return cls(
-            tuple(obstacle_prism(o, alt0) for o in scenario.obstacle),
-            tuple(geofence(g, alt0) for g in scenario.geofence),
-            tuple(TrafficObject(o, scenario.origin_point) for o in scenario.object),
-            m.well_clear_horizontal,
-            m.well_clear_vertical,
-            weather,
-            m.nmac_horizontal,
-            m.nmac_vertical,
-            float(scenario.duration if duration_s is None else duration_s),
-        )
-
-
-# straight flight counts from this long after the last leg capture / carrot stop [s]
-SETTLE_S = {"fixed_wing": 60.0, "multirotor": 2.0}
-
-
-def straight_flight_mask(
-    t: np.ndarray, turning: np.ndarray, settle_s: float, last_turn_s: float = -math.inf
-) -> np.ndarray:
-    """True where the vehicle is in settled straight flight: not capturing a leg, and at least
-    ``settle_s`` since it last was (``last_turn_s``: the last turning sample before ``t`` [s])."""
-    turning = turning.astype(bool)
-    last_turn = np.maximum.accumulate(np.where(turning, t, last_turn_s))
-    return ~turning & (t - last_turn >= settle_s)
-
-
-def common_times(a: VehicleTrace, b: VehicleTrace) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Log times [s] two vehicles share and their indices in each. Matched to the microsecond:
-    a state's time is its plant's accumulated step, so a 120 Hz and a 240 Hz plant log the same
-    tick as e.g. 0.1 and 0.09999999999999999."""
-    _, ia, ib = np.intersect1d(_microseconds(a.t), _microseconds(b.t), assume_unique=True, return_indices=True)
-    return a.t[ia], ia, ib
-
-
-def _microseconds(t: np.ndarray) -> np.ndarray:
-    return np.round(t * 1e6).astype(np.int64)
-
-
-def _clearance(pos_ned: np.ndarray, footprint, up_min: float, up_max: float) -> np.ndarray:
-    """3-D distance [m] from each position to a prism (0 inside)."""
-    h = shapely.distance(shapely.points(pos_ned[:, :2]), footprint)
-    up = -pos_ned[:, 2]
-    v = np.maximum(np.maximum(up_min - up, up - up_max), 0.0)
-    return np.hypot(h, v)
-
-
-def _keep_in_margin(pos_ned: np.ndarray, g) -> np.ndarray:
-    """Smallest margin [m] inside a keep-in geofence, negative outside."""
-    pts = shapely.points(pos_ned[:, :2])
-    h = shapely.distance(pts, g.area.exterior)
-    h = np.where(shapely.contains(g.area, pts), h, -h)
-    up = -pos_ned[:, 2]
-    return np.minimum(h, np.minimum(up - g.up_min_m, g.up_max_m - up))
-
-
-def _min_at(m: RunningMin) -> dict:
-    return {"distance_m": m.value, "t": m.t}
-
-
-STORM_CHECK_S = 10.0  # storms are checked against the track this often [s] ...
-STORM_CHECKS_MIN = 200  # ... or more often, so that a run of the planned duration is checked this many times
-
-
-class VehicleMetrics:
-    """One vehicle's metrics, folded in chunk by chunk (:meth:`add`); memory does not grow with
-    the run's duration (only with the number of well-clear losses, obstacles and the like).
-
-    - tracking: true cross-track, altitude and airspeed errors in settled straight flight (count,
-      mean, RMS, largest magnitude), the straight fraction, the largest bank [deg], finiteness;
-    - mission: waypoints reached, completion time [s], true path length flown [m];
-    - planner latency of the calls that made a new plan (:class:`LatencySketch`), cache hits;
-    - clearance: closest approach to every obstacle and scripted object, smallest margin to every
-      geofence, with times;
-    - control effort: RMS of each commanded JSBSim property (JSBSim units);
-    - estimation: RMS estimate errors per NED axis, fraction inside the 3-sigma bounds, mean NEES
-      of position+velocity (diagonal covariance; a consistent filter gives about 6);
-    - storms: distance to the nearest TRUE storm cell, checked every ``STORM_CHECK_S`` (at least
-      ``STORM_CHECKS_MIN`` times over the planned duration), its minimum and the time inside cells.
-    """
-
-    def __init__(self, name: str, kind: str, world: MetricsWorld):
-        self.name, self.kind, self.world = name, kind, world
-        self.samples = 0
-        self.settled = 0
-        self.last_turn_s = -math.inf
-        self.errors = {"cross_track_m": RunningStats(), "altitude_error_m": RunningStats()}
-        self.max_bank_rad = 0.0
-        self.finite = True
-        self.waypoints_total = 0
-        self.waypoints_reached = 0
-        self.complete_t: float | None = None
-        self.path_length_m = 0.0
-        self.last_pos: np.ndarray | None = None
-        self.latency = LatencySketch()
-        self.cache_hits = 0
-        self.clearance = {f"obstacle.{o.id}": RunningMin() for o in world.obstacles}
-        self.fences = {g.id: RunningMin() for g in world.geofences}
-        self.objects = {
-            o.id: (
-                RunningMin(),
-                CylinderSeparation(world.nmac_h_m, world.nmac_v_m, world.well_clear_h_m, world.well_clear_v_m),
-            )
-            for o in world.objects
-        }
-        self.effort: dict[str, list[float]] = {}  # property -> [sum of squares, non-NaN count, finite count]
-        self.effort_props: tuple[str, ...] = ()
-        self.est = {"pos": np.zeros(3), "vel": np.zeros(3), "pos_in": np.zeros(3), "vel_in": np.zeros(3)}
-        self.est_samples = self.sigma_samples = 0
-        self.nees_sum = 0.0
-        self.storm_next_s: float | None = None
-        self.storm = RunningMin()
-        self.storm_checks = self.storm_inside = 0
-        self.storm_first_s = self.storm_last_s = 0.0
-
-    def add(self, tr: VehicleTrace) -> None:
-        """Fold in a chunk of the vehicle's trace (its samples follow the previous chunk's)."""
-        self.waypoints_total = tr.waypoints_total
-        self.waypoints_reached += len(tr.waypoint_times)
-        self.complete_t = tr.complete_t if tr.complete_t is not None else self.complete_t
-        self.latency.add(tr.plan_latency_s)
-        self.cache_hits += tr.plan_cache_hits
-        if not len(tr.t):
-            return
-        self.samples += len(tr.t)
-        self._tracking(tr)
-        steps = np.diff(np.vstack([tr.pos_ned[:1] if self.last_pos is None else self.last_pos, tr.pos_ned]), axis=0)
-        self.path_length_m += float(np.linalg.norm(steps, axis=1).sum())
-        self.last_pos = tr.pos_ned[-1:].copy()
-        self._clearance(tr)
-        self._effort(tr)
-        self._estimation(tr)
-        self._storms(tr)
-
-    def _tracking(self, tr: VehicleTrace) -> None:
-        sp = tr.setpoint
-        turning = sp["turning"].astype(bool)
-        settled = straight_flight_mask(tr.t, turning, SETTLE_S[tr.kind], self.last_turn_s)
-        if turning.any():
-            self.last_turn_s = float(tr.t[turning][-1])
-        self.settled += int(settled.sum())
-        self.errors["cross_track_m"].add(tr.true_cross_track()[settled])
-        self.errors["altitude_error_m"].add((tr.alt_msl_m - sp["altitude_m"])[settled])
-        if "tas_mps" in sp:
-            self.errors.setdefault("airspeed_error_mps", RunningStats()).add((tr.tas_mps - sp["tas_mps"])[settled])
-        self.max_bank_rad = max(self.max_bank_rad, float(np.max(np.abs(tr.euler[:, 0]))))
-        self.finite &= bool(np.isfinite(tr.pos_ned).all() and np.isfinite(tr.euler).all())
-
-    def _clearance(self, tr: VehicleTrace) -> None:
-        for o in self.world.obstacles:
-            self.clearance[f"obstacle.{o.id}"].add(tr.t, _clearance(tr.pos_ned, o.footprint, o.up_min_m, o.up_max_m))
-        for g in self.world.geofences:
-            margin = (
-                _keep_in_margin(tr.pos_ned, g) if g.keep_in else _clearance(tr.pos_ned, g.area, g.up_min_m, g.up_max_m)
-            )
-            self.fences[g.id].add(tr.t, margin)
-        for o in self.world.objects:
-            live = tr.t >= o.appear
-            rel = tr.pos_ned[live] - o.position(tr.t[live])
-            closest, cylinder = self.objects[o.id]
-            closest.add(tr.t[live], np.linalg.norm(rel, axis=1) - o.radius_m)
-            cylinder.add(tr.t[live], rel)
-
-    def _effort(self, tr: VehicleTrace) -> None:
-        for p, v in tr.commands.items():
-            acc = self.effort.setdefault(p, [0.0, 0, 0])
-            ok = ~np.isnan(v)
-            acc[0] += float(np.sum(v[ok] * v[ok]))
-            acc[1] += int(ok.sum())
-            acc[2] += int(np.isfinite(v).sum())
-        self.effort_props = tuple(tr.commands)
-
-    def _estimation(self, tr: VehicleTrace) -> None:
-        if tr.est_pos_ned is None or tr.est_vel_ned is None or tr.truth_vel_ned is None:
-            return
-        if len(tr.est_pos_ned) != len(tr.t):
-            return
-        self.est_samples += len(tr.t)
-        ep, ev = tr.est_pos_ned - tr.pos_ned, tr.est_vel_ned - tr.truth_vel_ned
-        self.est["pos"] += np.sum(ep * ep, axis=0)
-        self.est["vel"] += np.sum(ev * ev, axis=0)
-        sp, sv = tr.sigma3_pos, tr.sigma3_vel
-        if sp is not None and sv is not None and len(sp) == len(tr.t):
-            self.sigma_samples += len(tr.t)
-            self.est["pos_in"] += np.sum(np.abs(ep) <= sp, axis=0)
-            self.est["vel_in"] += np.sum(np.abs(ev) <= sv, axis=0)
-            nees = np.sum((ep / (sp / 3.0)) ** 2, axis=1) + np.sum((ev / (sv / 3.0)) ** 2, axis=1)
-            self.nees_sum += float(np.sum(nees))
-
-    def _storms(self, tr: VehicleTrace) -> None:
-        weather = self.world.weather
-        if weather is None:
-            return
-        step = min(STORM_CHECK_S, max(self.world.duration_s, 1e-9) / STORM_CHECKS_MIN)
-        if self.storm_next_s is None:
-            self.storm_next_s = float(tr.t[0])
-        for i in range(len(tr.t)):  # the first sample at or after each check time
-            t = float(tr.t[i])
-            if t < self.storm_next_s:
-                continue
-            self.storm_next_s += step * (math.floor((t - self.storm_next_s) / step) + 1)
-            cells = weather.truth(t).cells
-            d = (
-                float(np.min(shapely.distance(shapely.points(tr.pos_ned[i, :2]), np.array(cells, dtype=object))))
-                if cells
-                else math.inf
-            )
-            self.storm.add(np.array([t]), np.array([d]))
-            self.storm_inside += d == 0.0
-            self.storm_first_s = t if not self.storm_checks else self.storm_first_s
-            self.storm_last_s = t
-            self.storm_checks += 1
-
-    def result(self) -> dict:
-        """The metrics so far, as plain JSON-able values."""
-        return {
-            "mission": {
-                "complete": self.complete_t is not None,
-                "waypoints_reached": self.waypoints_reached,
-                "waypoints": self.waypoints_total,
-                "time_s": self.complete_t,
-                "path_length_m": self.path_length_m,
-            },
-            "tracking": {
-                "straight_fraction": self.settled / self.samples if self.samples else 0.0,
-                **{k: v.result() for k, v in self.errors.items()},
-                "max_bank_deg": math.degrees(self.max_bank_rad),
-                "finite": self.finite,
-            },
-            "planner_latency": self._latency(),
-            "clearance": self._clearance_result(),
-            "control_effort": {
-                p: math.sqrt(self.effort[p][0] / self.effort[p][1])
-                for p in sorted(self.effort_props)
-                if self.effort[p][2] and self.effort[p][1]
-            },
-            "estimation": self._estimation_result(),
-            "storms": self._storm_result(),
-        }
-
-    def _latency(self) -> dict:
-        lat = self.latency
-        if not lat.count:
-            return {"count": 0, "cache_hits": self.cache_hits}
-        return {
-            "count": lat.count,
-            "cache_hits": self.cache_hits,
-            "median_ms": lat.quantile(0.5) * 1e3,
-            "p95_ms": lat.quantile(0.95) * 1e3,
-            "max_ms": lat.max_s * 1e3,
-        }
-
-    def _clearance_result(self) -> dict:
-        out: dict = {k: _min_at(m) for k, m in self.clearance.items()}
-        for gid, m in self.fences.items():
-            out[f"geofence.{gid}"] = {"margin_m": m.value, "t": m.t, "violated": m.value is not None and m.value < 0}
-        for oid, (closest, cylinder) in self.objects.items():
-            out[f"object.{oid}"] = _min_at(closest) | cylinder.result()
-        return out
-
-    def _estimation_result(self) -> dict:
-        n = self.samples
-        if not n or self.est_samples != n:
-            return {}
-        out = {"pos_rms_m": np.sqrt(self.est["pos"] / n).tolist(), "vel_rms_mps": np.sqrt(self.est["vel"] / n).tolist()}
-        if self.sigma_samples == n:
-            out["pos_within_3sigma"] = (self.est["pos_in"] / n).tolist()
-            out["vel_within_3sigma"] = (self.est["vel_in"] / n).tolist()
-            out["nees_mean"] = self.nees_sum / n
-        return out
-
-    def _storm_result(self) -> dict:
-        if self.world.weather is None or not self.storm_checks:
-            return {}
-        span = self.storm_last_s - self.storm_first_s
-        step = min(STORM_CHECK_S, max(self.world.duration_s, 1e-9) / STORM_CHECKS_MIN)
-        spacing = span / (self.storm_checks - 1) if self.storm_checks > 1 else step  # per check [s]
-        return {
-            "min_distance_m": self.storm.value
-            if self.storm.value is not None and math.isfinite(self.storm.value)
-            else None,
-            "t": self.storm.t,
-            "time_inside_s": self.storm_inside * spacing,
-        }
-
-
-class PairMetrics:
-    """Two vehicles at their common log times: the smallest 3-D distance [m] and when,
-    :class:`CylinderSeparation` of the pair, and the intervals inside each other's well-clear
-    volume (start, end [s], smallest distance [m])."""
-
-    def __init__(self, world: MetricsWorld):
-        self.world = world
-        self.closest = RunningMin()
-        self.cylinder = CylinderSeparation(world.nmac_h_m, world.nmac_v_m, world.well_clear_h_m, world.well_clear_v_m)
-        self.losses = Intervals()
-
-    def add(self, t: np.ndarray, rel_ned: np.ndarray) -> None:
-        """Relative positions (N, 3) NED [m] at common times ``t`` [s], after the last ones."""
-        if not t.size:
-            return
-        dist = np.linalg.norm(rel_ned, axis=1)
-        self.closest.add(t, dist)
-        self.cylinder.add(t, rel_ned)
-        w = self.world
-        inside = (np.hypot(rel_ned[:, 0], rel_ned[:, 1]) < w.well_clear_h_m) & (
-            np.abs(rel_ned[:, 2]) < w.well_clear_v_m
-        )
-        self.losses.add(t, inside, dist)
-
-    def result(self) -> dict:
-        losses = self.losses.result()
-        return {
-            **_min_at(self.closest),
-            **self.cylinder.result(),
-            "well_clear_losses": len(losses),
-            "well_clear_loss_events": losses,
-        }
-
-
-class _PairMatcher:
-    """Pairs two vehicles' chunks at their common log times (to the microsecond) as they come;
-    holds only the samples the other vehicle may still log a match for."""
-
-    def __init__(self, out: PairMetrics):
-        self.out = out
-        self.pending: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = [_empty(), _empty()]  # (µs, t, pos)
-        self.last_us = [np.iinfo(np.int64).min, np.iinfo(np.int64).min]
-
-    def add(self, side: int, t: np.ndarray, pos: np.ndarray) -> None:
-        if not t.size:
-            return
-        us = _microseconds(t)
-        mine = tuple(np.concatenate([a, b]) for a, b in zip(self.pending[side], (us, t, pos), strict=True))
-        other = self.pending[1 - side]
-        _, i_mine, i_other = np.intersect1d(mine[0], other[0], assume_unique=True, return_indices=True)
-        a, b = (mine, other) if side == 0 else (other, mine)
-        ia, ib = (i_mine, i_other) if side == 0 else (i_other, i_mine)
-        self.out.add(a[1][ia], a[2][ia] - b[2][ib])
-        self.last_us[side] = int(us[-1])
-        keep_mine = np.ones(len(mine[0]), bool)
-        keep_mine[i_mine] = False
-        keep_mine &= mine[0] > self.last_us[1 - side]
-        keep_other = np.ones(len(other[0]), bool)
-        keep_other[i_other] = False
-        keep_other &= other[0] > self.last_us[side]
-        self.pending[side] = tuple(x[keep_mine] for x in mine)  # type: ignore[assignment]
-        self.pending[1 - side] = tuple(x[keep_other] for x in other)  # type: ignore[assignment]
-
-
-def _empty() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    return np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 3))
+__all__ = ["MetricsWorld", "RunMetrics", "differing_keys", "flatten", "run_metrics"]
 
 
 class RunMetrics:
     """Every metric of a run, folded in chunk by chunk from each vehicle as it logs (live) or
     from the log (replay): the same chunks give the same numbers."""
 
-    def __init__(self, world: MetricsWorld = MetricsWorld()):
+    def __init__(self, world: MetricsWorld = EMPTY_WORLD):
         self.world = world
         self.vehicles: dict[str, VehicleMetrics] = {}
-        self.pairs: dict[tuple[str, str], tuple[PairMetrics, _PairMatcher]] = {}
+        self.pairs: dict[tuple[str, str], tuple[PairMetrics, PairMatcher]] = {}
 
     def vehicle(self, name: str, kind: str) -> None:
         """Register a vehicle (pairs are named in registration order)."""
         for other in self.vehicles:
             pm = PairMetrics(self.world)
-            self.pairs[(other, name)] = (pm, _PairMatcher(pm))
+            self.pairs[(other, name)] = (pm, PairMatcher(pm))
         self.vehicles[name] = VehicleMetrics(name, kind, self.world)
 
     def add(self, chunk: VehicleTrace) -> None:
@@ -444,7 +51,7 @@ class RunMetrics:
         }
 
 
-def run_metrics(traces: list[VehicleTrace], world: MetricsWorld = MetricsWorld()) -> dict:
+def run_metrics(traces: list[VehicleTrace], world: MetricsWorld = EMPTY_WORLD) -> dict:
     """Every metric of whole traces (a replay), cut into the chunks a live run folds in."""
     acc = RunMetrics(world)
     for tr in traces:
@@ -456,16 +63,6 @@ def run_metrics(traces: list[VehicleTrace], world: MetricsWorld = MetricsWorld()
         common, ia, ib = common_times(a, b)
         acc.pairs[(a.name, b.name)][0].add(common, a.pos_ned[ia] - b.pos_ned[ib])
     return acc.result()
-
-
-def min_separation(a: VehicleTrace, b: VehicleTrace, world: MetricsWorld = MetricsWorld()) -> dict:
-    """:class:`PairMetrics` of two whole traces, without the well-clear loss list."""
-    pm = PairMetrics(world)
-    common, ia, ib = common_times(a, b)
-    pm.add(common, a.pos_ned[ia] - b.pos_ned[ib])
-    out = pm.result()
-    del out["well_clear_loss_events"]
-    return out
 
 
 def flatten(metrics: dict, prefix: str = "") -> dict[str, float | int | bool | None]:

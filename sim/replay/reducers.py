@@ -58,6 +58,10 @@ class RunningMin:
             self.value, self.t = float(x[k]), float(t[k])
             self.extra = tuple(float(e[k]) for e in extra)
 
+    def distance(self) -> dict:
+        """The minimum as a closest approach: ``distance_m`` [m] and ``t`` [s] (None: no sample)."""
+        return {"distance_m": self.value, "t": self.t}
+
 
 @dataclass
 class CylinderSeparation:

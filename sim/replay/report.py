@@ -16,7 +16,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from sim.mcap_read import log_content, read_attached_scenario
-from sim.replay.metrics import MetricsWorld, common_times, flatten, run_metrics
+from sim.replay.metrics import MetricsWorld, flatten, run_metrics
+from sim.replay.pair_metrics import common_times
 from sim.replay.runlog import RunLog
 from sim.replay.trace import VehicleTrace
 
