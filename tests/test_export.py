@@ -124,3 +124,14 @@ def test_foxglove_layout_names_only_topics_and_fields_of_a_real_log(mixed):
     titles = " ".join(c.get("title", "") for c in layout["configById"].values())
     for plot in ("altitude", "airspeed", "attitude", "cross-track", "separation"):
         assert plot in titles
+
+
+def test_export_reports_progress_in_messages(mixed, tmp_path):
+    from sim.mcap_read import read_info
+    from sim.replay.export import export_log
+
+    calls: list[tuple[int, int]] = []
+    export_log(mixed, tmp_path, "csv", ["/haps/truth/state", "/tf"], lambda k, total: calls.append((k, total)))
+    counts = {ti.topic: ti.count for ti in read_info(mixed).topics}
+    total = counts["/haps/truth/state"] + counts["/tf"]
+    assert calls and calls[-1] == (total, total) and all(t == total for _, t in calls)
