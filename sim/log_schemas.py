@@ -200,6 +200,16 @@ OBJECTS = _obj(
     },
 )
 
+SEPARATION = _obj(
+    "cosim.Separation",
+    {
+        "t": (_NUM, "sim time [s]"),
+        "distance_m": (_NUM, "true 3-D distance between the two vehicles [m]"),
+        "horizontal_m": (_NUM, "true horizontal distance [m]"),
+        "vertical_m": (_NUM, "true vertical distance (absolute) [m]"),
+    },
+)
+
 MISSION_STATUS = _obj(
     "cosim.MissionStatus",
     {

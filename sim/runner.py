@@ -20,7 +20,7 @@ import jsbsim
 
 from sim import __version__
 from sim.mcap_log import McapLog
-from sim.replay.metrics import MetricsWorld, run_metrics
+from sim.replay.metrics import MetricsWorld, RunMetrics
 from sim.scenario import Scenario
 from sim.scheduler import LockstepScheduler, Stage
 from sim.vehicle_log import write_static_frames
@@ -87,6 +87,7 @@ def run_scenario(
     wall0 = time.perf_counter()
     sched: LockstepScheduler | None = None
     world: World | None = None
+    metrics: RunMetrics | None = None
     failure: Exception | None = None
     session = None
     try:
@@ -107,6 +108,10 @@ def run_scenario(
             log.metadata("weather", {"nowcast_files": json.dumps(scenario.weather.nowcast_files)})
         write_static_frames(log)
         world = World(scenario, log)
+        metrics = RunMetrics(MetricsWorld.from_scenario(scenario, end))
+        for v in world.vehicles:
+            metrics.vehicle(v.name, v.recorder.kind)
+            v.recorder.sink = metrics.add
         sched = LockstepScheduler(world.base_hz)
         world.schedule(sched)
         if scenario.mavlink.enabled:
@@ -143,7 +148,9 @@ def run_scenario(
             m = v.mission
             result.missions[v.name] = MissionResult(len(m.reached), len(m.waypoints), m.complete, m.completed_t)
         try:
-            result.metrics = run_metrics([v.recorder.trace() for v in vehicles], MetricsWorld.from_scenario(scenario))
+            for v in vehicles:
+                v.recorder.flush()
+            result.metrics = (metrics or RunMetrics()).result()
             log.metadata("metrics", {"json": json.dumps(result.metrics, sort_keys=True)})
             if result.status != "completed":
                 log.event(

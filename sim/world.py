@@ -8,6 +8,7 @@ so one seed fixes the whole run and adding a vehicle leaves the others' streams 
 
 from __future__ import annotations
 
+import itertools
 import math
 from functools import partial
 
@@ -125,6 +126,8 @@ class World:
                 )
         if self.objects:
             sched.add_task("world.log", log_hz, Stage.LOG, self._log_objects)
+        if len(self.vehicles) > 1:
+            sched.add_task("world.separation", log_hz, Stage.LOG, self._log_separation)
 
     def all_complete(self) -> bool:
         return all(v.mission.complete for v in self.vehicles)
@@ -184,6 +187,19 @@ class World:
     def _lonlat(self, coords) -> list[list[float]]:
         lat, lon, _ = ned_to_geodetic([(n, e, 0.0) for n, e in coords], self.origin)
         return [[x, y] for x, y in zip(lon.tolist(), lat.tolist(), strict=False)]
+
+    def _log_separation(self, t: float) -> None:
+        """True separation of every pair of vehicles on ``/separation/<a>/<b>`` (for plots)."""
+        pos = [v.plant.truth().pos_ned for v in self.vehicles]
+        for (i, a), (j, b) in itertools.combinations(enumerate(self.vehicles), 2):
+            rel = pos[i] - pos[j]
+            h = math.hypot(rel[0], rel[1])
+            self.log.write_json(
+                f"/separation/{a.name}/{b.name}",
+                t,
+                {"t": t, "distance_m": math.hypot(h, rel[2]), "horizontal_m": h, "vertical_m": abs(rel[2])},
+                S.SEPARATION,
+            )
 
     def _log_objects(self, t: float) -> None:
         """Objects' true positions: JSON for metrics, spheres for the 3D panel."""
