@@ -25,7 +25,7 @@ from avoidance.rules.restrictions import (
     safety_margin_mask,
     widest_per_cell,
 )
-from avoidance.rules.rules_of_air import overtake_speed, overtake_waypoints
+from avoidance.rules.rules_of_air import overtake_speed, overtake_waypoints, pass_behind_point
 from avoidance.utm.cases import CaseBook
 from avoidance.utm.collision_case import (
     GIVES_WAY,
@@ -252,6 +252,16 @@ def test_overtake_roles_and_waypoints_on_the_right():
     assert conv[0] - div[0] == pytest.approx(
         np.sqrt(40.0**2 + 25.0) + 1 + 2
     )  # |p - cp| = 40 (meet at x = 0) and conv[1] == pytest.approx(div[1])
+
+
+def test_pass_behind_point_trails_the_right_of_way_uas_until_the_give_way_uas_is_behind():
+    """The converging give-way UAS aims ``offset`` behind the right-of-way UAS on its track
+    (peer at the origin flying north, +y ENU), until it is itself that far behind it."""
+    peer, north = np.zeros(3), np.array([0.0, 5.0, 0.0])
+    assert pass_behind_point(peer, north, (-100.0, 0.0, 0.0), 45.0) == pytest.approx([0.0, -45.0, 0.0])
+    assert pass_behind_point(peer, north, (-30.0, -44.0, 0.0), 45.0) == pytest.approx([0.0, -45.0, 0.0])
+    assert pass_behind_point(peer, north, (-30.0, -45.0, 0.0), 45.0) is None  # a margin behind: back to the mission
+    assert pass_behind_point(peer, np.zeros(3), (-100.0, 0.0, 0.0), 45.0) is None  # no course to pass behind
 
 
 def test_lower_priority_gives_way_whatever_the_side():
