@@ -292,6 +292,21 @@ def test_head_case_fixes_the_point_and_the_chain_closes_after_passing():
     assert len(closed) == 1 and not book.active()
 
 
+def test_overtake_chain_closes_only_once_the_overtaking_uas_is_the_margin_ahead():
+    """Overtake (a at 2 m/s behind b at 1 m/s on one line, margin 5 m): abeam and 6 m apart on a's
+    parallel offset the case stays open; it closes once a is 5 m ahead along b's course."""
+    book = CaseBook(UtmConfig(time_margin=25.0, close_after=1))
+    for t in (0.0, 1.0):
+        book.update([note("a", (-40 + 2 * t, 20, 0), (2, 0, 0), t), note("b", (-20 + t, 20, 0), (1, 0, 0), t)], t)
+    ((c,),) = [book.active("a")]
+    assert c.encounter == Encounter.OVERTAKE and c.roles == (Role.OVERTAKING, Role.OVERTAKEN)
+    for x_a, x_b, t in ((20.0, 20.0, 40.0), (23.0, 21.0, 41.0)):  # abeam, then 2 m ahead: open
+        _, closed = book.update([note("a", (x_a, 14, 0), (2, 0, 0), t), note("b", (x_b, 20, 0), (1, 0, 0), t)], t)
+        assert not closed and book.active("a")
+    _, closed = book.update([note("a", (27, 14, 0), (2, 0, 0), 43.0), note("b", (22, 20, 0), (1, 0, 0), 43.0)], 43.0)
+    assert len(closed) == 1 and not book.active()
+
+
 def test_four_way_encounter_merges_into_one_roundabout():
     book = CaseBook(UtmConfig(time_margin=25.0))
     notes = [
