@@ -116,7 +116,9 @@ def test_triple_second_intruder_passes_its_sampled_cpa_with_the_ownship(angle2, 
     miss (hand-computed CPA of the legs); all three vehicles fly the planner mitigated and
     ``follow_mission`` unmitigated; with both misses zero all three meet in one point."""
     p = BASE | {"approach_angle": 120.0, "approach_angle_2": angle2, "hmd_2": hmd2, "time_to_cpa": 12.0}
+    p["intruder_speed_2"] = 3.5
     own, second = legs(second_intruder(p), TRIPLE)
+    assert float(np.hypot(*second.velocity[:2])) == pytest.approx(3.5)
     r0, vr = second.start - own.start, second.velocity - own.velocity
     t = -float(r0[:2] @ vr[:2]) / float(vr[:2] @ vr[:2])
     assert t == pytest.approx(12.0) and float(np.hypot(*(r0 + vr * t)[:2])) == pytest.approx(abs(hmd2), abs=1e-9)
