@@ -118,6 +118,7 @@ class JSBSimPlant:
         self._log.recent.clear()  # the logger is per thread: warnings count from this plant's load
         self.fdm = jsbsim.FGFDMExec(jsbsim.get_default_root_dir())
         self.fdm.set_debug_level(0)
+        self.fdm.set_dt(self.dt)  # before loading: FCS filters and integrators take their dt at load
         if airframe_dir is None:
             ok = self._guard(lambda: self.fdm.load_model(model), f"load shipped model {model!r}")
         else:
@@ -128,7 +129,6 @@ class JSBSimPlant:
             )
         if not ok:
             raise PlantError(self._with_log(f"JSBSim could not load model {model!r}"))
-        self.fdm.set_dt(self.dt)
         self._truth_nodes = self.property_nodes(_TRUTH_PROPS)
         self._truth: VehicleState | None = None  # the last truth read, valid while sim time stands
 

@@ -2,6 +2,8 @@
 
 Foxglove's well-known types (LocationFix, PoseInFrame, FrameTransforms, Log...) come from the
 ``foxglove-schemas-protobuf`` package instead. Units and frames are in each field's description.
+The high-rate messages are written in protobuf with the same fields (:mod:`sim.log_proto`);
+``cosim.LidarScan`` is protobuf only.
 """
 
 from __future__ import annotations
@@ -138,7 +140,8 @@ THREATS = _obj(
         "lidar_hits": ({"type": "integer"}, "returns in the latest LiDAR scan"),
         "lidar": (
             {"type": ["object", "null"]},
-            "latest LiDAR scan: t [s], origin_ned [m], directions_ned (unit, NED), ranges_m [m], hit, max_range_m",
+            "latest LiDAR scan: t [s], origin_ned [m], directions_ned (unit, NED), ranges_m [m], hit, max_range_m; "
+            "absent in a compact log, whose scan is on /<v>/threats/lidar (cosim.LidarScan) at the same log time",
         ),
     },
 )
@@ -227,6 +230,32 @@ ENERGY = _obj(
         "cumulative_wh": (
             {"type": "object", "additionalProperties": _NUM},
             "energies since the start [Wh]: solar, propulsion, loads, loss, curtailed, shortfall",
+        ),
+    },
+)
+
+LIDAR_SCAN = _obj(
+    "cosim.LidarScan",
+    {
+        "t": (_NUM, "sim time of the sweep [s]"),
+        "origin_ned": (_VEC3, "sensor position, local-level NED (estimated) [m]"),
+        "rotation": (
+            {"type": "array", "items": _NUM, "minItems": 9, "maxItems": 9},
+            "sensor -> NED rotation matrix, row-major: directions_ned = pattern directions @ rotation.T",
+        ),
+        "azimuth_min_deg": (_NUM, "scan pattern: first azimuth, from the sensor x axis, right positive [deg]"),
+        "azimuth_max_deg": (_NUM, "scan pattern: last azimuth (a full turn does not repeat it) [deg]"),
+        "azimuth_step_deg": (_NUM, "scan pattern: azimuth step [deg]"),
+        "elevation_min_deg": (_NUM, "scan pattern: lowest elevation, up positive [deg]"),
+        "elevation_max_deg": (_NUM, "scan pattern: highest elevation [deg]"),
+        "elevation_step_deg": (_NUM, "scan pattern: elevation step [deg]"),
+        "max_range_m": (_NUM, "sensor range; the range of a ray without a return [m]"),
+        "range_resolution_m": (_NUM, "range step: every return is a whole number of steps [m]"),
+        "rays": ({"type": "integer"}, "rays in the pattern (elevation-major)"),
+        "hit": ({}, "bytes: a bit per ray in pattern order, set where it returned (little bit order)"),
+        "hit_range_steps": (
+            {"type": "array", "items": {"type": "integer"}},
+            "the returns' ranges in range steps, each as the difference to the previous return's",
         ),
     },
 )

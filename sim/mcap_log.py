@@ -1,13 +1,15 @@
-"""MCAP run log: Foxglove protobuf types where one fits, this project's JSON schemas elsewhere.
+"""MCAP run log: Foxglove protobuf types where one fits, this project's protobuf messages
+(:mod:`sim.log_proto`) for the high-rate topics, this project's JSON schemas elsewhere.
 
 Log time of a message = scenario epoch + sim time [ns]; publish time = log time, so that two runs
 of the same scenario and seed write byte-identical messages. Channels whose content is wall-clock
 time (planner latency, planner runtimes) carry the channel metadata ``wallclock=true`` and
 ``wallclock_fields`` (the dotted paths of those fields) and are the only exception.
 
-Writing: the simulation process only serialises messages (JSON with orjson, protobuf) and hands
-them in batches to a writer process that owns the file and the ``mcap`` writer (record framing,
-indexes, zstd chunks: about half the cost of logging, taken off the simulation's core). The file
+Writing: the simulation process only serialises messages (JSON with orjson, Foxglove protobuf;
+this project's protobuf messages as pickled dicts, encoded by the writer) and hands them in
+batches to a writer process that owns the file and the ``mcap`` writer (record framing, indexes,
+zstd chunks, the compact messages' encoding: taken off the simulation's core). The file
 is finished in ``close()``, which the runner calls in a ``finally``; if the simulation process dies
 without it (a crash of the flight model, SIGKILL), the writer process sees the pipe close and
 finishes the file with every message it received, so the log stays readable. The writer is a
@@ -35,6 +37,7 @@ import orjson
 from foxglove_schemas_protobuf.Log_pb2 import Log
 from mcap_protobuf.schema import build_file_descriptor_set
 
+from sim import log_proto
 from sim.mcap_writer import RecordWriter
 
 LEVELS = {"debug": Log.DEBUG, "info": Log.INFO, "warning": Log.WARNING, "error": Log.ERROR, "fatal": Log.FATAL}
@@ -55,6 +58,18 @@ class LogWriteError(RuntimeError):
     """The log could not be written (e.g. disk full); says why."""
 
 
+PIPE_BYTES = 1 << 20  # the simulation runs this far ahead of a busy writer before a hand-over waits
+
+
+def _widen_pipe(pipe: IO[bytes]) -> None:
+    """Grow the pipe's kernel buffer to PIPE_BYTES (Linux; elsewhere, or above the system's
+    limit, it keeps its size)."""
+    with contextlib.suppress(ImportError, AttributeError, OSError):
+        import fcntl
+
+        fcntl.fcntl(pipe.fileno(), fcntl.F_SETPIPE_SZ, PIPE_BYTES)
+
+
 class _WriterProcess:
     """The writer process (``python -m sim.mcap_writer``, a fresh interpreter: nothing of the
     caller's ``__main__`` is re-run): pickled record batches in on its stdin, ``None`` last; its
@@ -73,6 +88,7 @@ class _WriterProcess:
         if self._proc.stdin is None or self._proc.stdout is None:
             raise LogWriteError(f"{path}: the writer process has no pipes")
         self._stdin: IO[bytes] = self._proc.stdin
+        _widen_pipe(self._stdin)
         self._stdout: IO[bytes] = self._proc.stdout
 
     def send(self, batch: list[tuple], last: bool = False) -> None:
@@ -94,9 +110,18 @@ class _WriterProcess:
 class McapLog:
     """Writes one run to ``path``. Topics are registered on first write."""
 
-    def __init__(self, path: str | Path, epoch_ns: int, chunk_size: int = 512 * 1024, background: bool = True):
-        """``background``: write in a child process (else in this one, e.g. to debug the writer)."""
+    def __init__(
+        self,
+        path: str | Path,
+        epoch_ns: int,
+        chunk_size: int = 512 * 1024,
+        background: bool = True,
+        compact: bool = True,
+    ):
+        """``background``: write in a child process (else in this one, e.g. to debug the writer);
+        ``compact``: :meth:`write_record` writes protobuf where it can (else JSON throughout)."""
         self.path = Path(path)
+        self.compact = compact
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.epoch_ns = int(epoch_ns)
         try:  # open errors surface here, in the caller, not later from the writer process
@@ -142,13 +167,23 @@ class McapLog:
     def _flush(self) -> None:
         batch, self._pending = self._pending, []
         if self._inline is not None:
-            self._inline.apply(batch)
+            self._apply_inline(batch)
         elif self._proc is not None:
             try:
                 self._proc.send(batch)  # handed over now: a crash after this loses none of it
             except OSError:
                 self._failure = f"{self.path}: {self._proc.error()}"
                 raise LogWriteError(self._failure) from None
+
+    def _apply_inline(self, batch: list[tuple]) -> None:
+        """Write ``batch`` here; a message that does not encode is a LogWriteError, as from the
+        writer process."""
+        assert self._inline is not None
+        try:
+            self._inline.apply(batch)
+        except ValueError as exc:
+            self._failure = f"{self.path}: ValueError: {exc}"
+            raise LogWriteError(self._failure) from None
 
     # -- writing -------------------------------------------------------------------------
     def _add(self, cid: int, t: float, data: bytes) -> None:
@@ -166,6 +201,27 @@ class McapLog:
             sid = self._schema(schema["title"], "jsonschema", lambda: json.dumps(schema, sort_keys=True).encode())
             cid = self._channel(topic, "json", sid, metadata or {})
         self._add(cid, t, orjson.dumps(obj, option=orjson.OPT_SERIALIZE_NUMPY))
+
+    def write_record(
+        self, topic: str, t: float, obj: dict[str, Any], schema: dict, metadata: dict[str, str] | None = None
+    ) -> None:
+        """``obj`` as in :meth:`write_json`, in protobuf when the log is compact and
+        :mod:`sim.log_proto` has the schema's message (NaN then stays NaN on the wire and reads
+        back as None, as JSON's null does), else in JSON. The protobuf encoding is done by the
+        writer (off the simulation's core: here ``obj`` is only pickled, at once); a key the
+        message lacks stops the writer, and the next hand-over or ``close`` raises
+        LogWriteError saying so."""
+        title = schema["title"]
+        if not (self.compact and log_proto.has_schema(title)):
+            self.write_json(topic, t, obj, schema, metadata)
+            return
+        cid = self._channels.get(topic)
+        if cid is None:
+            sid = self._schema(title, "protobuf", lambda: log_proto.schema_data(title))
+            cid = self._channel(topic, "protobuf", sid, metadata or {})
+        seq = self._seq[cid] = self._seq[cid] + 1
+        obj_now = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)  # later changes to obj are not logged
+        self._record(("proto", cid, self.epoch_ns + sim_ns(t), title, obj_now, seq))
 
     def write_proto(self, topic: str, t: float, message, metadata: dict[str, str] | None = None) -> None:
         """A protobuf message (e.g. a Foxglove schema) on ``topic``."""
@@ -203,7 +259,7 @@ class McapLog:
             raise LogWriteError(self._failure)
         if self._inline is not None:
             try:
-                self._inline.apply(self._pending)
+                self._apply_inline(self._pending)
             finally:
                 self._inline.finish()
             return

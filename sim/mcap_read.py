@@ -22,6 +22,10 @@ from mcap.stream_reader import MAGIC_SIZE, StreamReader
 from mcap.summary import Summary
 from mcap_protobuf.decoder import DecoderFactory
 
+from sim.log_proto import PACKAGE, to_dict
+
+COSIM_PREFIX = f"{PACKAGE}."
+
 
 class LogReadError(ValueError):
     """The file is missing, not an MCAP, or damaged beyond reading."""
@@ -239,8 +243,9 @@ def read_attached_scenario(path: str | Path):
 
 
 def iter_messages(path: str | Path, topics: list[str] | None = None) -> Iterator[tuple[str, float, Any]]:
-    """(topic, sim time [s], decoded message) in log-time order; JSON decodes to dicts,
-    protobuf to message objects."""
+    """(topic, sim time [s], decoded message) in log-time order; JSON and cosim's protobuf
+    messages decode to dicts (the same dict either way, :func:`sim.log_proto.to_dict`), other
+    protobuf (Foxglove types) to message objects."""
     path = Path(path)
     f = _open(path)
     with f, _reading(path, "damaged MCAP"):
@@ -267,6 +272,8 @@ def iter_messages(path: str | Path, topics: list[str] | None = None) -> Iterator
                         raise LogReadError(f"{path}: {channel.topic}: no decoder for {channel.message_encoding!r}")
                     decoders[schema.id] = dec
                 decoded = dec(message.data)
+                if schema.name.startswith(COSIM_PREFIX):
+                    decoded = to_dict(decoded)
             yield channel.topic, (message.log_time - epoch) / 1e9, decoded
 
 

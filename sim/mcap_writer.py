@@ -1,6 +1,7 @@
 """The MCAP writing half of :mod:`sim.mcap_log`: applies log records to an ``mcap`` writer, in
 the simulation process or as the writer process (``python -m sim.mcap_writer PATH CHUNK_SIZE``,
-fed pickled batches on stdin). Imports only ``mcap``, so the writer process starts quickly."""
+fed pickled batches on stdin). Imports only ``mcap`` (and :mod:`sim.log_proto` at the first
+compact message), so the writer process starts quickly."""
 
 from __future__ import annotations
 
@@ -8,6 +9,8 @@ import contextlib
 import pickle
 import signal
 import sys
+from collections.abc import Callable
+from functools import cached_property
 
 from mcap.writer import CompressionType, Writer
 
@@ -19,8 +22,10 @@ PROFILE = "cosim"
 class RecordWriter:
     """Applies log records to an ``mcap`` writer. Records are tuples: ``("schema", id, name,
     encoding, data)``, ``("channel", id, topic, encoding, schema_id, metadata)``, ``("message",
-    channel_id, time_ns, data, sequence)``, ``("metadata", name, data)``, ``("attachment", time_ns,
-    name, media_type, data)``. Ids are the log's own; mcap's are looked up."""
+    channel_id, time_ns, data, sequence)``, ``("proto", channel_id, time_ns, title, pickled dict,
+    sequence)`` (a message to encode with :func:`sim.log_proto.encode`, imported at the first),
+    ``("metadata", name, data)``, ``("attachment", time_ns, name, media_type, data)``. Ids are the
+    log's own; mcap's are looked up."""
 
     def __init__(self, file, chunk_size: int):
         self.file = file
@@ -35,6 +40,9 @@ class RecordWriter:
             kind = r[0]
             if kind == "message":
                 w.add_message(channels[r[1]], log_time=r[2], data=r[3], publish_time=r[2], sequence=r[4])
+            elif kind == "proto":
+                data = self._encode(r[3], pickle.loads(r[4]))
+                w.add_message(channels[r[1]], log_time=r[2], data=data, publish_time=r[2], sequence=r[5])
             elif kind == "channel":
                 channels[r[1]] = w.register_channel(r[2], r[3], self.schemas[r[4]], r[5])
             elif kind == "schema":
@@ -45,6 +53,12 @@ class RecordWriter:
                 w.add_attachment(create_time=r[1], log_time=r[1], name=r[2], media_type=r[3], data=r[4])
             else:
                 raise ValueError(f"unknown log record {kind!r}")
+
+    @cached_property
+    def _encode(self) -> Callable[[str, dict], bytes]:
+        from sim.log_proto import encode
+
+        return encode
 
     def finish(self) -> None:
         try:

@@ -46,7 +46,10 @@ class BuildContext:
 class PlannerType:
     """One planner type: the airframe kinds it flies, its options model, its factory, its own
     log records (beside the common ``/<v>/plan``) and, for planners that need a sensor to see
-    their grid, the range [m] they need (``sensing_range(options, airframe_kind, cruise)``)."""
+    their grid, the range [m] they need (``sensing_range(options, airframe_kind, cruise)``); for
+    planners that rate only nearby traffic, ``awareness(planner)``: the (range [m], horizon [s])
+    within which a built planner needs traffic sensed (``sim/broad_phase.py``; ``None``, or no
+    function: every track)."""
 
     name: str
     airframes: tuple[str, ...]
@@ -54,6 +57,7 @@ class PlannerType:
     build: Callable[[Any, BuildContext], Planner]
     records: Callable[[RecordSink, Any, Plan, float], None] | None = None
     sensing_range: Callable[[Any, str, float], float] | None = None
+    awareness: Callable[[Any], tuple[float, float] | None] | None = None
 
 
 class PlannerConfigError(ValueError):
@@ -156,6 +160,14 @@ def _mptp(options: DataclassOptions, ctx: BuildContext) -> Planner:
     return MptpPlanner(ctx.mission, cfg, wind=None if cfg.wind_forecast == "none" else WindForecast.steady(*forecast))
 
 
+def _reachset_awareness(planner: Any) -> tuple[float, float] | None:
+    """The plain reach-set avoider rates only traffic that can reach its grids; the rules of the
+    air negotiate with every cooperative peer they hear, so they need every track."""
+    from avoidance.rules.planner import RulesAvoider
+
+    return None if isinstance(planner, RulesAvoider) else planner.awareness()
+
+
 def _grid_range(options: RulesOptions, airframe_kind: str, cruise: float) -> float:
     return options.grid_range(airframe_kind, cruise)
 
@@ -166,7 +178,7 @@ PLANNERS: dict[str, PlannerType] = {
     for p in (
         PlannerType("follow_mission", _BOTH, NoOptions, _follow_mission),
         PlannerType("geometric", ("multirotor",), dataclass_options(GeometricConfig), _geometric, geometric_records),
-        PlannerType("reachset", _BOTH, RulesOptions, _reachset, reachset_records, _grid_range),
+        PlannerType("reachset", _BOTH, RulesOptions, _reachset, reachset_records, _grid_range, _reachset_awareness),
         PlannerType("mptp", ("fixed_wing",), dataclass_options(MptpConfig), _mptp, mptp_records),
         PlannerType("pursuit", ("multirotor",), PursuitOptions, _pursuit),
     )
@@ -178,6 +190,13 @@ def planner_type(name: str) -> PlannerType:
         return PLANNERS[name]
     except KeyError:
         raise PlannerConfigError(f"unknown planner {name!r} (known: {', '.join(PLANNERS)})") from None
+
+
+def planner_awareness(kind: str, planner: Planner) -> tuple[float, float] | None:
+    """The (range [m], horizon [s]) within which the built ``planner`` of type ``kind`` needs
+    traffic sensed; ``None``: every track."""
+    entry = planner_type(kind)
+    return None if entry.awareness is None else entry.awareness(planner)
 
 
 def make_planner(

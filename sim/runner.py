@@ -80,7 +80,7 @@ def run_scenario(
     Returns a RunResult; raises RunFailed (log already closed) if the simulation raised.
     """
     end = float(duration if duration is not None else scenario.duration)
-    log = McapLog(out, scenario.epoch_ns)
+    log = McapLog(out, scenario.epoch_ns, compact=scenario.logging.encoding == "protobuf")
     result = RunResult(scenario.name, Path(out), "failed", 0.0, 0.0)
     wall0 = time.perf_counter()
     sched: LockstepScheduler | None = None

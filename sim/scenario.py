@@ -603,7 +603,12 @@ class Metrics(_Strict):
 
 
 class Logging(_Strict):
+    """``rate_hz`` [Hz] of the per-vehicle topics; ``encoding``: ``protobuf`` (compact, the
+    high-rate topics of :mod:`sim.log_proto`) or ``json`` (every cosim topic in JSON, as logs
+    before the compact encoding)."""
+
     rate_hz: Annotated[float, Field(gt=0.0, le=1000.0)] = 10.0
+    encoding: Literal["protobuf", "json"] = "protobuf"
 
 
 class Scenario(_Strict):

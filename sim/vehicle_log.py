@@ -29,8 +29,17 @@ from sim.core.mission import Mission
 from sim.core.plan import Plan, Threats
 from sim.core.setpoints import FixedWingSetpoint, MultirotorSetpoint
 from sim.core.state import VehicleState
-from sim.core.threats import Geofence, IntruderTrack, LidarScan, PrismObstacle, SphereThreat, StormSnapshot
+from sim.core.threats import (
+    Geofence,
+    IntruderTrack,
+    LidarScan,
+    PrismObstacle,
+    ScanPattern,
+    SphereThreat,
+    StormSnapshot,
+)
 from sim.geodesy import GeoPoint, ned_to_geodetic
+from sim.log_proto import scan_record
 from sim.mcap_log import McapLog
 from sim.planner_records import wallclock_metadata
 
@@ -75,11 +84,12 @@ def state_from_dict(d: dict) -> VehicleState:
     )
 
 
-def threats_dict(t: float, th: Threats) -> dict:
+def threats_dict(t: float, th: Threats, with_scan: bool = True) -> dict:
     """Sensed threats as plain JSON, every field a planner reads (map obstacles and geofences are
-    the scenario's, logged once in /world/map); ``threats_from_dict`` inverts it."""
+    the scenario's, logged once in /world/map); ``threats_from_dict`` inverts it.
+    ``with_scan=False``: without the ``lidar`` scan (a compact log has it on its own topic)."""
     lidar = th.lidar
-    return {
+    d = {
         "t": t,
         "intruders": [
             {
@@ -114,17 +124,21 @@ def threats_dict(t: float, th: Threats) -> dict:
             for s in th.storms
         ],
         "lidar_hits": int(lidar.hit.sum()) if lidar is not None else 0,
-        "lidar": None
-        if lidar is None
-        else {
-            "t": lidar.t,
-            "origin_ned": lidar.origin_ned.tolist(),
-            "directions_ned": lidar.directions_ned.tolist(),
-            "ranges_m": lidar.ranges_m.tolist(),
-            "hit": lidar.hit.tolist(),
-            "max_range_m": lidar.max_range_m,
-        },
     }
+    if with_scan:
+        d["lidar"] = (
+            None
+            if lidar is None
+            else {
+                "t": lidar.t,
+                "origin_ned": lidar.origin_ned.tolist(),
+                "directions_ned": lidar.directions_ned.tolist(),
+                "ranges_m": lidar.ranges_m.tolist(),
+                "hit": lidar.hit.tolist(),
+                "max_range_m": lidar.max_range_m,
+            }
+        )
+    return d
 
 
 def storms_from_dicts(storms: list[dict]) -> list[StormSnapshot]:
@@ -187,6 +201,9 @@ def threats_from_dict(
             a(lid["ranges_m"], float),
             a(lid["hit"], bool),
             lid["max_range_m"],
+            None if lid.get("pattern") is None else ScanPattern(**lid["pattern"]),
+            None if lid.get("rotation") is None else a(lid["rotation"], float),
+            lid.get("range_resolution_m"),
         ),
     )
 
@@ -202,21 +219,17 @@ def restore_progress(m: Mission, d: dict) -> None:
     m.landed_t, m.completed_t = d["landed_t"], d["completed_t"]
 
 
-def _json_num(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
-
-
 def setpoint_record(sp: FixedWingSetpoint | MultirotorSetpoint, follower: Any, origin: GeoPoint) -> dict:
     """The ``/<v>/ctrl/setpoint`` record of a setpoint with the follower's leg, cross-track [m]
-    and turning flag; NaN (not controlled) components are null."""
+    and turning flag; NaN: not controlled (null in JSON, None when read back)."""
     common = {"leg": follower.leg, "cross_track_m": follower.cross_track_m, "turning": follower.turning}
     if isinstance(sp, MultirotorSetpoint):
         d = float(sp.pos_ned[2])
         return {
-            "pos_ned": [_json_num(x) for x in sp.pos_ned],
+            "pos_ned": [float(x) for x in sp.pos_ned],
             "vel_ned": [float(x) for x in sp.vel_ned],
-            "yaw_rad": _json_num(sp.yaw_rad),
-            "altitude_m": _json_num(origin.alt_m - d),
+            "yaw_rad": float(sp.yaw_rad),
+            "altitude_m": origin.alt_m - d,
             **common,
         }
     return {"roll_rad": sp.roll_rad, "altitude_m": sp.altitude_m, "tas_mps": sp.tas_mps, **common}
@@ -244,13 +257,14 @@ class VehicleLogWriter:
         self.t_sensors, self.t_sigma = f"{p}/sensors", f"{p}/est/sigma3"
         self.t_tracking = f"{p}/truth/tracking"
         self.t_energy = f"{p}/energy"
+        self.t_lidar = f"{p}/threats/lidar"
 
     def truth(self, s: VehicleState) -> dict:
         """Log the true state; returns the state as logged (a plain dict)."""
         log, t = self.log, s.t
         ns = log.epoch_ns + round(t * 1e9)
         sd = state_dict(s)
-        log.write_json(
+        log.write_record(
             self.t_state,
             t,
             sd,
@@ -272,12 +286,12 @@ class VehicleLogWriter:
 
     def tracking(self, t: float, cross_track_m: float, leg: int) -> None:
         """True cross-track error to the leg being followed (what the metrics judge)."""
-        self.log.write_json(self.t_tracking, t, {"t": t, "cross_track_m": cross_track_m, "leg": leg}, S.TRACKING)
+        self.log.write_record(self.t_tracking, t, {"t": t, "cross_track_m": cross_track_m, "leg": leg}, S.TRACKING)
 
     def estimate(self, s: VehicleState) -> dict:
         """Log what controllers and planners saw (same schema as the truth)."""
         sd = state_dict(s)
-        self.log.write_json(
+        self.log.write_record(
             self.t_est,
             s.t,
             sd,
@@ -289,8 +303,8 @@ class VehicleLogWriter:
     def sensors(self, t: float, measurements: dict, sigma3: dict, biases: dict) -> None:
         """Measurements delivered since the last log tick (one message, a list per sensor) and
         the estimate's 3-sigma bounds and estimated biases."""
-        self.log.write_json(self.t_sensors, t, {"t": t, **measurements}, S.SENSORS, {"units": "SI, rad"})
-        self.log.write_json(
+        self.log.write_record(self.t_sensors, t, {"t": t, **measurements}, S.SENSORS, {"units": "SI, rad"})
+        self.log.write_record(
             self.t_sigma,
             t,
             {"t": t, **sigma3, "bias": biases},
@@ -298,25 +312,24 @@ class VehicleLogWriter:
             {"frame": "NED; attitude error in body axes", "units": "SI, rad"},
         )
 
-    def threats(self, t: float, threats) -> None:
-        """The threats as sensed when a plan was made (what the planner saw)."""
-        self.log.write_json(
-            self.t_threats,
-            t,
-            threats_dict(t, threats),
-            S.THREATS,
-            {"frame": "local-level NED from the scenario origin"},
-        )
+    def threats(self, t: float, threats: Threats) -> None:
+        """The threats as sensed when a plan was made (what the planner saw); in a compact log
+        the LiDAR scan goes to ``/<v>/threats/lidar`` (cosim.LidarScan) at the same log time."""
+        compact = self.log.compact and threats.lidar is not None
+        frame = {"frame": "local-level NED from the scenario origin"}
+        self.log.write_json(self.t_threats, t, threats_dict(t, threats, with_scan=not compact), S.THREATS, frame)
+        if compact and threats.lidar is not None:
+            self.log.write_record(self.t_lidar, t, scan_record(threats.lidar), S.LIDAR_SCAN, frame)
 
     def control(
         self, t: float, setpoint: dict, schema: dict, commands: dict[str, float], debug: dict[str, float]
     ) -> None:
-        self.log.write_json(self.t_sp, t, {"t": t, **setpoint}, schema)
-        self.log.write_json(self.t_cmd, t, {"t": t, "properties": commands, "debug": debug}, S.COMMANDS)
+        self.log.write_record(self.t_sp, t, {"t": t, **setpoint}, schema)
+        self.log.write_record(self.t_cmd, t, {"t": t, "properties": commands, "debug": debug}, S.COMMANDS)
 
     def energy(self, t: float, record: dict) -> None:
         """The electrical bus (sim.energy.power_system.EnergyRecord)."""
-        self.log.write_json(self.t_energy, t, record, S.ENERGY, {"units": "W, Wh, state of charge 0..1"})
+        self.log.write_record(self.t_energy, t, record, S.ENERGY, {"units": "W, Wh, state of charge 0..1"})
 
     def mission(self, t: float, next_waypoint: int, waypoints: int, complete: bool) -> None:
         self.log.write_json(

@@ -21,6 +21,7 @@ from sim.faults import FaultSchedule
 from sim.geodesy import ned_to_geodetic
 from sim.mcap_log import McapLog
 from sim.perception import Perception
+from sim.planner_registry import planner_awareness
 from sim.scenario import Scenario
 from sim.scheduler import LockstepScheduler, Stage
 from sim.sensors.lidar import Lidar
@@ -59,7 +60,7 @@ class World:
             v.threats.obstacles, v.threats.geofences = self.obstacles, self.fences  # known from the map
         has_traffic = n > 1 or bool(self.objects)
         self.awareness: list[tuple[float, float] | None] = [
-            getattr(v.planner, "awareness", lambda: None)() for v in self.vehicles
+            planner_awareness(v.cfg.planner.type, v.planner) for v in self.vehicles
         ]  # what each planner needs sensed (sim/broad_phase.py); None: everything
         self._cruise = np.array([v.mission.cruise_speed for v in self.vehicles])
         self.perception = (

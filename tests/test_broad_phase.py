@@ -11,7 +11,7 @@ from aircraft.registry import get_airframe
 from avoidance.reachset.situation import Assessor
 from sim.broad_phase import relevant
 from sim.mcap_log import McapLog
-from sim.planner_registry import make_planner
+from sim.planner_registry import make_planner, planner_awareness
 from sim.scenario import load_scenario
 from sim.vehicle_setup import mission_from_config
 from sim.world import World
@@ -114,3 +114,20 @@ def test_the_world_hands_each_reachset_vehicle_only_its_partner(tmp_path):
     assert early["haps"] == {"quad", "head_on"}
     later = sensed_ids("scenarios/mixed_haps_quad_reachset.toml", 20.0, tmp_path)
     assert later["quad"] == {"head_on"}  # 250 m away; "crossing" appears at 60 s
+
+
+def test_awareness_comes_from_the_planner_registry():
+    """The world asks the registry what each planner type needs sensed: the plain reach-set
+    avoider its grid's (range, horizon); the reach-set planner under the rules of the air every
+    track (it negotiates with each peer it hears), like the planners without an awareness."""
+    got = {}
+    for path in ("scenarios/reachset/s7_head_on.toml", "scenarios/rules/s10_head_on.toml"):
+        scenario, _ = load_scenario(path)
+        cfg = scenario.vehicle[0]
+        mission = mission_from_config(cfg, scenario.origin_point)
+        planner = make_planner(cfg.planner.type, mission, get_airframe(cfg.aircraft).kind, cfg.planner.options)
+        got[path] = planner_awareness(cfg.planner.type, planner)
+    reach, horizon = got["scenarios/reachset/s7_head_on.toml"]
+    assert 0.0 < reach < 1000.0 and 0.0 < horizon < 60.0
+    assert got["scenarios/rules/s10_head_on.toml"] is None
+    assert planner_awareness("follow_mission", object()) is None

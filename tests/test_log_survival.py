@@ -88,11 +88,19 @@ def test_group_signal_leaves_a_finished_log(tmp_path, sig):
     assert len(truth) > 50
 
 
+def _wait_for_a_chunk(log: Path) -> None:
+    """Until the writer wrote its first chunk (the header alone is a few hundred bytes)."""
+    end = time.monotonic() + 120
+    while time.monotonic() < end and log.stat().st_size < 20_000:
+        time.sleep(0.1)
+    time.sleep(1.0)
+
+
 def test_log_of_a_killed_writer_is_recovered_by_info_and_replay(tmp_path):
     log = tmp_path / "run.mcap"
     proc = _start(log)
     _wait_until_running(proc)
-    time.sleep(2.0)  # more than one chunk
+    _wait_for_a_chunk(log)
     (writer,) = _children(proc.pid)
     os.kill(writer, signal.SIGKILL)
     os.killpg(proc.pid, signal.SIGKILL)

@@ -186,6 +186,7 @@ EFFECTS: dict[str, Effect] = {
     "origin.lon": (_QUAD, None, _set("origin.lon", 8.1)),
     "origin.altitude": (_QUAD, None, _set("origin.altitude", 410.0)),
     "logging.rate_hz": (_QUAD, None, _set("logging.rate_hz", 20)),
+    "logging.encoding": (_QUAD, None, _set("logging.encoding", "json")),
     "wind.north": (_QUAD, None, _set("wind.north", 2.0)),
     "wind.east": (_QUAD, None, _set("wind.east", 2.0)),
     "wind.down": (_QUAD, None, _set("wind.down", 0.5)),
@@ -321,6 +322,7 @@ _LIDAR = {
     "elevation_step_deg": 4.0,
     "return_probability": 0.5,
     "dropout": 0.9,
+    "range_resolution_m": 0.5,
 }
 for _k, _v in _LIDAR.items():
     EFFECTS[f"vehicle.lidar.{_k}"] = (_QUAD, None, _set(f"vehicle.0.lidar.{_k}", _v))

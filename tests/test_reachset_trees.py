@@ -1,4 +1,5 @@
-"""Reach sets (spec §4, T-RS-1..5, 8, 9): sizes, bounds per variant, combined union, ACAS-like."""
+"""Reach sets (spec §4, T-RS-1..9): sizes, bounds per variant, coverage and smoothness against
+their bounds, combined union, ACAS-like."""
 
 import numpy as np
 import pytest
@@ -6,7 +7,15 @@ import pytest
 from avoidance.reachset.cache import reach_set
 from avoidance.reachset.config import ExpansionConfig, GridConfig, MovementConfig, ReachSetConfig
 from avoidance.reachset.grid import AvoidanceGrid
-from avoidance.reachset.metrics import bounds, full_tree_size, trajectory_count
+from avoidance.reachset.metrics import (
+    bounds,
+    coverage_ratio,
+    full_coverage_set,
+    full_tree_size,
+    leaf_footprints,
+    min_turns_to_cells,
+    trajectory_count,
+)
 from avoidance.reachset.movement import MovementType as M
 from avoidance.reachset.movement import build_primitive_table
 
@@ -87,3 +96,47 @@ def test_disk_cache_round_trip(tmp_path):
     again = reach_set(grid, TABLE, cfg, tmp_path)
     np.testing.assert_array_equal(first.parent, again.parent)
     np.testing.assert_allclose(first.samples, again.samples)
+
+
+GRID5 = AvoidanceGrid(GridConfig(d_range=(0.0, 5.0), n_layers=5, safe_layers=2, crash_layers=2))
+
+
+def test_coverage_ratio_against_the_full_tree():
+    """T-RS-6 on the spec's 5-layer reference grid (docs/reachset.md D-20): the full contained
+    tree has 1627 distinct footprints; the chaotic set covers more of them than the harmonic one,
+    coverage grows with the spread limit, and the 0.85 of the spec is reached only without the
+    limit (whole-footprint key, every movement into the last layer); with spread 9 the last
+    layer alone caps the leaves at 35 cells x 9."""
+    reference = full_coverage_set(GRID5, TABLE)
+    assert len(reference) == 1627
+    cov = {
+        name: coverage_ratio(leaf_footprints(reach_set(GRID5, TABLE, ReachSetConfig.single(part))), reference)
+        for name, part in {
+            "harmonic": ExpansionConfig.harmonic(),
+            "chaotic": ExpansionConfig.chaotic(),
+            "chaotic_24": ExpansionConfig.chaotic(24),
+            "unlimited": ExpansionConfig.chaotic(None, None, prune_last_spread=False),
+        }.items()
+    }
+    assert cov["harmonic"] < cov["chaotic"] < cov["chaotic_24"] < cov["unlimited"]
+    assert cov["chaotic"] <= 35 * 9 / len(reference)
+    assert cov["unlimited"] >= 0.85
+
+
+def test_harmonic_smoothness_within_the_turning_bound():
+    """T-RS-7 (D-20): a leaf in a last-layer cell turned at least as often as the cell's edge angle
+    needs at 15 deg per movement, so over the 35 last-layer cells of the default grid the best
+    possible mean smoothness is 1 - 2.0 / 10 = 0.8 < 0.9; the harmonic set's leaves respect the
+    bound, and its best leaf per cell comes within 0.1 of it."""
+    need = min_turns_to_cells(GRID, TABLE)
+    last = GRID.layer == GRID.cfg.n_layers - 1
+    assert need[last].mean() == 2.0
+    tree = reach_set(GRID, TABLE, VARIANTS["harmonic"][0])
+    leaves = tree.leaves()
+    turns = np.rint((1.0 - tree.smoothness[leaves]) * tree.depth[leaves])
+    assert (turns >= need[tree.tip_cell[leaves]]).all()
+    best = {}
+    for cell, s in zip(tree.tip_cell[leaves], tree.smoothness[leaves], strict=True):
+        best[cell] = max(best.get(cell, 0.0), s)
+    assert len(best) == last.sum()
+    assert 0.7 <= np.mean(list(best.values())) <= 1.0 - need[last].mean() / GRID.cfg.n_layers

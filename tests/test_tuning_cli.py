@@ -16,7 +16,15 @@ def test_linearize_writes_model(tmp_path, capsys):
 def test_margins_haps(tmp_path, capsys):
     assert tune_main(["margins", "haps", "--out", str(tmp_path)]) == 0
     rows = json.loads((tmp_path / "margins_haps.json").read_text())
-    assert len(rows) == 2 and all(r["phase_margin_deg"] > 0 for r in rows)
+    assert [r["name"] for r in rows] == ["roll", "pitch", "tecs-pitch", "tecs-throttle"]
+    assert all(r["phase_margin_deg"] > 0 and r["jsbsim_overshoot_pct"] > 0 and not r["warning"] for r in rows)
+
+
+def test_margins_quadrotor_without_steps(tmp_path, capsys):
+    assert tune_main(["margins", "quadrotor", "--no-steps", "--out", str(tmp_path)]) == 0
+    rows = json.loads((tmp_path / "margins_quadrotor.json").read_text())
+    assert [r["name"] for r in rows] == ["rate", "attitude", "velocity", "position"]
+    assert all("jsbsim_overshoot_pct" not in r for r in rows)
 
 
 def test_bad_inputs_exit_2(capsys):
@@ -26,6 +34,9 @@ def test_bad_inputs_exit_2(capsys):
         ["margins", "haps", "--tas", "-3"],
         ["bogus"],
         ["roll-gain"],
+        ["gain", "quadrotor", "yaw", "--phase-margin", "45"],
+        ["gain", "haps", "roll", "--phase-margin", "45", "--crossover", "3"],
+        ["gain", "haps", "roll", "--phase-margin", "190"],
         ["linearize", "quadrotor"],
     ):
         assert tune_main(argv) == 2, argv

@@ -72,10 +72,6 @@ class RulesAvoider(ReachSetAvoider):
         self._unresolved: set = set()
         self._start: float | None = None
 
-    def awareness(self) -> None:
-        """Every track matters: the rules negotiate with each cooperative peer they hear."""
-        return None
-
     def notifications(self, estimate: VehicleState, threats: Threats, t: float) -> list[PositionNotification]:
         own = PositionNotification(t, self.registration, ned_to_enu(estimate.pos_ned), ned_to_enu(estimate.vel_ned))
         peers = [

@@ -80,9 +80,36 @@ class StormSnapshot:
 
 
 @dataclass(frozen=True, slots=True)
+class ScanPattern:
+    """A scanning LiDAR's homogeneous ray grid [deg]: azimuth from the sensor's x axis, positive
+    to the right (FRD), elevation positive up; a full azimuth turn does not repeat its end."""
+
+    azimuth_min_deg: float
+    azimuth_max_deg: float
+    azimuth_step_deg: float
+    elevation_min_deg: float
+    elevation_max_deg: float
+    elevation_step_deg: float
+
+    def directions(self) -> np.ndarray:
+        """Unit ray directions (N, 3) in the sensor frame (x forward, y right, z down),
+        elevation-major."""
+        full = self.azimuth_max_deg - self.azimuth_min_deg >= 360.0 - 1e-9
+        n_az = round((self.azimuth_max_deg - self.azimuth_min_deg) / self.azimuth_step_deg) + (0 if full else 1)
+        n_el = round((self.elevation_max_deg - self.elevation_min_deg) / self.elevation_step_deg) + 1
+        az = np.radians(self.azimuth_min_deg + self.azimuth_step_deg * np.arange(n_az))
+        el = np.radians(self.elevation_min_deg + self.elevation_step_deg * np.arange(n_el))
+        el, az = (a.ravel() for a in np.meshgrid(el, az, indexing="ij"))
+        return np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), -np.sin(el)], axis=1)
+
+
+@dataclass(frozen=True, slots=True)
 class LidarScan:
     """One LiDAR sweep: sensor position NED [m], unit ray directions (N, 3) NED, measured ranges
-    (N,) [m] with ``hit`` (N,) false where nothing returned within ``max_range_m``."""
+    (N,) [m] with ``hit`` (N,) false where nothing returned within ``max_range_m``. A sensor's
+    scan also carries how it was made (what the log stores instead of the directions):
+    ``pattern``, ``rotation`` (3, 3) sensor -> NED with ``directions_ned = pattern.directions()
+    @ rotation.T``, and ``range_resolution_m`` [m] (every hit range a whole multiple of it)."""
 
     t: float
     origin_ned: np.ndarray
@@ -90,3 +117,6 @@ class LidarScan:
     ranges_m: np.ndarray
     hit: np.ndarray
     max_range_m: float
+    pattern: ScanPattern | None = None
+    rotation: np.ndarray | None = None
+    range_resolution_m: float | None = None

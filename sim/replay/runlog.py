@@ -1,8 +1,10 @@
 """A run's MCAP log as arrays per topic.
 
 ``RunLog(path).topic("/haps/truth/state")`` gives a :class:`Series`: sim times ``t`` (N,) [s] and
-one numpy array per numeric field (vectors as (N, k) arrays), built once and cached. Protobuf
-messages (Foxglove types) are kept as objects in ``Series.messages``.
+one numpy array per numeric field (vectors as (N, k) arrays), built once and cached. Messages
+are dicts, JSON or protobuf alike (:mod:`sim.mcap_read`); Foxglove types are kept as objects in
+``Series.messages``. A compact log's LiDAR scans (``/<v>/threats/lidar``) are also put back into
+their ``/<v>/threats`` messages as ``lidar``, as JSON logs carry them.
 """
 
 from __future__ import annotations
@@ -16,6 +18,8 @@ from typing import Any
 import numpy as np
 
 from sim.mcap_read import LogInfo, LogReadError, iter_messages, read_info
+
+SCAN_SUFFIX = "/threats/lidar"  # a compact log's LiDAR scans, merged into /<v>/threats
 
 
 @dataclass
@@ -62,6 +66,22 @@ class RunLog:
             ts.append(t)
             ms.append(msg)
         self._series = {k: Series(k, np.asarray(ts), ms) for k, (ts, ms) in by_topic.items()}
+        for topic in by_topic:
+            if topic.endswith(SCAN_SUFFIX) and topic[: -len(SCAN_SUFFIX)] + "/threats" in by_topic:
+                self._merge_scans(topic[: -len(SCAN_SUFFIX)] + "/threats", topic)
+
+    def _merge_scans(self, threats: str, scans: str) -> None:
+        """Put each LiDAR scan of a compact log back into its threats message (same log time) as
+        ``lidar``, as a JSON log carries it."""
+        s = self._series[scans]
+        at = dict(zip(s.t.tolist(), s.messages, strict=True))
+        th = self._series[threats]
+        for t, msg in zip(th.t.tolist(), th.messages, strict=True):
+            if "lidar" not in msg:
+                scan = at.get(t)
+                if scan is None:
+                    raise LogReadError(f"{self.path}: {threats} at {t} s has no scan on {scans}")
+                msg["lidar"] = scan
 
     @property
     def topics(self) -> list[str]:

@@ -32,7 +32,7 @@ from pydantic import Field, model_validator
 
 from sim.core.frames import euler_to_dcm
 from sim.core.state import VehicleState
-from sim.core.threats import LidarScan, PrismObstacle
+from sim.core.threats import LidarScan, PrismObstacle, ScanPattern
 from sim.sensors.base import SampledSensor, SensorConfig
 from sim.sensors.channel import Channel, ChannelConfig
 from sim.sensors.truth import TruthSample
@@ -52,6 +52,7 @@ class LidarConfig(SensorConfig):
     frame: Literal["level", "body"] = "level"
     range_error: ChannelConfig = ChannelConfig(noise_std=0.02)
     return_probability: float = Field(1.0, gt=0.0, le=1.0)
+    range_resolution_m: float = Field(0.001, gt=0.0)  # reported ranges are whole multiples of it
 
     @model_validator(mode="after")
     def _check(self):
@@ -61,40 +62,52 @@ class LidarConfig(SensorConfig):
             raise ValueError("elevation_max_deg must not be below elevation_min_deg")
         return self
 
+    def pattern(self) -> ScanPattern:
+        return ScanPattern(
+            self.azimuth_min_deg,
+            self.azimuth_max_deg,
+            self.azimuth_step_deg,
+            self.elevation_min_deg,
+            self.elevation_max_deg,
+            self.elevation_step_deg,
+        )
+
     def ray_directions(self) -> np.ndarray:
         """Unit ray directions (N, 3) in the sensor frame (x forward, y right, z down).
         A full turn (-180..180) does not repeat the closing azimuth."""
-        full = self.azimuth_max_deg - self.azimuth_min_deg >= 360.0 - 1e-9
-        n_az = round((self.azimuth_max_deg - self.azimuth_min_deg) / self.azimuth_step_deg) + (0 if full else 1)
-        n_el = round((self.elevation_max_deg - self.elevation_min_deg) / self.elevation_step_deg) + 1
-        az = np.radians(self.azimuth_min_deg + self.azimuth_step_deg * np.arange(n_az))
-        el = np.radians(self.elevation_min_deg + self.elevation_step_deg * np.arange(n_el))
-        el, az = (a.ravel() for a in np.meshgrid(el, az, indexing="ij"))
-        return np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), -np.sin(el)], axis=1)
+        return self.pattern().directions()
 
 
 @dataclass(frozen=True, slots=True)
 class LidarReturns:
-    """One sweep in the sensor frame: ``ranges_m`` (N,) [m], NaN where nothing returned."""
+    """One sweep in the sensor frame: ``ranges_m`` (N,) [m], NaN where nothing returned, rays
+    ``directions_sensor`` of ``pattern``; ranges are reported in whole ``range_resolution_m``."""
 
     t: float
     ranges_m: np.ndarray
     directions_sensor: np.ndarray
     max_range_m: float
     frame: str
+    pattern: ScanPattern
+    range_resolution_m: float
 
     def to_scan(self, estimate: VehicleState) -> LidarScan:
-        """NED scan placed at the *estimated* pose (position; yaw, or full attitude)."""
+        """NED scan placed at the *estimated* pose (position; yaw, or full attitude), ranges
+        rounded to the resolution."""
         roll, pitch, yaw = estimate.euler
         r = euler_to_dcm(0.0, 0.0, yaw) if self.frame == "level" else euler_to_dcm(roll, pitch, yaw)
         hit = np.isfinite(self.ranges_m)
+        res = self.range_resolution_m
         return LidarScan(
             t=self.t,
             origin_ned=np.array(estimate.pos_ned, float),
             directions_ned=self.directions_sensor @ r.T,
-            ranges_m=np.where(hit, self.ranges_m, self.max_range_m),
+            ranges_m=np.where(hit, np.rint(self.ranges_m / res) * res, self.max_range_m),
             hit=hit,
             max_range_m=self.max_range_m,
+            pattern=self.pattern,
+            rotation=r,
+            range_resolution_m=res,
         )
 
 
@@ -185,7 +198,8 @@ class Lidar(SampledSensor[LidarReturns]):
 
     def __init__(self, cfg: LidarConfig, obstacles: Sequence[PrismObstacle], rng: np.random.Generator):
         super().__init__(cfg, rng)
-        self.directions = cfg.ray_directions()
+        self._pattern = cfg.pattern()
+        self.directions = self._pattern.directions()
         self.dim = len(self.directions)
         self.faults.dim = self.dim
         self._prisms = [_prepare(o) for o in obstacles]
@@ -203,4 +217,5 @@ class Lidar(SampledSensor[LidarReturns]):
         return y
 
     def _package(self, t: float, y: np.ndarray) -> LidarReturns:
-        return LidarReturns(t, y, self.directions, self.cfg.max_range_m, self.cfg.frame)
+        c = self.cfg
+        return LidarReturns(t, y, self.directions, c.max_range_m, c.frame, self._pattern, c.range_resolution_m)

@@ -3,8 +3,12 @@
     tune trim AIRFRAME [--out DIR] [--no-check]       envelope trim: CSV, Markdown, PNG
     tune trim haps --eas 8 [--altitudes 0:23000:1000]  trims at one EAS from the ground up
     tune linearize AIRFRAME [--alt M --tas MPS] [--out DIR]   A, B (JSON) and modes
-    tune margins AIRFRAME [--alt M --tas MPS] [--out DIR]     loop margins (JSON)
-    tune roll-gain [--crossover RAD_S | --phase-margin DEG]  quadrotor roll-attitude gain
+    tune margins AIRFRAME [--alt M --tas MPS] [--no-steps] [--out DIR]   every loop's margins,
+        linear and JSBSim step figures (JSON); a warning for each phase margin under 30 deg
+    tune gain AIRFRAME LOOP (--crossover RAD_S | --phase-margin DEG) [--no-verify] [--out DIR]
+        the loop's gains scaled for the request, flown in JSBSim; proposal file (JSON) with its
+        warnings (phase margin under 30 deg); an unreachable request is a one-line error
+    tune roll-gain [AIRFRAME] (--crossover | --phase-margin)  = gain haps roll / quadrotor attitude
 
 Exit codes: 0 ok, 1 something did not trim / verify, 2 bad input (one-line error on stderr).
 Default output folder: ``logs/tuning/<airframe>``.
@@ -157,93 +161,99 @@ def cmd_linearize(args) -> int:
     return EXIT_OK
 
 
-def _loop_rows(args):
-    from sim.tuning.loops import analyse
+def _margin_rows(args) -> list[dict]:
+    """Per loop: its margins and closed-loop figures, and (unless ``--no-steps``) its JSBSim step."""
+    from sim.tuning.catalog import default_gains, loops_of
+    from sim.tuning.loops import second_order_overshoot
+    from sim.tuning.tuner import LOW_MARGIN_DEG
 
-    if args.airframe == "haps":
-        from aircraft.haps.gains import HapsGains
-        from sim.tuning.loops import HapsPitchGains, haps_pitch_loops
-
-        _, plant, lm = _haps_linear(args)
-        g = HapsGains.load()
-        props = g.fcs_properties()
-        sched = min(max(props["ap/qbar-ref-psf"] / plant["aero/qbar-psf"], g.sched_min), g.sched_max)
-        l_el, l_th, T = haps_pitch_loops(lm, HapsPitchGains(g.kp_pitch, g.ki_pitch, g.kd_pitch, sched))
-        return [analyse("pitch, opened at the elevator", l_el, T), analyse("pitch, opened at theta error", l_th, T)]
-    from aircraft.quadrotor.gains import MultirotorGains
-    from sim.tuning.loops import RatePid, identify_rotor_axis, quad_axis_loops
-
-    mg = MultirotorGains.load()
+    gains = default_gains(args.airframe)
     rows = []
-    # yaw is left out: the motors' reaction torque leads (it follows the current, then decays as
-    # the rpm changes), which the first-order plant fit of identify_rotor_axis does not describe
-    for axis in ("roll", "pitch"):
-        ax = identify_rotor_axis(axis)
-        r = getattr(mg.rate, axis)
-        kp_att = getattr(mg.attitude, f"kp_{axis}")
-        l_rate, t_rate, l_att, t_att = quad_axis_loops(
-            ax, RatePid(r.kp, r.ki, r.kd, 2 * math.pi * mg.rate.d_cutoff_hz), kp_att
+    for loop in loops_of(args.airframe, args.alt, args.tas):
+        r = loop.analyse(gains)
+        row = r.row() | {
+            "name": loop.name,
+            "opened_at": loop.opened_at,
+            "second_order_overshoot_pct": second_order_overshoot(r.phase_margin_deg),
+        }
+        if not args.no_steps:
+            st = loop.step(gains)
+            row |= {"jsbsim_overshoot_pct": st.overshoot_pct, "jsbsim_settling_time_s": st.settling_time_s()}
+        row["warning"] = (
+            f"phase margin {r.phase_margin_deg:.1f} deg < {LOW_MARGIN_DEG:.0f} deg"
+            if r.phase_margin_deg < LOW_MARGIN_DEG
+            else ""
         )
-        rows += [
-            analyse(f"{axis} rate (K {ax.K:.0f} rad/s2, tau {1000 * ax.tau_s:.0f} ms)", l_rate, t_rate),
-            analyse(f"{axis} attitude", l_att, t_att),
-        ]
+        rows.append(row)
     return rows
 
 
 def cmd_margins(args) -> int:
-    rows = _loop_rows(args)
-    t = Table(title=f"{args.airframe} loop margins (python-control)")
-    for c in (
-        "loop",
-        "crossover rad/s",
-        "PM deg",
-        "GM dB",
-        "phase xover rad/s",
-        "BW rad/s",
-        "overshoot %",
-        "rise s",
-        "settle s",
-    ):
-        t.add_column(c)
+    rows = _margin_rows(args)
+    t = Table(title=f"{args.airframe} loops: wc, BW rad/s; PM deg; overshoot OS %; settling Ts s")
+    cols = {  # overshoot OS [%]: linear, second order from the PM, JSBSim; 2 % settling Ts [s]
+        "loop": "name",
+        "wc": "crossover_rad_s",
+        "PM": "phase_margin_deg",
+        "GM dB": "gain_margin_db",
+        "BW": "bandwidth_rad_s",
+        "OS lin": "overshoot_pct",
+        "OS 2nd": "second_order_overshoot_pct",
+        "OS JSB": "jsbsim_overshoot_pct",
+        "Ts lin": "settling_time_s",
+        "Ts JSB": "jsbsim_settling_time_s",
+    }
+    for c in cols:
+        t.add_column(c, no_wrap=c == "loop")
     for r in rows:
-        t.add_row(
-            r.name,
-            _f(r.crossover_rad_s),
-            _f(r.phase_margin_deg, 3),
-            _f(r.gain_margin_db, 3),
-            _f(r.phase_crossover_rad_s),
-            _f(r.bandwidth_rad_s),
-            _f(r.overshoot_pct, 3),
-            _f(r.rise_time_s, 3),
-            _f(r.settling_time_s, 3),
-        )
+        t.add_row(*(_f(r.get(k, math.nan), 3) for k in cols.values()))
     out.print(t)
+    for r in rows:
+        if r["warning"]:
+            out.print(f"[yellow]warning[/] {args.airframe} {r['name']}: {r['warning']}", highlight=False)
     path = _out_dir(args) / f"margins_{args.airframe}.json"
-    path.write_text(json.dumps([r.row() for r in rows], indent=1, default=float))
+    path.write_text(json.dumps(rows, indent=1, default=float))
     out.print(f"wrote {path}")
     return EXIT_OK
 
 
-def cmd_roll_gain(args) -> int:
-    from sim.tuning.tuner import tune_roll_attitude
+def cmd_gain(args) -> int:
+    from sim.tuning.catalog import AIRFRAME_LOOPS, default_gains, loops_of
+    from sim.tuning.tuner import propose, verify_in_jsbsim
 
     if (args.crossover is None) == (args.phase_margin is None):
-        raise ValueError("roll-gain: give exactly one of --crossover, --phase-margin")
-    if args.phase_margin is not None and not 0 < args.phase_margin < 90:
-        raise ValueError("roll-gain: --phase-margin must be in (0, 90) deg")
-    if args.crossover is not None and not 0 < args.crossover < 100:
-        raise ValueError("roll-gain: --crossover must be in (0, 100) rad/s")
-    p = tune_roll_attitude(args.crossover, args.phase_margin)
+        raise ValueError(f"{args.command}: give exactly one of --crossover, --phase-margin")
+    if args.phase_margin is not None and not 0 < args.phase_margin < 180:
+        raise ValueError(f"{args.command}: --phase-margin must be in (0, 180) deg")
+    if args.crossover is not None and not args.crossover > 0:
+        raise ValueError(f"{args.command}: --crossover must be > 0 rad/s")
+    name = args.loop or {"haps": "roll", "quadrotor": "attitude"}[args.airframe]
+    if name not in AIRFRAME_LOOPS[args.airframe]:
+        raise ValueError(f"unknown {args.airframe} loop {name!r} (known: {', '.join(AIRFRAME_LOOPS[args.airframe])})")
+    loop = next(lp for lp in loops_of(args.airframe, args.alt, args.tas) if lp.name == name)
+    p = propose(loop, default_gains(args.airframe), args.crossover, args.phase_margin)
+    if not args.no_verify:
+        verify_in_jsbsim(loop, p)
     r = p.linear
+    gains = ", ".join(f"{k} = {v:.4g}" for k, v in p.gains.items())
+    jsb = "" if p.jsbsim_overshoot_pct is None else f", JSBSim {p.jsbsim_overshoot_pct:.1f} %"
     out.print(
-        f"proposed ap/kp-roll = {p.kp_roll:.3f} 1/s: crossover {r.crossover_rad_s:.2f} rad/s, PM "
-        f"{r.phase_margin_deg:.1f} deg, GM {r.gain_margin_db:.1f} dB; overshoot linear "
-        f"{r.overshoot_pct:.1f} %, JSBSim {p.jsbsim_overshoot_pct:.1f} %, 2nd-order estimate "
-        f"{p.second_order_overshoot_pct:.1f} %",
+        f"{args.airframe} {name}: {gains} (x{p.factor:.3g}): crossover {r.crossover_rad_s:.3g} rad/s, PM "
+        f"{r.phase_margin_deg:.1f} deg, GM {r.gain_margin_db:.1f} dB; overshoot linear {r.overshoot_pct:.1f} %"
+        f"{jsb}, 2nd-order estimate {p.second_order_overshoot_pct:.1f} %",
         highlight=False,
     )
+    for w in p.warnings:
+        out.print(f"[yellow]warning[/] {args.airframe} {name}: {w}", highlight=False)
+    path = _out_dir(args) / f"proposal_{args.airframe}_{name}.json"
+    path.write_text(json.dumps(p.row(), indent=1, default=float))
+    out.print(f"wrote {path}")
     return EXIT_OK
+
+
+def _point_args(s: argparse.ArgumentParser) -> None:
+    s.add_argument("--alt", type=float, default=20_000.0, help="HAPS trim altitude MSL [m]")
+    s.add_argument("--tas", type=float, default=29.7, help="HAPS true airspeed [m/s]")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -262,13 +272,27 @@ def build_parser() -> argparse.ArgumentParser:
             s.add_argument("--eas", type=float, help="HAPS: trim at this equivalent airspeed [m/s] by altitude")
             s.add_argument("--altitudes", default="0:23000:1000", help="HAPS --eas: START:STOP:STEP [m]")
         else:
-            s.add_argument("--alt", type=float, default=20_000.0, help="HAPS trim altitude MSL [m]")
-            s.add_argument("--tas", type=float, default=29.7, help="HAPS true airspeed [m/s]")
+            _point_args(s)
+        if name == "margins":
+            s.add_argument("--no-steps", action="store_true", help="skip the JSBSim step of each loop")
         s.set_defaults(fn=fn)
-    r = sub.add_parser("roll-gain", help="quadrotor roll-attitude gain for a crossover or phase margin")
-    r.add_argument("--crossover", type=float, help="requested crossover [rad/s]")
-    r.add_argument("--phase-margin", type=float, help="requested phase margin [deg]")
-    r.set_defaults(fn=cmd_roll_gain, airframe="quadrotor", out=None)
+    for name, helptext in (
+        ("gain", "gains of one loop for a crossover or phase margin, verified in JSBSim"),
+        ("roll-gain", "roll loop gains (haps roll hold, quadrotor roll attitude): same as gain AIRFRAME roll|attitude"),
+    ):
+        r = sub.add_parser(name, help=helptext)
+        if name == "gain":
+            r.add_argument("airframe", help=" | ".join(AIRFRAMES))
+            r.add_argument("loop", help="haps: roll | pitch; quadrotor: rate | attitude | velocity | position")
+        else:
+            r.add_argument("airframe", nargs="?", default="quadrotor", help=" | ".join(AIRFRAMES))
+            r.set_defaults(loop=None)
+        r.add_argument("--crossover", type=float, help="requested crossover [rad/s]")
+        r.add_argument("--phase-margin", type=float, help="requested phase margin [deg]")
+        r.add_argument("--no-verify", action="store_true", help="skip the JSBSim step with the proposed gains")
+        r.add_argument("--out", help="output folder of the proposal file (default logs/tuning/<airframe>)")
+        _point_args(r)
+        r.set_defaults(fn=cmd_gain)
     return p
 
 

@@ -1,67 +1,130 @@
-"""Closed-loop step tests in JSBSim (the nonlinear model, inner loops as implemented in the XML).
+"""Closed-loop step tests in JSBSim: the nonlinear model, inner loops as implemented in the XML,
+outer loops by the airframe's own Python controller, with the gains given (default: gains.toml).
 
-- :func:`haps_pitch_step`: HAPS trimmed (JSBSim trim), pitch hold engaged with the gains of
-  ``gains.toml`` (or overrides), throttle held at trim, wings-level command; pitch command stepped
-  by ``step_deg`` at t = 0. Returns time [s] and pitch change [rad].
-- :func:`quad_roll_step`: quadrotor hovering on its FCS (gains of ``gains.toml`` or overrides),
-  collective at the hover thrust; roll command stepped by ``step_deg``. Returns time [s], roll [rad].
-- :func:`overshoot_pct`: (peak - step) / step [%] of a response to a step of size ``step``.
+- :func:`haps_attitude_step`: HAPS trimmed (JSBSim trim), roll and pitch hold engaged, throttle
+  held at trim; the roll or pitch command stepped by ``step`` [rad] at t = 0.
+- :func:`haps_tecs_step`: HAPS trimmed, its TECS autopilot in the loop, altitude setpoint ramped
+  up (the TECS altitude loop's reference and its rate, as its demand shaping passes them).
+- :func:`quad_rate_step`: quadrotor hovering on its FCS; roll-rate command stepped (the attitude
+  P is set to ``RATE_PROBE_KP`` and the bank command offset by step / kp, so the rate command is
+  the step to within kp x bank, 1e-4 rad/s per rad).
+- :func:`quad_attitude_step`: hovering on its FCS; bank command stepped.
+- :func:`quad_velocity_step`, :func:`quad_position_step`: hovering on
+  :class:`aircraft.quadrotor.controller.MultirotorController` (60 Hz, truth state); the east
+  velocity (position held north and down) or the east position stepped.
+
+Each returns a :class:`StepResponse`: time [s] after the step, the response minus its value at
+the step (rad, rad/s, m/s or m), and the step size in the same unit.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
 from aircraft.haps.gains import HapsGains
+from aircraft.quadrotor.controller import MultirotorController
 from aircraft.quadrotor.gains import MultirotorGains
+from sim.core.setpoints import FixedWingSetpoint, MultirotorSetpoint
+from sim.jsbsim_plant import JSBSimPlant
+from sim.tuning.loops import StepResponse
+
+RATE_PROBE_KP = 1e-4  # [1/s]
+TECS_DT = 0.1  # HAPS outer-loop period [s]
+M_TO_FT = 1.0 / 0.3048
+QUAD_ALT_M = 100.0
+_SETTLE_S = 1.0  # hover on the controller before the step [s]
 
 
-def overshoot_pct(y: np.ndarray, step: float) -> float:
-    return max(0.0, 100.0 * (float(np.max(y / step)) - 1.0))
+def _record(plant: JSBSimPlant, read: Callable[[], float], seconds: float, step: float, before=None) -> StepResponse:
+    """Step ``plant`` for ``seconds``, calling ``before(k)`` ahead of step k; ``read()`` after each."""
+    y0 = read()
+    n = round(seconds / plant.dt)
+    y = np.empty(n)
+    for k in range(n):
+        if before is not None:
+            before(k)
+        plant.step()
+        y[k] = read() - y0
+    return StepResponse(plant.dt * np.arange(1, n + 1), y, step)
 
 
-def haps_pitch_step(
+def _prop(plant: JSBSimPlant, name: str) -> Callable[[], float]:
+    return lambda: plant[name]
+
+
+def haps_attitude_step(
+    axis: str,
+    gains: HapsGains | None = None,
+    step: float = math.radians(2.0),
+    seconds: float = 10.0,
     alt_m: float = 20_000.0,
     tas_mps: float = 29.7,
-    step_deg: float = 2.0,
-    seconds: float = 10.0,
-    overrides: dict[str, float] | None = None,
-):
+) -> StepResponse:
+    """HAPS roll or pitch hold (``axis``) stepped by ``step`` [rad] from the JSBSim trim."""
     from sim.tuning.trim_haps import jsbsim_trim
 
     pt, plant = jsbsim_trim(alt_m, tas_mps)
     if plant is None:
         raise RuntimeError(f"HAPS does not trim at {alt_m} m, {tas_mps} m/s: {pt.reason}")
-    plant.set_many(HapsGains.load().fcs_properties())
-    plant.set_many(overrides or {})
-    theta0 = plant["attitude/theta-rad"]
-    plant.set_many({"ap/engage": 1.0, "ap/roll-cmd-rad": 0.0, "ap/pitch-cmd-rad": theta0 + math.radians(step_deg)})
-    n = round(seconds / plant.dt)
-    y = np.empty(n)
-    for k in range(n):
-        plant.step()
-        y[k] = plant["attitude/theta-rad"] - theta0
-    return plant.dt * np.arange(1, n + 1), y
+    plant.set_many((gains or HapsGains.load()).fcs_properties())
+    prop = {"roll": "attitude/phi-rad", "pitch": "attitude/theta-rad"}[axis]
+    cmd = {"ap/roll-cmd-rad": plant["attitude/phi-rad"], "ap/pitch-cmd-rad": plant["attitude/theta-rad"]}
+    cmd[f"ap/{axis}-cmd-rad"] += step
+    plant.set_many({"ap/engage": 1.0, **cmd})
+    return _record(plant, _prop(plant, prop), seconds, step)
 
 
-def quad_roll_step(
-    alt_m: float = 100.0, step_deg: float = 5.0, seconds: float = 1.5, overrides: dict[str, float] | None = None
-):
-    from sim.tuning.trim_quad import quad_plant, quad_trim
+def haps_tecs_step(
+    gains: HapsGains | None = None,
+    seconds: float = 80.0,
+    step: float = 2.0,
+    rate: float = 0.5,
+    alt_m: float = 20_000.0,
+    tas_mps: float = 29.7,
+) -> StepResponse:
+    """HAPS on :class:`aircraft.haps.autopilot.HapsAutopilot` (10 Hz, truth state) from the
+    JSBSim trim, altitude setpoint ramped up by ``step`` [m] at ``rate`` [m/s] (below the climb
+    limit, so the TECS reference follows it exactly); the altitude change minus that of the same
+    flight without the ramp (the trim's residual drift), over ``seconds``."""
+    from aircraft.haps.autopilot import HapsAutopilot
+    from sim.tuning.trim_haps import jsbsim_trim
 
-    trim = quad_trim(alt_m, 0.0)
-    w = 0.76
-    f_hover = ((-w + math.sqrt(w * w + 4 * (1 - w) * trim.throttle)) / (2 * (1 - w))) ** 2
-    plant = quad_plant(alt_m)
-    plant.set_many(MultirotorGains.load().fcs_properties())
-    plant.set_many(overrides or {})
+    def fly(ramp: float) -> StepResponse:
+        pt, plant = jsbsim_trim(alt_m, tas_mps)
+        if plant is None:
+            raise RuntimeError(f"HAPS does not trim at {alt_m} m, {tas_mps} m/s: {pt.reason}")
+        ap = HapsAutopilot(gains or HapsGains.load())
+        s0 = plant.truth()
+        ap.reset(s0, throttle=plant["fcs/throttle-cmd-norm[0]"])
+        every = round(TECS_DT / plant.dt)
+
+        def before(k: int) -> None:
+            if k % every == 0:
+                sp = FixedWingSetpoint(0.0, s0.alt_msl_m + min(ramp * k * plant.dt, step), s0.tas_mps)
+                plant.set_many(ap.update(plant.truth(), sp, every * plant.dt))
+
+        return _record(plant, _prop(plant, "position/h-sl-ft"), seconds, step * M_TO_FT, before)
+
+    flown, still = fly(rate), fly(0.0)
+    return StepResponse(flown.t, (flown.y - still.y) / M_TO_FT, step)
+
+
+def _hover_on_fcs(gains: MultirotorGains) -> JSBSimPlant:
+    """Quadrotor at ``QUAD_ALT_M`` with its FCS holding level attitude at hover thrust, motors
+    spun up with the vehicle held for 0.5 s, then released."""
+    from sim.tuning.trim_quad import hover_thrust_fraction, quad_plant, quad_trim
+
+    plant = quad_plant(QUAD_ALT_M)
+    plant.set_many(gains.fcs_properties())
     plant.set_many(
         {
             "ap/armed": 1.0,
             "ap/landed": 0.0,
-            "ap/thrust-cmd-norm": f_hover,
+            "ap/thrust-cmd-norm": hover_thrust_fraction(quad_trim(QUAD_ALT_M, 0.0).throttle),
             "ap/roll-cmd-rad": 0.0,
             "ap/pitch-cmd-rad": 0.0,
             "ap/yaw-cmd-rad": plant["attitude/psi-rad"],
@@ -70,11 +133,60 @@ def quad_roll_step(
     plant["forces/hold-down"] = 1.0
     plant.step(int(0.5 / plant.dt))
     plant["forces/hold-down"] = 0.0
-    phi0 = plant["attitude/phi-rad"]
-    plant["ap/roll-cmd-rad"] = phi0 + math.radians(step_deg)
-    n = round(seconds / plant.dt)
-    y = np.empty(n)
-    for k in range(n):
-        plant.step()
-        y[k] = plant["attitude/phi-rad"] - phi0
-    return plant.dt * np.arange(1, n + 1), y
+    return plant
+
+
+def quad_attitude_step(
+    gains: MultirotorGains | None = None, seconds: float = 1.5, step: float = math.radians(5.0)
+) -> StepResponse:
+    """Bank command stepped by ``step`` [rad] at hover."""
+    plant = _hover_on_fcs(gains or MultirotorGains.load())
+    plant["ap/roll-cmd-rad"] = plant["attitude/phi-rad"] + step
+    return _record(plant, _prop(plant, "attitude/phi-rad"), seconds, step)
+
+
+def quad_rate_step(gains: MultirotorGains | None = None, seconds: float = 2.0, step: float = 0.5) -> StepResponse:
+    """Roll-rate command stepped by ``step`` [rad/s] at hover (module docstring)."""
+    g = gains or MultirotorGains.load()
+    plant = _hover_on_fcs(replace(g, attitude=replace(g.attitude, kp_roll=RATE_PROBE_KP)))
+    plant["ap/roll-cmd-rad"] = plant["attitude/phi-rad"] + step / RATE_PROBE_KP
+    return _record(plant, _prop(plant, "velocities/p-rad_sec"), seconds, step)
+
+
+def _controller_step(gains: MultirotorGains, seconds: float, step: float, *, velocity: bool) -> StepResponse:
+    """East velocity (``velocity``) or east position stepped by ``step`` [m/s or m] with the
+    Python controller in the loop, after ``_SETTLE_S`` of hover on it."""
+    plant = _hover_on_fcs(gains)
+    ctrl = MultirotorController(gains)
+    ctrl.reset(plant.truth())
+    hold = plant.truth().pos_ned.copy()
+    every = round(1.0 / (60.0 * plant.dt))
+    dt_c = every * plant.dt
+
+    def control(sp: MultirotorSetpoint):
+        def before(k: int) -> None:
+            if k % every == 0:
+                plant.set_many(ctrl.update(plant.truth(), sp, dt_c))
+
+        return before
+
+    def east() -> float:
+        s = plant.truth()
+        return float(s.vel_ned[1] if velocity else s.pos_ned[1])
+
+    _record(plant, east, _SETTLE_S, step, control(MultirotorSetpoint(hold.copy())))
+    if velocity:
+        sp = MultirotorSetpoint(np.array([hold[0], math.nan, hold[2]]), np.array([0.0, step, 0.0]))
+    else:
+        sp = MultirotorSetpoint(hold + np.array([0.0, step, 0.0]))
+    return _record(plant, east, seconds, step, control(sp))
+
+
+def quad_velocity_step(gains: MultirotorGains | None = None, seconds: float = 12.0, step: float = 1.0) -> StepResponse:
+    """East velocity demand stepped by ``step`` [m/s] at hover (north and down positions held)."""
+    return _controller_step(gains or MultirotorGains.load(), seconds, step, velocity=True)
+
+
+def quad_position_step(gains: MultirotorGains | None = None, seconds: float = 10.0, step: float = 1.0) -> StepResponse:
+    """East position demand stepped by ``step`` [m] at hover."""
+    return _controller_step(gains or MultirotorGains.load(), seconds, step, velocity=False)

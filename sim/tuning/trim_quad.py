@@ -42,6 +42,8 @@ TOL_ACC = 1e-4  # [m/s^2]
 TOL_ROT = 1e-4  # [rad/s^2]
 MAX_TILT_DEG = 35.0  # controller tilt limit (gains.toml [limits] max_tilt_deg)
 
+ESC_SQRT_WEIGHT = 0.76  # ap/esc-sqrt-weight of systems/flight-control.xml
+
 
 def bypass_properties() -> dict[str, float]:
     """Properties that turn the quadrotor FCS into a pass-through of ``ap/motor-health[i]``."""
@@ -58,6 +60,13 @@ def bypass_properties() -> dict[str, float]:
         for g in ("kp", "ki", "kd"):
             props[f"ap/{g}-{ax}-rate"] = 0.0
     return props
+
+
+def hover_thrust_fraction(throttle: float) -> float:
+    """Per-motor thrust fraction of a motor ``throttle``: inverse of the FCS's thrust
+    linearisation throttle = w sqrt(f) + (1 - w) f (``ap/esc-sqrt-weight`` = ESC_SQRT_WEIGHT)."""
+    w = ESC_SQRT_WEIGHT
+    return ((-w + math.sqrt(w * w + 4 * (1 - w) * throttle)) / (2 * (1 - w))) ** 2
 
 
 def quad_plant(alt_m: float) -> JSBSimPlant:
