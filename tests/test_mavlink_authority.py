@@ -349,9 +349,13 @@ def test_scenario_mavlink_settings_reach_every_link(tmp_path):
     from sim.scenario import Mavlink
 
     (tmp_path / "key").write_text("s3cret")
+    port = free_port()
     cfg = Mavlink(
         enabled=True,
-        base_port=free_port(),
+        gcs_host="localhost",
+        base_port=port,
+        rate_hz=7.0,
+        pace=3.0,
         gcs_system_id=200,
         gcs_component_id=7,
         bind_host="127.0.0.1",
@@ -365,15 +369,18 @@ def test_scenario_mavlink_settings_reach_every_link(tmp_path):
     haps = SimpleNamespace(name="h", airframe=SimpleNamespace(kind="fixed_wing"), mission=quad.mission)
     session = MavlinkSession(cfg, [quad, haps], ORIGIN, SimpleNamespace(event=lambda *a, **k: None), (KEEP_OUT,))
     try:
-        for link in session.links:
+        assert session.pacer is not None and session.pacer.speed == 3.0
+        for k, link in enumerate(session.links):
             c = link.config
+            assert (c.gcs_host, c.gcs_port, c.rate_hz) == ("localhost", port + k, 7.0)
             assert (c.gcs_system_id, c.gcs_component_id, c.bind_host) == (200, 7, "127.0.0.1")
             assert c.signing_key == hashlib.sha256(b"s3cret").digest()
             assert link.envelope == Envelope(300.0, 5000.0, (KEEP_OUT,))
     finally:
         session.close()
-    default = MavlinkSession(Mavlink(base_port=free_port()), [quad, haps], ORIGIN, SimpleNamespace(), ())
+    default = MavlinkSession(Mavlink(base_port=free_port(), pace=0.0), [quad, haps], ORIGIN, SimpleNamespace(), ())
     try:
+        assert default.pacer is None  # pace 0: sim time, no waiting
         assert [(lk.envelope.max_height_m, lk.envelope.max_range_m) for lk in default.links] == [
             (1000.0, 20_000.0),
             (25_000.0, 500_000.0),

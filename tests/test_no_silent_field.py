@@ -1,13 +1,19 @@
-"""No silent field: every field of the scenario schema acts on the run's log, or is a label.
+"""No silent field: every field of the scenario schema acts on the run, or is a label.
 
 The walk covers the whole schema (nested sections, every member of a tagged union, the planner
 types' options from the registry). Each field must be in exactly one of:
 
-- ``EFFECTS``: a change of the field, applied to a short baseline run (3 s of sim time, ideal
+- ``EFFECTS``: a change of the field, applied to a short baseline run (1-11 s of sim time, ideal
   sensors unless the field is a sensor's), must change the MCAP log (some channel's messages);
+- ``DECISIONS``: planner options. The type's planner, built from the scenario as the runner
+  builds it, re-run on the recorded inputs of a short encounter of that type (traffic,
+  obstacles, storms; flown once per module), must make another plan at some call (inputs equal
+  up to that call: the closed loop logs the difference there); the few ``RECORDS_ONLY``
+  options must make another planner record (candidate costs, rule decisions);
+- ``REPORT``: metrics thresholds, which must change the run's metrics report in the log;
 - ``LABELS``: names and tags that only identify things;
-- ``SHOWN_ELSEWHERE``: fields whose effect needs more than a short run, with the test that shows it;
-- ``NOT_YET_SHOWN``: fields no test shows acting yet (issue 15 work list; must only shrink).
+- ``SHOWN_ELSEWHERE``: fields that need a ground-station socket or have one valid value, with
+  the tests that show them (checked to exist).
 
 A new schema field fails ``test_every_field_is_accounted_for`` until it is placed.
 """
@@ -16,19 +22,30 @@ from __future__ import annotations
 
 import copy
 import importlib.util
+import json
+import re
 import typing
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import pytest
 import tomli_w
 from pydantic import BaseModel
 
+from aircraft.registry import get_airframe
 from sim import scenario as sc
+from sim.core.plan import Plan, Planner, Threats
+from sim.core.state import VehicleState
+from sim.mcap_read import read_info
+from sim.planner_records import WALLCLOCK_FIELDS, RecordSink
+from sim.planner_registry import PLANNERS
+from sim.replay.rerun import RerunReport, rerun_planner
 from sim.runner import run_scenario
+from sim.vehicle_setup import scenario_planner
 
 ROOT = Path(__file__).resolve().parents[1]
 _spec = importlib.util.spec_from_file_location("compare_log_payloads", ROOT / "scripts" / "compare_log_payloads.py")
+assert _spec is not None and _spec.loader is not None
 _compare = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(_compare)
 
@@ -55,7 +72,7 @@ def schema_fields(model: type[BaseModel] = sc.Scenario, prefix: str = "") -> lis
 
 # --- the baselines: short runs with every optional section present --------------------------
 
-_QUAD = {
+_QUAD: dict[str, typing.Any] = {
     "name": "silent_quad",
     "seed": 5,
     "duration": 3.0,
@@ -157,6 +174,12 @@ def _near_start_mission(d: dict) -> None:
     _quad(d)["mission"].update(waypoints=[{"north": 0.0, "east": 0.0, "altitude": 420.0}], acceptance_radius=2.0)
 
 
+def _haps_near_start_mission(d: dict) -> None:
+    """The HAPS starts within its acceptance radius of its only waypoint: the mission completes
+    at once."""
+    _quad(d)["mission"].update(waypoints=[{"north": 60.0, "east": 0.0, "altitude": 18000.0}], acceptance_radius=100.0)
+
+
 def _weather_for(duration: float) -> Callable[[dict], None]:
     """The weather section and a run long enough for a second nowcast."""
 
@@ -172,6 +195,18 @@ def _gains(d: dict, tmp: Path) -> None:
     _quad(d)["gains"] = str(tmp / "gains.toml")
 
 
+def _scheduled(soc: float) -> Callable[[dict], None]:
+    """Energy management by altitude (17-19 km) from state of charge ``soc`` at night (the
+    battery drains: a HAPS at the ceiling's threshold 0.95 falls below 0.94995 within 2 s)."""
+
+    def prepare(d: dict) -> None:
+        d["start_time"] = "2026-06-21T00:00:00Z"
+        _quad(d)["energy"] = {"initial_soc": soc, "altitude_schedule": {"floor": 17000.0, "ceiling": 19000.0}}
+
+    return prepare
+
+
+_NOWCASTS = str(ROOT / "scenarios" / "mptp" / "nowcasts") + "/"
 _QUAD_MISSION_HIGH = {"cruise_speed": 4.0, "waypoints": [{"north": 5.0, "east": 0.0, "altitude": 18000.0}]}
 
 # (baseline, preparation applied to both runs or None, the change)
@@ -219,6 +254,11 @@ EFFECTS: dict[str, Effect] = {
     "weather.centres": (_QUAD, _set("weather", _WEATHER), _set("weather.centres", [[1000.0, 1000.0]] * 4)),
     "weather.seed": (_QUAD, _set("weather", _WEATHER), _set("weather.seed", 11)),
     "weather.pop_up": (_QUAD, _set("weather", _WEATHER), _set("weather.pop_up", False)),
+    "weather.nowcast_files": (
+        _QUAD,
+        _set("weather", {"nowcast_files": [_NOWCASTS + "nowcast_00000s.geojson"]}),
+        _set("weather.nowcast_files", [_NOWCASTS + "nowcast_00300s.geojson"]),  # issued at 300 s
+    ),
     "weather.storm.points": (
         _QUAD,
         _set("weather", _WEATHER | {"storm": [{"points": [[0, 0], [0, 900], [900, 0]]}]}),
@@ -307,11 +347,34 @@ EFFECTS: dict[str, Effect] = {
     "vehicle.mission.waypoints.hold": (_QUAD, None, _set("vehicle.0.mission.waypoints.0.hold", 0.0)),
     "vehicle.mission.waypoints.yaw": (_QUAD, None, _set("vehicle.0.mission.waypoints.0.yaw", 90.0)),
     "vehicle.mission.land": (_QUAD, _near_start_mission, _set("vehicle.0.mission.land", True)),
+    "vehicle.mission.repeat": (_HAPS, _haps_near_start_mission, _set("vehicle.0.mission.repeat", True)),
     "vehicle.mission.guidance": (_QUAD, None, _set("vehicle.0.mission.guidance", "step")),
+    "vehicle.energy.enabled": (_HAPS, None, _set("vehicle.0.energy.enabled", False)),
+    "vehicle.energy.initial_soc": (_HAPS, None, _set("vehicle.0.energy.initial_soc", 0.5)),
+    "vehicle.energy.altitude_schedule.floor": (
+        _HAPS,
+        _scheduled(0.93),
+        _set("vehicle.0.energy.altitude_schedule.floor", 16000.0),
+    ),
+    "vehicle.energy.altitude_schedule.ceiling": (
+        _HAPS,
+        _scheduled(1.0),
+        _set("vehicle.0.energy.altitude_schedule.ceiling", 20000.0),
+    ),
+    "vehicle.energy.altitude_schedule.soc_high": (
+        _HAPS,
+        _scheduled(0.93),
+        _set("vehicle.0.energy.altitude_schedule.soc_high", 0.92),
+    ),
+    "vehicle.energy.altitude_schedule.soc_low": (
+        _HAPS,
+        _scheduled(0.95),
+        _set("vehicle.0.energy.altitude_schedule.soc_low", 0.94995),
+    ),
     "vehicle.planner<FollowMissionPlanner>.rate_hz": (_QUAD, None, _set("vehicle.0.planner.rate_hz", 2.0)),
 }
 
-_LIDAR = {
+_LIDAR: dict[str, object] = {
     "latency_s": 0.05,
     "max_range_m": 6.0,
     "azimuth_min_deg": -60.0,
@@ -322,6 +385,13 @@ _LIDAR = {
     "elevation_step_deg": 4.0,
     "return_probability": 0.5,
     "dropout": 0.9,
+    "rate_hz": 10.0,
+    "frame": "body",
+    "range_error.noise_std": 0.5,
+    "range_error.bias_init_std": 0.5,
+    "range_error.bias_rw": 0.5,
+    "range_error.scale_factor_std": 0.05,
+    "range_error.quantum": 0.5,
     "range_resolution_m": 0.5,
 }
 for _k, _v in _LIDAR.items():
@@ -342,7 +412,7 @@ def _sensor_value(sensor: str, field: str, default: object) -> float:
         return 0.5
     if field.endswith("scale_factor_std"):
         return 0.05
-    return 2.0 * float(default) if default else 0.5
+    return 2.0 * float(typing.cast(float, default)) if default else 0.5
 
 
 def _sensor_effects() -> dict[str, Effect]:
@@ -351,7 +421,7 @@ def _sensor_effects() -> dict[str, Effect]:
         if not f.startswith("vehicle.sensors.") or f == "vehicle.sensors.preset" or f in SHOWN_ELSEWHERE:
             continue
         parts = f.split(".")[2:]
-        model: typing.Any = sc.SensorsSpec.model_fields[parts[0]].annotation.__args__[0]
+        model: typing.Any = typing.get_args(sc.SensorsSpec.model_fields[parts[0]].annotation)[0]
         cfg = model()
         default = cfg
         for p in parts[1:]:
@@ -380,67 +450,440 @@ LABELS = {
     **{f"fault<{k}>.kind": "the union's tag" for k in _FAULTS},
 }
 
+_WIRED = "tests/test_mavlink_authority.py::test_scenario_mavlink_settings_reach_every_link (scenario to every link)"
 SHOWN_ELSEWHERE = {
     "vehicle.sensors.imu.dropout": "only 0 is valid (the IMU drives the filter): tests/test_sensors_config.py",
     "vehicle.sensors.imu.latency_s": "only 0 is valid (the IMU is the time base): tests/test_sensors_config.py",
-    "mavlink.enabled": "tests/test_mavlink_live.py (needs a ground-station socket)",
-    "mavlink.gcs_host": "tests/test_mavlink_live.py",
-    "mavlink.base_port": "tests/test_mavlink_live.py",
-    "mavlink.rate_hz": "tests/test_mavlink_live.py",
-    "mavlink.pace": "tests/test_mavlink_live.py",
+    # MAVLink needs a ground-station socket: the scenario's settings reach every link, and each
+    # link setting acts in its own test
+    "mavlink.enabled": "tests/test_mavlink_live.py::test_gcs_uploads_a_mission_that_the_vehicle_flies",
+    "mavlink.base_port": f"{_WIRED}; tests/test_mavlink_live.py::test_gcs_uploads_a_mission_that_the_vehicle_flies",
+    "mavlink.gcs_host": f"{_WIRED}; tests/test_mavlink_authority.py::"
+    "test_non_loopback_gcs_needs_an_explicit_bind_and_loopback_is_the_default",
+    "mavlink.bind_host": f"{_WIRED}; tests/test_mavlink_authority.py::"
+    "test_non_loopback_gcs_needs_an_explicit_bind_and_loopback_is_the_default",
+    "mavlink.rate_hz": f"{_WIRED}; tests/test_mavlink_bridge.py::test_rates_are_limited_by_sim_time",
+    "mavlink.pace": f"{_WIRED}; tests/test_mavlink_replay.py::test_pacer_holds_sim_time_to_n_times_wall_time",
+    "mavlink.gcs_system_id": f"{_WIRED}; tests/test_mavlink_live.py::"
+    "test_upload_from_another_system_id_is_refused_and_the_flight_unchanged",
+    "mavlink.gcs_component_id": f"{_WIRED}; tests/test_mavlink_authority.py::test_configured_component_is_required",
+    "mavlink.signing_key_file": "tests/test_mavlink_live.py::"
+    "test_with_signing_the_signed_gcs_is_obeyed_and_unsigned_commands_refused",
+    "mavlink.max_height": f"{_WIRED}; tests/test_mavlink_authority.py::"
+    "test_position_targets_outside_the_envelope_are_dropped",
+    "mavlink.max_range": f"{_WIRED}; tests/test_mavlink_authority.py::"
+    "test_mission_items_outside_the_envelope_are_refused",
 }
 EFFECTS |= _sensor_effects()
+
+
+# --- planner options: decisions on the recorded inputs of a short encounter per planner type ---
+#
+# A planner option acts where the planner decides: each type has a short encounter baseline
+# (traffic, obstacles, storms), flown once per module. The planner is then built from the
+# scenario twice, through the runner's own construction (``scenario_planner``), before and after
+# the option's change, and re-run on the baseline's recorded inputs (``rerun_planner``); its
+# plans and its own log records (wall-clock fields left out) must differ at some call. Inputs
+# equal up to that call, the closed loop logs a different plan or record there.
+
+
+def _uas(name: str, north: float, east: float, heading: float, goal: tuple[float, float], options: dict) -> dict:
+    return {
+        "name": name,
+        "aircraft": "quadrotor",
+        "estimator": "perfect",
+        "initial": {"north": north, "east": east, "altitude": 420.0, "heading": heading},
+        "mission": {
+            "cruise_speed": 5.0,
+            "acceptance_radius": 1.0,
+            "waypoints": [{"north": goal[0], "east": goal[1], "altitude": 420.0}],
+        },
+        "planner": {"type": "reachset", "rate_hz": 1.0, "options": options},
+    }
+
+
+_ORIGIN = {"lat": 47.0, "lon": 8.0, "altitude": 400.0}
+_TRACKER = {
+    "rate_hz": 10,
+    "latency": 0.1,
+    "position_noise_horizontal": 0.3,
+    "position_noise_vertical": 0.3,
+    "velocity_noise": 0.2,
+}
+_RULES = ["detect", "resolve", "close", "head_on", "converging", "overtake", "right_plane_heading", "safety_margin"]
+
+
+def _sphere(name: str, radius: float, north: float, east: float, alt: float, **more: object) -> dict:
+    return {"id": name, "radius": radius, "north": north, "east": east, "altitude": alt, **more}
+
+
+ENCOUNTERS: dict[str, dict] = {
+    # a quadrotor meets a climbing main threat, two diagonal ones, two spheres that appear on
+    # either side of its avoidance path at 0.6 s and one far down the reference
+    "geometric": {
+        "name": "silent_geometric",
+        "seed": 3,
+        "duration": 1.0,
+        "origin": _ORIGIN,
+        "surveillance": _TRACKER,
+        "object": [
+            _sphere("main", 2.0, 14.0, 0.0, 418.0, velocity={"down": -1.0}),
+            _sphere("diag_a", 1.0, 8.0, 8.0, 424.0, velocity={"north": 1.5, "east": -1.5}),
+            _sphere("diag_b", 1.0, 22.0, -8.0, 424.0, velocity={"north": -1.5, "east": 1.5}),
+            _sphere("late_west", 1.5, 11.5, -6.0, 420.0, appear=0.6),
+            _sphere("late_east", 1.5, 11.5, 6.0, 420.0, appear=0.6),
+            _sphere("far", 1.0, 55.0, 0.0, 420.0),
+        ],
+        "vehicle": [
+            {
+                "name": "quad",
+                "aircraft": "quadrotor",
+                "estimator": "perfect",
+                "initial": {"altitude": 420.0},
+                "mission": {
+                    "cruise_speed": 5.0,
+                    "acceptance_radius": 2.0,
+                    "waypoints": [{"north": 60.0, "east": 0.0, "altitude": 420.0}],
+                },
+                "planner": {"type": "geometric", "rate_hz": 10.0},
+            }
+        ],
+    },
+    # three reach-set quadrotors (head-on and converging) by a building, under a keep-in
+    # ceiling and beside a keep-out zone
+    "reachset": {
+        "name": "silent_reachset",
+        "seed": 3,
+        "duration": 3.0,
+        "origin": _ORIGIN,
+        "surveillance": _TRACKER | {"rate_hz": 2},
+        "obstacle": [
+            {"id": "mast", "shape": "box", "north": 6.0, "east": 10.0, "length": 2.0, "width": 2.0, "top": 440.0}
+        ],
+        "geofence": [
+            {"id": "zone", "points": [[-60, -60], [-60, 100], [60, 100], [60, -60]], "floor": 300.0, "ceiling": 430.0},
+            {
+                "id": "nofly",
+                "keep_in": False,
+                "points": [[-3, 12], [-3, 22], [-12, 12]],
+                "floor": 300.0,
+                "ceiling": 500.0,
+            },
+        ],
+        "vehicle": [
+            _uas("uas1", 0.0, 0.0, 90.0, (0.0, 80.0), {}),
+            _uas("uas2", 0.0, 40.0, 270.0, (0.0, -40.0), {}),
+            _uas("uas3", -25.0, 25.0, 0.0, (40.0, 25.0), {}),
+        ],
+    },
+    # the same three under the rules of the air in open air: a head-on and a converging case open
+    "rules": {
+        "name": "silent_rules",
+        "seed": 3,
+        "duration": 5.0,
+        "origin": _ORIGIN,
+        "surveillance": _TRACKER | {"rate_hz": 2},
+        "vehicle": [
+            _uas("uas1", 0.0, 0.0, 90.0, (0.0, 80.0), {"rules": _RULES}),
+            _uas("uas2", 0.0, 60.0, 270.0, (0.0, -40.0), {"rules": _RULES}),
+            _uas("uas3", -30.0, 30.0, 0.0, (40.0, 30.0), {"rules": _RULES}),
+        ],
+    },
+    # two of them under the rules of the air: one converging case, resolved, then closed at 10 s
+    "rules_pair": {
+        "name": "silent_rules_pair",
+        "seed": 3,
+        "duration": 11.0,
+        "origin": _ORIGIN,
+        "surveillance": _TRACKER | {"rate_hz": 2},
+        "vehicle": [
+            _uas("uas1", 0.0, 0.0, 90.0, (0.0, 80.0), {"rules": _RULES}),
+            _uas("uas3", -30.0, 30.0, 0.0, (40.0, 30.0), {"rules": _RULES}),
+        ],
+    },
+    # a quadrotor pursues one of two others
+    "pursuit": {
+        "name": "silent_pursuit",
+        "seed": 3,
+        "duration": 1.0,
+        "origin": _ORIGIN,
+        "surveillance": _TRACKER,
+        "vehicle": [
+            _uas("uas1", 0.0, 0.0, 90.0, (0.0, 80.0), {}) | {"planner": {"type": "follow_mission"}},
+            _uas("uas2", 30.0, 0.0, 90.0, (30.0, 80.0), {}) | {"planner": {"type": "follow_mission"}},
+            _uas("chaser", 15.0, -20.0, 90.0, (15.0, 80.0), {})
+            | {"planner": {"type": "pursuit", "rate_hz": 2.0, "options": {"target": "uas1"}}},
+        ],
+    },
+    # the HAPS at 18 km before a line of three storm cells (shipped mptp/storm_crossing.toml),
+    # heading north, a right angle off its goal (its first legs turn); 40 search expansions
+    # keep each replan cheap
+    "mptp": {
+        "name": "silent_mptp",
+        "seed": 5,
+        "duration": 2.0,
+        "start_time": "2026-06-21T14:00:00Z",
+        "origin": {"lat": 47.0, "lon": 8.0, "altitude": 0.0},
+        "weather": {
+            "cells": 3,
+            "size": 60000.0,
+            "drift_east": 2.0,
+            "drift_spread": 0.5,
+            "radius": 3000.0,
+            "split_probability": 0.0,
+            "life": 18000.0,
+            "centres": [[0, 22000], [9000, 30000], [-9000, 32000]],
+            "nowcast_period": 300.0,
+        },
+        "vehicle": [
+            {
+                "name": "haps",
+                "aircraft": "haps",
+                "estimator": "perfect",
+                "initial": {"altitude": 18000.0, "airspeed": 26.0, "heading": 0.0},
+                "mission": {
+                    "cruise_speed": 26.0,
+                    "acceptance_radius": 500.0,
+                    "waypoints": [{"north": 0.0, "east": 50000.0, "altitude": 18000.0}],
+                },
+                "planner": {"type": "mptp", "rate_hz": 1.0, "options": {"max_expansions": 40}},
+            }
+        ],
+    },
+}
+
+
+def _options(**values: object) -> Callable[[dict], None]:
+    """A change setting planner options of every vehicle whose planner takes options (all but
+    follow_mission)."""
+
+    def change(d: dict) -> None:
+        for v in d["vehicle"]:
+            if v["planner"]["type"] != "follow_mission":
+                v["planner"].setdefault("options", {}).update(values)
+
+    return change
+
+
+_GEOMETRIC = {
+    "caps": {"time_lo": 1.0, "time_hi": 5.0, "energy_lo": 100.0, "energy_hi": 900.0},
+    "cmo_max_objects": 1,
+    "cmo_max_range_m": 5.0,
+    "cmo_min_distance": 5.0,
+    "cmo_threat_samples": 3,
+    "collision_radius": 6.0,
+    "conflict_horizon_s": 0.5,
+    "dynamic_mode": "swept",
+    "g": 5.0,
+    "hover_literal_ki": True,
+    "k1": 5.0,
+    "k2": 5.0,
+    "k_p": 100.0,
+    "k_sigma": 2.0,
+    "l": 6,
+    "log_limits": [[-3.0, 2.5], [-0.1, 0.1], [-3.0, 0.001]],
+    "main_threat_extension_s": 3.0,
+    "max_cost": 0.01,
+    "min_replan_interval_s": 5.0,
+    "min_sep_factor": 4.0,
+    "n_planes": 1,
+    "omega_factor": 5.0,
+    "path_types": ["simple"],
+    "rejoin_check_s": 8.0,
+    "replan_max_offset_m": 0.0,
+    "rho": 0.3,
+    "select_margin_m": 3.0,
+    "smoothness": "second_derivative",
+    "start_shift_s": 0.0,
+    "uav_shape": "sphere_circumscribed",
+    "weights": [0.8, 0.1, 0.1],
+    "x_step_fraction": 0.3,
+}
+_REACHSET = {
+    "period": 0.5,
+    "constraint_margin": 3.0,
+    "constraint_mode": "circle",
+    "intruder_margin": 4.0,
+    "separations": ["horizontal"],
+}
+_RULES_OPTIONS = {
+    "rules": [r for r in _RULES if r != "head_on"],
+    "rules_unit": 2.0,
+    "rules_universal": 8.0,
+    "rules_head_on": 9.0,
+    "rules_overtake": 9.0,
+    "rules_plane_tolerance": 3.0,
+    "rules_widest": False,
+    "rules_bloat": 3.0,
+    "rules_time_margin": 0.5,
+    "rules_established_speed": 0.2,
+    "rules_settle": 5.0,
+    "rules_deadlock_frames": 1,
+    "rules_filed": {"uas2": {"category": "balloon"}, "uas3": {"category": "balloon"}},
+}
+_MPTP = {
+    "bank_max": 0.2,
+    "cluster_eps_m": 9000.0,
+    "course_change_max": 0.5,
+    "dt_s": 45.0,
+    "g": 5.0,
+    "goal_track": [[0.0, 0.0, 50000.0], [3600.0, 10000.0, 50000.0]],
+    "heuristic": "dijkstra",
+    "horizon_s": 600.0,
+    "line_aspect": 1.1,
+    "max_expansions": 5,
+    "mission_area": [[-20000, -5000], [-20000, 60000], [5000, 60000], [5000, -5000]],
+    "prob_margin_max_m": 1000.0,
+    "probability": 0.5,
+    "replan_period_s": 1.0,
+    "ring_segments": 8,
+    "safety_single_m": [1000.0, 1000.0, 1000.0],
+    "sigma_back_mps": 3.0,
+    "sigma_front_mps": 3.0,
+    "simplify_tol_m": 2000.0,
+    "tas_mps": 20.0,
+    "turning": "left",
+    "wind_error_ne_mps": [5.0, 5.0],
+}
+
+# (encounter, preparation applied before and after or None, the change)
+Decision = tuple[str, Callable[[dict], None] | None, Callable[[dict], None]]
+_PLANNER_MODEL = {
+    "geometric": "GeometricPlanner",
+    "reachset": "ReachsetPlanner",
+    "rules": "ReachsetPlanner",
+    "rules_pair": "ReachsetPlanner",
+    "pursuit": "PursuitPlanner",
+    "mptp": "MptpPlanner",
+}
+
+
+def _decision_table() -> dict[str, Decision]:
+    out: dict[str, Decision] = {}
+    for kind, values in (
+        ("geometric", _GEOMETRIC),
+        ("reachset", _REACHSET),
+        ("rules", _RULES_OPTIONS),
+        ("mptp", _MPTP),
+    ):
+        for k, v in values.items():
+            out[f"vehicle.planner<{_PLANNER_MODEL[kind]}>.options.{k}"] = (kind, None, _options(**{k: v}))
+    prefix = "vehicle.planner<GeometricPlanner>.options."
+    out[prefix + "uav_shape"] = (
+        "geometric",
+        _options(collision_radius=4.0),
+        _options(uav_shape="sphere_circumscribed"),
+    )
+    out[prefix + "main_threat_extension_s"] = (
+        "geometric",
+        _options(dynamic_mode="swept"),
+        _options(main_threat_extension_s=3.0),
+    )
+    prefix = "vehicle.planner<MptpPlanner>.options."
+    out[prefix + "safety_line_m"] = ("mptp", _options(line_aspect=1.0), _options(safety_line_m=[1000.0] * 3))
+    out[prefix + "wind_forecast"] = ("mptp", _set("wind.east", 10.0), _options(wind_forecast="none"))
+    prefix = "vehicle.planner<ReachsetPlanner>.options.rules_"
+    filed = _options(rules_filed={"uas3": {"category": "uas_autonomous", "maneuverability": "vtol"}})
+    out[prefix + "converging"] = ("rules_pair", None, _options(rules_converging=20.0))
+    out[prefix + "navigation"] = ("rules_pair", None, _options(rules_navigation=["vertical"]))
+    out[prefix + "navigation_spread"] = ("rules_pair", None, _options(rules_navigation_spread=50))
+    out[prefix + "converging_extra"] = ("rules_pair", None, _options(rules_converging_extra=4.0))
+    out[prefix + "category"] = ("rules_pair", filed, _options(rules_category="manned"))
+    out[prefix + "maneuverability"] = ("rules_pair", filed, _options(rules_maneuverability="linear_propulsion"))
+    out[prefix + "barrel_half_height"] = (
+        "rules_pair",
+        _options(rules_airspace="controlled"),
+        _options(rules_barrel_half_height=0.5),
+    )
+    out[prefix + "airspace"] = (
+        "rules_pair",
+        _options(rules_barrel_half_height=0.5),
+        _options(rules_airspace="controlled"),
+    )
+    out[prefix + "close_after"] = ("rules_pair", None, _options(rules_close_after=5))
+    out["vehicle.planner<PursuitPlanner>.options.target"] = ("pursuit", None, _options(target="uas2"))
+    return out
+
+
+DECISIONS = _decision_table()
+
+# options that change the planner's logged decision records but not the plan flown in their
+# encounter: the geometric avoider's energy and hover-power terms (g, rho, hover_literal_ki) are
+# diagnostics outside the cost (spec avoidance-geometric.md §5); the others change candidate
+# clearances and costs, or the rules' disabled nodes, case margins and chains, without moving
+# the chosen path in a few seconds of flight
+RECORDS_ONLY = {
+    *(
+        f"vehicle.planner<GeometricPlanner>.options.{k}"
+        for k in ("cmo_threat_samples", "dynamic_mode", "g", "hover_literal_ki", "main_threat_extension_s", "rho")
+    ),
+    *(
+        f"vehicle.planner<ReachsetPlanner>.options.rules_{k}"
+        for k in (
+            "airspace",
+            "barrel_half_height",
+            "bloat",
+            "close_after",
+            "converging_extra",
+            "filed",
+            "overtake",
+            "plane_tolerance",
+            "widest",
+        )
+    ),
+}
+
+# the planner's call rate acts in the closed loop: the calls are at other times
+for _kind, _model in _PLANNER_MODEL.items():
+    if not _kind.startswith("rules"):
+        _chaser = 2 if _kind == "pursuit" else 0
+        EFFECTS[f"vehicle.planner<{_model}>.rate_hz"] = (
+            ENCOUNTERS[_kind],
+            None,
+            _set(f"vehicle.{_chaser}.planner.rate_hz", 0.5),
+        )
+
+
+# the metrics thresholds act on the run's metrics report (the log's ``metrics`` metadata): field ->
+# (its changed value [m], the kite clearance flag it turns off). The kite passes about 23 m off
+# and 3 m above the quadrotor, inside every default volume.
+REPORT = {
+    "metrics.well_clear_horizontal": (10.0, "lowc"),
+    "metrics.well_clear_vertical": (1.0, "lowc"),
+    "metrics.nmac_horizontal": (10.0, "nmac"),
+    "metrics.nmac_vertical": (1.0, "nmac"),
+}
 
 
 def _planner_fields() -> list[str]:
     return [f for f in schema_fields() if f.startswith("vehicle.planner<")]
 
 
-# planner types and their options act only in encounters (traffic, obstacles, storms): each
-# needs its own short encounter baseline
-NOT_YET_SHOWN = {
-    "metrics.well_clear_horizontal": "acts on the report's metrics, not on the log",
-    "metrics.well_clear_vertical": "acts on the report's metrics, not on the log",
-    "weather.nowcast_files": "nowcast GeoJSON files from disk (new on main): needs a nowcast-file fixture",
-    **{
-        f"mavlink.{k}": "new on main (MAVLink hardening): needs a ground-station socket, not checked here"
-        for k in ("bind_host", "gcs_component_id", "gcs_system_id", "max_height", "max_range", "signing_key_file")
-    },
-    **dict.fromkeys(
-        (
-            "metrics.nmac_horizontal",
-            "metrics.nmac_vertical",
-            "vehicle.energy.altitude_schedule.ceiling",
-            "vehicle.energy.altitude_schedule.floor",
-            "vehicle.energy.altitude_schedule.soc_high",
-            "vehicle.energy.altitude_schedule.soc_low",
-            "vehicle.energy.enabled",
-            "vehicle.energy.initial_soc",
-            "vehicle.mission.repeat",
-        ),
-        "new on main while issue 15 was open (energy model, NMAC volume, mission repeat): to be shown",
-    ),
-    **{
-        f"vehicle.lidar.{k}": "acts on the reach-set planner's occupancy grid; follow_mission logs only hit counts"
-        for k in ("rate_hz", "frame", *(f"range_error.{e}" for e in _RANGE_ERROR))
-    },
-    **{
-        f: "planner option: needs an encounter baseline per planner type"
-        for f in _planner_fields()
-        if f not in EFFECTS and not f.endswith(".type")
-    },
-}
 LABELS |= {f: "the planner union's tag" for f in _planner_fields() if f.endswith(".type")}
 
 
 def test_every_field_is_accounted_for():
     fields = set(schema_fields())
-    lists = {"EFFECTS": EFFECTS, "LABELS": LABELS, "SHOWN_ELSEWHERE": SHOWN_ELSEWHERE, "NOT_YET_SHOWN": NOT_YET_SHOWN}
+    lists: dict[str, Mapping[str, object]] = {
+        "EFFECTS": EFFECTS,
+        "DECISIONS": DECISIONS,
+        "REPORT": REPORT,
+        "LABELS": LABELS,
+        "SHOWN_ELSEWHERE": SHOWN_ELSEWHERE,
+    }
     placed = [f for d in lists.values() for f in d]
     twice = sorted({f for f in placed if placed.count(f) > 1})
     assert not twice, f"fields in more than one list: {twice}"
+    assert not RECORDS_ONLY - DECISIONS.keys(), "records-only options must be planner options"
     assert not sorted(fields - set(placed)), "fields with no shown effect and no label"
     assert not sorted(set(placed) - fields), "listed fields that are not in the schema"
+
+
+def test_tests_named_as_showing_a_field_exist():
+    named = {ref for where in SHOWN_ELSEWHERE.values() for ref in re.findall(r"(tests/\w+\.py)(?:::(\w+))?", where)}
+    for file, test in sorted(named):
+        assert (ROOT / file).is_file(), file
+        assert not test or re.search(rf"^def {test}\(", (ROOT / file).read_text(), re.M), f"{file}::{test}"
 
 
 _BASELINES: dict[str, dict[str, tuple]] = {}
@@ -471,3 +914,130 @@ def test_field_changes_the_log(field, tmp_path):
     diff = _digests(after, tmp_path, "after")
     changed = sorted(t for t in diff.keys() | _BASELINES[key].keys() if diff.get(t) != _BASELINES[key].get(t))
     assert changed, f"{field}: the log is identical"
+
+
+class _Records:
+    """Stands in for the run log of a planner's own records: keeps each record (topic, sim time,
+    payload) with the planner type's wall-clock fields left out."""
+
+    epoch_ns = 0
+
+    def __init__(self, kind: str) -> None:
+        self.kind = kind
+        self.out: list[tuple] = []
+
+    def write_json(self, topic: str, t: float, payload: dict, *_schema: object) -> None:
+        payload = copy.deepcopy(payload)
+        for dotted in WALLCLOCK_FIELDS.get(self.kind, {}).get(topic.split("/plan", 1)[1], ()):
+            *head, last = dotted.split(".")
+            node = payload
+            for part in head:
+                node = node.get(part, {})
+            node.pop(last, None)
+        self.out.append((topic, t, json.dumps(payload, sort_keys=True, default=str)))
+
+    def write_proto(self, topic: str, t: float, message: typing.Any, *_metadata: object) -> None:
+        self.out.append((topic, t, message.SerializeToString(deterministic=True)))
+
+
+def _decisions(path: Path, data: dict, vehicle: str) -> tuple[RerunReport, list[tuple]]:
+    """``vehicle``'s planner built from the scenario ``data`` as the runner builds it, re-run on
+    the log at ``path``: the report against the logged plans, and every new plan and record."""
+    scenario = sc.parse_scenario(data, "decisions")
+    cfg = next(v for v in scenario.vehicle if v.name == vehicle)
+    af = get_airframe(cfg.aircraft)
+    gains = af.make_controller(cfg.gains).gains
+    records = PLANNERS[cfg.planner.type].records
+    log = _Records(cfg.planner.type)
+    sink = RecordSink(typing.cast(typing.Any, log), f"/{vehicle}/plan", scenario.origin_point)
+
+    class Recorded:
+        def __init__(self, inner: Planner) -> None:
+            self.inner, self.name = inner, inner.name
+
+        def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
+            p = self.inner.plan(estimate, threats, t)
+            if p.t == t:
+                log.out.append(
+                    ("plan", t, p.status.value, p.positions.tobytes(), p.times.tobytes(), p.labels.tobytes())
+                )
+            if records is not None:
+                records(sink, self.inner, p, t)
+            return p
+
+    wind = (scenario.wind.north, scenario.wind.east)
+    report = rerun_planner(path, vehicle, lambda m: Recorded(scenario_planner(cfg, m, af, gains, wind)))
+    return report, log.out
+
+
+_FLOWN: dict[str, Path] = {}
+_REPLAYED: dict[tuple[str, str, str], list[tuple]] = {}
+
+
+def _replayed(kind: str, data: dict, vehicle: str, tmp_path_factory: pytest.TempPathFactory) -> list[tuple]:
+    """Decisions of ``vehicle`` planned from ``data`` on the flown encounter ``kind`` (each
+    encounter flown once per module and checked to re-run plan for plan)."""
+    if kind not in _FLOWN:
+        base = ENCOUNTERS[kind]
+        path = tmp_path_factory.mktemp(kind) / "run.mcap"
+        run_scenario(sc.parse_scenario(base, kind), path, scenario_text=tomli_w.dumps(base))
+        for v in _planned(base):
+            report, _ = _decisions(path, base, v)
+            assert report.plans > 0 and report.differences == [], f"{kind}: {vehicle} does not re-run its plans"
+        _FLOWN[kind] = path
+    key = (kind, tomli_w.dumps(data), vehicle)
+    if key not in _REPLAYED:
+        _REPLAYED[key] = _decisions(_FLOWN[kind], data, vehicle)[1]
+    return _REPLAYED[key]
+
+
+def _planned(data: dict) -> list[str]:
+    return [v["name"] for v in data["vehicle"] if v["planner"]["type"] != "follow_mission"]
+
+
+@pytest.mark.closed_loop
+@pytest.mark.parametrize("field", sorted(DECISIONS))
+def test_planner_option_changes_a_decision(field, tmp_path_factory):
+    kind, prepare, change = DECISIONS[field]
+    before = copy.deepcopy(ENCOUNTERS[kind])
+    if prepare is not None:
+        prepare(before)
+    after = copy.deepcopy(before)
+    change(after)
+    assert after != before, "the change changes nothing in the scenario"
+    what = "record" if field in RECORDS_ONLY else "plan"
+    assert any(
+        _of(what, _replayed(kind, after, v, tmp_path_factory))
+        != _of(what, _replayed(kind, before, v, tmp_path_factory))
+        for v in _planned(before)
+    ), f"{field}: every {what} is the same"
+
+
+def _of(what: str, decisions: list[tuple]) -> list[tuple]:
+    """The plans (``what`` = "plan") or the planner's own records of a re-run."""
+    return [d for d in decisions if (d[0] == "plan") == (what == "plan")]
+
+
+_KITE: dict[str, object] = {}
+
+
+def _kite_clearance(data: dict, tmp: Path, tag: str) -> dict:
+    """The quadrotor's clearance record of the kite in the run's metrics, read from its log."""
+    path = tmp / f"{tag}.mcap"
+    run_scenario(sc.parse_scenario(data, tag), path, scenario_text=tomli_w.dumps(data))
+    metrics = json.loads(read_info(path).metadata["metrics"]["json"])
+    return metrics["vehicles"]["quad"]["clearance"]["object.kite"]
+
+
+@pytest.mark.closed_loop
+@pytest.mark.parametrize("field", sorted(REPORT))
+def test_metrics_threshold_changes_the_report(field, tmp_path):
+    value, flag = REPORT[field]
+    before = copy.deepcopy(_QUAD)
+    before["object"][0]["altitude"] = 424.0
+    if not _KITE:
+        _KITE.update(_kite_clearance(before, tmp_path, "before"))
+    assert _KITE["lowc"] and _KITE["nmac"], "the kite must start inside both default volumes"
+    after = copy.deepcopy(before)
+    _set(field, value)(after)
+    assert not _kite_clearance(after, tmp_path, "after")[flag], f"{field}: the kite is still inside"
