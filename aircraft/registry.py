@@ -11,6 +11,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal, Protocol
 
+import jsbsim
+
 from aircraft import airframe_dir
 from sim.core.state import VehicleState
 
@@ -36,14 +38,29 @@ class Airframe:
     folder: Path | None  # None: a model shipped with JSBSim
     plant_hz: int
     control_hz: int
-    radius_m: float  # radius of a sphere around the airframe [m] (separation, surveillance)
+    radius_m: float  # radius of a sphere around the airframe [m] (separation, surveillance, collisions)
+    # highest sink rate [m/s] at which the landing gear may first touch the ground (faster: a crash)
+    crash_sink_mps: float
+    ceiling_m: float  # highest altitude MSL [m] (ISA) a scenario may fly it to
     controller: str  # "module:Class" with a ctor taking the gains object
     gains: str  # "module:Class" with ``load(path=None)``
     description: str
     # "module:function(plant)" trimming where JSBSim's own trim cannot (None: JSBSim's trim only)
     level_trim: str | None = None
+    # (min, max) equivalent airspeed [m/s] it flies; a fixed wing's cruise speed must map into it
+    eas_envelope_mps: tuple[float, float] | None = None
     # electrical power system (solar array, battery, loads): ``energy.toml`` in the airframe folder
     energy: bool = False
+
+    @property
+    def jsbsim_file(self) -> Path:
+        """The JSBSim model file (``<folder>/<model>.xml``, or JSBSim's shipped one)."""
+        folder = (
+            self.folder
+            if self.folder is not None
+            else Path(jsbsim.get_default_root_dir()) / "aircraft" / self.jsbsim_model
+        )
+        return folder / f"{self.jsbsim_model}.xml"
 
     @property
     def energy_file(self) -> Path | None:
@@ -71,6 +88,9 @@ AIRFRAMES: dict[str, Airframe] = {
             plant_hz=120,
             control_hz=10,
             radius_m=12.5,
+            crash_sink_mps=1.0,
+            ceiling_m=23_000.0,  # top of the trim table (README "Trim"); Zephyr's record 23.2 km
+            eas_envelope_mps=(7.3, 12.0),  # the autopilot's demand limits: 1.08 x the 1-g stall EAS 6.74 m/s
             controller="aircraft.haps.autopilot:HapsAutopilot",
             gains="aircraft.haps.autopilot:HapsGains",
             description="Zephyr-class solar-electric HAPS, 25 m span, 75 kg (aircraft/haps/README.md)",
@@ -85,6 +105,8 @@ AIRFRAMES: dict[str, Airframe] = {
             plant_hz=240,
             control_hz=60,
             radius_m=0.45,
+            crash_sink_mps=3.0,
+            ceiling_m=7_800.0,  # ISA altitude where static thrust falls to 2 x weight (4.6 at sea level)
             controller="aircraft.quadrotor.controller:MultirotorController",
             gains="aircraft.quadrotor.controller:MultirotorGains",
             description="F450-derived 1.4 kg quadrotor (aircraft/quadrotor/README.md)",

@@ -1,5 +1,8 @@
 """24 h HAPS flights with the energy model: wall time, peak memory and the energy outcome.
 
+Peak memory is the flying interpreter's peak resident set size (``ru_maxrss`` of the child,
+which includes the log writer it waits for), against the target ``PEAK_RSS_TARGET_MIB``.
+
 Cases (``--case``), each the shipped scenario flown whole in a fresh interpreter (so its peak
 resident memory is its own):
 - ``june``: ``scenarios/haps_station_june_47n.toml`` — state of charge at dawn (first sunrise
@@ -31,6 +34,8 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from bench_closed_loop import bare_steps_per_s  # noqa: E402
 
 from sim.mcap_read import read_topic  # noqa: E402
+
+PEAK_RSS_TARGET_MIB = 300.0  # issue 19: a 24 h HAPS flight under 300 MB
 
 CASES = {
     "june": "haps_station_june_47n",
@@ -107,8 +112,10 @@ def main() -> int:
             r["vs_bare_jsbsim"] = r["real_time_factor"] * 120.0 / bare
             r["log_mib"] = log.stat().st_size / 2**20
             r["energy"] = energy_outcome(log)
+        r["peak_rss_within_target"] = r["peak_rss_mib"] < PEAK_RSS_TARGET_MIB
         results["cases"][case] = r
         print(case, json.dumps(r, indent=1, default=float), flush=True)
+        print(f"{case}: peak RSS {r['peak_rss_mib']:.0f} MiB (target < {PEAK_RSS_TARGET_MIB:.0f})", flush=True)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(results, indent=1, default=float))
     print(f"wrote {args.out}")

@@ -216,7 +216,7 @@ def run_one(spec: RunSpec) -> dict:
     }
     try:
         r = run_scenario(scenario, spec.log_path, duration=spec.duration, scenario_text=tomli_w.dumps(spec.scenario))
-        row.update(status=r.status, sim_time_s=r.sim_time_s, error="")
+        row.update(status=r.status, sim_time_s=r.sim_time_s, error=r.error or "")  # a crash says what it hit
         metrics = r.metrics
     except RunFailed as exc:
         r = exc.result

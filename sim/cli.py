@@ -179,6 +179,21 @@ def cmd_replay(args) -> int:
     return EXIT_OK
 
 
+def cmd_export(args) -> int:
+    from sim.replay.export import export_log
+
+    log = Path(args.log)
+    out_dir = Path(args.output) if args.output else log.with_name(f"{log.stem}_export")
+    progress = _progress("{task.completed}/{task.total} messages", args.quiet)
+    with progress:
+        task = progress.add_task(f"export {log.name}", total=None)
+        files = export_log(
+            log, out_dir, args.format, args.topics, lambda k, total: progress.update(task, completed=k, total=total)
+        )
+    out.print(f"{len(files)} files in {out_dir}", soft_wrap=True, highlight=False)
+    return EXIT_OK
+
+
 def cmd_compare(args) -> int:
     from sim.replay.compare import compare_logs, write_csv, write_json
 
@@ -246,8 +261,9 @@ def cmd_batch(args) -> int:
             client.close()
     failed = sum(r.get("status") == "failed" for r in rows)
     cut = sum(r.get("status") == "interrupted" for r in rows)
+    crashed = sum(r.get("status") == "crashed" for r in rows)
     out.print(
-        f"{len(rows)} runs, {failed} failed, {cut} interrupted (flown again on resume); "
+        f"{len(rows)} runs, {failed} failed, {crashed} crashed, {cut} interrupted (flown again on resume); "
         f"results: {out_dir / 'results.csv'}",
         soft_wrap=True,
         highlight=False,
@@ -349,6 +365,13 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--json", metavar="FILE", help="write the rows as JSON to FILE ('-': standard output, no table)")
     cp.add_argument("--csv", metavar="FILE", help="write the rows as CSV to FILE ('-': standard output, no table)")
     cp.set_defaults(fn=cmd_compare)
+    x = sub.add_parser("export", help="a run log's topics to Parquet or CSV, one file per topic")
+    x.add_argument("log")
+    x.add_argument("--format", required=True, choices=["parquet", "csv"], help="file format")
+    x.add_argument("--topics", nargs="+", metavar="TOPIC", help="topics to export (default: all)")
+    x.add_argument("-o", "--output", help="output folder (default: <log>_export next to the log)")
+    x.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    x.set_defaults(fn=cmd_export)
     b = sub.add_parser("batch", help="sweep / Monte-Carlo runs from a batch file")
     b.add_argument("batch", help="batch TOML file")
     b.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="local worker processes")

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import threading
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -131,6 +131,7 @@ class JSBSimPlant:
             raise PlantError(self._with_log(f"JSBSim could not load model {model!r}"))
         self._truth_nodes = self.property_nodes(_TRUTH_PROPS)
         self._truth: VehicleState | None = None  # the last truth read, valid while sim time stands
+        self.after_step: Callable[[], None] | None = None  # called after every integration step
 
     def property_nodes(self, names: Sequence[str]) -> list[jsbsim.FGPropertyNode]:
         """The model's property nodes of ``names`` (looked up once, read every tick)."""
@@ -240,11 +241,13 @@ class JSBSimPlant:
         self._truth = None
 
     def step(self, n: int = 1) -> None:
-        """Advance ``n`` steps of ``dt``."""
-        run = self.fdm.run
+        """Advance ``n`` steps of ``dt``, calling ``after_step`` (if set) after each."""
+        run, hook = self.fdm.run, self.after_step
         for _ in range(n):
             if not run():
                 raise PlantError(self._with_log(f"{self.model}: JSBSim stopped at t={self.time:.3f} s"))
+            if hook is not None:
+                hook()
 
     @property
     def engine_count(self) -> int:

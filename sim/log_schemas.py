@@ -200,6 +200,16 @@ OBJECTS = _obj(
     },
 )
 
+SEPARATION = _obj(
+    "cosim.Separation",
+    {
+        "t": (_NUM, "sim time [s]"),
+        "distance_m": (_NUM, "true 3-D distance between the two vehicles [m]"),
+        "horizontal_m": (_NUM, "true horizontal distance [m]"),
+        "vertical_m": (_NUM, "true vertical distance (absolute) [m]"),
+    },
+)
+
 MISSION_STATUS = _obj(
     "cosim.MissionStatus",
     {
@@ -257,5 +267,20 @@ LIDAR_SCAN = _obj(
             {"type": "array", "items": {"type": "integer"}},
             "the returns' ranges in range steps, each as the difference to the previous return's",
         ),
+    },
+)
+
+CRASH = _obj(
+    "cosim.Crash",
+    {
+        "t": (_NUM, "sim time of the contact [s]"),
+        "vehicle": ({"type": "string"}, "the vehicle that crashed"),
+        "kind": (
+            {"enum": ["ground", "obstacle", "vehicle", "object"]},
+            "what it hit: the ground, an obstacle, another vehicle or a traffic object",
+        ),
+        "hit": ({"type": "string"}, "\"ground\", the obstacle's id, the other vehicle's name or the object's id"),
+        "impact_speed_mps": (_NUM, "speed relative to what it hit [m/s] (ground: just before first contact)"),
+        "pos_ned": (_VEC3, "true position at the contact, local-level NED from the scenario origin [m]"),
     },
 )

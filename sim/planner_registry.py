@@ -34,12 +34,15 @@ from sim.planner_records import RecordSink, geometric_records, mptp_records, rea
 class BuildContext:
     """What a planner is built for: the mission (NED [m]), the airframe kind
     (``fixed_wing``/``multirotor``), its bank limit [rad] and the scenario's steady wind
-    (north, east) [m/s] (the MPTP's forecast)."""
+    (north, east) [m/s] (the MPTP's forecast); ``wind_profile``: when the scenario's wind varies
+    with altitude, its profile as rows (up [m] above the origin, north, east [m/s]), the MPTP's
+    forecast instead of the steady wind."""
 
     mission: Mission
     airframe_kind: str
     bank_limit_rad: float = float(np.radians(20.0))
     wind_ne_mps: tuple[float, float] = (0.0, 0.0)
+    wind_profile: tuple[tuple[float, float, float], ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -150,14 +153,17 @@ def _reachset(options: RulesOptions, ctx: BuildContext) -> Planner:
 
 
 def _mptp(options: DataclassOptions, ctx: BuildContext) -> Planner:
-    """The MPTP; its wind forecast is the scenario's steady wind plus the option
-    ``wind_error_ne_mps``, or none (still air) with ``wind_forecast = "none"``."""
+    """The MPTP; its wind forecast is the scenario's wind profile (or its steady wind) plus the
+    option ``wind_error_ne_mps`` at every height, or none (still air) with
+    ``wind_forecast = "none"``."""
     from guidance.mptp.planner import MptpPlanner
     from guidance.mptp.wind import WindForecast
 
     cfg = options.config(tas_mps=ctx.mission.cruise_speed, bank_max=ctx.bank_limit_rad)
-    forecast = np.add(ctx.wind_ne_mps, cfg.wind_error_ne_mps)
-    return MptpPlanner(ctx.mission, cfg, wind=None if cfg.wind_forecast == "none" else WindForecast.steady(*forecast))
+    if cfg.wind_forecast == "none":
+        return MptpPlanner(ctx.mission, cfg, wind=None)
+    rows = np.array(ctx.wind_profile or [(0.0, *ctx.wind_ne_mps)], float)
+    return MptpPlanner(ctx.mission, cfg, wind=WindForecast(rows[:, 0], rows[:, 1:] + cfg.wind_error_ne_mps))
 
 
 def _reachset_awareness(planner: Any) -> tuple[float, float] | None:
@@ -206,10 +212,11 @@ def make_planner(
     options: BaseModel | dict | None = None,
     bank_limit_rad: float = float(np.radians(20.0)),
     wind_ne_mps: tuple[float, float] = (0.0, 0.0),
+    wind_profile: tuple[tuple[float, float, float], ...] = (),
 ) -> Planner:
     """The planner ``kind`` for ``mission`` flown by an ``airframe_kind`` vehicle; ``options`` is
     the type's options model (a mapping is validated into it); ``wind_ne_mps`` the scenario's
-    steady wind (north, east) [m/s]."""
+    steady wind (north, east) [m/s], ``wind_profile`` its altitude profile (see BuildContext)."""
     entry = planner_type(kind)
     if airframe_kind not in entry.airframes:
         raise PlannerConfigError(
@@ -217,4 +224,4 @@ def make_planner(
         )
     if not isinstance(options, entry.options):
         options = entry.options.model_validate(options or {})
-    return entry.build(options, BuildContext(mission, airframe_kind, bank_limit_rad, wind_ne_mps))
+    return entry.build(options, BuildContext(mission, airframe_kind, bank_limit_rad, wind_ne_mps, wind_profile))

@@ -20,7 +20,7 @@ import jsbsim
 
 from sim import __version__
 from sim.mcap_log import McapLog
-from sim.replay.metrics import MetricsWorld, run_metrics
+from sim.replay.metrics import MetricsWorld, RunMetrics
 from sim.scenario import Scenario
 from sim.scheduler import LockstepScheduler, Stage
 from sim.vehicle_log import write_static_frames
@@ -39,7 +39,7 @@ class MissionResult:
 class RunResult:
     scenario: str
     log_path: Path
-    status: str  # "completed" | "duration_elapsed" | "interrupted" | "failed"
+    status: str  # "completed" | "duration_elapsed" | "crashed" | "interrupted" | "failed"
     sim_time_s: float
     wall_time_s: float
     missions: dict[str, MissionResult] = field(default_factory=dict)
@@ -80,11 +80,14 @@ def run_scenario(
     Returns a RunResult; raises RunFailed (log already closed) if the simulation raised.
     """
     end = float(duration if duration is not None else scenario.duration)
+    if not (math.isfinite(end) and end > 0.0):
+        raise ValueError(f"duration: must be a finite number of seconds > 0, got {end!r}")
     log = McapLog(out, scenario.epoch_ns, compact=scenario.logging.encoding == "protobuf")
     result = RunResult(scenario.name, Path(out), "failed", 0.0, 0.0)
     wall0 = time.perf_counter()
     sched: LockstepScheduler | None = None
     world: World | None = None
+    metrics: RunMetrics | None = None
     failure: Exception | None = None
     session = None
     try:
@@ -105,6 +108,10 @@ def run_scenario(
             log.metadata("weather", {"nowcast_files": json.dumps(scenario.weather.nowcast_files)})
         write_static_frames(log)
         world = World(scenario, log)
+        metrics = RunMetrics(MetricsWorld.from_scenario(scenario, end))
+        for v in world.vehicles:
+            metrics.vehicle(v.name, v.recorder.kind)
+            v.recorder.sink = metrics.add
         sched = LockstepScheduler(world.base_hz)
         world.schedule(sched)
         if scenario.mavlink.enabled:
@@ -117,10 +124,13 @@ def run_scenario(
         if tick_hook is not None:
             sched.add_task("tick_hook", scenario.logging.rate_hz, Stage.LOG, tick_hook)
         log.event(0.0, f"run start: {scenario.name} (seed {scenario.seed})")
-        sched.run(
-            round(end * world.base_hz), stop=world.all_complete if scenario.stop_when_complete else (lambda: False)
-        )
-        result.status = "completed" if world.all_complete() else "duration_elapsed"
+        complete = world.all_complete if scenario.stop_when_complete else (lambda: False)
+        sched.run(round(end * world.base_hz), stop=lambda: world.crashed() or complete())
+        if world.crashed():
+            result.status = "crashed"
+            result.error = "; ".join(f"{c.vehicle} {c.describe()}" for c in world.crashes)
+        else:
+            result.status = "completed" if world.all_complete() else "duration_elapsed"
     except KeyboardInterrupt:
         result.status = "interrupted"
         result.error = "interrupted by the user"
@@ -138,13 +148,15 @@ def run_scenario(
             m = v.mission
             result.missions[v.name] = MissionResult(len(m.reached), len(m.waypoints), m.complete, m.completed_t)
         try:
-            result.metrics = run_metrics([v.recorder.trace() for v in vehicles], MetricsWorld.from_scenario(scenario))
+            for v in vehicles:
+                v.recorder.flush()
+            result.metrics = (metrics or RunMetrics()).result()
             log.metadata("metrics", {"json": json.dumps(result.metrics, sort_keys=True)})
             if result.status != "completed":
                 log.event(
                     result.sim_time_s,
                     f"run ended: {result.status}" + (f" ({result.error})" if result.error else ""),
-                    level="error" if result.status == "failed" else "warning",
+                    level="error" if result.status in ("failed", "crashed") else "warning",
                 )
             log.metadata(
                 "result",

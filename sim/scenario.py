@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from datetime import UTC, datetime
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Final, Literal, Union
 
@@ -32,6 +32,7 @@ from sim.estimation.sensor_estimator import SensorEstimatorConfig
 from sim.geodesy import GeoPoint
 from sim.input_files import parse_toml, read_text
 from sim.planner_registry import PLANNERS, PlannerType
+from sim.sensors import isa
 from sim.sensors.airspeed import AirspeedConfig
 from sim.sensors.baro import BaroConfig
 from sim.sensors.config import SensorConfigError
@@ -43,6 +44,9 @@ from sim.sensors.presets import PRESETS
 from sim.units import Angle, Speed, quantity
 
 SCHEMA_VERSION: Final = 1
+# MCAP log times are unsigned 64-bit nanoseconds since the Unix epoch: a run lies between these
+LOG_TIME_MIN = datetime(1970, 1, 1, tzinfo=UTC)
+LOG_TIME_MAX = LOG_TIME_MIN + timedelta(microseconds=2**64 // 1000)
 # a scenario/batch name: it names files (logs/<name>.mcap), so no path separators, no leading dot
 NAME_PATTERN = r"^[^/\\\x00-\x1f\x7f.][^/\\\x00-\x1f\x7f]*$"
 
@@ -642,6 +646,16 @@ class Scenario(_Strict):
         return v.astimezone(UTC)
 
     @model_validator(mode="after")
+    def _loggable_time(self) -> Scenario:
+        end = self.start_time + timedelta(seconds=self.duration)
+        if not (self.start_time >= LOG_TIME_MIN and end < LOG_TIME_MAX):
+            raise ValueError(
+                f"start_time: the run ({self.start_time:%Y-%m-%dT%H:%M:%SZ} + duration) must lie between "
+                f"{LOG_TIME_MIN:%Y-%m-%d} and {LOG_TIME_MAX:%Y-%m-%d} (MCAP log times since the Unix epoch)"
+            )
+        return self
+
+    @model_validator(mode="after")
     def _references(self) -> Scenario:
         names = [v.name for v in self.vehicle]
         dup = sorted({n for n in names if names.count(n) > 1})
@@ -691,6 +705,25 @@ class Scenario(_Strict):
                     )
         return self
 
+    @model_validator(mode="after")
+    def _within_envelope(self) -> Scenario:
+        for k, v in enumerate(self.vehicle):
+            af = get_airframe(v.aircraft)
+            if not v.initial.on_ground and v.initial.altitude > af.ceiling_m:
+                raise ValueError(
+                    f"vehicle[{k}].initial.altitude: {v.initial.altitude:g} m is above the {af.name} ceiling "
+                    f"({af.ceiling_m:g} m MSL)"
+                )
+            for j, w in enumerate(v.mission.waypoints):
+                if w.altitude > af.ceiling_m:
+                    raise ValueError(
+                        f"vehicle[{k}].mission.waypoints[{j}].altitude: {w.altitude:g} m is above the {af.name} "
+                        f"ceiling ({af.ceiling_m:g} m MSL)"
+                    )
+            if af.eas_envelope_mps is not None:
+                _cruise_in_envelope(k, v, af.name, af.eas_envelope_mps)
+        return self
+
     @property
     def origin_point(self) -> GeoPoint:
         """The origin as a WGS84 point in degrees (the local NED frame's origin)."""
@@ -701,6 +734,22 @@ class Scenario(_Strict):
     def epoch_ns(self) -> int:
         """Log time of sim time 0 [ns since the Unix epoch]."""
         return int(self.start_time.timestamp()) * 1_000_000_000
+
+
+def _cruise_in_envelope(k: int, v: VehicleSpec, airframe: str, envelope: tuple[float, float]) -> None:
+    """ValueError unless the cruise speed (TAS) is inside the EAS ``envelope`` [m/s] at every
+    waypoint's altitude (ISA: EAS = TAS sqrt(rho / rho0))."""
+    lo, hi = envelope
+    tas = v.mission.cruise_speed
+    for j, w in enumerate(v.mission.waypoints):
+        ratio = math.sqrt(isa.RHO0 / isa.density_at_altitude(w.altitude))  # TAS per EAS
+        eas = tas / ratio
+        if not lo <= eas <= hi:
+            raise ValueError(
+                f"vehicle[{k}].mission.cruise_speed: {tas:g} m/s TAS is EAS {eas:.2f} m/s at waypoints[{j}] "
+                f"({w.altitude:g} m), outside the {airframe} envelope EAS {lo:g}-{hi:g} m/s "
+                f"(TAS {lo * ratio:.1f}-{hi * ratio:.1f} m/s there)"
+            )
 
 
 def _field_path(loc: tuple) -> str:
@@ -734,7 +783,7 @@ def describe_error(err: ErrorDetails) -> str:
         msg = f"{err['input']!r} is not a name (no path separator, control character or leading dot)"
     if kind in ("greater_than_equal", "less_than_equal", "greater_than", "less_than"):
         msg = f"out of range: {msg.lower()} (got {err.get('input')!r})"
-    return f"{path}: {msg}"
+    return f"{path}: {msg}" if err["loc"] else msg  # whole-scenario checks name their fields
 
 
 def parse_scenario(data: dict, source: str = "<scenario>") -> Scenario:

@@ -59,7 +59,7 @@ class Vehicle:
         self.planner_records = RecordSink(log, f"/{cfg.name}/plan", origin)
         self.wind = WindField(wind)
         self.plant = build_plant(cfg, af, origin, wind, self.wind, seed, lambda text: self.event(0.0, text))
-        self.wind_ne = (wind.north, wind.east)  # the scenario's steady wind, the planners' forecast [m/s]
+        self.wind_spec = wind  # the planners' forecast
         self.mission = mission_from_config(cfg, origin)
         self.estimator = make_estimator(cfg.estimator, self.plant, af, seed, origin, cfg.sensors)
         self._inner_nodes = []  # the inner loops' estimate inputs (aircraft.nav_inputs)
@@ -102,7 +102,9 @@ class Vehicle:
 
     def make_mission_planner(self) -> Planner:
         """The scenario's planner for the current mission."""
-        return scenario_planner(self.cfg, self.mission, self.airframe, self.controller.gains, self.wind_ne)
+        return scenario_planner(
+            self.cfg, self.mission, self.airframe, self.controller.gains, self.wind_spec, self.origin.alt_m
+        )
 
     def inject_sensor_fault(self, fault) -> None:
         """A scenario sensor fault (gnss_loss, sensor_bias, sensor_stuck) into the sensor models."""

@@ -44,13 +44,17 @@ def mission_from_config(cfg: sc.VehicleSpec, origin: GeoPoint) -> Mission:
 
 
 def scenario_planner(
-    cfg: sc.VehicleSpec, mission: Mission, af: Airframe, gains: object, wind_ne_mps: tuple[float, float]
+    cfg: sc.VehicleSpec, mission: Mission, af: Airframe, gains: object, wind: sc.Wind, origin_alt_m: float
 ) -> Planner:
     """The scenario's planner for ``mission``; a fixed-wing planner turns within the controller's
-    roll limit (``gains.roll_limit_rad`` [rad], 20 deg for gains without one); ``wind_ne_mps``:
-    the scenario's steady wind (north, east) [m/s], the planners' forecast."""
+    roll limit (``gains.roll_limit_rad`` [rad], 20 deg for gains without one); the planners'
+    wind forecast is the scenario's ``wind``: its steady (north, east) [m/s] and, when it varies
+    with altitude, its profile at t = 0 above the origin (``origin_alt_m`` [m MSL])."""
     roll_limit = float(getattr(gains, "roll_limit_rad", math.radians(20.0)))
-    return make_planner(cfg.planner.type, mission, af.kind, cfg.planner.options, roll_limit, wind_ne_mps)
+    profile = WindField(wind).forecast_rows(origin_alt_m)
+    return make_planner(
+        cfg.planner.type, mission, af.kind, cfg.planner.options, roll_limit, (wind.north, wind.east), profile
+    )
 
 
 def trim_plant(plant: JSBSimPlant, af: Airframe, note: Callable[[str], None]) -> None:

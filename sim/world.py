@@ -8,6 +8,7 @@ so one seed fixes the whole run and adding a vehicle leaves the others' streams 
 
 from __future__ import annotations
 
+import itertools
 import math
 from functools import partial
 
@@ -16,9 +17,11 @@ from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
 from sim import log_schemas as S
 from sim.broad_phase import relevant
+from sim.contacts import Bodies, ContactMonitor, Crash, GroundWatch
 from sim.environment import geofence, obstacle_prism
 from sim.faults import FaultSchedule
 from sim.geodesy import ned_to_geodetic
+from sim.hull import Hull, load_hull
 from sim.mcap_log import McapLog
 from sim.perception import Perception
 from sim.planner_registry import planner_awareness
@@ -82,8 +85,26 @@ class World:
             for v, c, ss in zip(self.vehicles, scenario.vehicle, lidar_ss.spawn(n), strict=False)
             if c.lidar is not None
         }
+        hulls: dict[str, Hull] = {}
+        watches = []
+        for v in self.vehicles:
+            hull = hulls.setdefault(v.airframe.name, load_hull(v.airframe.jsbsim_file))
+            watches.append(GroundWatch(hull, v.airframe.crash_sink_mps))
+            watches[-1].attach(v.plant)
+        self.contacts = ContactMonitor(
+            [v.name for v in self.vehicles],
+            np.array([v.airframe.radius_m for v in self.vehicles]),
+            watches,
+            self.obstacles,
+        )
+        self.crashes: list[Crash] = []
         write_map(log, self.obstacles, self.fences, self.origin)
         log.metadata("vehicles", {v.name: v.airframe.kind for v in self.vehicles})
+
+    @property
+    def contact_hz(self) -> int:
+        """Rate of the crash checks: the fastest control rate (a sub-multiple of every plant rate)."""
+        return max(v.airframe.control_hz for v in self.vehicles)
 
     @property
     def base_hz(self) -> int:
@@ -92,6 +113,7 @@ class World:
 
     def schedule(self, sched: LockstepScheduler) -> None:
         log_hz = self.scenario.logging.rate_hz
+        sched.add_task("world.contacts", self.contact_hz, Stage.ENVIRONMENT, self.check_contacts)
         if self.scenario.fault:
             sched.add_task("faults", log_hz, Stage.SENSE, self.faults.tick)
         if self.perception or self.weather is not None:
@@ -104,9 +126,35 @@ class World:
                 )
         if self.objects:
             sched.add_task("world.log", log_hz, Stage.LOG, self._log_objects)
+        if len(self.vehicles) > 1:
+            sched.add_task("world.separation", log_hz, Stage.LOG, self._log_separation)
 
     def all_complete(self) -> bool:
         return all(v.mission.complete for v in self.vehicles)
+
+    def crashed(self) -> bool:
+        return bool(self.crashes)
+
+    def check_contacts(self, t: float) -> None:
+        """Crashes from the true states (``sim.contacts``), each logged as a ``crash`` event and
+        on ``/world/crash``."""
+        truth = [v.plant.truth() for v in self.vehicles]
+        live = [o for o in self.objects if o.exists(t)]
+        others = Bodies(
+            [o.id for o in live],
+            np.array([o.position(t) for o in live]).reshape(-1, 3),
+            np.array([o.v for o in live]).reshape(-1, 3),
+            np.array([o.radius_m for o in live]),
+        )
+        found = self.contacts.check(
+            t, np.array([s.pos_ned for s in truth]), np.array([s.vel_ned for s in truth]), others
+        )
+        for c in found:
+            self.log.event(t, f"{c.vehicle}: crash: {c.describe()}", "error", c.vehicle)
+            self.log.write_json(
+                "/world/crash", t, c.record(), S.CRASH, {"frame": "local-level NED from the scenario origin"}
+            )
+        self.crashes += found
 
     # -- sensing the rest of the world ---------------------------------------------------------
     def sense(self, t: float) -> None:
@@ -139,6 +187,19 @@ class World:
     def _lonlat(self, coords) -> list[list[float]]:
         lat, lon, _ = ned_to_geodetic([(n, e, 0.0) for n, e in coords], self.origin)
         return [[x, y] for x, y in zip(lon.tolist(), lat.tolist(), strict=False)]
+
+    def _log_separation(self, t: float) -> None:
+        """True separation of every pair of vehicles on ``/separation/<a>/<b>`` (for plots)."""
+        pos = [v.plant.truth().pos_ned for v in self.vehicles]
+        for (i, a), (j, b) in itertools.combinations(enumerate(self.vehicles), 2):
+            rel = pos[i] - pos[j]
+            h = math.hypot(rel[0], rel[1])
+            self.log.write_json(
+                f"/separation/{a.name}/{b.name}",
+                t,
+                {"t": t, "distance_m": math.hypot(h, rel[2]), "horizontal_m": h, "vertical_m": abs(rel[2])},
+                S.SEPARATION,
+            )
 
     def _log_objects(self, t: float) -> None:
         """Objects' true positions: JSON for metrics, spheres for the 3D panel."""

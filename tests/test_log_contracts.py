@@ -24,7 +24,8 @@ from sim.scenario import parse_scenario
 ROOT = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.closed_loop
 
-# (scenario, sim time [s]): fixed wing, multirotor, geometric, reach-set, rules of the air, MPTP
+# (scenario, sim time [s]): fixed wing, multirotor, geometric, reach-set, rules of the air, MPTP,
+# a crash
 SCENARIOS = [
     ("haps_box_mission.toml", 10.0),
     ("quad_square_mission.toml", 20.0),
@@ -33,6 +34,7 @@ SCENARIOS = [
     ("rules/s10_head_on.toml", 10.0),
     ("mptp/storm_crossing.toml", 120.0),
     ("reachset/building_lidar.toml", 10.0),
+    ("quad_motor_failure.toml", 10.0),  # ends in a crash (/world/crash)
 ]
 JSON_SCHEMAS = {v["title"]: v for v in vars(S).values() if isinstance(v, dict) and "title" in v}
 

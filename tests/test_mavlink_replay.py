@@ -33,8 +33,8 @@ altitude = 100.0
 [[vehicle]]
 name = "haps"
 aircraft = "haps"
-initial = { altitude = 600.0, airspeed = 20.0 }
-mission = { cruise_speed = 20.0, waypoints = [
+initial = { altitude = 600.0, airspeed = 10.0 }
+mission = { cruise_speed = 10.0, waypoints = [
     { north = 500.0, east = 0.0, altitude = 600.0 }, { north = 500.0, east = 500.0, altitude = 650.0 } ] }
 [[vehicle]]
 name = "quad"

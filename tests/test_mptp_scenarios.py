@@ -118,6 +118,32 @@ def test_a_corridor_that_opens_later_is_solved_by_waiting():
     assert when > field.OPEN_S
 
 
+def test_a_corridor_that_opens_after_20_min_is_waited_for_within_5_percent():
+    """The plug dissipates at 1200 s and around the walls lies outside the mission area: no
+    arrival is earlier than 1200 s + the flight from the walls' margin to the goal. One search
+    at the default cap holds (a planned wait), crosses through the gap after it opened and
+    arrives within 5 % of that bound (before waiting was a search action and SSPH was
+    admissible, the first plan went around the wall: 2425 s against ~2037 s)."""
+    field = _Corridor()
+    field.OPEN_S = 1200.0
+    cfg = _CORRIDOR_CFG.with_(heuristic="ssph")
+    traj = plan_trajectory(
+        ObstacleTimeline(field.nowcast(0.0), cfg, 7200.0), np.zeros(2), 0.0, 0.0, _CORRIDOR_GOAL, cfg
+    )
+    assert traj.status == "ok" and traj.expanded <= cfg.max_expansions
+    margin = cfg.safety_line_m[0]
+    earliest = field.OPEN_S + (_CORRIDOR_GOAL.points[0, 0] - (field.walls[0].bounds[0] - margin)) / cfg.tas_mps
+    assert earliest <= traj.times[-1] <= 1.05 * earliest
+    assert traj.hold_s > 0.0
+    t = np.linspace(traj.times[0], traj.times[-1], 4000)
+    ne = np.column_stack([np.interp(t, traj.times, traj.positions[:, k]) for k in range(2)])
+    east, when = _crossing(ne, t)
+    assert abs(east) < 2_500.0 and when > field.OPEN_S
+    for p, tt in zip(ne[::10], t[::10], strict=False):
+        assert not shapely.contains_xy(shapely.union_all(field.truth(tt).cells), p[0], p[1])
+    flyby_path(traj.positions, 0.0, cfg.turn_radius_m, step_deg=5.0)  # holds included
+
+
 def test_the_opening_corridor_in_replanning_with_the_expansion_cap():
     """With the default expansion cap the first search stops early: its partial plan (best
     progress) is flown, and a later replan finds the wait; never declared infeasible."""
@@ -132,14 +158,15 @@ def test_the_opening_corridor_in_replanning_with_the_expansion_cap():
 
 
 def test_planner_falls_back_to_the_safe_area_when_boxed_in():
-    # no partial plan lasts until the next replan within 30 expansions: the safe-area leg
+    # no partial plan lasts until the next replan within 30 expansions (holds end within the
+    # 3600 s horizon, 30 auxiliary legs add at most 1800 s): the safe-area leg
     cfg = MptpConfig(
         max_expansions=30,
         safety_single_m=(500.0,) * 3,
         safety_line_m=(500.0,) * 3,
         sigma_front_mps=0.0,
         sigma_back_mps=0.0,
-        replan_period_s=3000.0,
+        replan_period_s=6000.0,
     )
     frame = (
         box(-8000, -8000, 8000, -6000),

@@ -4,6 +4,7 @@ from the scenario, and arrival predictions that hold in a true wind where wind-b
 The world of the flight tests is scenarios/mptp/wind_crossing.toml: two scripted cells (exact
 nowcasts), a 50 km leg east, a steady 15 m/s wind towards 053 deg."""
 
+import dataclasses
 import math
 import tomllib
 from pathlib import Path
@@ -14,16 +15,21 @@ import shapely
 import tomli_w
 from shapely.geometry import box
 
+from aircraft.registry import get_airframe
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
 from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.wind import WindForecast, air_goal, to_air, to_ground
+from sim.core.mission import Mission
+from sim.core.plan import Threats
 from sim.core.threats import StormSnapshot
 from sim.planner_registry import make_planner
 from sim.scenario import load_scenario, parse_scenario
-from sim.testbeds.mptp_openloop import flown_times, ground_speed, run_open_loop
+from sim.testbeds.mptp_openloop import flown_times, ground_speed, run_open_loop, vehicle_state
 from sim.testbeds.mptp_thesis import Scenario
+from sim.vehicle_setup import scenario_planner
 from sim.weather import WeatherService
+from sim.wind_field import WindField
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "scenarios" / "mptp" / "wind_crossing.toml"
@@ -77,8 +83,6 @@ def test_the_forecast_comes_from_the_scenario_wind_and_its_options_act():
     scenario, _ = load_scenario(SCENARIO)
     v = scenario.vehicle[0]
     mission = np.array([[0.0, 50_000.0, -18_000.0]])
-    from sim.core.mission import Mission
-
     m = Mission(mission, 26.0, 500.0)
     wind = (scenario.wind.north, scenario.wind.east)
     p = make_planner("mptp", m, "fixed_wing", v.planner.options, wind_ne_mps=wind)
@@ -88,6 +92,31 @@ def test_the_forecast_comes_from_the_scenario_wind_and_its_options_act():
     assert make_planner("mptp", m, "fixed_wing", {"wind_forecast": "none"}, wind_ne_mps=wind).wind is None
     with pytest.raises(ValueError, match="wind_error_ne_mps"):
         make_planner("mptp", m, "fixed_wing", {"wind_error_ne_mps": [1.0]})
+
+
+def test_the_standard_profile_is_the_forecast_at_the_planned_altitude():
+    """[wind] standard = "midlatitude_jet" reaches the MPTP as a height profile above the origin
+    (with the error option added at every height, a copy, not the truth's WindField), and a
+    replan takes the wind at the plan's flight level (mean of the start's and goal's heights)."""
+    data = tomllib.loads(SCENARIO.read_text())
+    data["wind"] = {"standard": "midlatitude_jet"}
+    data["origin"]["altitude"] = 500.0
+    data["vehicle"][0]["planner"]["options"]["wind_error_ne_mps"] = [1.0, -2.0]
+    scenario = parse_scenario(data)
+    v = scenario.vehicle[0]
+    af = get_airframe(v.aircraft)
+    m = Mission(np.array([[0.0, 50_000.0, -17_500.0]]), 26.0, 500.0)
+    p = scenario_planner(v, m, af, af.make_controller(v.gains).gains, scenario.wind, 500.0)
+    truth = WindField(scenario.wind)
+    for up in (1_500.0, 11_000.0, 17_500.0, 19_500.0):
+        assert np.allclose(p.wind.at(up), truth.at(up + 500.0, 0.0)[:2] + [1.0, -2.0])
+    assert not isinstance(p.wind, WindField)
+    est = dataclasses.replace(
+        vehicle_state(0.0, np.zeros(2), math.pi / 2, 26.0), pos_ned=np.array([0.0, 0.0, -15_500.0])
+    )
+    p.plan(est, Threats(storms=[]), 0.0)
+    level = 0.5 * (-float(est.pos_ned[2]) + 17_500.0)
+    assert np.allclose(p.wind_ne, truth.at(level + 500.0, 0.0)[:2] + [1.0, -2.0])
 
 
 def _open_loop_world() -> tuple[Scenario, np.ndarray]:

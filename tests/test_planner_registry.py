@@ -29,7 +29,10 @@ def _scenario(aircraft: str, planner: dict) -> dict:
                 "name": "v",
                 "aircraft": aircraft,
                 "initial": {"altitude": alt, "airspeed": 26.0 if aircraft == "haps" else 0.0},
-                "mission": {"cruise_speed": 5.0, "waypoints": [{"north": 100, "east": 0, "altitude": alt}]},
+                "mission": {
+                    "cruise_speed": 26.0 if aircraft == "haps" else 5.0,
+                    "waypoints": [{"north": 100, "east": 0, "altitude": alt}],
+                },
                 "planner": planner,
             }
         ],

@@ -8,10 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim.replay.metrics import differing_keys, min_separation, straight_flight_mask
+from sim.replay.metrics import differing_keys
+from sim.replay.pair_metrics import min_separation
 from sim.replay.report import log_metrics, write_report
 from sim.replay.runlog import RunLog
 from sim.replay.trace import VehicleTrace
+from sim.replay.vehicle_metrics import straight_flight_mask
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -62,6 +64,7 @@ def _trace(name, t, pos):
         np.zeros(0),
         0,
         [],
+        truth_cross_track_m=z,
     )
 
 
@@ -82,7 +85,7 @@ def test_object_clearance_matches_analytic_crossing():
     its surface; before it appears it is not counted."""
     from sim import scenario as sc
     from sim.geodesy import GeoPoint
-    from sim.replay.metrics import MetricsWorld, object_metrics
+    from sim.replay.metrics import MetricsWorld, run_metrics
     from sim.traffic import TrafficObject
 
     origin = GeoPoint(47.0, 8.0, 400.0)
@@ -100,10 +103,14 @@ def test_object_clearance_matches_analytic_crossing():
     )
     t = np.arange(0.0, 60.0, 0.1)
     a = np.stack([np.zeros_like(t), 10 * t, np.zeros_like(t)], axis=1)
-    m = object_metrics(_trace("a", t, a), MetricsWorld(objects=(obj,)))["object.ball"]
+
+    def object_metrics(tr):
+        return run_metrics([tr], MetricsWorld(objects=(obj,)))["vehicles"]["a"]["clearance"]
+
+    m = object_metrics(_trace("a", t, a))["object.ball"]
     assert m["distance_m"] == pytest.approx(45.0, abs=1e-6)
     assert m["t"] == pytest.approx(30.0)
-    early = object_metrics(_trace("a", t[:50], a[:50]), MetricsWorld(objects=(obj,)))["object.ball"]
+    early = object_metrics(_trace("a", t[:50], a[:50]))["object.ball"]
     assert early["distance_m"] is None
 
 
@@ -180,7 +187,7 @@ def test_vehicles_of_different_plant_rates_share_their_log_times():
     """A 120 Hz and a 240 Hz plant log the same tick with times that differ in the last bit."""
     from types import SimpleNamespace
 
-    from sim.replay.metrics import common_times
+    from sim.replay.pair_metrics import common_times
 
     t240 = np.cumsum(np.full(2400, 1 / 240))[23::24]  # 0.1, 0.2, ... as accumulated 240 Hz steps
     t120 = np.cumsum(np.full(1200, 1 / 120))[11::12]

@@ -147,12 +147,14 @@ SEED_MARGINS = {  # scenario: (pairs that must keep the margin, margin [m])
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", range(20))
 @pytest.mark.parametrize("name", sorted(SEED_MARGINS))
-def test_rules_scenarios_keep_their_margins_on_20_seeds(name, seed, tmp_path):
+def test_rules_scenarios_keep_their_margins_on_20_seeds(name, seed, tmp_path, record_property):
     """S9-S14 beyond their pinned seed: every listed pair (S11: every pair) keeps the case margin
-    and the cooperative UAS complete (S14: uas1 is chased, only uas2 must complete)."""
+    and the cooperative UAS complete (S14: uas1 is chased, only uas2 must complete). The minimum
+    separation is recorded as the test's ``min_separation_m`` property (``--junitxml``)."""
     m, _ = fly(name, tmp_path, seed)
     pairs, margin = SEED_MARGINS[name]
     seps = m["separation"] if pairs is None else {f"{a}-{b}": m["separation"][f"{a}-{b}"] for a, b in pairs}
+    record_property("min_separation_m", round(min(x["distance_m"] for x in seps.values()), 2))
     assert min(x["distance_m"] for x in seps.values()) >= margin, seps
     must = ["uas2"] if name == "s14_pursuer" else list(m["vehicles"])
     assert all(m["vehicles"][v]["mission"]["complete"] for v in must)

@@ -25,9 +25,10 @@ from avoidance.rules.restrictions import (
     safety_margin_mask,
     widest_per_cell,
 )
-from avoidance.rules.rules_of_air import overtake_speed, overtake_waypoints
+from avoidance.rules.rules_of_air import overtake_speed, overtake_waypoints, pass_behind_point
 from avoidance.utm.cases import CaseBook
 from avoidance.utm.collision_case import (
+    GIVES_WAY,
     Encounter,
     Role,
     UtmConfig,
@@ -68,11 +69,111 @@ def note(uas, pos, vel, t=0.0, **reg) -> PositionNotification:
         (129.9, (1, 1), Encounter.CONVERGING),
         (70.0, (1, 1), Encounter.CONVERGING),
         (69.9, (2, 1), Encounter.OVERTAKE),
-        (69.9, (1, 1), Encounter.PARALLEL),
+        (69.9, (1, 1), Encounter.CONVERGING),
+        (10.0, (1, 1.2), Encounter.CONVERGING),
+        (10.0, (1, 1.21), Encounter.OVERTAKE),
     ],
 )
 def test_ut1_classification_thresholds(alpha, speeds, expected):
     assert classify(alpha, *speeds) == expected
+
+
+SCALED = UtmConfig(time_margin=25.0, speed_tolerance=1.0, speed_doubt=0.5)  # rules_unit = 5 (RulesConfig.utm)
+
+
+def _meeting(alpha_deg: float, speeds: tuple[float, float], t_meet: float = 12.0):
+    """Two UAS flying straight at the origin, arriving together after ``t_meet`` s: UAS a from
+    the west flying east, UAS b on a course ``alpha_deg`` turned left of a's reversed course.
+    Returns (pos, vel) of a and b, GCF ENU [m], [m/s]."""
+    da = np.array([-1.0, 0.0, 0.0])  # from the meeting point towards a
+    t = np.radians(alpha_deg)
+    db = np.array([-np.cos(t), -np.sin(t), 0.0])  # α measured from da, counter-clockwise
+    return (speeds[0] * t_meet * da, -speeds[0] * da), (speeds[1] * t_meet * db, -speeds[1] * db)
+
+
+@pytest.mark.parametrize(
+    "alpha, speeds, encounter, roles",  # at the scenarios' scale: speed tolerance 1 m/s, doubt 0.5 m/s
+    [
+        # opposite courses: head-on, both circle right
+        (180.0, (5, 5), Encounter.HEAD_ON, (Role.ROUNDABOUT, Role.ROUNDABOUT)),
+        # b from the south flying north: b is on east-bound a's right, a gives way (S9)
+        (90.0, (5, 5), Encounter.CONVERGING, (Role.CONVERGING, Role.RIGHT_OF_WAY)),
+        # courses 60° apart at equal speeds (the campaign's encounter 7): they close abeam at
+        # 2·5·sin 30° = 5 m/s; b (south-west of a, flying north-east) is on a's right: a gives way
+        (60.0, (5, 5), Encounter.CONVERGING, (Role.CONVERGING, Role.RIGHT_OF_WAY)),
+        # b from the north-west: on a's left, b gives way
+        (-60.0, (5, 5), Encounter.CONVERGING, (Role.RIGHT_OF_WAY, Role.CONVERGING)),
+        # 20° apart, b at 2.5 m/s: a is faster and overtakes
+        (20.0, (5, 2.5), Encounter.OVERTAKE, (Role.OVERTAKING, Role.OVERTAKEN)),
+    ],
+)
+def test_encounter_classes_by_hand(alpha, speeds, encounter, roles):
+    """Hand-checkable geometry per class (spec §7.2 thresholds; α < 70° at equal speeds is
+    converging, not a class of its own)."""
+    (pa, va), (pb, vb) = _meeting(abs(alpha), speeds)
+    if alpha < 0:
+        pb, vb = pb * [1, -1, 1], vb * [1, -1, 1]
+    case = compute_collision_case(note("a", pa, va), note("b", pb, vb), 0.0, SCALED)
+    assert case.flagged and case.alpha_deg == pytest.approx(abs(alpha))
+    assert case.encounter == encounter and case.roles == roles
+
+
+def _two_views(rng, alpha, speeds, track_pos=3.0, track_vel=0.2, own_pos=0.5, own_vel=0.05, cfg=SCALED):
+    """The pair as each UAS computes it: its own estimate (EKF-like error) and its track of the
+    other (surveillance-like error), drawn independently per side (uniform within the bounds);
+    returns (role of a in a's case, role of b in b's case) and the truth's case."""
+    (pa, va), (pb, vb) = _meeting(alpha, speeds)
+    rot = rng.uniform(-np.pi, np.pi)
+    r = np.array([[np.cos(rot), -np.sin(rot), 0], [np.sin(rot), np.cos(rot), 0], [0, 0, 1]])
+    pa, va, pb, vb = r @ pa, r @ va, r @ pb, r @ vb
+
+    def err(pos_bound, vel_bound):
+        e = rng.uniform(-1.0, 1.0, (2, 3)) * [[pos_bound] * 2 + [0.0], [vel_bound] * 2 + [0.0]]
+        return e[0], e[1]
+
+    def view(own_p, own_v, peer_p, peer_v, own_id, peer_id):
+        (ep, ev), (tp, tv) = err(own_pos, own_vel), err(track_pos, track_vel)
+        case = compute_collision_case(
+            note(own_id, own_p + ep, own_v + ev), note(peer_id, peer_p + tp, peer_v + tv), 0.0, cfg
+        )
+        return None if case is None or not case.flagged else case.role_of(own_id)
+
+    truth = compute_collision_case(note("a", pa, va), note("b", pb, vb), 0.0, cfg)
+    return view(pa, va, pb, vb, "a", "b"), view(pb, vb, pa, va, "b", "a"), truth
+
+
+def test_the_two_sides_never_both_hold_course_on_noisy_tracks():
+    """Each UAS classifies the pair from its own estimate and its noisy track of the other: over
+    random encounters (any α, equal or different speeds, any orientation) the two sides' roles
+    are complementary: never do both hold their course (right of way / overtaken); away from the
+    thresholds (α more than 2 doubts from 70° / 130°, speed difference more than 2 doubts from the
+    tolerance) each side takes exactly the truth's role. With the doubts off (each side trusting
+    its estimate: the previous classifier's behaviour) the same draws do leave both holding."""
+    rng = np.random.default_rng(17)
+    cfg = SCALED
+    draws = []
+    for _ in range(1500):
+        alpha = rng.uniform(1.0, 179.0)
+        s1 = rng.uniform(3.0, 6.0)
+        s2 = s1 if rng.random() < 0.5 else s1 + rng.uniform(-1.5, 1.5)
+        draws.append((alpha, (s1, s2), rng.bit_generator.state))
+    both_hold = {True: 0, False: 0}
+    for doubt in (True, False):
+        c = cfg if doubt else dataclasses.replace(cfg, angle_doubt=0.0, speed_doubt=0.0)
+        for alpha, speeds, state in draws:
+            rng.bit_generator.state = state
+            ra, rb, truth = _two_views(rng, alpha, speeds, cfg=c)
+            if ra is None or rb is None:
+                continue
+            both_hold[doubt] += ra not in GIVES_WAY and rb not in GIVES_WAY
+            clear = (
+                min(abs(alpha - 70.0), abs(alpha - 130.0)) > 2 * cfg.angle_doubt
+                and abs(abs(speeds[0] - speeds[1]) - cfg.speed_tolerance) > 2 * cfg.speed_doubt
+            )
+            if doubt and clear:
+                assert (ra, rb) == truth.roles, (alpha, speeds)
+    assert both_hold[True] == 0
+    assert both_hold[False] > 0
 
 
 def test_ut2_head_on_cpa():
@@ -153,6 +254,16 @@ def test_overtake_roles_and_waypoints_on_the_right():
     )  # |p - cp| = 40 (meet at x = 0) and conv[1] == pytest.approx(div[1])
 
 
+def test_pass_behind_point_trails_the_right_of_way_uas_until_the_give_way_uas_is_behind():
+    """The converging give-way UAS aims ``offset`` behind the right-of-way UAS on its track
+    (peer at the origin flying north, +y ENU), until it is itself that far behind it."""
+    peer, north = np.zeros(3), np.array([0.0, 5.0, 0.0])
+    assert pass_behind_point(peer, north, (-100.0, 0.0, 0.0), 45.0) == pytest.approx([0.0, -45.0, 0.0])
+    assert pass_behind_point(peer, north, (-30.0, -44.0, 0.0), 45.0) == pytest.approx([0.0, -45.0, 0.0])
+    assert pass_behind_point(peer, north, (-30.0, -45.0, 0.0), 45.0) is None  # a margin behind: back to the mission
+    assert pass_behind_point(peer, np.zeros(3), (-100.0, 0.0, 0.0), 45.0) is None  # no course to pass behind
+
+
 def test_lower_priority_gives_way_whatever_the_side():
     haps = note("haps", (20, 0, 0), (0, 1, 0), maneuverability=Maneuverability.LINEAR_PROPULSION)
     quad = note("quad", (0, 20, 0), (1, 0, 0))  # would have the HAPS on its right anyway: swap sides
@@ -178,6 +289,21 @@ def test_head_case_fixes_the_point_and_the_chain_closes_after_passing():
     _, closed = book.update([note("a", (25, 15, 0), (1, 0, 0), 25.0), note("b", (15, 25, 0), (-1, 0, 0), 25.0)], 25.0)
     assert not closed and book.active("a")
     _, closed = book.update([note("a", (26, 15, 0), (1, 0, 0), 26.0), note("b", (14, 25, 0), (-1, 0, 0), 26.0)], 26.0)
+    assert len(closed) == 1 and not book.active()
+
+
+def test_overtake_chain_closes_only_once_the_overtaking_uas_is_the_margin_ahead():
+    """Overtake (a at 2 m/s behind b at 1 m/s on one line, margin 5 m): abeam and 6 m apart on a's
+    parallel offset the case stays open; it closes once a is 5 m ahead along b's course."""
+    book = CaseBook(UtmConfig(time_margin=25.0, close_after=1))
+    for t in (0.0, 1.0):
+        book.update([note("a", (-40 + 2 * t, 20, 0), (2, 0, 0), t), note("b", (-20 + t, 20, 0), (1, 0, 0), t)], t)
+    ((c,),) = [book.active("a")]
+    assert c.encounter == Encounter.OVERTAKE and c.roles == (Role.OVERTAKING, Role.OVERTAKEN)
+    for x_a, x_b, t in ((20.0, 20.0, 40.0), (23.0, 21.0, 41.0)):  # abeam, then 2 m ahead: open
+        _, closed = book.update([note("a", (x_a, 14, 0), (2, 0, 0), t), note("b", (x_b, 20, 0), (1, 0, 0), t)], t)
+        assert not closed and book.active("a")
+    _, closed = book.update([note("a", (27, 14, 0), (2, 0, 0), 43.0), note("b", (22, 20, 0), (1, 0, 0), 43.0)], 43.0)
     assert len(closed) == 1 and not book.active()
 
 
@@ -272,10 +398,11 @@ def test_classification_agrees_with_the_angle_thresholds(alpha, r, k, rot):
         if alpha >= 70
         else Encounter.OVERTAKE
         if abs(s1 - s2) > 0.2
-        else Encounter.PARALLEL
+        else Encounter.CONVERGING
     )
     assert case.encounter == expected
-    if expected == Encounter.CONVERGING:  # exactly one gives way: the one with the other on its right
+    if expected == Encounter.CONVERGING and 80 <= alpha <= 120:  # outside the doubts: exactly one gives way, the one
+        # with the other on its right (within them a UAS in doubt gives way too)
         assert sorted(case.roles) == sorted((Role.CONVERGING, Role.RIGHT_OF_WAY))
         assert (case.roles[0] == Role.CONVERGING) == (np.cross(-d1, d2 - d1)[2] < 0)
 

@@ -1,10 +1,15 @@
 """Bad scenario files: one line naming the file and the field, exit code 2, no traceback."""
 
+import math
 import tomllib
+from datetime import UTC, datetime
 from pathlib import Path
 
 import pytest
 import tomli_w
+
+from sim.runner import run_scenario
+from sim.scenario import ScenarioError, load_scenario, parse_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 GOOD = tomllib.loads((ROOT / "scenarios" / "haps_box_mission.toml").read_text())
@@ -128,6 +133,43 @@ CASES = [
         "vehicle[0].mission.waypoints[1].altitude: -10 m is below the ground (0 m, origin altitude)",
     ),
     (
+        "start_above_ceiling",
+        _mutate(["vehicle", 0, "initial", "altitude"], "24 km"),
+        None,
+        "vehicle[0].initial.altitude: 24000 m is above the haps ceiling (23000 m MSL)",
+    ),
+    (
+        "waypoint_above_ceiling",
+        _mutate(["vehicle", 0, "mission", "waypoints", 2, "altitude"], "24 km"),
+        None,
+        "vehicle[0].mission.waypoints[2].altitude: 24000 m is above the haps ceiling (23000 m MSL)",
+    ),
+    (
+        "cruise_below_eas_envelope",
+        _mutate(["vehicle", 0, "mission", "cruise_speed"], "20 m/s"),
+        None,
+        "vehicle[0].mission.cruise_speed: 20 m/s TAS is EAS 6.30 m/s at waypoints[0] (18000 m), outside the "
+        "haps envelope EAS 7.3-12 m/s (TAS 23.2-38.1 m/s there)",
+    ),
+    (
+        "cruise_above_eas_envelope",
+        _mutate(["vehicle", 0, "mission", "cruise_speed"], "45 m/s"),
+        None,
+        "vehicle[0].mission.cruise_speed: 45 m/s TAS is EAS 14.18 m/s at waypoints[0] (18000 m)",
+    ),
+    (
+        "start_before_log_epoch",
+        {**GOOD, "start_time": datetime(1969, 12, 31, 23, tzinfo=UTC)},
+        None,
+        "start_time: the run (1969-12-31T23:00:00Z + duration) must lie between 1970-01-01 and 2554-07-21",
+    ),
+    (
+        "run_ends_after_log_times",
+        {**GOOD, "start_time": datetime(2554, 7, 21, 23, tzinfo=UTC)},
+        None,
+        "start_time: the run (2554-07-21T23:00:00Z + duration) must lie between 1970-01-01 and 2554-07-21",
+    ),
+    (
         "fixed_wing_land",
         _mutate(["vehicle", 0, "mission", "land"], True),
         None,
@@ -172,3 +214,20 @@ def test_bad_duration_option_is_exit_2(cosim, value):
     proc = cosim("run", "scenarios/quad_hover_offset.toml", f"--duration={value}", "-q")
     assert proc.returncode == 2
     assert "argument --duration:" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_quadrotor_waypoint_above_its_ceiling_is_refused():
+    data = tomllib.loads((ROOT / "scenarios" / "quad_hover_offset.toml").read_text())
+    data["vehicle"][0]["mission"]["waypoints"][0]["altitude"] = 7900.0
+    with pytest.raises(ScenarioError, match=r"^q: vehicle\[0\]\.mission\.waypoints\[0\]\.altitude: 7900 m is above "):
+        parse_scenario(data, "q")
+    data["vehicle"][0]["mission"]["waypoints"][0]["altitude"] = 7800.0  # T/W 2.02 there (ISA)
+    parse_scenario(data, "q")
+
+
+@pytest.mark.parametrize("value", [0.0, -5.0, math.nan, math.inf])
+def test_bad_duration_to_the_runner_is_refused_before_the_log(tmp_path, value):
+    sc, _ = load_scenario(ROOT / "scenarios" / "quad_hover_offset.toml")
+    with pytest.raises(ValueError, match=r"^duration: must be a finite number of seconds > 0"):
+        run_scenario(sc, tmp_path / "x.mcap", duration=value)
+    assert not (tmp_path / "x.mcap").exists()

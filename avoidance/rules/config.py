@@ -141,10 +141,14 @@ class RulesConfig:
         )
 
     def utm(self, grid_range: float, cruise: float) -> UtmConfig:
+        thesis = UtmConfig()  # speeds in thesis m/s, scaled like the lengths (1 s movement period)
         return UtmConfig(
             time_margin=self.time_margin * grid_range / max(cruise, 1e-6),
+            speed_tolerance=thesis.speed_tolerance * self.unit,
             close_after=self.close_after,
             min_speed=0.2 * cruise,
+            angle_doubt=thesis.angle_doubt,
+            speed_doubt=thesis.speed_doubt * self.unit,
         )
 
 

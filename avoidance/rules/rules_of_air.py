@@ -21,7 +21,7 @@ from avoidance.rules.restrictions import (
 from avoidance.utm.cases import as_roundabout
 from avoidance.utm.collision_case import CollisionCase, Encounter, Role
 
-SEVERITY = {Encounter.HEAD_ON: 0, Encounter.CONVERGING: 1, Encounter.OVERTAKE: 2, Encounter.PARALLEL: 3}
+SEVERITY = {Encounter.HEAD_ON: 0, Encounter.CONVERGING: 1, Encounter.OVERTAKE: 2}
 RESOLVING = {Role.ROUNDABOUT: "head_on", Role.CONVERGING: "converging", Role.OVERTAKING: "overtake"}
 
 
@@ -104,8 +104,12 @@ class DetectCollisionCases:
             (c for c in own if c.role_of(ctx.uas) in RESOLVING and c.other(ctx.uas) not in ctx.emergency), key=_severity
         )
         for c in ctx.resolve:
-            if c.role_of(ctx.uas) == Role.OVERTAKING and engine.enabled("overtake"):
+            role = c.role_of(ctx.uas)
+            if role == Role.OVERTAKING and engine.enabled("overtake"):
                 _overtake_goal(ctx, c)
+                break
+            if role == Role.CONVERGING and engine.enabled("converging"):
+                _pass_behind_goal(ctx, c)
                 break
 
 
@@ -113,8 +117,8 @@ class DetectCollisionCases:
 class ResolveCollisionCase:
     """(tab. 6.11) In navigation mode, each own case by role: head-on / roundabout, converging,
     overtake (each rule only if enabled); then, with ``widest``, of the trajectories left only
-    the one keeping farthest from the head-on / converging collision points stays in each cell
-    (an overtake flies to its waypoints instead)."""
+    the one keeping farthest from the head-on / roundabout collision points stays in each cell
+    (an overtake and a converging give-way fly to their waypoints instead)."""
 
     code: str = "resolve"
     point: DecisionPoint = DecisionPoint.TRAJECTORY_RESTRICTIONS
@@ -128,7 +132,7 @@ class ResolveCollisionCase:
             ctx.case = case
             engine.call(RESOLVING[case.role_of(ctx.uas)], ctx)
         ctx.case = None
-        points = [c.collision_point for c in ctx.resolve if c.encounter != Encounter.OVERTAKE]
+        points = [c.collision_point for c in ctx.resolve if c.role_of(ctx.uas) == Role.ROUNDABOUT]
         if ctx.disabled is not None and ctx.cfg.widest and points:  # of what is left, the widest berth per cell
             tree, pose = ctx.navigation_tree()
             feasible = ctx.current_run().fused.node_ok & ~ctx.disabled
@@ -202,6 +206,36 @@ def _overtake_goal(ctx: RuleContext, case: CollisionCase) -> None:
         convergence_enu=conv.tolist(),
         target="convergence" if past_div else "divergence",
     )
+
+
+def pass_behind_point(p_peer, v_peer, p_uas, offset: float) -> np.ndarray | None:
+    """The give-way UAS' aim while it is not yet ``offset`` [m] behind the right-of-way UAS
+    along the latter's track: the point ``offset`` behind the peer on its track, GCF [m]
+    (tab. 6.14: pass behind, then return); None once it is that far behind (back to the mission)
+    or when the peer has no horizontal course."""
+    p_peer, p_uas = np.asarray(p_peer, float), np.asarray(p_uas, float)
+    h = np.asarray(v_peer, float)[:2]
+    speed = float(np.linalg.norm(h))
+    if speed < 1e-9:
+        return None
+    h = h / speed
+    if float((p_uas[:2] - p_peer[:2]) @ h) <= -offset:
+        return None
+    return p_peer - offset * np.array([h[0], h[1], 0.0])
+
+
+def _pass_behind_goal(ctx: RuleContext, case: CollisionCase) -> None:
+    """The converging give-way UAS' waypoint for this frame: behind the right-of-way UAS by
+    the manoeuvre's margin (:func:`pass_behind_point`). Aiming at the mission goal the path
+    selection skirts the margin ball tangentially and turns last; the peer's moving margin then
+    closes every path (soft deadlock, emergency)."""
+    own = next(n for n in ctx.notifications if n.id == ctx.uas)
+    peer = next(n for n in ctx.notifications if n.id == case.other(ctx.uas)).adjusted(ctx.t)
+    offset = case.margin + (ctx.cfg.bloat + ctx.cfg.converging_extra) * ctx.unit
+    aim = pass_behind_point(peer.pos, peer.vel, own.pos, offset)
+    if aim is not None:
+        ctx.goal_override = aim
+        ctx.record("pass_behind", case, aim_enu=aim.tolist())
 
 
 @dataclass(frozen=True)

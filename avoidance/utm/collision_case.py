@@ -18,14 +18,13 @@ import numpy as np
 from avoidance.utm.notification import Margins, PositionNotification
 
 HEAD_ON_MIN_DEG = 130.0  # 130° <= α <= 180°: head-on
-CONVERGING_MIN_DEG = 70.0  # 70° <= α < 130°: converging; below: overtake (different speeds)
+CONVERGING_MIN_DEG = 70.0  # 70° <= α < 130°: converging; below: overtake when the speeds differ, else converging
 
 
 class Encounter(str, Enum):
     HEAD_ON = "head_on"
     CONVERGING = "converging"
     OVERTAKE = "overtake"
-    PARALLEL = "parallel"  # α < 70° at equal speeds: no standard encounter (nobody closes)
 
 
 class Role(str, Enum):
@@ -42,12 +41,18 @@ class UtmConfig:
     flagged; [D] two grid ranges over the speed, see docs/rules.md), ``speed_tolerance`` [m/s]
     (speeds closer than this are equal: no overtake), ``close_after`` frames without danger
     before a case closes (A-32 hysteresis), ``min_speed`` [m/s] below which a UAS has no
-    approach direction (hovering): no case is computed for it (it stays an intruder)."""
+    approach direction (hovering): no case is computed for it (it stays an intruder).
+    ``angle_doubt`` [deg] and ``speed_doubt`` [m/s]: how far the two UAS' estimates of α and of
+    the speed difference may disagree (each computes the pair from its own estimate and its noisy
+    track of the other); a UAS that would give way anywhere within them gives way
+    (:func:`pair_roles`)."""
 
     time_margin: float = 20.0
     speed_tolerance: float = 0.2
     close_after: int = 2
     min_speed: float = 0.0
+    angle_doubt: float = 10.0
+    speed_doubt: float = 0.1
 
 
 def closest_approach(p1, v1, p2, v2) -> tuple[float, float, np.ndarray]:
@@ -79,12 +84,15 @@ def angle_of_approach(p1_adj, p2_adj, cp) -> float:
 
 
 def classify(alpha_deg: float, speed1: float, speed2: float, speed_tolerance: float = 0.2) -> Encounter:
-    """Encounter by the angle of approach (spec §7.2; T-UT-1)."""
+    """Encounter by the angle of approach (spec §7.2; T-UT-1): head-on from 130°, converging
+    from 70°, below that overtake when the speeds differ by more than ``speed_tolerance`` [m/s],
+    else converging (ICAO Annex 2 3.2.2: converging is every approach that is neither head-on nor
+    overtaking; at equal speeds two UAS whose courses cross at under 70° close abeam)."""
     if alpha_deg >= HEAD_ON_MIN_DEG:
         return Encounter.HEAD_ON
-    if alpha_deg >= CONVERGING_MIN_DEG:
+    if alpha_deg >= CONVERGING_MIN_DEG or abs(speed1 - speed2) <= speed_tolerance:
         return Encounter.CONVERGING
-    return Encounter.OVERTAKE if abs(speed1 - speed2) > speed_tolerance else Encounter.PARALLEL
+    return Encounter.OVERTAKE
 
 
 def collision_margin(m1: Margins, m2: Margins) -> float:
@@ -113,22 +121,65 @@ def traffic_on_right(p_own, cp, p_other) -> bool:
     return bool(a[0] * b[1] - a[1] * b[0] < 0.0)
 
 
-def roles(
-    encounter: Encounter, n1: PositionNotification, n2: PositionNotification, cp: np.ndarray
+GIVES_WAY = frozenset({Role.ROUNDABOUT, Role.CONVERGING, Role.OVERTAKING})
+
+
+def encounter_roles(
+    encounter: Encounter, faster1: bool, right1: bool, priority1: tuple[int, int], priority2: tuple[int, int]
 ) -> tuple[Role, Role]:
-    """Roles of UAS 1 and 2 (§7.4 step 6). A different category or maneuverability gives the
-    higher-priority UAS the right of way in every encounter but head-on; otherwise converging:
-    the UAS with traffic on its right gives way; overtake: the faster one overtakes."""
+    """Roles of UAS 1 and 2 (§7.4 step 6): head-on both roundabout; overtake: the faster one
+    (``faster1``: UAS 1) overtakes; converging: a different category or maneuverability gives the
+    higher-priority UAS (smaller ``priority``) the right of way, else the UAS with traffic on its
+    right (``right1``: UAS 1) gives way."""
     if encounter == Encounter.HEAD_ON:
         return Role.ROUNDABOUT, Role.ROUNDABOUT
-    r1, r2 = n1.registration.priority(), n2.registration.priority()
     if encounter == Encounter.OVERTAKE:
-        return (Role.OVERTAKING, Role.OVERTAKEN) if n1.speed > n2.speed else (Role.OVERTAKEN, Role.OVERTAKING)
-    if r1 != r2:
-        return (Role.RIGHT_OF_WAY, Role.CONVERGING) if r1 < r2 else (Role.CONVERGING, Role.RIGHT_OF_WAY)
-    if traffic_on_right(n1.pos, cp, n2.pos):
-        return Role.CONVERGING, Role.RIGHT_OF_WAY
-    return Role.RIGHT_OF_WAY, Role.CONVERGING
+        return (Role.OVERTAKING, Role.OVERTAKEN) if faster1 else (Role.OVERTAKEN, Role.OVERTAKING)
+    if priority1 != priority2:
+        return (Role.RIGHT_OF_WAY, Role.CONVERGING) if priority1 < priority2 else (Role.CONVERGING, Role.RIGHT_OF_WAY)
+    return (Role.CONVERGING, Role.RIGHT_OF_WAY) if right1 else (Role.RIGHT_OF_WAY, Role.CONVERGING)
+
+
+def pair_roles(
+    alpha_deg: float,
+    speed1: float,
+    speed2: float,
+    right1: bool,
+    side_sure: bool,
+    priorities: tuple[tuple[int, int], tuple[int, int]],
+    cfg: UtmConfig,
+) -> tuple[Encounter, tuple[Role, Role]]:
+    """The pair's encounter (at the estimate) and roles, a UAS in doubt giving way. The two UAS
+    compute the pair each from its own estimate and its noisy track of the other, so near a
+    threshold they can classify it differently; the roles of one classification are always
+    complementary (one gives way, or both), but mixed ones need not be (overtaken vs right of way:
+    nobody gives way). So each UAS keeps a holding role only if it holds in every classification
+    within ``cfg.angle_doubt`` of α and ``cfg.speed_doubt`` of the speed difference (and for either
+    side when ``side_sure`` is false); else it takes the nearest give-way role. Whenever the two
+    estimates differ by less than the doubts, at least one of the UAS gives way."""
+    encounter = classify(alpha_deg, speed1, speed2, cfg.speed_tolerance)
+    roles = list(encounter_roles(encounter, speed1 > speed2, right1, *priorities))
+    dspeed = speed1 - speed2
+    angles, speeds = (0.0, -cfg.angle_doubt, cfg.angle_doubt), (0.0, -cfg.speed_doubt, cfg.speed_doubt)
+    doubts = sorted(((da, ds) for da in angles for ds in speeds), key=lambda d: (d[0] != 0.0) + (d[1] != 0.0))
+    sides = (right1,) if side_sure else (right1, not right1)
+    for da, ds in doubts:
+        for side in sides:
+            alpha, diff = min(max(alpha_deg + da, 0.0), 180.0), dspeed + ds
+            alt = encounter_roles(classify(alpha, diff, 0.0, cfg.speed_tolerance), diff > 0.0, side, *priorities)
+            roles = [r if r in GIVES_WAY or a not in GIVES_WAY else a for r, a in zip(roles, alt, strict=True)]
+    return encounter, (roles[0], roles[1])
+
+
+def side_of_traffic(p1, v1, p2, v2, cp, angle_doubt_deg: float) -> tuple[bool, bool]:
+    """Whether UAS 2 is on UAS 1's right (:func:`traffic_on_right`), and whether that is sure: the
+    offset ``p2 - p1`` is more than ``angle_doubt_deg`` off the mean course ``(v1 + v2) / 2`` (the
+    side flips only where the offset runs along that course: one UAS trailing the other)."""
+    mean = 0.5 * (np.asarray(v1, float)[:2] + np.asarray(v2, float)[:2])
+    off = np.asarray(p2, float)[:2] - np.asarray(p1, float)[:2]
+    norm = float(np.linalg.norm(mean) * np.linalg.norm(off))
+    sine = abs(float(mean[0] * off[1] - mean[1] * off[0])) / norm if norm > 1e-12 else 0.0
+    return traffic_on_right(p1, cp, p2), sine > float(np.sin(np.radians(angle_doubt_deg)))
 
 
 @dataclass(slots=True)
@@ -203,8 +254,9 @@ def compute_collision_case(
     m1, m2 = n1.registration.margins, n2.registration.margins
     flagged = 0.0 <= t_cpa <= cfg.time_margin and dist <= collision_margin(m1, m2)
     alpha = angle_of_approach(a1.pos, a2.pos, cp)
-    enc = classify(alpha, a1.speed, a2.speed, cfg.speed_tolerance)
-    rl = roles(enc, a1, a2, cp)
+    right1, side_sure = side_of_traffic(a1.pos, a1.vel, a2.pos, a2.vel, cp, cfg.angle_doubt)
+    priorities = (n1.registration.priority(), n2.registration.priority())
+    enc, rl = pair_roles(alpha, a1.speed, a2.speed, right1, side_sure, priorities, cfg)
     return CollisionCase(
         t,
         (n1.id, n2.id),

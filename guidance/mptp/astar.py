@@ -5,6 +5,8 @@ keyed by ``key(node)`` so that the caller decides which states are "the same" (f
 position/time/course lattice, Option 1 of Algorithm 2). Ties in F prefer the larger G (the
 deeper state). Closed states are never reopened, so an inconsistent heuristic (SSPH) may cost
 optimality, as the thesis notes; an admissible, consistent one returns an optimal path.
+``weight`` w >= 1 orders the open list by G + w H (weighted A*): with an admissible, consistent
+H the path costs at most w times the optimum, and plateaus of equal G + H are left early.
 """
 
 from __future__ import annotations
@@ -41,13 +43,14 @@ def astar(
     max_expansions: int,
     h_start: float = 0.0,
     partial_ok: Callable[[N], bool] | None = None,
+    weight: float = 1.0,
 ) -> SearchResult[N]:
     tie = itertools.count()
     k0 = key(start)
     nodes: dict[Hashable, N] = {k0: start}
     parent: dict[Hashable, Hashable | None] = {k0: None}
     best_g, best_h = {k0: 0.0}, {k0: h_start}
-    open_list = [(h_start, -0.0, next(tie), k0)]
+    open_list = [(weight * h_start, -0.0, next(tie), k0)]
     closed: set[Hashable] = set()
     expanded = 0
     progress: tuple[float, Hashable] | None = None  # (h, key) of the best partial end so far
@@ -89,5 +92,5 @@ def astar(
             if kc in closed or g2 >= best_g.get(kc, float("inf")):
                 continue
             best_g[kc], best_h[kc], nodes[kc], parent[kc] = g2, h, child, k
-            heapq.heappush(open_list, (g2 + h, -g2, next(tie), kc))
+            heapq.heappush(open_list, (g2 + weight * h, -g2, next(tie), kc))
     return failed("exhausted")

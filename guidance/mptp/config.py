@@ -34,7 +34,11 @@ class MptpConfig:
     on nowcast times); ``horizon_s`` planning horizon T_P [s]; ``replan_period_s`` cadence [s].
 
     Search: ``heuristic``; ``turning`` sense(s) of the auxiliary states; ``max_expansions``
-    caps A* (the thesis's Monte-Carlo success criterion used 100).
+    caps A* (the thesis's Monte-Carlo success criterion used 100); ``search_weight`` w >= 1
+    orders the open list by G + w H (weighted A*: at most w times the optimum with a consistent
+    admissible H; w > 1 leaves the plateaus that waiting creates early); ``dominance_s`` [s]:
+    a place and course is expanded once per window of this length, at its earliest arrival
+    (search.py).
 
     Margins (seed 002 3.1): probabilistic radius r = sqrt(-2 ln(1-P)) * sigma(theta) * lead_time,
     sigma from ``sigma_back_mps`` (against the motion) to ``sigma_front_mps`` (along it), capped
@@ -66,6 +70,8 @@ class MptpConfig:
     heuristic: Heuristic = "ssph"
     turning: Turning = "both"
     max_expansions: int = 120
+    search_weight: float = 1.1
+    dominance_s: float = 240.0
     probability: float = 0.9
     sigma_front_mps: float = 1.5
     sigma_back_mps: float = 0.75
@@ -87,6 +93,8 @@ class MptpConfig:
             raise ValueError("need tas_mps > 0, dt_s > 0 and horizon_s >= dt_s")
         if not 0 < self.bank_max < math.pi / 2 or not 0 < self.course_change_max <= math.pi / 2:
             raise ValueError("bank_max must be in (0, 90) deg and course_change_max in (0, 90] deg")
+        if not self.search_weight >= 1.0 or not self.dominance_s > 0:
+            raise ValueError("need search_weight >= 1 and dominance_s > 0")
         if not 0 <= self.probability < 1:
             raise ValueError("probability must be in [0, 1)")
         if self.heuristic not in ("dijkstra", "edh", "ssph") or self.turning not in ("both", "right", "left"):

@@ -8,10 +8,28 @@
   wait term a covered goal makes A* expand every state that is closer than the wait.
 - SSPH (:class:`StaticPaths`): the shortest static path to the goal in a free estimated state
   space, over its reduced visibility graph (a Dijkstra from the goal), divided by V; the search
-  (search.py) builds it on the start state's EX_free once per replan for a fixed goal (the
-  thesis: on EX_free(x_in) per expansion). Where the goal is not connected to a state in that
-  static view (the goal is covered now but uncovers later, 5.4) the thesis notes SSPH has no
-  value; we then fall back to EDH for that state instead of penalising edges.
+  (search.py) builds it once per replan (the thesis: on EX_free(x_in) per expansion). Where the
+  goal is not connected to a state in that static view (the goal is covered now but uncovers
+  later, 5.4) the thesis notes SSPH has no value; we then fall back to EDH for that state
+  instead of penalising edges.
+
+Admissibility with waiting and wind (the search may hold anywhere, and plans in the air-mass
+frame where the aircraft flies at exactly V and a ground goal drifts at minus the wind):
+- EDH: no path reaches the goal before the straight-line interception at V, and a later start
+  (a wait) only moves that time later; the availability term only skips times at which the
+  goal is inside the envelope. Both terms are monotone in the state's time, so EDH stays
+  consistent along every edge, holds included.
+- SSPH: the static view must not contain an obstacle that a wait would see move away, so it is
+  built on the start's *permanent* obstacle (statespace.obstacle_region, ``permanent``): each
+  point of it is inside the envelope at every time it can be reached. A flown path avoids it,
+  so its length is at least the static distance d_s(p, g) to wherever the goal is on arrival.
+  A moving goal (a goal track, or any ground goal in wind) is met at some tau >= tau0, the
+  earliest interception from the start; while its track stays in the static free space from
+  tau0 to T_w, d_s(g(tau0), g(tau)) <= v_g (tau - tau0) (v_g its largest speed), so
+  V (tau - t) >= d_s(p, g(tau0)) - v_g (tau - tau0), i.e. tau >= (d_s + V t + v_g tau0) / (V + v_g);
+  capped at T_w (an arrival after T_w is later than the cap anyway). When the track leaves the
+  static free space the SSPH is not used (EDH only).
+- The search takes max(EDH, SSPH); the maximum of admissible bounds is admissible.
 """
 
 from __future__ import annotations
@@ -77,7 +95,7 @@ class StaticPaths:
 
     def __init__(self, fs: FreeSpace, goal_pt: np.ndarray):
         b = fs.boundary
-        self.fs, self.goal = fs, np.asarray(goal_pt, float)
+        self.fs, self.goal = fs, np.asarray(goal_pt, float).reshape(2)
         n = len(b.verts)
         i, j, w = reduced_graph(b)
         _gi, gv = visible_vertices(self.goal[None], b)
@@ -100,3 +118,30 @@ class StaticPaths:
             via = np.linalg.norm(b.verts[vi] - pts[si], axis=1) + self.dist[vi]
             np.minimum.at(out, si, via)
         return out
+
+
+class StaticBound:
+    """SSPH arrival bound [s] for a goal that may move (see the module notes): static distances
+    in ``fs`` (a permanent obstacle view) to the goal at ``tau0`` [s], its track checked in the
+    static free space up to ``t_w`` [s]; ``usable`` False when the track leaves it."""
+
+    def __init__(self, fs: FreeSpace, goal: GoalTrack, tau0: float, t_w: float, speed: float):
+        self.paths = StaticPaths(fs, goal.at(tau0))
+        self.tau0, self.t_w, self.speed = tau0, max(t_w, tau0), speed
+        inner = goal.times[(goal.times > self.tau0) & (goal.times < self.t_w)]
+        knots = np.concatenate([[self.tau0], inner, [self.t_w]])
+        track = goal.at(knots)
+        legs = np.linalg.norm(np.diff(track, axis=0), axis=1)
+        self.v_goal = float((legs / np.maximum(np.diff(knots), 1e-9)).max()) if len(legs) else 0.0
+        moving = legs > 1e-6
+        self.usable = self.v_goal == 0.0 or not blocked(track[:-1][moving], track[1:][moving], fs.boundary).any()
+
+    def arrival(self, pts: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """Lower bounds on the arrival time [s] from points (N, 2) at times (N,) (inf where the
+        static view does not connect them to the goal, or the bound is unusable)."""
+        if not self.usable:
+            return np.full(len(pts), np.inf)
+        d = self.paths.from_points(pts)
+        v, vg = self.speed, self.v_goal
+        tau = (d + v * times + vg * self.tau0) / (v + vg)
+        return tau if vg == 0.0 else np.minimum(tau, np.where(np.isfinite(d), self.t_w, np.inf))

@@ -6,9 +6,20 @@ arrival). Expanding a state x_in computes EX_free(x_in); its adjacent states are
 tangent vertices of EX_obs(x_in), the goal when visible, and the auxiliary turning states, each
 kept only when flyable from x_in (course change and leg length, see turning.py). An edge is a
 straight leg at constant speed, so arrival times grow along every path (time monotone) and G is
-the flight time. States are "the same" (closed list) on a lattice of 1 % of the auxiliary leg,
-1 % of dt and 1 deg of course: revisiting a place later is a different state, which lets the
-search wait by circling (holding patterns) and keeps it resolution complete in time.
+the flight time.
+
+Waiting is an action of its own: from every state but the start and the goal, holding for
+HOLD_LAPS laps of the holding orbit (turning.hold_orbit: back at the state on its course, so the
+legs around it are unchanged), each kept when the orbit's footprint stays out of the obstacle
+envelopes over the whole wait and the wait ends within the planning horizon; holds chain, so any
+number of laps up to the horizon is reachable. The cost of a hold is its duration.
+
+Closed list (which states are "the same"): position on a lattice of 1 % of the auxiliary leg,
+course to 1 deg, kind, and time: a hold or goal state to 1 % of dt, any other state by the
+window of ``dominance_s`` it falls in. So a place and course is expanded once per window, at
+its earliest arrival in it: a later arrival in the same window is taken as dominated (what a
+hold from the earlier one gives, to within a lap; where no hold fits, it is lost).
+The open list is ordered by G + w H (``search_weight`` w, astar.py).
 """
 
 from __future__ import annotations
@@ -18,35 +29,44 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+import shapely
 from shapely.geometry import Polygon
 
 from guidance.mptp.astar import astar
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
-from guidance.mptp.heuristics import GoalAvailability, StaticPaths, edh
+from guidance.mptp.heuristics import GoalAvailability, StaticBound, edh
 from guidance.mptp.statespace import FreeSpace, free_space
 from guidance.mptp.timeline import ObstacleTimeline
-from guidance.mptp.turning import admissible, aux_states, min_leg_m
+from guidance.mptp.turning import SENSES, admissible, aux_states, hold_lap_s, hold_orbit, min_leg_m
 from guidance.mptp.visibility import blocked, visible_vertices
+from guidance.mptp.waitbound import WaitBound
 
-START, VERTEX, AUX, GOAL = "start", "vertex", "aux", "goal"
+START, VERTEX, AUX, GOAL, HOLD = "start", "vertex", "aux", "goal", "hold"
+HOLD_LAPS = (1, 2, 4, 8, 16, 32)  # wait choices per expansion [laps]
+WAIT_SUBSTEPS = 3  # time steps of the wait bound per planning interval
+TOUCH_M2 = 1.0  # a holding footprint may touch an envelope by this area [m^2]
 
 
 @dataclass(frozen=True, slots=True)
 class State:
+    """``side``: for a HOLD state, the sense of its orbit (+1 right, -1 left)."""
+
     p: tuple[float, float]
     t: float
     course: float
     kind: str
+    side: float = 0.0
 
 
 @dataclass(frozen=True, slots=True)
 class Trajectory:
     """Planned states: positions (N, 2) [m], times (N,) [s], courses at arrival (N,) [rad] and
-    kinds (start / vertex / aux / goal); ``status`` "ok", "limit" or "exhausted"; when not "ok"
-    the states are the partial trajectory to the expanded state closest to the goal (by the
-    heuristic) that lasts at least ``min_partial_s`` and has successors, or empty; ``expanded``
-    EXST; ``start_space`` EX_free of the start state (for diagnostics and fall-backs)."""
+    kinds (start / vertex / aux / goal / hold: the vertices of a holding orbit); ``status``
+    "ok", "limit" or "exhausted"; when not "ok" the states are the partial trajectory to the
+    expanded state closest to the goal (by the heuristic) that lasts at least ``min_partial_s``
+    and has successors, or empty; ``expanded`` EXST; ``start_space`` EX_free of the start state
+    (for diagnostics and fall-backs)."""
 
     positions: np.ndarray
     times: np.ndarray
@@ -60,6 +80,11 @@ class Trajectory:
     @property
     def length_m(self) -> float:
         return float(np.linalg.norm(np.diff(self.positions, axis=0), axis=1).sum()) if len(self.positions) > 1 else 0.0
+
+    @property
+    def hold_s(self) -> float:
+        """Time spent in planned holds [s]."""
+        return float(np.diff(self.times)[self.kinds[1:] == HOLD].sum()) if len(self.times) > 1 else 0.0
 
     @property
     def holding_turn(self) -> float:
@@ -89,7 +114,12 @@ class _Expander:
         self.start_space: FreeSpace | None = None
         self.escape_m = 2.0 * float(min_leg_m(cfg.course_change_max, cfg))
         self.availability = GoalAvailability(tl, goal)
-        self.static: StaticPaths | None = None  # SSPH graph of the start state (fixed goal)
+        self.static: StaticBound | None = None  # SSPH bound of the start state
+        self.wait: WaitBound | None = None
+        self.t_start = 0.0  # time of the start state [s]
+        self.t_end = math.inf  # holds end by this time [s] (the planning horizon)
+        self.lap_s = hold_lap_s(cfg)
+        self.hold_senses = SENSES[turning][:1] + tuple(x for x in (1.0, -1.0) if x != SENSES[turning][0])
 
     def __call__(self, s: State):
         cfg, v = self.cfg, self.cfg.tas_mps
@@ -109,29 +139,69 @@ class _Expander:
         ok, chi, leg = admissible(p, s.course, pts, cfg, to_goal=kinds == GOAL, from_start=s.kind == START)
         pts, chi, leg, kinds = pts[ok], chi[ok], leg[ok], kinds[ok]
         times = s.t + leg / v
-        h = self._heuristic(fs, g_pt, pts, times, kinds)
+        holds, sides = self._holds(s) if s.kind not in (START, GOAL) else (np.empty(0), np.empty(0))
+        pts = np.vstack([pts, np.repeat(p[None], len(holds), 0)])
+        chi = np.concatenate([chi, np.full(len(holds), s.course)])
+        cost = np.concatenate([leg / v, holds])
+        kinds = np.concatenate([kinds, np.full(len(holds), HOLD)])
+        sides = np.concatenate([np.zeros(len(pts) - len(holds)), sides])
+        times = s.t + cost
+        h = self._heuristic(fs, t_goal, pts, times)
         for k in range(len(pts)):
             yield (
-                State((float(pts[k, 0]), float(pts[k, 1])), float(times[k]), float(chi[k]), str(kinds[k])),
-                float(leg[k] / v),
+                State(
+                    (float(pts[k, 0]), float(pts[k, 1])), float(times[k]), float(chi[k]), str(kinds[k]), float(sides[k])
+                ),
+                float(cost[k]),
                 float(h[k]),
             )
 
-    def _heuristic(self, fs: FreeSpace, g_pt, pts, times, kinds) -> np.ndarray:
+    def _holds(self, s: State) -> tuple[np.ndarray, np.ndarray]:
+        """Admissible waits at s: durations [s] (whole laps of HOLD_LAPS ending by t_end) and the
+        sense of each one's orbit, the first sense whose footprint stays out of the envelopes of
+        every planning interval the wait touches."""
+        durations = self.lap_s * np.array([k for k in HOLD_LAPS if s.t + k * self.lap_s <= self.t_end + 1e-9])
+        if not len(durations):
+            return np.empty(0), np.empty(0)
+        j0, j1 = int(self.tl.interval(s.t)), int(self.tl.interval(s.t + durations[-1]))
+        envs = self.tl.envelopes(np.arange(j0, j1 + 1), np.arange(j0 + 1, j1 + 2))
+        last = self.tl.interval(s.t + durations) - j0
+        sides = np.zeros(len(durations))
+        for side in self.hold_senses:
+            lap = hold_orbit(np.array(s.p), s.course, 1, self.cfg, side)
+            footprint = shapely.convex_hull(shapely.multipoints(lap))
+            hit = shapely.area(shapely.intersection(footprint, envs)) > TOUCH_M2
+            free_until = int(np.argmax(hit)) - 1 if hit.any() else len(envs) - 1
+            sides[(sides == 0) & (last <= free_until)] = side
+        return durations[sides != 0], sides[sides != 0]
+
+    def _heuristic(self, fs: FreeSpace, t_goal: float, pts: np.ndarray, times: np.ndarray) -> np.ndarray:
         if self.cfg.heuristic == "dijkstra" or not len(pts):
             return np.zeros(len(pts))
-        euclid = edh(pts, times, self.goal, self.cfg.tas_mps, self.availability)
+        euclid = np.maximum(
+            edh(pts, times, self.goal, self.cfg.tas_mps, self.availability),
+            self._wait_bound().arrival(pts, times) - times,
+        )
         if self.cfg.heuristic == "edh":
             return euclid
-        static = self._static_paths(fs, g_pt).from_points(pts) / self.cfg.tas_mps
+        static = self._static_bound(fs, t_goal).arrival(pts, times) - times
         return np.where(np.isfinite(static), np.maximum(static, euclid), euclid)
 
-    def _static_paths(self, fs: FreeSpace, g_pt: np.ndarray) -> StaticPaths:
-        """SSPH graph of the start state's free space for the whole search (one reduced
-        visibility graph per replan instead of one per expansion), to the goal's interception
-        point from the start (a moving goal, or a fixed one seen from the air-mass frame)."""
+    def _wait_bound(self) -> WaitBound:
+        """The wait bound of this search (built at the first call, from the start state's time)."""
+        if self.wait is None:
+            self.wait = WaitBound(self.tl, self.goal, self.w, self.t_start, self.t_end, self.cfg.tas_mps, WAIT_SUBSTEPS)
+        return self.wait
+
+    def _static_bound(self, fs: FreeSpace, t_goal: float) -> StaticBound:
+        """SSPH bound of the start state for the whole search (one reduced visibility graph per
+        replan instead of one per expansion) on its permanent obstacle, to the goal at its
+        interception time from the start (see heuristics.py)."""
         if self.static is None:
-            self.static = StaticPaths(fs, g_pt)
+            cfg = self.cfg
+            perm = free_space(self.tl, fs.p_in, fs.t_in, self.w, cfg.tas_mps, cfg.ring_segments, permanent=True)
+            tau0 = t_goal if np.isfinite(t_goal) else fs.t_in
+            self.static = StaticBound(perm, self.goal, tau0, fs.t_in + cfg.horizon_s, cfg.tas_mps)
         return self.static
 
 
@@ -153,23 +223,60 @@ def plan_trajectory(
     ends = goal.at(np.array([t0, t0 + cfg.horizon_s]))
     w = workspace if workspace is not None else default_workspace(np.vstack([p0, ends]), cfg, cfg.mission_area)
     exp = _Expander(tl, goal, cfg, w, turning or cfg.turning)
+    exp.t_start, exp.t_end = t0, t0 + cfg.horizon_s
     q_p, q_t, q_c = 0.01 * cfg.leg_m, 0.01 * cfg.dt_s, math.radians(1.0)
 
     def key(s: State):
-        return round(s.p[0] / q_p), round(s.p[1] / q_p), round(s.t / q_t), round(s.course / q_c) % 360, s.kind == GOAL
+        when = round(s.t / q_t) if s.kind in (HOLD, GOAL) else ("bucket", math.floor(s.t / cfg.dominance_s))
+        return round(s.p[0] / q_p), round(s.p[1] / q_p), round(s.course / q_c) % 360, s.kind, when
 
     start = State((float(p0[0]), float(p0[1])), float(t0), float(course0), START)
     res = astar(
-        start, exp, lambda s: s.kind == GOAL, key, cfg.max_expansions, partial_ok=lambda s: s.t >= t0 + min_partial_s
+        start,
+        exp,
+        lambda s: s.kind == GOAL,
+        key,
+        cfg.max_expansions,
+        partial_ok=lambda s: s.t >= t0 + min_partial_s,
+        weight=cfg.search_weight,
     )
     path = res.path if res.status == "ok" else res.partial
+    positions, times, courses, kinds = _states_with_orbits(path, cfg)
     return Trajectory(
-        np.array([s.p for s in path]).reshape(-1, 2),
-        np.array([s.t for s in path]),
-        np.array([s.course for s in path]),
-        np.array([s.kind for s in path]),
+        positions,
+        times,
+        courses,
+        kinds,
         res.status,
         res.expanded,
         time.perf_counter() - wall,
         exp.start_space,
     )
+
+
+def _states_with_orbits(path: list[State], cfg: MptpConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Positions, times, courses and kinds of ``path`` with every hold written out as the
+    vertices of its orbit (times linear over the hold, the courses of the orbit's legs)."""
+    pos: list[np.ndarray] = []
+    times: list[np.ndarray] = []
+    courses: list[np.ndarray] = []
+    kinds: list[np.ndarray] = []
+    lap = hold_lap_s(cfg)
+    for i, s in enumerate(path):
+        if s.kind == HOLD:
+            prev = path[i - 1]
+            laps = max(1, round((s.t - prev.t) / lap))
+            orbit = hold_orbit(np.array(prev.p), prev.course, laps, cfg, s.side)[1:]
+            d = np.diff(np.vstack([prev.p, orbit]), axis=0)
+            pos.append(orbit)
+            times.append(prev.t + (s.t - prev.t) * np.arange(1, len(orbit) + 1) / len(orbit))
+            courses.append(np.arctan2(d[:, 1], d[:, 0]))
+            kinds.append(np.full(len(orbit), HOLD))
+            continue
+        pos.append(np.array([s.p]))
+        times.append(np.array([s.t]))
+        courses.append(np.array([s.course]))
+        kinds.append(np.array([s.kind]))
+    if not pos:
+        return np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0, str)
+    return np.vstack(pos), np.concatenate(times), np.concatenate(courses), np.concatenate(kinds)

@@ -60,14 +60,25 @@ def annuli(p: np.ndarray, radii: np.ndarray, segments: int) -> np.ndarray:
 
 
 def obstacle_region(
-    tl: ObstacleTimeline, p_in: np.ndarray, t_in: float, reach_m: float, speed: float, segments: int
+    tl: ObstacleTimeline,
+    p_in: np.ndarray,
+    t_in: float,
+    reach_m: float,
+    speed: float,
+    segments: int,
+    permanent: bool = False,
 ) -> BaseGeometry:
     """EX_obs(x_in) out to range ``reach_m`` [m] (beyond the last level the last envelope).
 
     At most about MAX_RINGS annuli: when more planning intervals lie within reach (small dt),
     an annulus spans k consecutive intervals (groups aligned to multiples of k, so their
     envelopes are shared between expansions) with the envelope over the whole span, a superset
-    of the per-interval pieces (conservative)."""
+    of the per-interval pieces (conservative).
+
+    ``permanent``: instead, the part of it that no later arrival escapes: each annulus cut with
+    the intersection of its envelope and every later one to the end of the timeline (whose
+    last level is held). A point in it is inside the envelope at every time it can be reached
+    from x_in, waiting or not."""
     j0 = int(tl.interval(t_in))
     n = math.ceil(reach_m / (speed * tl.dt)) + 1
     k = max(1, math.ceil(n / MAX_RINGS))
@@ -79,11 +90,27 @@ def obstacle_region(
     radii = np.append(radii, max(reach_m, radii[-1]) * 1.05 + 1.0)
     rings = annuli(p_in, radii, segments)
     starts = np.r_[j0, ends][: len(rings)]
-    env = tl.envelopes(starts, np.r_[ends, ends[-1] + k][: len(rings)])
+    stops = np.r_[ends, ends[-1] + k][: len(rings)]
+    env = tl.envelopes(starts, stops)
+    if permanent:
+        env = _suffix_intersections(tl, env, int(stops[-1]), k)
     hit = shapely.intersects(rings, env)
     if not hit.any():
         return Polygon()
     return shapely.union_all(shapely.intersection(rings[hit], env[hit]))
+
+
+def _suffix_intersections(tl: ObstacleTimeline, env: np.ndarray, stop: int, k: int) -> np.ndarray:
+    """env[i] cut with env[i+1:] and with the envelopes of the levels from ``stop`` to the end
+    of the timeline in spans of k (the intersection of an envelope with all later ones)."""
+    tail_starts = np.arange(stop, tl.n_levels, k)
+    tail = shapely.intersection_all(tl.envelopes(tail_starts, tail_starts + k)) if len(tail_starts) else None
+    out = np.empty(len(env), object)
+    acc = tail
+    for i in range(len(env) - 1, -1, -1):
+        acc = env[i] if acc is None else shapely.intersection(env[i], acc)
+        out[i] = acc
+    return out
 
 
 def free_space(
@@ -94,6 +121,7 @@ def free_space(
     speed: float,
     segments: int,
     escape_m: float = 0.0,
+    permanent: bool = False,
 ) -> FreeSpace:
     """EX_free(x_in) = W \\ EX_obs(x_in), the part connected to p_in.
 
@@ -101,10 +129,11 @@ def free_space(
     when the aircraft is suddenly trapped inside a margin (and for the states of its way out,
     or a state a rounding error inside): a disc around p_in
     reaching ``escape_m`` [m] (one flyable leg) beyond the nearest free point is removed from
-    EX_obs, so that the search can leave the margin the shortest way."""
+    EX_obs, so that the search can leave the margin the shortest way. ``permanent``: with the
+    obstacle that no later arrival escapes (see :func:`obstacle_region`), for the SSPH."""
     p_in = np.asarray(p_in, float)
     reach = _reach(p_in, workspace)
-    obs = obstacle_region(tl, p_in, t_in, reach, speed, segments)
+    obs = obstacle_region(tl, p_in, t_in, reach, speed, segments, permanent)
     pt = Point(p_in)
     trapped = escape_m > 0 and obs.contains(pt)
     if trapped:

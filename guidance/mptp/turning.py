@@ -14,6 +14,11 @@ admissible when it holds the anticipation of the turn at its start plus the larg
 one at its end (a leg to the goal has no turn at its end). The start state cannot anticipate:
 the aircraft turns at R from its current course until it points at the next state, which must
 therefore lie outside that turning circle, and arrives on the turn's exit course.
+
+Holding (waiting) at a state: a regular n-gon (n = ceil(2 pi / |dchi_max|), turn 2 pi / n at
+every vertex) that leaves the state turning one way and returns to it on its arrival course, so
+the legs before and after are flown as if there had been no wait. Its leg is HOLD_SLACK times
+the shortest one whose fly-bys fit (both ends anticipate a turn of up to |dchi_max|), flown at V.
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ import numpy as np
 from guidance.mptp.config import MptpConfig
 
 SENSES = {"both": (1.0, -1.0), "right": (1.0,), "left": (-1.0,)}
+HOLD_SLACK = 2.0  # holding leg / the shortest flyable one
 
 
 def wrap(a):
@@ -164,3 +170,25 @@ def _arc_step(pos: np.ndarray, chi: float, side: float, radius: float, dth: floa
     chord = 2.0 * radius * math.sin(0.5 * dth)
     mid = chi + side * 0.5 * dth
     return pos + chord * _unit(mid), chi + side * dth
+
+
+def hold_sides(cfg: MptpConfig) -> int:
+    """Number of legs n of one holding lap."""
+    return math.ceil(2 * math.pi / cfg.course_change_max - 1e-9)
+
+
+def hold_lap_s(cfg: MptpConfig) -> float:
+    """Duration of one holding lap [s]: n legs of HOLD_SLACK * 2 R tan(|dchi_max| / 2) at V."""
+    leg = HOLD_SLACK * 2.0 * cfg.turn_radius_m * math.tan(0.5 * cfg.course_change_max)
+    return hold_sides(cfg) * leg / cfg.tas_mps
+
+
+def hold_orbit(p: np.ndarray, course: float, laps: int, cfg: MptpConfig, side: float) -> np.ndarray:
+    """Vertices (n * laps + 1, 2) [m] of ``laps`` holding laps from p (course ``course`` [rad]
+    at p, turning right for ``side`` +1, left for -1); first and last are p, flown at V."""
+    n = hold_sides(cfg)
+    leg = hold_lap_s(cfg) * cfg.tas_mps / n
+    chi = course + side * 2 * math.pi / n * np.arange(1, n + 1)
+    lap = np.vstack([np.zeros((1, 2)), np.cumsum(leg * np.stack([np.cos(chi), np.sin(chi)], 1), axis=0)])
+    lap[-1] = 0.0  # closes exactly
+    return np.asarray(p, float) + np.vstack([lap[:1], np.tile(lap[1:], (laps, 1))])

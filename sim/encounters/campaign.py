@@ -21,6 +21,7 @@ A campaign file (TOML)::
     [intruder]
     kind = "object"                # object | quadrotor | haps | cooperative
     radius = 0.5
+    count = 1                      # 2: a cooperative triple (approach_angle_2, intruder_speed_2, hmd_2)
     [parameters]                   # sim.encounters.model.PARAMETERS: number or distribution
     approach_angle = { uniform = [0, 360] }
 
@@ -32,6 +33,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import tomllib
 from collections.abc import Callable
 from concurrent.futures import Executor
@@ -45,12 +47,15 @@ from sim.encounters.aggregate import Pair, by_bin, geometry_bins, summarise
 from sim.encounters.geometry import (
     DEFAULT_ORIGIN,
     INTRUDER,
+    INTRUDER2,
     INTRUDER_KINDS,
     MODES,
     OWN,
     EncounterSetup,
     build_scenario,
+    intruder_count,
     relative_speed,
+    second_intruder,
 )
 from sim.encounters.model import PARAMETERS, CampaignError, parse_distributions, sample
 from sim.scenario import ScenarioError, parse_scenario
@@ -113,6 +118,8 @@ def load_campaign(path: str | Path, out_dir: str | Path, limit: int | None = Non
         raise CampaignError(f"{src}: ownship: needs aircraft and planner")
     if intruder.get("kind") not in INTRUDER_KINDS:
         raise CampaignError(f"{src}: intruder.kind: one of {', '.join(INTRUDER_KINDS)}, got {intruder.get('kind')!r}")
+    if intruder.get("count", 1) not in (1, 2) or (intruder.get("count", 1) == 2 and intruder["kind"] != "cooperative"):
+        raise CampaignError(f"{src}: intruder.count: 1, or 2 for kind 'cooperative', got {intruder.get('count')!r}")
     keep = cfg.get("keep_mcaps", "failures")
     if keep not in ("failures", "all"):
         raise CampaignError(f"{src}: keep_mcaps: 'failures' or 'all', got {keep!r}")
@@ -135,8 +142,9 @@ def load_campaign(path: str | Path, out_dir: str | Path, limit: int | None = Non
     min_rel = float(cfg.get("min_relative_speed", 0.5))
     out = Path(out_dir)
     encounters, runs = [], []
+    triple = intruder_count(setup) == 2
     for i, params in enumerate(draws[:limit]):
-        if relative_speed(params) < min_rel:
+        if relative_speed(params) < min_rel or (triple and relative_speed(second_intruder(params)) < min_rel):
             continue
         enc = Encounter(i, run_seed(master, i), params)
         encounters.append(enc)
@@ -162,19 +170,26 @@ def load_campaign(path: str | Path, out_dir: str | Path, limit: int | None = Non
     return Campaign(name, setup, encounters, runs, keep, len(draws[:limit]) - len(encounters))
 
 
-def outcome(row: dict, kind: str) -> dict:
-    """One run's encounter metrics from its batch row."""
+def outcome(row: dict, kind: str, count: int = 1) -> dict:
+    """One run's encounter metrics from its batch row; a triple's are the closest pair's (NMAC and
+    loss of well clear: any pair's)."""
     m = {k.removeprefix("metric."): v for k, v in row.items() if k.startswith("metric.")}
-    sep = f"vehicles.{OWN}.clearance.object.{INTRUDER}" if kind == "object" else f"separation.{OWN}-{INTRUDER}"
-    vehicles = [OWN] if kind != "cooperative" else [OWN, INTRUDER]
+    if kind == "object":
+        seps = [f"vehicles.{OWN}.clearance.object.{INTRUDER}"]
+    elif count == 2:
+        seps = [f"separation.{a}-{b}" for a, b in ((OWN, INTRUDER), (OWN, INTRUDER2), (INTRUDER, INTRUDER2))]
+    else:
+        seps = [f"separation.{OWN}-{INTRUDER}"]
+    sep = min(seps, key=lambda k: m.get(f"{k}.min_horizontal_m", math.inf))
+    vehicles = [OWN] if kind != "cooperative" else [OWN, INTRUDER, INTRUDER2][: 1 + count]
     return {
         "status": row.get("status"),
         "min_horizontal_m": m.get(f"{sep}.min_horizontal_m"),
         "min_vertical_m": m.get(f"{sep}.min_vertical_m"),
         "vertical_at_min_horizontal_m": m.get(f"{sep}.vertical_at_min_horizontal_m"),
         "cpa_t": m.get(f"{sep}.t"),
-        "nmac": bool(m.get(f"{sep}.nmac")),
-        "lowc": bool(m.get(f"{sep}.lowc")),
+        "nmac": any(bool(m.get(f"{k}.nmac")) for k in seps),
+        "lowc": any(bool(m.get(f"{k}.lowc")) for k in seps),
         "complete": all(bool(m.get(f"vehicles.{v}.mission.complete")) for v in vehicles),
         "time_s": m.get(f"vehicles.{OWN}.mission.time_s"),
         "path_length_m": m.get(f"vehicles.{OWN}.mission.path_length_m"),
@@ -193,7 +208,7 @@ def tabulate(c: Campaign, rows: list[dict]) -> tuple[list[dict], list[Pair]]:
     table: list[dict] = []
     pairs: list[Pair] = []
     for k, enc in enumerate(c.encounters):
-        mit, unm = (outcome(r, kind) for r in rows[2 * k : 2 * k + 2])
+        mit, unm = (outcome(r, kind, intruder_count(c.setup)) for r in rows[2 * k : 2 * k + 2])
         for mode, o in zip(MODES, (mit, unm), strict=True):
             extra: dict[str, float | None] = {"extra_time_s": None, "extra_path_m": None}
             if mode == "mitigated":

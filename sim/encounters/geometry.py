@@ -8,7 +8,10 @@ then ``hmd`` to the right of the horizontal relative velocity (intruder minus ow
 above. With the relative position at that time perpendicular to the relative velocity, that time
 is the horizontal CPA and ``hmd`` its miss distance. Each vehicle starts ``time_to_cpa`` back
 along its leg at its cruise speed (a multirotor already moving: its initial airspeed) and its one
-waypoint lies ``after_cpa`` beyond the CPA.
+waypoint lies ``after_cpa`` beyond the CPA. A cooperative triple (``intruder.count = 2``) adds a
+second cooperative intruder built the same way from ``approach_angle_2``, ``intruder_speed_2`` and
+``hmd_2`` (level, at the ownship's altitude), meeting the ownship at the same time: all three pass
+their closest approaches together.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from sim.encounters.model import CampaignError
 
 INTRUDER_KINDS = ("object", "quadrotor", "haps", "cooperative")
 MODES = ("mitigated", "unmitigated")
-OWN, INTRUDER = "own", "intruder"
+OWN, INTRUDER, INTRUDER2 = "own", "intruder", "intruder2"
 FOLLOW = {"type": "follow_mission"}
 DEFAULT_ORIGIN = {"lat": 47.0, "lon": 8.0, "altitude": 400.0}  # [deg, deg, m MSL]
 
@@ -33,8 +36,8 @@ class EncounterSetup:
     scenario planner table), optional ``acceptance_radius`` [m], ``estimator`` and ``initial``
     (scenario initial-state fields over the generated ones, e.g. ``trim = false``); ``intruder``:
     ``kind`` (:data:`INTRUDER_KINDS`; ``cooperative``: a quadrotor running the ownship's planner
-    when mitigated), ``radius`` [m] of an object, optional ``acceptance_radius``, ``estimator``,
-    ``initial``. ``metrics``: the
+    when mitigated), ``count`` (2: a cooperative triple), ``radius`` [m] of an object, optional
+    ``acceptance_radius``, ``estimator``, ``initial``. ``metrics``: the
     scenario's ``[metrics]`` table (NMAC cylinder, well clear)."""
 
     ownship: dict
@@ -73,6 +76,23 @@ def relative_speed(p: dict[str, float]) -> float:
     """Horizontal speed of the intruder relative to the ownship [m/s]."""
     v_o, v_i = velocities(p)
     return float(np.hypot(*(v_i[:2] - v_o[:2])))
+
+
+def second_intruder(p: dict[str, float]) -> dict[str, float]:
+    """The parameters of a triple's second intruder as an encounter with the ownship: its own
+    course, speed and horizontal miss; level at the ownship's altitude."""
+    return p | {
+        "approach_angle": p["approach_angle_2"],
+        "intruder_speed": p["intruder_speed_2"],
+        "hmd": p["hmd_2"],
+        "vmd": 0.0,
+        "intruder_vertical_rate": 0.0,
+    }
+
+
+def intruder_count(setup: EncounterSetup) -> int:
+    """1, or 2 for a cooperative triple."""
+    return int(setup.intruder.get("count", 1))
 
 
 def legs(p: dict[str, float], setup: EncounterSetup) -> tuple[Leg, Leg]:
@@ -161,4 +181,7 @@ def build_scenario(p: dict[str, float], setup: EncounterSetup, seed: int, mode: 
         aircraft = "haps" if kind == "haps" else "quadrotor"
         int_planner = planner if kind == "cooperative" else FOLLOW
         scen["vehicle"].append(_vehicle(INTRUDER, aircraft, int_leg, setup, end_t, setup.intruder, int_planner))
+        if intruder_count(setup) == 2:
+            _, leg2 = legs(second_intruder(p), setup)
+            scen["vehicle"].append(_vehicle(INTRUDER2, aircraft, leg2, setup, end_t, setup.intruder, int_planner))
     return scen

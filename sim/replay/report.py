@@ -16,7 +16,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from sim.mcap_read import log_content, read_attached_scenario
-from sim.replay.metrics import MetricsWorld, common_times, flatten, run_metrics
+from sim.replay.metrics import MetricsWorld, flatten, run_metrics
+from sim.replay.pair_metrics import common_times
 from sim.replay.runlog import RunLog
 from sim.replay.trace import VehicleTrace
 
@@ -26,9 +27,13 @@ def load_traces(log: RunLog) -> list[VehicleTrace]:
 
 
 def load_world(log: RunLog) -> MetricsWorld:
-    """Obstacles, geofences and thresholds of the run, from its attached scenario."""
+    """Obstacles, geofences, thresholds and planned duration of the run, from its attached
+    scenario and its ``run`` metadata."""
     scenario = read_attached_scenario(log.path)
-    return MetricsWorld.from_scenario(scenario) if scenario is not None else MetricsWorld()
+    duration = log.metadata.get("run", {}).get("duration_s")
+    if scenario is None:
+        return MetricsWorld()
+    return MetricsWorld.from_scenario(scenario, None if duration is None else float(duration))
 
 
 def log_metrics(log: RunLog) -> dict:

@@ -58,11 +58,12 @@ def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> 
         raise LogReadError(f"{path}: no /{vehicle}/plan/input (a log older than the planner-input records)")
     mission = mission_from_config(cfg, scenario.origin_point)
     af = get_airframe(cfg.aircraft)
-    wind_ne = (scenario.wind.north, scenario.wind.east)
     planner = (
         factory(mission)
         if factory
-        else scenario_planner(cfg, mission, af, af.make_controller(cfg.gains).gains, wind_ne)
+        else scenario_planner(
+            cfg, mission, af, af.make_controller(cfg.gains).gains, scenario.wind, scenario.origin_point.alt_m
+        )
     )
     alt0 = scenario.origin_point.alt_m
     obstacles = [obstacle_prism(c, alt0) for c in scenario.obstacle]

@@ -4,7 +4,8 @@
 one numpy array per numeric field (vectors as (N, k) arrays), built once and cached. Messages
 are dicts, JSON or protobuf alike (:mod:`sim.mcap_read`); Foxglove types are kept as objects in
 ``Series.messages``. A compact log's LiDAR scans (``/<v>/threats/lidar``) are also put back into
-their ``/<v>/threats`` messages as ``lidar``, as JSON logs carry them.
+their ``/<v>/threats`` messages as ``lidar``, as JSON logs carry them. ``RunLog(path).frame(topic)``
+gives the topic as a pandas DataFrame.
 """
 
 from __future__ import annotations
@@ -13,11 +14,15 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from sim.mcap_read import LogInfo, LogReadError, iter_messages, read_info
+from sim.replay.frame import frame
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 SCAN_SUFFIX = "/threats/lidar"  # a compact log's LiDAR scans, merged into /<v>/threats
 
@@ -95,6 +100,12 @@ class RunLog:
             return self._series[name]
         except KeyError:
             raise LogReadError(f"{self.path}: no topic {name!r} (has: {', '.join(self.topics)})") from None
+
+    def frame(self, name: str) -> pd.DataFrame:
+        """The topic as a pandas DataFrame: one row per message, nested fields as dotted
+        columns, indexed by sim time [s] (:mod:`sim.replay.frame`)."""
+        s = self.topic(name)
+        return frame(s.t, s.messages)
 
     @cached_property
     def vehicles(self) -> list[str]:

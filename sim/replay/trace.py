@@ -7,7 +7,8 @@ Units: NED [m], altitude MSL [m], speeds [m/s], angles [rad], times sim [s].
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -18,6 +19,7 @@ from sim.replay.runlog import RunLog
 _STATE = ("t", "pos_ned", "vel_ned", "alt_msl_m", "tas_mps", "euler")
 _SETPOINT = ("altitude_m", "cross_track_m", "turning")
 _SETPOINT_OPTIONAL = ("tas_mps",)
+CHUNK = 1024  # log ticks per chunk that metrics fold in at once (live and replay cut the same)
 
 
 @dataclass
@@ -42,6 +44,36 @@ class VehicleTrace:
     truth_vel_ned: np.ndarray | None = None  # (N, 3) true velocity [m/s]
     truth_cross_track_m: np.ndarray | None = None  # (N,) true cross-track to the followed leg [m]
     plan_cache_hits: int = 0  # planner calls that kept the previous plan
+
+    def chunks(self, size: int) -> Iterator[VehicleTrace]:
+        """The trace cut into pieces of ``size`` samples (at least one piece); the per-run values
+        (latencies, waypoint times, cache hits) go with the first."""
+        for start in range(0, max(len(self.t), 1), size):
+            sl = slice(start, start + size)
+
+            def cut(a: np.ndarray | None, sl: slice = sl) -> np.ndarray | None:
+                return None if a is None else a[sl]
+
+            first = start == 0
+            yield replace(
+                self,
+                t=self.t[sl],
+                pos_ned=self.pos_ned[sl],
+                alt_msl_m=self.alt_msl_m[sl],
+                tas_mps=self.tas_mps[sl],
+                euler=self.euler[sl],
+                setpoint={k: v[sl] for k, v in self.setpoint.items()},
+                plan_latency_s=self.plan_latency_s if first else np.zeros(0),
+                waypoint_times=self.waypoint_times if first else [],
+                commands={k: v[sl] for k, v in self.commands.items()},
+                est_pos_ned=cut(self.est_pos_ned),
+                est_vel_ned=cut(self.est_vel_ned),
+                sigma3_pos=cut(self.sigma3_pos),
+                sigma3_vel=cut(self.sigma3_vel),
+                truth_vel_ned=cut(self.truth_vel_ned),
+                truth_cross_track_m=cut(self.truth_cross_track_m),
+                plan_cache_hits=self.plan_cache_hits if first else 0,
+            )
 
     def true_cross_track(self) -> np.ndarray:
         """(N,) true cross-track to the followed leg [m]."""
@@ -106,11 +138,15 @@ def _array(key: str, values: list) -> np.ndarray:
 
 @dataclass
 class TraceRecorder:
-    """Collects the values a vehicle logs, as they are logged (the live side)."""
+    """Collects the values a vehicle logs, as they are logged (the live side), and hands them to
+    ``sink`` in chunks of ``chunk`` log ticks (then forgets them); :meth:`flush` hands over the
+    rest at the run's end."""
 
     name: str
     kind: str
     waypoints_total: int
+    sink: Callable[[VehicleTrace], None] | None = None
+    chunk: int = CHUNK
     _state: dict[str, list] = field(default_factory=lambda: {k: [] for k in _STATE})
     _setpoint: dict[str, list] = field(default_factory=lambda: {k: [] for k in _SETPOINT})
     _latency: list[float] = field(default_factory=list)
@@ -123,11 +159,14 @@ class TraceRecorder:
     _sigma: dict[str, list] = field(default_factory=lambda: {"pos": [], "vel": []})
 
     def estimate(self, est: dict, sigma3: dict | None) -> None:
+        """The estimate logged at the tick of the last :meth:`state` (completes the tick)."""
         for k in self._est:
             self._est[k].append(est[k])
         if sigma3 is not None:
             for k in self._sigma:
                 self._sigma[k].append(sigma3[k])
+        if len(self._cross) >= self.chunk:
+            self.flush()
 
     def state(self, state: dict, setpoint: dict, commands: dict[str, float], cross_track_m: float) -> None:
         self._cross.append(cross_track_m)
@@ -152,8 +191,19 @@ class TraceRecorder:
         """The mission completed at ``t`` [s]: kept as its ``/log`` event's time reads back."""
         self._complete_t = logged_time(t)
 
+    def flush(self) -> None:
+        """Hand the collected ticks to the sink and start a new chunk."""
+        if self.sink is not None:
+            self.sink(self.trace())
+        for lists in (self._state, self._setpoint, self._est, self._sigma):
+            for v in lists.values():
+                v.clear()
+        for lst in (self._latency, self._reached, self._commands, self._cross):
+            lst.clear()
+        self._cache_hits = 0
+
     def trace(self) -> VehicleTrace:
-        """The series so far; vectors are (N, 3) also when nothing was logged (N = 0)."""
+        """The series of the current chunk; vectors are (N, 3) also when nothing was logged."""
         s = {k: _array(k, v) for k, v in self._state.items()}
         return VehicleTrace(
             self.name,

@@ -90,6 +90,11 @@ def temperature_at_altitude(h_m: float) -> float:
     return temperature_of_pressure(pressure_at_altitude(h_m))
 
 
+def density_at_altitude(h_m: float) -> float:
+    """ISA density [kg/m^3] at geometric altitude ``h_m`` [m]."""
+    return pressure_at_altitude(h_m) / (R_AIR * temperature_at_altitude(h_m))
+
+
 def height_per_pascal(p_pa: float) -> float:
     """|dh/dp| of the ISA at pressure ``p_pa``: metres of altitude per pascal [m/Pa]."""
     return R_AIR * temperature_of_pressure(p_pa) / (p_pa * STANDARD_GRAVITY)

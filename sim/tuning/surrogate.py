@@ -137,7 +137,7 @@ class HapsAeroData:
 
 def density(h_m: float) -> float:
     """ISA density [kg/m^3] at geometric altitude ``h_m`` [m]."""
-    return isa.pressure_at_altitude(h_m) / (isa.R_AIR * isa.temperature_at_altitude(h_m))
+    return isa.density_at_altitude(h_m)
 
 
 def gravity(h_m: float) -> float:
