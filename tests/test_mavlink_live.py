@@ -264,7 +264,9 @@ def test_fuzz_from_foreign_ids_does_not_change_the_flight(tmp_path, undisturbed)
 def test_with_signing_the_signed_gcs_is_obeyed_and_unsigned_commands_refused(tmp_path):
     port = _free_port()
     (tmp_path / "key").write_text("a passphrase")
-    data = _hover_scenario(port, duration=60.0)
+    # the upload lands when the GCS thread gets to it (wall time): 120 s of sim time leave room
+    # for a late one; the run stops when the uploaded mission completes (17 s after the upload)
+    data = _hover_scenario(port, duration=120.0)
     data["mavlink"]["signing_key_file"] = str(tmp_path / "key")
     gcs = Gcs(port, key=hashlib.sha256(b"a passphrase").digest())
     gcs.start()
