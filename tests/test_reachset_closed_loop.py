@@ -84,14 +84,6 @@ def test_storm_s4_moving_constraint_keeps_its_margin_and_completes(fly, scenario
     assert m["storms"]["min_distance_m"] >= (5.0 - 0.5) * SCALE
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="S8's closest pair depends on the sensor-noise draw (seed 7): with the IMU at the plant rate "
-    "(issue 15 item 4) it is 3.19 m on the default estimate inner loops and 1.43 m with the inner loops "
-    "on the truth (only the noise draw changed); the previous code path gives 7.24 m, and on seeds "
-    "11-13 not all four missions complete; on 10 seeds 2 pass (docs/reachset.md, scenarios/batch/s8_seeds.toml). "
-    "Open for the reach-set planner (issue 16).",
-)
 def test_four_way_head_on_s8_keeps_every_pair_apart_and_all_complete(fly):
     """S8 (four UAS meeting in the middle, non-cooperative, each with the thesis' ACAS-like set:
     UAS1/UAS4 horizontal, UAS2 vertical, UAS3 slash) at L = 5 m: pass (spec §9.3): every pair's
