@@ -22,10 +22,12 @@ def _fly(
 
 @pytest.mark.parametrize(("altitude", "tas"), [(18000.0, 26.0), (20000.0, 30.0), (21000.0, 30.0)])
 @pytest.mark.parametrize("crosswind", [0.0, 15.0])
-def test_straight_flight_holds_airspeed_and_altitude_on_the_ekf(tmp_path, altitude, tas, crosswind):
-    s = _fly(tmp_path, altitude, tas, tas, crosswind, seed=3, duration=300.0, after=60.0)
-    assert np.abs(s["tas_mps"] - tas).max() < 2.0  # measured: 0.33-0.45 m/s
-    assert np.abs(s["alt_msl_m"] - altitude).max() < 50.0  # measured: 1.6-1.8 m
+@pytest.mark.parametrize("seed", [3, *(pytest.param(s, marks=pytest.mark.slow) for s in range(20) if s != 3)])
+def test_straight_flight_holds_airspeed_and_altitude_on_the_ekf(tmp_path, altitude, tas, crosswind, seed):
+    """Seed 3 in CI; the other 19 seeds with ``-m slow`` (docs/environment.md)."""
+    s = _fly(tmp_path, altitude, tas, tas, crosswind, seed=seed, duration=300.0, after=60.0)
+    assert np.abs(s["tas_mps"] - tas).max() < 2.0  # measured: 0.33-0.45 m/s (seed 3)
+    assert np.abs(s["alt_msl_m"] - altitude).max() < 50.0  # measured: 1.6-1.8 m (seed 3)
 
 
 def test_airspeed_step_at_21_km_has_no_mean_error_on_the_ekf(tmp_path):
