@@ -79,7 +79,22 @@ def test_multirotor_mission_in_wind(fly, scenario_data):
     run = fly(data)
     assert run.result.status == "completed"
     assert _mean_air_wind(run.log, "quad")[:2] == pytest.approx([3.0, 4.0], abs=1.0)  # 2.2, 4.2 m/s
-    # on the EKF in 5 m/s: cross-track max 2.8 m, rms 1.18 m (docs/environment.md)
+    # on the EKF in 5 m/s: cross-track max 2.8 m, rms 1.18 m; over 20 seeds max 3.8 m (docs/environment.md)
+    assert log_metrics(run.log)["vehicles"]["quad"]["tracking"]["cross_track_m"]["max_abs"] <= 4.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(20))
+def test_multirotor_mission_in_wind_across_seeds(fly, scenario_data, seed):
+    """The square mission in the same wind on seeds 0-19: it completes and keeps its track
+    (measured: cross-track max median 1.96 m, worst 3.80 m). The mean air-relative wind of one
+    70 s flight in light turbulence spreads by up to 1.8 m/s between seeds, so the shipped seed's
+    wind check is not repeated here."""
+    data = scenario_data("quad_square_mission")
+    data["wind"] = {"north": "3 m/s", "east": "4 m/s", "turbulence": "light"}
+    data["seed"] = seed
+    run = fly(data, f"wind{seed}")
+    assert run.result.status == "completed"
     assert log_metrics(run.log)["vehicles"]["quad"]["tracking"]["cross_track_m"]["max_abs"] <= 4.0
 
 
