@@ -748,6 +748,7 @@ _MPTP = {
     "sigma_front_mps": 3.0,
     "simplify_tol_m": 2000.0,
     "tas_mps": 20.0,
+    "turn_model": "simulated",
     "turning": "left",
     "wind_error_ne_mps": [5.0, 5.0],
 }
@@ -788,6 +789,7 @@ def _decision_table() -> dict[str, Decision]:
     prefix = "vehicle.planner<MptpPlanner>.options."
     out[prefix + "safety_line_m"] = ("mptp", _options(line_aspect=1.0), _options(safety_line_m=[1000.0] * 3))
     out[prefix + "wind_forecast"] = ("mptp", _set("wind.east", 10.0), _options(wind_forecast="none"))
+    out[prefix + "roll_rate_max"] = ("mptp", _options(turn_model="simulated"), _options(roll_rate_max=0.5))
     prefix = "vehicle.planner<ReachsetPlanner>.options.rules_"
     filed = _options(rules_filed={"uas3": {"category": "uas_autonomous", "maneuverability": "vtol"}})
     out[prefix + "converging"] = ("rules_pair", None, _options(rules_converging=20.0))
