@@ -135,7 +135,8 @@ class _Expander:
         _, vi = visible_vertices(p[None], b)
         goal_ok = np.isfinite(t_goal) and not blocked(p[None], g_pt[None], b)[0]
         targets = np.vstack([g_pt[None] if goal_ok else np.empty((0, 2)), b.verts[vi]])
-        pts, chi, leg, kinds = self._moves(s, b, targets, np.array([GOAL] * int(goal_ok) + [VERTEX] * len(vi)))
+        kinds0 = np.array([GOAL] * int(goal_ok) + [VERTEX] * len(vi), dtype="<U6")
+        pts, chi, leg, kinds = self._moves(s, b, targets, kinds0)
         holds, sides = self._holds(s) if s.kind not in (START, GOAL) else (np.empty(0), np.empty(0))
         pts = np.vstack([pts, np.repeat(p[None], len(holds), 0)])
         chi = np.concatenate([chi, np.full(len(holds), s.course)])
