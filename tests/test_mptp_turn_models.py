@@ -18,6 +18,7 @@ from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.turning import start_turn, wrap
 from guidance.mptp.turnmodel import aux_states, exit_offset_m, turn_points, turn_to, written_out
 from sim.core.threats import StormSnapshot
+from sim.testbeds.mptp_turn_vertices import SETTLE_S, corner_cross_track
 
 APPROX = MptpConfig(turn_model="approximate")
 SIM = MptpConfig(turn_model="simulated")
@@ -184,3 +185,17 @@ def test_bad_turn_model_is_one_clear_error():
         MptpConfig(turn_model="dubins")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="roll_rate_max"):
         MptpConfig(roll_rate_max=0.0)
+
+
+def test_corner_cross_track_signs_a_cut_corner():
+    """A plan north 1 km then east 1 km (a right corner at (1000, 0)): a track rounding the
+    corner 10 m inside (through (990, 10)) cuts it by +14.1 m; one passing (1010, -10) is -14.1 m
+    outside; a straight-on vertex (no corner) and the corner due within SETTLE_S of the next
+    plan are left out."""
+    pts = np.array([[0.0, 0.0], [500.0, 0.0], [1000.0, 0.0], [1000.0, 1000.0]])
+    due = np.array([0.0, 20.0, 40.0, 80.0])
+    tt = np.arange(5.0)
+    for corner, want in (([990.0, 10.0], 14.14), ([1010.0, -10.0], -14.14)):
+        xy = np.array([[0.0, 0.0], [500.0, 0.0], corner, [1000.0, 500.0], [1000.0, 1000.0]])
+        assert corner_cross_track([(0.0, pts, due)], tt, xy) == pytest.approx([want], abs=0.01)
+    assert not len(corner_cross_track([(0.0, pts, due), (40.0 + SETTLE_S - 1.0, pts, due)], tt, xy))

@@ -35,14 +35,21 @@ SETTLE_S = 60.0  # corners due later than this before the next plan are left out
 
 def vertex_cross_track(log: str | Path, vehicle: str) -> np.ndarray:
     """Signed closest approach [m] of the true track to each flown corner (see module doc)."""
-    plans = read_topic(log, f"/{vehicle}/plan")
+    plans = [
+        (t, np.asarray(m["positions"], float)[:, :2], np.asarray(m["times"], float))
+        for t, m in read_topic(log, f"/{vehicle}/plan")
+    ]
     track = read_topic(log, f"/{vehicle}/truth/state")
-    tt = np.array([t for t, _ in track])
-    xy = np.array([m["pos_ned"][:2] for _, m in track])
+    return corner_cross_track(plans, np.array([t for t, _ in track]), np.array([m["pos_ned"][:2] for _, m in track]))
+
+
+def corner_cross_track(plans: list[tuple[float, np.ndarray, np.ndarray]], tt: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """Signed closest approach [m] of the track ``xy`` (K, 2) [m] at times ``tt`` (K,) [s] to the
+    corners of ``plans`` (issue time [s], vertices (N, 2) [m], due times (N,) [s]), in time
+    order; + inside the corner, - outside (see module doc)."""
     out: list[float] = []
-    ends = [t for t, _ in plans[1:]] + [math.inf]
-    for (t0, plan), t1 in zip(plans, ends, strict=True):
-        pts, due = np.asarray(plan["positions"], float)[:, :2], np.asarray(plan["times"], float)
+    ends = [t for t, _, _ in plans[1:]] + [math.inf]
+    for (t0, pts, due), t1 in zip(plans, ends, strict=True):
         window = (tt >= t0) & (tt < t1)
         if len(pts) < 3 or not window.any():
             continue
