@@ -111,8 +111,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--out", type=Path, default=Path("logs/mptp_turn_vertices"))
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
-    cols = ("scenario", "acceptance [m]", "turn model", "runs completed", "corners", "median abs [m]", "cut p95 [m]")
-    cols += ("largest cut [m]", "largest outside [m]")
+    cols = ["scenario", "acceptance [m]", "turn model", "runs completed", "corners", "median abs [m]", "cut p95 [m]"]
+    cols += ["largest cut [m]", "largest outside [m]"]
     print("| " + " | ".join(cols) + " |\n|" + "---|" * len(cols))
     for scenario in args.scenarios:
         for model in args.models:
@@ -123,10 +123,8 @@ def main(argv: list[str] | None = None) -> None:
                 xte.append(vertex_cross_track(path, "haps"))
             x = np.concatenate(xte)
             cut = np.maximum(x, 0.0)
-            row = (scenario.stem, args.acceptance or "shipped", model, f"{done}/{len(seeds)}", len(x))
-            row += tuple(
-                f"{v:.1f}" for v in (np.median(np.abs(x)), np.percentile(cut, 95), cut.max(), max(-x.min(), 0))
-            )
+            row = [scenario.stem, args.acceptance or "shipped", model, f"{done}/{len(seeds)}", len(x)]
+            row += [f"{v:.1f}" for v in (np.median(np.abs(x)), np.percentile(cut, 95), cut.max(), max(-x.min(), 0))]
             print("| " + " | ".join(map(str, row)) + " |", flush=True)
 
 
