@@ -12,11 +12,12 @@
 - Safety margin: FAA-style clearance by cell speed band and by appearance (single cell or line
   of storms, Table 3.1, its wind-speed bands applied to the cell's speed: cells move with the
   wind of their steering level), plus an extra by the cell's area (``safety_area_steps``),
-  independent of the lead time. On the downwind side it is ``downwind_factor`` times the
-  upwind one (3.1.2: turbulence and hail are frequently met downwind), varying as
-  s(theta_w) = s (1 + (f - 1)(1 + cos theta_w) / 2), theta_w the angle between the downwind
-  direction and the vector from the geometric centre to the vertex; the downwind direction is
-  the wind's (the planner's forecast) or, in still air, the cell's motion.
+  independent of the lead time. On the downwind side it is ``downwind_factor`` f times the
+  upwind one (3.1.2: turbulence and hail are frequently met downwind): around every vertex
+  the safety reach in the offset direction phi is s (1 + (f - 1)(1 + cos phi) / 2), phi the
+  angle between that direction and the downwind one (a limacon instead of a circle: s
+  upwind, f s downwind, (1 + f) s / 2 across). The downwind direction is the wind's (the
+  planner's forecast) or, in still air, the cell's motion.
 - The two are superimposed by adding their radii (ch. 6: "the sum of safety and probabilistic
   margins"); the margin polygon is the convex hull of the cell and all circles, each circle a
   circumscribed polygon so that the hull contains the true discs.
@@ -59,15 +60,15 @@ def safety_margin_m(
     return base + np.concatenate([[0.0], steps[:, 1]])[k]
 
 
-def downwind_scale(rel: np.ndarray, downwind: np.ndarray, factor: float) -> np.ndarray:
-    """Factor on the safety margin at vertices ``rel`` (N, 2) [m] from the geometric centre:
-    1 on the upwind side, ``factor`` on the downwind side (direction ``downwind`` (2,), any
-    length; zero = no wind, 1 everywhere), cosine-blended in between."""
+def downwind_scale(directions: np.ndarray, downwind: np.ndarray, factor: float) -> np.ndarray:
+    """Factor on the safety margin in the offset ``directions`` (K, 2) (unit vectors): 1 against
+    the ``downwind`` direction (2,) (any length; zero = no wind, 1 everywhere), ``factor`` along
+    it, 1 + (factor - 1)(1 + cos phi) / 2 in between (a limacon, convex for factor <= 3)."""
     norm = float(np.hypot(*downwind))
     if factor == 1.0 or norm < 1e-9:
-        return np.ones(len(rel))
-    cos_t = (rel @ downwind) / (np.linalg.norm(rel, axis=1) * norm + 1e-12)
-    return 1.0 + (factor - 1.0) * 0.5 * (1.0 + cos_t)
+        return np.ones(len(directions))
+    cos_p = (directions @ downwind) / (np.linalg.norm(directions, axis=1) * norm)
+    return 1.0 + (factor - 1.0) * 0.5 * (1.0 + cos_p)
 
 
 def is_line_of_storms(hulls: np.ndarray, aspect: float) -> np.ndarray:
@@ -113,13 +114,9 @@ def margin_hulls(
             sigma = cfg.sigma_back_mps + (cfg.sigma_front_mps - cfg.sigma_back_mps) * (1.0 + cos_t) / 2.0
         else:
             sigma = np.full(len(v), 0.5 * (cfg.sigma_front_mps + cfg.sigma_back_mps))
-        downwind = wind if wind.any() else vel[i]
-        r = (
-            safety[i] * downwind_scale(rel, downwind, cfg.downwind_factor)
-            + np.minimum(k * sigma, cfg.prob_margin_max_m)
-            + extra_m
-        )
-        pts = (v[:, None, :] + r[:, None, None] * unit[None]).reshape(-1, 2)
+        r = np.minimum(k * sigma, cfg.prob_margin_max_m) + extra_m
+        reach = safety[i] * downwind_scale(unit, wind if wind.any() else vel[i], cfg.downwind_factor)
+        pts = (v[:, None, :] + (r[:, None, None] + reach[None, :, None]) * unit[None]).reshape(-1, 2)
         coords.append(pts)
         owner.append(np.full(len(pts), i))
     mp = shapely.multipoints(np.vstack(coords), indices=np.concatenate(owner))

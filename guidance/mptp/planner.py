@@ -155,6 +155,7 @@ class MptpPlanner:
             fallback = fallback or (plan, self.timeline, traj)
         assert fallback is not None
         plan, self.timeline, self.trajectory = fallback
+        plan.diagnostics["levels_tried"] = len(levels)
         return plan
 
     def _replan_at(
