@@ -5,7 +5,9 @@ Margin polygons are convex hulls of circumscribed 16-gons at the cell's vertices
 beyond a cell's side lies between r and r / cos(pi / 16) (the 16-gon's apothem and corner).
 """
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -148,3 +150,39 @@ def test_the_plan_of_the_largest_feasible_probability_is_flown():
 def test_bad_margin_and_holding_options_are_refused(field, value):
     with pytest.raises(ValueError, match=field):
         MptpConfig(**{field: value})
+
+
+LEVELS_SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "mptp" / "nowcast_levels.toml"
+
+
+@pytest.mark.closed_loop
+@pytest.mark.slow
+def test_the_nowcast_levels_scenario_is_flown_outside_every_cell(tmp_path):
+    """The shipped scenario with three P levels, downwind and area margins and V_cor holding:
+    the mission completes, never inside a true cell; every complete plan is of the first level
+    that had one (levels_tried = its rank), and more than one level is flown over the flight."""
+    from sim.replay.report import log_metrics
+    from sim.replay.runlog import RunLog
+    from sim.runner import run_scenario
+    from sim.scenario import load_scenario
+
+    scenario, text = load_scenario(LEVELS_SCENARIO)
+    path = tmp_path / "run.mcap"
+    assert run_scenario(scenario, path, scenario_text=text).status == "completed"
+    log = RunLog(path)
+    haps = log_metrics(log)["vehicles"]["haps"]
+    assert haps["mission"]["time_s"] is not None and haps["storms"]["time_inside_s"] == 0.0
+    levels = (0.99, 0.9, 0.5)
+    flown = set()
+    for message in log.topic("/haps/plan").messages:
+        d = message["diagnostics"]
+        d = json.loads(d) if isinstance(d, str) else d
+        if "complete" in d:  # the mission is done
+            continue
+        assert d["probability"] in levels
+        if d.get("search") == "ok":
+            assert d["levels_tried"] == levels.index(d["probability"]) + 1
+        else:
+            assert d["probability"] == levels[0] and d["levels_tried"] == len(levels)
+        flown.add(d["probability"])
+    assert len(flown) >= 2
