@@ -114,9 +114,9 @@ def margin_hulls(
             sigma = cfg.sigma_back_mps + (cfg.sigma_front_mps - cfg.sigma_back_mps) * (1.0 + cos_t) / 2.0
         else:
             sigma = np.full(len(v), 0.5 * (cfg.sigma_front_mps + cfg.sigma_back_mps))
-        r = np.minimum(k * sigma, cfg.prob_margin_max_m) + extra_m
-        reach = safety[i] * downwind_scale(unit, wind if wind.any() else vel[i], cfg.downwind_factor)
-        pts = (v[:, None, :] + (r[:, None, None] + reach[None, :, None]) * unit[None]).reshape(-1, 2)
+        r = safety[i] + np.minimum(k * sigma, cfg.prob_margin_max_m) + extra_m
+        grow = safety[i] * (downwind_scale(unit, wind if wind.any() else vel[i], cfg.downwind_factor) - 1.0)
+        pts = (v[:, None, :] + r[:, None, None] * unit[None] + grow[None, :, None] * unit[None]).reshape(-1, 2)
         coords.append(pts)
         owner.append(np.full(len(pts), i))
     mp = shapely.multipoints(np.vstack(coords), indices=np.concatenate(owner))
