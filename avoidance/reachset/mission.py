@@ -27,7 +27,7 @@ from avoidance.reachset.cache import reach_set
 from avoidance.reachset.config import AvoidanceConfig
 from avoidance.reachset.costtogo import CostToGo
 from avoidance.reachset.frames import GridPose
-from avoidance.reachset.fusion import Categories
+from avoidance.reachset.fusion import Categories, ThreatParts
 from avoidance.reachset.grid import AvoidanceGrid
 from avoidance.reachset.gridrun import (
     GoalCost,
@@ -116,6 +116,7 @@ class MissionControl:
         self.goal = 0
         self.mode = Mode.NAVIGATION
         self.buffer: list[MovementType] = []
+        self.buffer_clear_of_intruders = False  # the buffer's path was chosen clear of the intruder space
         self._segments: dict[int, SegmentPlanning] = {}
         self._cost_to_go: tuple[int, CostToGo] | None = None
 
@@ -276,7 +277,7 @@ class MissionControl:
         goal_lcf: np.ndarray,
         steering: Steering,
         goal_cost: GoalCost | None,
-        intruder_motion: np.ndarray,
+        parts: ThreatParts,
     ) -> None:
         """In an emergency, the previous path's future movements stay the start of the new path
         while they are feasible in the selected run (its best continuation is chosen by alg. 6.6
@@ -288,10 +289,14 @@ class MissionControl:
         node = plan.nodes[self.mode].get(tuple(self.buffer), -1) if self.buffer and d.selected >= 0 else -1
         if run is None or node <= 0 or not run.fused.node_ok[node]:
             return
+        if self.buffer_clear_of_intruders and not run.categories.intruders:
+            return  # entering the last resort: a course planned on the intruders' space is not kept (D-21)
         tree = plan.trees[self.mode]
         kept = dataclasses.replace(run.fused, node_ok=run.fused.node_ok & tree.subtree(node))
         if d.selected > 0 and not run.categories.intruders:
-            path = least_threat_path(tree, kept, d.runs[d.selected - 1].fused, goal_lcf, intruder_motion)
+            path = least_threat_path(
+                tree, kept, d.runs[d.selected - 1].fused, goal_lcf, parts.intruder_motion, parts.give_way_turn_rate
+            )
         else:
             path = find_best_path(plan.grid, tree, kept, goal_lcf, steering, goal_cost)
         if path.ok:
@@ -302,7 +307,7 @@ class MissionControl:
         self,
         d: Decision,
         plan: SegmentPlanning,
-        parts,
+        parts: ThreatParts,
         goal_lcf: np.ndarray,
         steering: Steering,
         goal_cost: GoalCost | None,
@@ -320,7 +325,7 @@ class MissionControl:
             d.runs, d.selected = [run], 0 if run.path.ok else -1
         else:
             d.runs, d.selected = emergency_runs(plan.grid, tree, parts, goal_lcf, threshold, steering, goal_cost)
-            self._keep_course(d, plan, goal_lcf, steering, goal_cost, parts.intruder_motion)
+            self._keep_course(d, plan, goal_lcf, steering, goal_cost, parts)
         chosen = d.run
         if chosen is None:
             raise RuntimeError("mission control: the grid run step made no run")
@@ -332,6 +337,7 @@ class MissionControl:
             self.goal += 1
         if d.selected >= 0:
             self.buffer = tree.buffer(run.path.node)  # 12: flush the future, load the path
+            self.buffer_clear_of_intruders = run.categories.intruders
             d.status = "ok" if run.categories == Categories() else "degraded"
         else:
             d.events.append(f"no_path:{run.path.error}")
