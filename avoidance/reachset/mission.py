@@ -116,7 +116,6 @@ class MissionControl:
         self.goal = 0
         self.mode = Mode.NAVIGATION
         self.buffer: list[MovementType] = []
-        self.buffer_clear_of_intruders = False  # the buffer's path was chosen clear of the intruder space
         self._segments: dict[int, SegmentPlanning] = {}
         self._cost_to_go: tuple[int, CostToGo] | None = None
 
@@ -289,8 +288,6 @@ class MissionControl:
         node = plan.nodes[self.mode].get(tuple(self.buffer), -1) if self.buffer and d.selected >= 0 else -1
         if run is None or node <= 0 or not run.fused.node_ok[node]:
             return
-        if self.buffer_clear_of_intruders and not run.categories.intruders:
-            return  # entering the last resort: a course planned on the intruders' space is not kept (D-21)
         tree = plan.trees[self.mode]
         kept = dataclasses.replace(run.fused, node_ok=run.fused.node_ok & tree.subtree(node))
         if d.selected > 0 and not run.categories.intruders:
@@ -337,7 +334,6 @@ class MissionControl:
             self.goal += 1
         if d.selected >= 0:
             self.buffer = tree.buffer(run.path.node)  # 12: flush the future, load the path
-            self.buffer_clear_of_intruders = run.categories.intruders
             d.status = "ok" if run.categories == Categories() else "degraded"
         else:
             d.events.append(f"no_path:{run.path.error}")
