@@ -13,6 +13,7 @@ import numpy as np
 
 from avoidance.reachset.fusion import EMERGENCY_ORDER, Categories, Fused, ThreatParts, fuse
 from avoidance.reachset.grid import AvoidanceGrid
+from avoidance.reachset.movement import MovementType
 from avoidance.reachset.threats.intruders import predicted_positions, prediction_rates
 from avoidance.reachset.tree import ReachSetTree
 
@@ -212,14 +213,16 @@ def least_threat_path(
     the tip nearest the goal. Steering at the goal alone flew straight through the intruder,
     building margin or storm that made the stricter run fail.
 
-    With ``intruder_motion`` (the intruders were dropped, rows as in :func:`closest_approach`):
-    first the path with the largest predicted clearance to the intruders' bodies, rounded to
-    1 cm (D-18), each intruder on its straight line and turning right at ``give_way_turn_rate``
-    [rad/s] (:func:`closest_approach`, D-21). The exposure to the intruder space (line, body, time
-    window) does not say which side is farther from the aircraft: two vehicles in each other's
-    space chose independently and flew side by side (S8). Against straight lines alone, two
-    converging vehicles each passed behind the other and turned into each other; allowing for
-    the other's right turn makes the right turn the common choice."""
+    With ``intruder_motion`` (the intruders were dropped, rows as in :func:`closest_approach`)
+    and a ``give_way_turn_rate`` > 0, first the paths that never turn left of the heading, as the
+    others are assumed to turn right, if the set can turn right level (a set whose right turns
+    descend, like the slash set, would trade the level convention for a height change the others
+    cannot foresee) (D-21); then the path with the largest predicted clearance to the intruders'
+    bodies, rounded to 1 cm (D-18), each intruder on its straight line and turning right at
+    ``give_way_turn_rate`` [rad/s] (:func:`closest_approach`). The exposure to the intruder space
+    (line, body, time window) does not say which side is farther from the aircraft: two vehicles
+    in each other's space chose independently and flew side by side (S8). Against straight lines
+    alone, two converging vehicles each passed behind the other and turned into each other."""
     leaves = tree.leaves()
     cand = leaves[fused.node_ok[leaves]]
     if len(cand) == 0:
@@ -236,8 +239,8 @@ def least_threat_path(
     keys = [cand, near, -clear[cand], np.round(exposure[cand], 9)]
     if intruder_motion is not None and len(intruder_motion):
         keys.append(-np.round(closest_approach(tree, intruder_motion, give_way_turn_rate)[cand], 2))
-        if give_way_turn_rate > 0.0:  # turn right, as the others are assumed to: never left of the heading
-            left = tree.along_paths(tree.tip_att[:, 2] > 1e-9, np.logical_or)
+        if give_way_turn_rate > 0.0 and (tree.movement == MovementType.RIGHT).any():
+            left = tree.along_paths(tree.tip_att[:, 2] > 1e-9, np.logical_or)  # ever left of the heading
             keys.append(left[cand])
     best = int(cand[np.lexsort(keys)[0]])
     return PathResult(best, int(tree.tip_cell[best]))
