@@ -11,7 +11,7 @@ import pytest
 from avoidance.reachset.config import AvoidanceConfig
 from avoidance.reachset.frames import GridPose
 from avoidance.reachset.grid import AvoidanceGrid
-from avoidance.reachset.gridrun import emergency_runs
+from avoidance.reachset.gridrun import closest_approach, emergency_runs
 from avoidance.reachset.mission import MissionControl, Mode
 from avoidance.reachset.movement import KinState
 from avoidance.reachset.movement import MovementType as M
@@ -151,3 +151,25 @@ def test_s8_crossing_pair_keeps_apart_with_the_give_way_convention():
     predictions both pass behind the other and meet (measured 3.9 m), as in the seed-4 log."""
     assert fly_pair(None) > 12.0
     assert fly_pair(0.0) < 6.0
+
+
+def test_a_set_whose_right_turns_descend_keeps_the_clearance_ranking():
+    """The slash set turns right only descending (DownRight): its last resort is not bound to the
+    right turn; an intruder ahead, a little to the right and below makes UpLeft the path of
+    largest predicted clearance, and that is the one chosen."""
+    opt = ReachSetOptions(period=1.0, intruder_margin=12.0, separations=["slash"])
+    cfg = opt.avoidance_config()
+    mc = MissionControl(np.zeros((1, 3)), opt.automaton("multirotor", SPEED), cfg)
+    seg = mc.segment(mc.sma.active_index(KinState(np.zeros(3), np.zeros(3), 0.0, SPEED)))
+    tree, grid = seg.trees[Mode.EMERGENCY], seg.grid
+    pose = GridPose.from_ned(np.array([0.0, 0.0, -20.0]), 0.0)
+    track = IntruderTrack("o", 0.0, np.array([30.0, 4.0, -17.0]), np.array([-SPEED, 0.0, 0.0]), radius_m=0.45)
+    parts = seg.assessors[Mode.EMERGENCY].assess(pose, 0.0, Threats(intruders=[track]))
+    runs, sel = emergency_runs(grid, tree, parts, np.array([200.0, 0.0, 0.0]), 1e-7)
+    assert sel == 3, sel
+    leaves = tree.leaves()
+    cand = leaves[runs[sel].fused.node_ok[leaves]]
+    clearance = closest_approach(tree, parts.intruder_motion, parts.give_way_turn_rate)
+    chosen = runs[sel].path.node
+    assert clearance[chosen] >= clearance[cand].max() - 0.01
+    assert tree.buffer(chosen)[0] == M.UP_LEFT
