@@ -114,7 +114,7 @@ def test_last_resort_path_maximises_the_predicted_closest_approach(give_way):
     from the right. On straight lines only (give-way rate 0) among all paths; with the give-way
     rate each intruder is also predicted turning right (Euler-integrated here), the clearance is
     the smaller of the two, and only paths never left of the heading compete."""
-    rate = CFG.intruders.give_way_turn_rate if give_way else 0.0
+    rate = np.pi / 12 if give_way else 0.0
     cfg = dataclasses.replace(CFG, intruders=dataclasses.replace(CFG.intruders, give_way_turn_rate=rate))
     tracks = [
         IntruderTrack("i1", 0.0, np.array([10.0, 0.5, 0.0]), np.array([-1.0, 0.0, 0.0]), radius_m=8.0),

@@ -21,16 +21,17 @@ from sim.core.plan import Threats
 from sim.core.threats import IntruderTrack
 
 SPEED = 5.0  # [m/s] S8's cruise speed
+GIVE_WAY = np.pi / 12  # [rad/s] the thesis' 15° per 1 s movement
 YAW_SIGN = {M.LEFT: 1, M.UP_LEFT: 1, M.DOWN_LEFT: 1, M.RIGHT: -1, M.UP_RIGHT: -1, M.DOWN_RIGHT: -1}
 
 
-def s8_config(intruder_margin: float, rate: float | None = None) -> tuple[ReachSetOptions, AvoidanceConfig]:
-    """S8's horizontal-set options; ``rate`` replaces the give-way turn rate [rad/s]."""
-    opt = ReachSetOptions(period=1.0, intruder_margin=intruder_margin, separations=["horizontal"])
+def s8_config(
+    intruder_margin: float, rate: float = GIVE_WAY, separation: str = "horizontal"
+) -> tuple[ReachSetOptions, AvoidanceConfig]:
+    """S8's options for one planar set, with the give-way turn rate ``rate`` [rad/s]."""
+    opt = ReachSetOptions(period=1.0, intruder_margin=intruder_margin, separations=[separation])
     cfg = opt.avoidance_config()
-    if rate is not None:
-        cfg = dataclasses.replace(cfg, intruders=dataclasses.replace(cfg.intruders, give_way_turn_rate=rate))
-    return opt, cfg
+    return opt, dataclasses.replace(cfg, intruders=dataclasses.replace(cfg.intruders, give_way_turn_rate=rate))
 
 
 def test_predicted_positions_follow_a_right_turn_at_the_rate():
@@ -65,17 +66,17 @@ def test_intruder_space_holds_the_right_turn_only_with_a_rate():
         return IntruderModel(grid, np.zeros(n), np.full(n, 10.0), icfg).ratings(motion)[0] > 0
 
     tau = np.linspace(0.0, 10.0, 200)
-    arc = predicted_positions(motion[0, :3], motion[0, 3:6], tau, cfg.intruders.give_way_turn_rate)
+    arc = predicted_positions(motion[0, :3], motion[0, 3:6], tau, GIVE_WAY)
     line = motion[0, :3] + tau[:, None] * motion[0, 3:6]
     arc_cells = np.unique(grid.cell_index(arc))
     arc_cells = arc_cells[arc_cells >= 0]
     away = arc_cells[grid.distance(line).min(axis=0)[arc_cells] > 2.0]  # arc cells clear of the line's body
     assert len(away) > 5
-    assert rated(cfg.intruders.give_way_turn_rate)[arc_cells].all()
+    assert rated(GIVE_WAY)[arc_cells].all()
     assert not rated(0.0)[away].any()
 
 
-def last_resort(course_b_deg: float, rate: float | None) -> tuple[list[list[M]], float]:
+def last_resort(course_b_deg: float, rate: float) -> tuple[list[list[M]], float]:
     """Two vehicles of S8's type 25 m before a common crossing point, B on a course
     ``course_b_deg`` from A's (NED, clockwise), each deciding once against the other with a body
     (0.45 m + 12 m margin) that no path clears: the selected runs' buffers and the smallest
@@ -106,7 +107,7 @@ def test_symmetric_pair_turns_right_in_the_last_resort_and_keeps_apart(course_b)
     """Converging at 135° (either side) and head-on, both in the last resort: both turn right
     first and never left of their heading, and the two paths flown together stay > 15 m apart
     (measured 22.8 m converging, 24.7 m head-on)."""
-    buffers, joint = last_resort(course_b, None)
+    buffers, joint = last_resort(course_b, GIVE_WAY)
     for b in buffers:
         assert b[0] == M.RIGHT, b
         assert np.cumsum([YAW_SIGN.get(m, 0) for m in b]).max() <= 0, b  # never left of the heading
@@ -122,7 +123,7 @@ def test_without_the_give_way_rate_the_converging_pair_turns_into_each_other(cou
     assert joint < 2.0, joint
 
 
-def fly_pair(rate: float | None, steps: int = 30) -> float:
+def fly_pair(rate: float, steps: int = 30) -> float:
     """S8's UAS1 (east-bound) and UAS4 (south-bound) meeting at the crossing, as two reach-set
     mission controls on exact tracks of each other, each flying its executing movement exactly
     (no airframe): the smallest distance between them [m]."""
@@ -149,7 +150,7 @@ def test_s8_crossing_pair_keeps_apart_with_the_give_way_convention():
     """S8's crossing pair in the loop without airframes: with the give-way prediction each turns
     right and they stay > 6 m apart (S8's pass line; measured 16.9 m); on straight-line
     predictions both pass behind the other and meet (measured 3.9 m), as in the seed-4 log."""
-    assert fly_pair(None) > 12.0
+    assert fly_pair(GIVE_WAY) > 12.0
     assert fly_pair(0.0) < 6.0
 
 
@@ -157,8 +158,7 @@ def test_a_set_whose_right_turns_descend_keeps_the_clearance_ranking():
     """The slash set turns right only descending (DownRight): its last resort is not bound to the
     right turn; an intruder ahead, a little to the right and below makes UpLeft the path of
     largest predicted clearance, and that is the one chosen."""
-    opt = ReachSetOptions(period=1.0, intruder_margin=12.0, separations=["slash"])
-    cfg = opt.avoidance_config()
+    opt, cfg = s8_config(12.0, separation="slash")
     mc = MissionControl(np.zeros((1, 3)), opt.automaton("multirotor", SPEED), cfg)
     seg = mc.segment(mc.sma.active_index(KinState(np.zeros(3), np.zeros(3), 0.0, SPEED)))
     tree, grid = seg.trees[Mode.EMERGENCY], seg.grid
