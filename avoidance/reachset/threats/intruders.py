@@ -1,4 +1,5 @@
-"""Intruders (spec §5.4, (6.116)-(6.151), A-29, A-31): linear prediction in the LCF and three
+"""Intruders (spec §5.4, (6.116)-(6.151), A-29, A-31): linear prediction in the LCF (and, with a
+give-way turn rate, a right-turning one as well, D-21 of docs/reachset.md) and three
 space-intersection models (line, body volume, manoeuvre-uncertainty elliptic cone), each with
 its time-intersection rate against the UAS entry/leave window of the cell.
 
@@ -79,11 +80,13 @@ class IntruderModel:
     sampled every ``path_step`` layer depths of the path, and a cell is hit at τ when its exact
     distance to ``x(τ)`` (:meth:`AvoidanceGrid.distance`) is at most the body radius plus half
     the sample spacing, so the sampled balls cover the swept body; ``[i_e, i_l]`` is the hull of
-    the hit times (every ball point carries its centre's time). The line is the body of radius
-    0, inside the body in space and time, so with the body on its rate never exceeds the body's
-    and only the body is rated. The cone (6.129-6.149) keeps its lattice at ``spacing``.
-    Intruders whose reachable volume within the horizon (the capsule of the model's radius
-    around the predicted segment) misses the grid's bounding ball are skipped: their rating is 0.
+    the hit times (every ball point carries its centre's time). With ``give_way_turn_rate`` > 0
+    the centre is sampled on the straight and on the right-turning prediction, and hits and times
+    are the union over both (D-21). The line is the body of radius 0, inside the body in space and
+    time, so with the body on its rate never exceeds the body's and only the body is rated. The
+    cone (6.129-6.149) keeps its lattice at ``spacing``. Intruders whose reachable volume within
+    the horizon (the capsule of the model's radius around the predicted segment, or with the turn
+    the ball of the path length) misses the grid's bounding ball are skipped: their rating is 0.
     """
 
     max_block = 1 << 20  # distance entries evaluated at once (memory bound per decision)
@@ -134,7 +137,8 @@ class IntruderModel:
     def reachable(self, motion: np.ndarray) -> np.ndarray:
         """(n,) whether each intruder's reachable volume within the horizon meets the grid's
         bounding ball (origin, radius = grid range): exact distance of the predicted segment
-        x_s + v·τ, τ ∈ [0, horizon], to the origin against range + :meth:`reach`."""
+        x_s + v·τ, τ ∈ [0, horizon], to the origin against range + :meth:`reach`; with a give-way
+        turn rate also |x_s| − |v|·horizon, a lower bound of the turning prediction's distance."""
         x, v = motion[:, :3], motion[:, 3:6]
         vv = np.einsum("ij,ij->i", v, v)
         with np.errstate(invalid="ignore", divide="ignore"):
