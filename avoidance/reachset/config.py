@@ -148,9 +148,10 @@ class IntruderModelConfig:
     body); ``spacing`` the cone's lattice spacing [m]; ``time_error`` widens the UAS window [s];
     ``cone_steps`` lattice points per ellipse axis; ``density`` ``mean`` (6.133) or ``product``;
     ``body_margin`` [m] is added to every intruder's body radius (safety-margin bloat, §8.2);
-    ``give_way_turn_rate`` [rad/s]: the last resort (intruders dropped) also predicts every
-    intruder turning right at this rate, as the rules of the air have aircraft give way (D-21;
-    0 = straight lines only; default the thesis' 15° per 1 s movement)."""
+    ``give_way_turn_rate`` [rad/s]: every intruder is also predicted turning right at this rate,
+    as the rules of the air have aircraft give way, in the intruder space and in the last
+    resort's clearance, and the last resort turns right (D-21; 0 = straight lines only, D-18;
+    default the thesis' 15° per 1 s movement)."""
 
     line: bool = True
     body: bool = True
