@@ -33,7 +33,9 @@ class RulesConfig:
     to the emergency avoidance; ``plane_tolerance`` [unit] how far left of the right-plane a
     trajectory may reach (the plane moves with the estimates: without slack every frame whose
     heading is a little left of the line to the collision point disables all turns,
-    docs/rules.md); ``time_margin`` [grid ranges at cruise] how far ahead a closest approach
+    docs/rules.md); ``plane_horizon`` [s] the turning time horizon of the right plane's linear
+    projection from every movement end (6.217; 0 = only the trajectory's own points, 6.216);
+    ``time_margin`` [grid ranges at cruise] how far ahead a closest approach
     opens a case; ``airspace`` ``uncontrolled`` (ball, 6.218)
     or ``controlled`` (well-clear barrel of half height ``barrel_half_height`` [m], 6.219);
     ``navigation``: the planar separations of the ACAS-like navigation reach set the rules
@@ -54,6 +56,7 @@ class RulesConfig:
     overtake: float = 5.0
     converging_extra: float = 0.0
     plane_tolerance: float = 1.0
+    plane_horizon: float = 0.0
     widest: bool = True
     bloat: float = 1.0
     time_margin: float = 2.0
@@ -99,6 +102,7 @@ class RulesConfig:
             "bloat",
             "time_margin",
             "plane_tolerance",
+            "plane_horizon",
             "established_speed",
             "settle",
         ):

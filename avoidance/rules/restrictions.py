@@ -16,20 +16,30 @@ from avoidance.reachset.tree import ReachSetTree
 
 
 def right_plane_heading_mask(
-    tree: ReachSetTree, pose: GridPose, collision_point: np.ndarray, tol: float = 1e-6
+    tree: ReachSetTree, pose: GridPose, collision_point: np.ndarray, tol: float = 1e-6, horizon: float = 0.0
 ) -> np.ndarray:
     """(6.215-6.216) Separation plane through the UAS (grid origin), the collision point and
     the vertical; nodes with any sample more than ``tol`` [m] left of it (left of the line
-    origin -> collision point) are disabled. Only applies while the collision point is in front
-    (X+ > 0); else nothing is disabled. (A turn at a bounded rate starts along the heading: with
-    ``tol`` = 0 a heading a fraction of a degree left of the line disables every trajectory.)"""
+    origin -> collision point) are disabled. (6.217) With ``horizon`` [s] > 0, also nodes whose
+    linear projection ``tip + v·t``, t in [0, horizon], from the movement's end (a decision
+    point: the trajectory can be re-planned there) with its end velocity ``v`` (last sample
+    step) gets more than ``tol`` left: a trajectory ending on the right but heading left.
+    Only applies while the collision point is in front (X+ > 0); else nothing is disabled. (A
+    turn at a bounded rate starts along the heading: with ``tol`` = 0 a heading a fraction of a
+    degree left of the line disables every trajectory.)"""
     cp = pose.to_lcf(np.asarray(collision_point, float))
     if cp[0] <= 0.0:
         return np.zeros(tree.n_nodes, bool)
     u = cp[:2] / max(float(np.hypot(cp[0], cp[1])), 1e-9)
     s = tree.samples
     left = u[0] * s[..., 1] - u[1] * s[..., 0]  # z of u x p: > 0 = left
-    return tree.along_paths((left > tol).any(axis=1), np.logical_or)
+    bad = (left > tol).any(axis=1)
+    if horizon > 0.0:  # left() is linear: the projection stays right iff its end at the horizon does
+        n_sub = s.shape[1] - 1
+        v = (s[:, -1] - s[:, -2]) * n_sub / tree.period
+        end = s[:, -1] + horizon * v
+        bad |= u[0] * end[:, 1] - u[1] * end[:, 0] > tol
+    return tree.along_paths(bad, np.logical_or)
 
 
 def safety_margin_mask(

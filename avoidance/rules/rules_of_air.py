@@ -241,7 +241,9 @@ def _pass_behind_goal(ctx: RuleContext, case: CollisionCase) -> None:
 @dataclass(frozen=True)
 class RightPlaneHeading:
     """(tab. 6.16) Disable navigation trajectories with a point left of the separation plane
-    (beyond the config's ``plane_tolerance``)."""
+    (beyond the config's ``plane_tolerance``, 6.216) or, with the config's ``plane_horizon`` > 0,
+    whose linear projection from a movement's end over that horizon enters the left subspace
+    (6.217)."""
 
     code: str = "right_plane_heading"
     point: None = None
@@ -253,7 +255,8 @@ class RightPlaneHeading:
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
         tree, pose = ctx.navigation_tree()
         case = ctx.current_case()
-        mask = right_plane_heading_mask(tree, pose, case.collision_point, ctx.cfg.plane_tolerance * ctx.unit)
+        tol = ctx.cfg.plane_tolerance * ctx.unit
+        mask = right_plane_heading_mask(tree, pose, case.collision_point, tol, ctx.cfg.plane_horizon)
         ctx.disable(self.code, mask, case)
 
 
