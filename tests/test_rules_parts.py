@@ -10,7 +10,8 @@ import pytest
 from avoidance.reachset.frames import GridPose
 from avoidance.reachset.movement import MovementType
 from avoidance.rules.restrictions import right_plane_heading_mask
-from tests.test_rules_utm import NAV
+from avoidance.utm.collision_case import Encounter, Role, UtmConfig, compute_collision_case
+from tests.test_rules_utm import NAV, note
 
 
 def _node(*buffer: MovementType) -> int:
@@ -35,3 +36,46 @@ def test_linear_projection_disables_a_path_that_ends_right_but_heads_left():
     assert (projected >= plane).all() and projected.sum() > plane.sum()
     # 6.217 with a horizon too short to cross the tolerance: 2 + 7 = 9 m -> 0.90 m left, enabled
     assert not right_plane_heading_mask(NAV, pose, cp, tol=1.0, horizon=7.0)[straight2]
+
+
+# -- intent: peers predicted along their filed plans -------------------------------------------------
+def test_filed_plan_prediction_follows_the_legs_at_the_current_speed():
+    """From (0, 0) at 5 m/s to (10, 0) then (10, 20): at 1 s 5 m along the first leg, at 3 s 5 m
+    into the second, from 6 s on holding at the last waypoint (30 m flown)."""
+    n = note("b", (0, 0, 0), (5, 0, 0)).with_intent(np.array([[10, 0, 0], [10, 20, 0]]), horizon=8.0)
+    assert n.trajectory_t == pytest.approx(np.arange(9.0))
+    assert n.adjusted(1.0).pos == pytest.approx([5, 0, 0])
+    assert n.adjusted(3.0).pos == pytest.approx([10, 5, 0])
+    assert n.adjusted(7.0).pos == pytest.approx([10, 20, 0])
+
+
+def test_filed_plan_turning_away_removes_the_linear_case():
+    """Own UAS flies north (ENU +y) from the origin, the peer east at y = 100 from x = -100, both
+    5 m/s: linearly both reach (0, 100) at 20 s, a converging case (the peer, with the own UAS on
+    its right, gives way). The peer's plan turns north at (-50, 100) (at 10 s, the own UAS then at
+    (0, 50)): it flies parallel, 50 m west and 50 m behind, 70.7 m apart from 10 s on, never within
+    the collision margin (2 × 8 m): no case."""
+    own, peer = note("a", (0, 0, 0), (0, 5, 0)), note("b", (-100, 100, 0), (5, 0, 0))
+    cfg = UtmConfig(time_margin=30.0)
+    linear = compute_collision_case(own, peer, 0.0, cfg)
+    assert linear.flagged and not linear.trajectory and linear.encounter == Encounter.CONVERGING
+    assert linear.roles == (Role.RIGHT_OF_WAY, Role.CONVERGING)
+    assert linear.collision_point == pytest.approx([0, 100, 0])
+    planned = compute_collision_case(own, peer.with_intent(np.array([[-50, 100, 0], [-50, 400, 0]]), 30.0), 0.0, cfg)
+    assert planned.trajectory and not planned.flagged and planned.distance == pytest.approx(np.hypot(50, 50))
+
+
+def test_filed_plan_turning_in_opens_the_case_the_linear_prediction_misses():
+    """Own UAS flies north from (0, -50); the peer north from (-100, 50), 100 m west of it, both
+    5 m/s: linearly parallel, no case. The peer's plan turns east at (-100, 75) towards (100, 75):
+    both reach (0, 75) at 25 s. Seen from there the own UAS comes from the south and the peer from
+    (-100, 50): α = angle((0, -125), (-100, -25)) = 76.0° -> converging; the peer has the own UAS
+    on its right and gives way, the own UAS holds course."""
+    own, peer = note("a", (0, -50, 0), (0, 5, 0)), note("b", (-100, 50, 0), (0, 5, 0))
+    cfg = UtmConfig(time_margin=30.0)
+    assert not compute_collision_case(own, peer, 0.0, cfg).flagged
+    planned = compute_collision_case(own, peer.with_intent(np.array([[-100, 75, 0], [100, 75, 0]]), 30.0), 0.0, cfg)
+    assert planned.flagged and planned.trajectory
+    assert planned.t_cpa == pytest.approx(25.0) and planned.collision_point == pytest.approx([0, 75, 0])
+    assert planned.alpha_deg == pytest.approx(np.degrees(np.arccos(25 * 125 / (125 * np.hypot(100, 25)))), abs=1e-6)
+    assert planned.encounter == Encounter.CONVERGING and planned.roles == (Role.RIGHT_OF_WAY, Role.CONVERGING)
