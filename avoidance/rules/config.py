@@ -15,7 +15,17 @@ from avoidance.reachset.config import AvoidanceConfig, ExpansionConfig, ReachSet
 from avoidance.utm.collision_case import UtmConfig
 from avoidance.utm.notification import Category, Maneuverability, Margins, Registration
 
-RULE_CODES = ("detect", "resolve", "close", "head_on", "converging", "overtake", "right_plane_heading", "safety_margin")
+RULE_CODES = (
+    "detect",
+    "resolve",
+    "close",
+    "head_on",
+    "converging",
+    "overtake",
+    "right_plane_heading",
+    "safety_margin",
+    "weather",
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -36,7 +46,8 @@ class RulesConfig:
     docs/rules.md); ``plane_horizon`` [s] the turning time horizon of the right plane's linear
     projection from every movement end (6.217; 0 = only the trajectory's own points, 6.216);
     ``time_margin`` [grid ranges at cruise] how far ahead a closest approach
-    opens a case; ``airspace`` ``uncontrolled`` (ball, 6.218)
+    opens a case; ``weather_margin`` [unit] the soft band around a weather case's body (§7.5);
+    ``airspace`` ``uncontrolled`` (ball, 6.218)
     or ``controlled`` (well-clear barrel of half height ``barrel_half_height`` [m], 6.219);
     ``navigation``: the planar separations of the ACAS-like navigation reach set the rules
     restrict (the [R] cooperative scenarios S9-S13 use ``horizontal``: a right-plane heading
@@ -60,6 +71,7 @@ class RulesConfig:
     widest: bool = True
     bloat: float = 1.0
     time_margin: float = 2.0
+    weather_margin: float = 5.0
     airspace: str = "uncontrolled"
     barrel_half_height: float = 76.2
     category: str = "uas_autonomous"
@@ -101,6 +113,7 @@ class RulesConfig:
             "converging_extra",
             "bloat",
             "time_margin",
+            "weather_margin",
             "plane_tolerance",
             "plane_horizon",
             "established_speed",

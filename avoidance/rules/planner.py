@@ -38,6 +38,7 @@ from avoidance.rules.engine import DecisionPoint, RuleContext, RuleEngine
 from avoidance.rules.rules_of_air import make_rules
 from avoidance.utm.cases import CaseBook
 from avoidance.utm.notification import PositionNotification, from_track
+from avoidance.utm.weather_case import weather_cases
 from sim.core.frames import ned_to_enu
 from sim.core.mission import Mission
 from sim.core.plan import Plan, Threats
@@ -97,13 +98,19 @@ class RulesAvoider(ReachSetAvoider):
         )
         self._ctx = ctx
         self._start = ctx.start
+        weather = self.engine.enabled("weather")
+        if weather:  # storm cells become weather cases, handled by the rules instead of the run's constraints
+            ctx.weather = weather_cases(threats.storms, t, self.rules.weather_margin * self.rules.unit)
+        ctl = self.control
+        ctx.goal = ctl.waypoints[min(max(ctl.goal, self.mission.next_index), len(ctl.waypoints) - 1)]
         self.engine.invoke(DecisionPoint.BEFORE_AVOIDANCE_RUN, ctx)
         sensed = dataclasses.replace(
-            threats, intruders=[tr for tr in threats.intruders if tr.id not in ctx.managed or tr.id in ctx.emergency]
+            threats,
+            intruders=[tr for tr in threats.intruders if tr.id not in ctx.managed or tr.id in ctx.emergency],
+            storms=[] if weather else threats.storms,
         )
-        ctl = self.control
         goal = max(ctl.goal, self.mission.next_index)
-        override = ctx.goal_override if goal < len(ctl.waypoints) else None  # overtake: the rule's waypoint
+        override = ctx.goal_override if goal < len(ctl.waypoints) else None  # the rules' waypoint
         plan = self.decide(estimate, sensed, t, override, emergency_threats=threats)
         ctx.decision = self.last_decision
         d = ctx.current_decision()

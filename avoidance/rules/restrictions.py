@@ -10,6 +10,7 @@ subtree (``ReachSetTree.along_paths`` with ``np.logical_or``).
 from __future__ import annotations
 
 import numpy as np
+import shapely
 
 from avoidance.reachset.frames import GridPose
 from avoidance.reachset.tree import ReachSetTree
@@ -113,3 +114,17 @@ def widest_per_cell(tree: ReachSetTree, feasible: np.ndarray, clearance: np.ndar
     first = np.r_[True, tree.tip_cell[ranked][1:] != tree.tip_cell[ranked][:-1]]
     out[ranked[~first]] = True
     return out
+
+
+def weather_masks(tree: ReachSetTree, pose: GridPose, body, velocity: np.ndarray, dt: float, margin: float):
+    """(hard, soft) node masks of a weather cell (spec §7.5): a node is hard when a sample of its
+    path lies in the body, soft when one lies within ``margin`` [m] of it. ``body`` is the cell's
+    polygon GCF (x east, y north) [m] at ``dt`` [s] before the grid's time, moving with
+    ``velocity`` GCF [m/s]: each sample is tested against the body where it is at that sample's
+    time (the sample shifted back by the cell's motion)."""
+    xy = pose.to_gcf(tree.samples)[..., :2] - (dt + tree.sample_times())[..., None] * np.asarray(velocity, float)
+    x, y = xy[..., 0].ravel(), xy[..., 1].ravel()
+    shape = tree.samples.shape[:2]
+    inside = shapely.contains_xy(body, x, y).reshape(shape).any(axis=1)
+    near = shapely.dwithin(body, shapely.points(x, y), margin).reshape(shape).any(axis=1)
+    return tree.along_paths(inside, np.logical_or), tree.along_paths(near, np.logical_or)
