@@ -112,6 +112,9 @@ class RulesAvoider(ReachSetAvoider):
         goal = max(ctl.goal, self.mission.next_index)
         override = ctx.goal_override if goal < len(ctl.waypoints) else None  # the rules' waypoint
         plan = self.decide(estimate, sensed, t, override, emergency_threats=threats)
+        if ctx.speed is not None:  # 6.202: slower along the plan (the follower honours it)
+            plan.speed = ctx.speed
+            plan.diagnostics["speed_mps"] = ctx.speed
         ctx.decision = self.last_decision
         d = ctx.current_decision()
         self.engine.invoke(DecisionPoint.AFTER_AVOIDANCE_RUN, ctx)

@@ -63,7 +63,11 @@ class DetectCollisionCases:
     update the case book from this frame's notifications (the peers whose pair could be
     assessed are managed by the rules, the rest stay intruders), re-target roundabout members,
     report unresolved cases (separation below the case margin: handed to the emergency
-    avoidance), select the own cases to resolve (own role gives way) by severity."""
+    avoidance), select the own cases to resolve (own role gives way) by severity. With several
+    overtaking roles, or one and another give-way role, the UAS slows to
+    ``max(minCruise, min peer speed)`` over those cases (6.202, :func:`overtake_speed`; the spec's
+    divergence order from a central UTM does not exist here: it stays at that speed behind them
+    while the situation lasts)."""
 
     code: str = "detect"
     point: DecisionPoint = DecisionPoint.BEFORE_AVOIDANCE_RUN
@@ -99,10 +103,11 @@ class DetectCollisionCases:
                 ctx.unresolved.add((c.ids, c.head))
                 ctx.emergency.add(c.other(ctx.uas))
                 ctx.record("case_unresolved", c, separation_m=c.separation, margin_m=c.margin)
-        overtakes = [c for c in own if c.role_of(ctx.uas) == Role.OVERTAKING]
-        if len(overtakes) > 1:
-            speeds = [n.speed for n in ctx.notifications if n.id in {c.other(ctx.uas) for c in overtakes}]
-            ctx.record("overtake_speed", speed_mps=overtake_speed(own_note.registration.min_cruise, speeds))
+        giving = [c for c in own if c.role_of(ctx.uas) in RESOLVING]
+        if any(c.role_of(ctx.uas) == Role.OVERTAKING for c in giving) and len(giving) > 1:
+            speeds = [n.speed for n in ctx.notifications if n.id in {c.other(ctx.uas) for c in giving}]
+            ctx.speed = overtake_speed(own_note.registration.min_cruise, speeds)
+            ctx.record("overtake_speed", speed_mps=ctx.speed, peers=sorted(c.other(ctx.uas) for c in giving))
         ctx.resolve = sorted(
             (c for c in own if c.role_of(ctx.uas) in RESOLVING and c.other(ctx.uas) not in ctx.emergency), key=_severity
         )
