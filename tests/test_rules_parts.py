@@ -10,6 +10,7 @@ import shapely
 
 from avoidance.reachset.frames import GridPose
 from avoidance.reachset.movement import MovementType
+from avoidance.rules.config import RulesConfig
 from avoidance.rules.restrictions import right_plane_heading_mask, weather_masks
 from avoidance.rules.rules_of_air import roundabout_aim
 from avoidance.utm.collision_case import Encounter, Role, UtmConfig, compute_collision_case
@@ -166,3 +167,52 @@ def test_two_overtakes_slow_the_overtaking_uas_to_the_rule_speed(fly):
             assert abs(speed[window].mean() - s) < 0.4, (t, s, speed[window].mean())
     cruise = ((times > 8.0) & (times < first)) | ((times > last + 5.0) & (times < last + 20.0))
     assert speed[cruise].min() > 4.5
+
+
+def _own_and_peer_frames(plans: dict) -> list[str]:
+    """A thesis-scale RulesAvoider (1 m/s, 1 m movements) flying north from the origin; a
+    cooperative peer 12 m ahead and 12 m to its right (east) flying north too; its decisions'
+    events at t = 0, 1, 2 s. ``plans``: the rules' filed plans (``RulesConfig.plans``)."""
+    from avoidance.reachset.movement import thesis_automaton
+    from avoidance.rules.planner import RulesAvoider
+    from sim.core.mission import Mission
+    from sim.core.plan import Threats
+    from sim.core.state import VehicleState
+    from sim.core.threats import IntruderTrack
+
+    mission = Mission(np.array([[60.0, 0.0, -5.0]]), cruise_speed=1.0, acceptance_radius=2.0)
+    av = RulesAvoider(mission, thesis_automaton(), RulesConfig(plans=plans))
+    north = np.array([1.0, 0.0, 0.0])
+    events = []
+    for t in (0.0, 1.0, 2.0):
+        est = VehicleState(
+            t=t,
+            pos_ned=np.array([t, 0.0, -5.0]),
+            vel_ned=north,
+            euler=np.zeros(3),
+            rates_body=np.zeros(3),
+            alt_msl_m=5.0,
+            lat_deg=0.0,
+            lon_deg=0.0,
+        )
+        peer = IntruderTrack("peer", t, np.array([12.0 + t, 12.0, -5.0]), north, cooperative=True)
+        av.plan(est, Threats(intruders=[peer]), t)
+        events += av.last_decision.events
+    return events
+
+
+def test_a_peers_filed_plan_gives_the_case_and_the_role_the_linear_prediction_misses():
+    """Linearly the peer flies parallel 17 m away (beyond the 16 m collision margin): no case.
+    Its filed plan turns west at 18 m north, across the own route: both reach (18, 0) at 18 s
+    (within the 20 s time margin); α = 63.4° at equal speeds -> converging, the peer on the own
+    UAS' right: the own UAS gives way (converging rule, right plane, margin)."""
+    linear = _own_and_peer_frames({})
+    assert not any(e.startswith("rule:") for e in linear)
+    planned = _own_and_peer_frames({"peer": [[18.0, 12.0], [18.0, -40.0]]})
+    assert "rule:case_open:self-peer:converging:converging" in planned
+    assert "rule:converging:self-peer:converging:converging" in planned
+
+
+def test_filed_plans_are_checked():
+    with pytest.raises(ValueError, match=r"plans.peer: a list of \[north, east\] waypoints"):
+        RulesConfig.from_options({"plans": {"peer": [[1.0, 2.0, 3.0]]}})

@@ -57,7 +57,11 @@ class RulesConfig:
     heading is postponed for ever; 9 as the harmonic default turns first, docs/rules.md);
     ``filed``: registrations the UTM holds for peers that differ from the own one, peer id ->
     ``{"category": ..., "maneuverability": ...}`` (e.g. a HAPS, ``linear_propulsion``, among
-    multirotors: it gets the right of way); a peer not listed files the own registration."""
+    multirotors: it gets the right of way); a peer not listed files the own registration;
+    ``plans``: mission plans the UTM holds for peers (intent sharing), peer id -> horizontal
+    waypoints ``[[north, east], ...]`` [m] from the scenario origin, flown at the peer's current
+    altitude: such a peer is predicted along its plan's remaining legs (a waypoint counts as
+    reached once the peer's track comes within two movement lengths of it), not linearly."""
 
     enabled: tuple[str, ...] = RULE_CODES
     unit: float = 1.0
@@ -83,6 +87,7 @@ class RulesConfig:
     navigation: tuple[str, ...] = ("horizontal",)
     navigation_spread: int = 9
     filed: dict[str, dict[str, str]] = field(default_factory=dict)
+    plans: dict[str, list[list[float]]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.enabled) - set(RULE_CODES))
@@ -95,6 +100,13 @@ class RulesConfig:
             if not isinstance(reg, dict) or set(reg) - {"category", "maneuverability"}:
                 raise ValueError(f"filed.{peer}: a table of category and/or maneuverability, not {reg!r}")
             _check_class(reg.get("category", self.category), reg.get("maneuverability", self.maneuverability))
+        for peer, plan in self.plans.items():
+            if not (
+                isinstance(plan, list | tuple)
+                and plan
+                and all(isinstance(w, list | tuple) and len(w) == 2 for w in plan)
+            ):
+                raise ValueError(f"plans.{peer}: a list of [north, east] waypoints [m], not {plan!r}")
         bad = sorted(set(self.navigation) - {"horizontal", "vertical", "slash", "backslash"})
         if bad or not self.navigation:
             raise ValueError(

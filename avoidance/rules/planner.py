@@ -72,13 +72,29 @@ class RulesAvoider(ReachSetAvoider):
         self._deadlock_frames = 0
         self._unresolved: set = set()
         self._start: float | None = None
+        self._progress: dict[str, int] = {}  # peers' filed plans: index of the next waypoint
 
     def notifications(self, estimate: VehicleState, threats: Threats, t: float) -> list[PositionNotification]:
         own = PositionNotification(t, self.registration, ned_to_enu(estimate.pos_ned), ned_to_enu(estimate.vel_ned))
         peers = [
-            from_track(tr, self.rules.registration(tr.id, self.speed)) for tr in threats.intruders if tr.cooperative
+            self._with_plan(from_track(tr, self.rules.registration(tr.id, self.speed)))
+            for tr in threats.intruders
+            if tr.cooperative
         ]
         return [own, *peers]
+
+    def _with_plan(self, note: PositionNotification) -> PositionNotification:
+        """A peer with a filed plan (``RulesConfig.plans``) predicted along its remaining legs
+        over the UTM's time margin (intent sharing); its progress is kept per peer."""
+        plan = self.rules.plans.get(note.id)
+        if plan is None:
+            return note
+        wps = np.array([[e, n, note.pos[2]] for n, e in plan], float)  # GCF: x east, y north, at its altitude
+        k = self._progress.get(note.id, 0)
+        while k < len(wps) and float(np.hypot(*(wps[k, :2] - note.pos[:2]))) <= 2.0 * self.length:
+            k += 1
+        self._progress[note.id] = k
+        return note.with_intent(wps[k:], self.book.cfg.time_margin, self.frame)
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         if self._last is not None and not self.frame_due(t):
