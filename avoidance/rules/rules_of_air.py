@@ -372,7 +372,9 @@ class WeatherCases:
             centre = c0 + np.array([*w.velocity, 0.0]) * t_cpa
             ctx.goal_override = roundabout_aim(own.pos, centre, radius, ROUNDABOUT_LEAD_RAD)
             ctx.events.append(f"rule:weather_roundabout:{w.id}")
-            ctx.decisions.append({"rule": "weather_roundabout", "weather_case": w.record(), "aim_enu": ctx.goal_override.tolist()})
+            ctx.decisions.append(
+                {"rule": "weather_roundabout", "weather_case": w.record(), "aim_enu": ctx.goal_override.tolist()}
+            )
 
 
 @dataclass(frozen=True)

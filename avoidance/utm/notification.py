@@ -132,7 +132,6 @@ class PositionNotification:
             pos = self.pos + self.vel * (t - self.t)
         return replace(self, t=t, pos=pos)
 
-
     def with_intent(self, plan: np.ndarray, horizon: float, step: float = 1.0) -> PositionNotification:
         """This notification predicted along its filed mission plan (intent sharing, §7.4 step
         1): ``plan`` (K, 3) GCF [m] = the plan's waypoints not yet reached, the next first; the UAS
