@@ -216,3 +216,20 @@ def test_a_peers_filed_plan_gives_the_case_and_the_role_the_linear_prediction_mi
 def test_filed_plans_are_checked():
     with pytest.raises(ValueError, match=r"plans.peer: a list of \[north, east\] waypoints"):
         RulesConfig.from_options({"plans": {"peer": [[1.0, 2.0, 3.0]]}})
+
+
+@pytest.mark.parametrize(("speed", "expected"), [(None, 5.0), (2.5, 2.5), (8.0, 5.0)])
+def test_multirotor_follower_flies_the_plans_commanded_speed_never_above_cruise(speed, expected):
+    """A 100 m leg north, cruise 5 m/s: the carrot's feed-forward velocity is the plan's speed
+    (6.202's slow-down), capped at the cruise speed; None flies the cruise speed."""
+    from guidance.multirotor_follower import MultirotorPlanFollower
+    from sim.core.plan import Plan
+    from sim.core.state import VehicleState
+
+    follower = MultirotorPlanFollower(5.0, 3.0, 2.0, 1.0)
+    plan = Plan(0.0, np.array([[0.0, 0, -20], [100.0, 0, -20]]), np.array([0.0, 20.0]), np.array([-1, 0]))
+    plan.speed = speed
+    follower.set_plan(plan)
+    here = VehicleState(0.0, np.array([0.0, 0, -20]), np.zeros(3), np.zeros(3), np.zeros(3), 20.0, 0.0, 0.0)
+    setpoint, _ = follower.update(here, 0.0, 0.1)
+    assert setpoint.vel_ned == pytest.approx([expected, 0.0, 0.0])
