@@ -147,6 +147,7 @@ class RulesAvoider(ReachSetAvoider):
                 for r in self.book.roundabouts()
             ],
             "emergency": sorted(ctx.emergency),
+            "weather": [w.record() for w in ctx.weather],
             "mode": d.mode.value,
         }
         self._ctx = None
