@@ -353,20 +353,19 @@ class WeatherCases:
     priority: int = 1
 
     def condition(self, ctx: RuleContext) -> bool:
-        return bool(ctx.weather) and ctx.goal is not None
+        return bool(ctx.weather) and ctx.goal is not None and ctx.goal_override is None
 
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
         own = next(n for n in ctx.notifications if n.id == ctx.uas)
-        goal = ctx.goal if ctx.goal_override is None else ctx.goal_override
-        route = shapely.LineString([own.pos[:2], np.asarray(goal)[:2]])
-        ahead = np.asarray(goal, float) - own.pos
+        goal = np.asarray(ctx.goal, float)
+        route = shapely.LineString([own.pos[:2], goal[:2]])
+        ahead = goal - own.pos
         cruise = ahead / max(float(np.linalg.norm(ahead)), 1e-9) * own.registration.max_cruise
         for w in ctx.weather:
             # a moving cell where the UAS, flying its route at cruise, is closest to its centre
             c0 = w.centre + np.array([*w.velocity, 0.0]) * (ctx.t - w.t)
             t_cpa = max(closest_approach(own.pos[:2], cruise[:2], c0[:2], w.velocity)[0], 0.0) if w.moving else 0.0
-            body = w.moved(ctx.t + t_cpa)
-            if ctx.goal_override is not None or not shapely.dwithin(body, route, w.margin):
+            if not shapely.dwithin(w.moved(ctx.t + t_cpa), route, w.margin):
                 continue
             radius = w.radius + w.margin + ctx.cfg.bloat * ctx.unit
             centre = c0 + np.array([*w.velocity, 0.0]) * t_cpa
@@ -375,6 +374,7 @@ class WeatherCases:
             ctx.decisions.append(
                 {"rule": "weather_roundabout", "weather_case": w.record(), "aim_enu": ctx.goal_override.tolist()}
             )
+            return  # one aim per frame: the first listed cell the route crosses
 
 
 @dataclass(frozen=True)
