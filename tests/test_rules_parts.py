@@ -118,31 +118,41 @@ def test_weather_masks_move_the_body_with_the_cell():
 WEATHER_BAND_M = 25.0  # rules_weather_margin 5 x rules_unit 5
 
 
-def check_weather_case(flight, name: str) -> float:
+# the static cell's centre (north, east) [m] and on which side of it each route passes it
+CELL_NE = (150.0, 0.0)
+PASSES = {"quad": (0, 1, 1.0), "quad1": (0, 1, 1.0), "quad2": (1, 0, -1.0)}  # abeam axis, side axis, sign
+
+
+def check_weather_case(flight, vehicle: str, kind: str) -> float:
     """Never inside the body, the band kept within 0.5 thesis m (x5, as S4), complete, the case's
-    decisions logged, the static cell passed on the right (east of its centre when abeam); the
-    closest distance to the body [m]."""
-    m = log_metrics(flight.log)["vehicles"]["quad"]
+    decisions logged, a static cell passed on the right (keeping its centre on the left: north-
+    bound east of it, east-bound south of it, when abeam); the closest distance to the body [m]."""
+    m = log_metrics(flight.log)["vehicles"][vehicle]
     assert m["mission"]["complete"]
     assert m["storms"]["time_inside_s"] == 0.0 and m["storms"]["min_distance_m"] >= WEATHER_BAND_M - 2.5
-    rules = read_topic(flight.path, "/quad/plan/rules")
+    rules = read_topic(flight.path, f"/{vehicle}/plan/rules")
     events = {e for _, r in rules for e in r["events"]}
-    kind = "static" if name == "weather_static" else "moving"
     assert f"rule:weather:cell0:{kind}" in events and "rule:weather_roundabout:cell0" in events
     if kind == "static":
-        truth = read_topic(flight.path, "/quad/truth/state")
-        abeam = min(truth, key=lambda ts: abs(ts[1]["pos_ned"][0] - 150.0))
-        assert abeam[1]["pos_ned"][1] > 0.0  # east of the centre: passed on the right
+        along, side, sign = PASSES[vehicle]
+        truth = read_topic(flight.path, f"/{vehicle}/truth/state")
+        abeam = min(truth, key=lambda ts: abs(ts[1]["pos_ned"][along] - CELL_NE[along]))
+        assert sign * (abeam[1]["pos_ned"][side] - CELL_NE[side]) > 0.0
     return float(m["storms"]["min_distance_m"])
 
 
 @pytest.mark.closed_loop
-@pytest.mark.parametrize("name", ["weather_static", "weather_moving"])
-def test_storm_cell_is_avoided_as_a_weather_case(fly, name):
-    """A storm cell across the route (static; S4's cell drifting at the UAS), handled by the rules
-    alone (the run's constraints do not see it), read from the MCAP (:func:`check_weather_case`);
-    at the files' seed the whole band is kept (measured: static 25.3 m, moving 31.7 m)."""
-    assert check_weather_case(fly(f"rules/{name}"), name) >= WEATHER_BAND_M
+@pytest.mark.parametrize(
+    ("name", "kind", "vehicles"),
+    [("weather_two_routes", "static", ("quad1", "quad2")), ("weather_moving", "moving", ("quad",))],
+)
+def test_storm_cell_is_avoided_as_a_weather_case(fly, name, kind, vehicles):
+    """A storm cell handled by the rules alone (the run's constraints do not see it), read from the
+    MCAP (:func:`check_weather_case`): static across two routes (quad1 flying north passes east
+    of it, quad2 flying east south of it), and S4's cell drifting at the UAS. At the files' seed
+    the whole band is kept (measured: quad1 25.3 m, quad2 28.3 m, moving 31.7 m)."""
+    flight = fly(f"rules/{name}")
+    assert min(check_weather_case(flight, v, kind) for v in vehicles) >= WEATHER_BAND_M
 
 
 # -- the overtake speed change (6.202) ---------------------------------------------------------------
@@ -195,7 +205,10 @@ def test_rule_parts_on_20_seeds(fly, scenario_data, record_property, name, seed)
     data = scenario_data(f"rules/{name}")
     data["seed"] = seed
     flight = fly(data, f"{name}_{seed}")
-    closest = check_weather_case(flight, name) if name.startswith("weather") else check_overtake_speed(flight)
+    if name.startswith("weather"):
+        closest = check_weather_case(flight, "quad", name.removeprefix("weather_"))
+    else:
+        closest = check_overtake_speed(flight)
     record_property("closest_m", round(closest, 1))
 
 
