@@ -157,9 +157,10 @@ def test_storm_cell_is_avoided_as_a_weather_case(fly, name, kind, vehicles):
 
 # -- the overtake speed change (6.202) ---------------------------------------------------------------
 def check_overtake_speed(flight) -> float:
-    """uas1 slowed to the commanded speed while 6.202 acts (1 s means of its true ground speed
-    within 0.4 m/s from 3 s after the first command), above 4.5 m/s before and after; uas1's
-    pairs keep the 25 m overtake margin; all complete. uas1's smallest separation [m]."""
+    """6.202 acts (5 frames or more) and uas1 flies the commanded speed (1 s means of its true
+    ground speed within 0.4 m/s from 5 s after the first command), above 4.5 m/s before and
+    after; uas1's pairs keep the 25 m overtake margin; all complete. uas1's smallest separation
+    [m]."""
     m = log_metrics(flight.log)
     for name, v in m["vehicles"].items():
         assert v["mission"]["complete"], name
@@ -171,13 +172,13 @@ def check_overtake_speed(flight) -> float:
         for d in r["decisions"]
         if d["rule"] == "overtake_speed"
     ]
-    assert len(commanded) >= 10 and all(2.5 <= s <= 3.0 for _, s in commanded)
+    assert len(commanded) >= 5 and all(2.5 <= s <= 3.0 for _, s in commanded)
     truth = read_topic(flight.path, "/uas1/truth/state")
     times = np.array([t for t, _ in truth])
     speed = np.array([np.hypot(*s["vel_ned"][:2]) for _, s in truth])
     first, last = commanded[0][0], commanded[-1][0]
     for t, s in commanded:
-        if first + 3.0 <= t:
+        if first + 5.0 <= t:  # braking from 5 to 2.5 m/s takes about 4 s
             window = (times >= t) & (times < t + 1.0)
             assert abs(speed[window].mean() - s) < 0.4, (t, s, speed[window].mean())
     cruise = ((times > 8.0) & (times < first)) | ((times > last + 5.0) & (times < last + 20.0))
