@@ -1,6 +1,7 @@
 """Fly-over turn models of the MPTP (seed 002 5.2 approximate, 5.3 simulated) against hand
 geometry: the HAPS's 26 m/s at 20 deg bank, R = 26^2 / (g tan 20 deg) = 189.39 m, 45 deg turns;
-the simulated roll at 6 deg/s reaches 20 deg after t_r = 3.33 s."""
+the simulated roll at 6 deg/s reaches 20 deg after t_r = 3.33 s (turn_bank_fraction 1: the turns
+planned at the bank limit; the planning bank below it is tested on its own)."""
 
 import math
 from pathlib import Path
@@ -17,13 +18,15 @@ from guidance.mptp.margins import turn_cut_m
 from guidance.mptp.search import HOLD, plan_trajectory
 from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.turning import start_turn, wrap
-from guidance.mptp.turnmodel import aux_states, exit_offset_m, turn_points, turn_to, written_out
+from guidance.mptp.planner import MptpPlanner
+from guidance.mptp.turnmodel import aux_states, exit_offset_m, turn_points, turn_to, vertex_spacing_m, written_out
+from sim.core.mission import Mission
 from sim.core.threats import StormSnapshot
 from sim.testbeds.mptp_turn_vertices import SETTLE_S, corner_cross_track, fly, vertex_cross_track
 
 ROOT = Path(__file__).resolve().parents[1]
-APPROX = MptpConfig(turn_model="approximate")
-SIM = MptpConfig(turn_model="simulated")
+APPROX = MptpConfig(turn_model="approximate", turn_bank_fraction=1.0)
+SIM = MptpConfig(turn_model="simulated", turn_bank_fraction=1.0)
 R = APPROX.turn_radius_m
 V = APPROX.tas_mps
 Q = math.pi / 4  # 45 deg
@@ -187,6 +190,65 @@ def test_bad_turn_model_is_one_clear_error():
         MptpConfig(turn_model="dubins")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="roll_rate_max"):
         MptpConfig(roll_rate_max=0.0)
+    with pytest.raises(ValueError, match="turn_bank_fraction"):
+        MptpConfig(turn_bank_fraction=1.2)
+
+
+def test_turns_are_planned_at_the_planning_bank():
+    """turn_bank_fraction 0.75 (default) of 20 deg: the approximate 45 deg turn is the arc of
+    R15 = 26^2 / (g tan 15 deg) = 257.26 m, exit (R15 sin 45, R15 (1 - cos 45)) = (181.91, 75.35) m;
+    the simulated turn rolls to 15 deg only, for t_r = 2.5 s, and turns dchi_r = -2 g / (V p)
+    ln cos 15 deg = 14.3 deg while rolling in and out, flying 2 V t_r + R15 (45 deg - dchi_r)."""
+    approx = MptpConfig(turn_model="approximate")
+    r15 = approx.fly_over_radius_m
+    assert r15 == pytest.approx(257.26, abs=0.01) and approx.turn_bank_rad == pytest.approx(math.radians(15.0))
+    arc, along = turn_points(np.zeros(2), 0.0, Q, approx)
+    assert arc[-1] == pytest.approx([181.91, 75.35], abs=0.01)
+    assert np.linalg.norm(arc - [0.0, r15], axis=1) == pytest.approx(np.full(9, r15), abs=1e-3)
+    sim = MptpConfig(turn_model="simulated")
+    dchi_r = -2 * sim.g / (V * sim.roll_rate_max) * math.log(math.cos(math.radians(15.0)))
+    assert math.degrees(dchi_r) == pytest.approx(14.31, abs=0.005)
+    _, along = turn_points(np.zeros(2), 0.0, Q, sim)
+    assert along[-1] == pytest.approx(2 * V * 2.5 + r15 * (Q - dchi_r), abs=1e-2)
+
+
+def test_the_planning_bank_leaves_the_simple_model_alone():
+    """turn_bank_fraction only moves the fly-over turns: the simple model's plan is identical."""
+    cfg = MptpConfig(safety_single_m=(1000.0,) * 3, sigma_front_mps=0.0)
+    plans = [
+        plan_trajectory(_timeline(c), np.zeros(2), 0.0, 0.3, GoalTrack.fixed([16_000.0, 0.0]), c)
+        for c in (cfg, cfg.with_(turn_bank_fraction=0.5))
+    ]
+    assert np.array_equal(plans[0].positions, plans[1].positions)
+    assert np.array_equal(plans[0].times, plans[1].times)
+
+
+@pytest.mark.parametrize("model", ["approximate", "simulated"])
+def test_vertex_spacing_is_the_shortest_written_out_step(model):
+    """vertex_spacing_m is the shortest step between written-out vertices over turns of 5..45 deg
+    (checked on a 0.1 deg sweep) bounded from below to within 3 %."""
+    cfg = MptpConfig(turn_model=model)
+    steps = [
+        np.diff(turn_points(np.zeros(2), 0.0, math.radians(d), cfg)[1]).min(initial=np.inf)
+        for d in np.arange(5.1, 45.0, 0.1)
+    ]
+    firsts = [turn_points(np.zeros(2), 0.0, math.radians(d), cfg)[1][0] for d in np.arange(5.1, 45.0, 0.1)]
+    shortest = min(min(steps), min(firsts))
+    assert vertex_spacing_m(cfg) <= shortest + 1e-6 and shortest < 1.03 * vertex_spacing_m(cfg)
+
+
+def test_an_acceptance_radius_over_the_vertex_spacing_is_refused():
+    """A fly-over plan's follower must switch legs closer to a vertex than the written-out
+    spacing; the simple model takes any acceptance radius."""
+    wps = np.array([[10_000.0, 0.0, 0.0]])
+    sim = MptpConfig(turn_model="simulated")
+    spacing = vertex_spacing_m(sim)
+    MptpPlanner(Mission(wps, 26.0, 0.99 * spacing), sim)
+    MptpPlanner(Mission(wps, 26.0, 500.0), MptpConfig())
+    with pytest.raises(ValueError, match=r"acceptance_radius 500 m must be below the 2\d\.\d m"):
+        MptpPlanner(Mission(wps, 26.0, 500.0), sim)
+    with pytest.raises(ValueError, match="acceptance_radius"):
+        MptpPlanner(Mission(wps, 26.0, spacing), sim)
 
 
 def test_corner_cross_track_signs_a_cut_corner():

@@ -38,7 +38,10 @@ class MptpConfig:
     states of seed 002 5.1; "approximate" = fly-over states, the turn a circular arc at the bank
     limit (5.2); "simulated" = fly-over states, the turn simulated with the bank slewed at
     ``roll_rate_max`` [rad/s] to and from the bank limit (5.3; default 6 deg/s, the HAPS's
-    bank-command slew limit in aircraft/haps/gains.toml).
+    bank-command slew limit in aircraft/haps/gains.toml). Both fly-over models plan their turns
+    at ``turn_bank_fraction`` * bank_max (turn_bank_rad), leaving the follower the rest of its
+    bank limit to make up its roll lag and look-ahead (the thesis states no reserve; the default
+    0.75 turns the HAPS, bank-command limit 20 deg, at the 15 deg of the thesis's HAPS, eq. 5.53).
 
     Search: ``heuristic``; ``turning`` sense(s) of the auxiliary states; ``max_expansions``
     caps A* (the thesis's Monte-Carlo success criterion used 100); ``search_weight`` w >= 1
@@ -90,6 +93,7 @@ class MptpConfig:
     turning: Turning = "both"
     turn_model: TurnModelName = "simple"
     roll_rate_max: float = math.radians(6.0)
+    turn_bank_fraction: float = 0.75
     max_expansions: int = 120
     search_weight: float = 1.1
     dominance_s: float = 240.0
@@ -141,6 +145,8 @@ class MptpConfig:
             raise ValueError(f"turn_model: expected 'simple', 'approximate' or 'simulated', got {self.turn_model!r}")
         if not self.roll_rate_max > 0:
             raise ValueError("roll_rate_max must be > 0 [rad/s]")
+        if not 0 < self.turn_bank_fraction <= 1:
+            raise ValueError(f"turn_bank_fraction must be in (0, 1], got {self.turn_bank_fraction}")
         if self.wind_forecast not in ("scenario", "none"):
             raise ValueError(f"wind_forecast: expected 'scenario' or 'none', got {self.wind_forecast!r}")
         err = np.asarray(self.wind_error_ne_mps, float) if _is_numeric(self.wind_error_ne_mps) else np.empty(0)
@@ -158,6 +164,16 @@ class MptpConfig:
     def turn_radius_m(self) -> float:
         """Minimum turn radius R = V^2 / (g tan(bank_max)) [m] (seed 002 eq. 5.67)."""
         return self.tas_mps**2 / (self.g * math.tan(self.bank_max))
+
+    @property
+    def turn_bank_rad(self) -> float:
+        """Bank [rad] the fly-over turn models plan at: turn_bank_fraction * bank_max."""
+        return self.turn_bank_fraction * self.bank_max
+
+    @property
+    def fly_over_radius_m(self) -> float:
+        """Turn radius [m] of the fly-over models at turn_bank_rad: V^2 / (g tan(turn_bank_rad))."""
+        return self.tas_mps**2 / (self.g * math.tan(self.turn_bank_rad))
 
     @property
     def probability_levels(self) -> tuple[float, ...]:

@@ -49,7 +49,7 @@ from guidance.mptp.holding import holding_orbit, safe_area_leg
 from guidance.mptp.search import HOLD, Trajectory, default_workspace, plan_trajectory
 from guidance.mptp.statespace import free_space
 from guidance.mptp.timeline import ObstacleTimeline
-from guidance.mptp.turnmodel import written_out
+from guidance.mptp.turnmodel import vertex_spacing_m, written_out
 from guidance.mptp.wind import WindForecast, air_goal, to_air, to_ground
 from sim.core.mission import Mission
 from sim.core.plan import Plan, PlanStatus, Threats
@@ -79,6 +79,12 @@ class MptpPlanner:
         self.wind = wind
         self.wind_ne = np.zeros(2)  # wind of the last replan's air-mass frame (north, east) [m/s]
         self.cfg = config or MptpConfig()
+        if self.cfg.turn_model != "simple" and mission.acceptance_radius >= vertex_spacing_m(self.cfg):
+            raise ValueError(
+                f"mptp: acceptance_radius {mission.acceptance_radius:g} m must be below the "
+                f"{vertex_spacing_m(self.cfg):.1f} m between the written-out turn vertices of turn_model "
+                f"{self.cfg.turn_model!r}"
+            )
         if goal_track is None and self.cfg.goal_track is not None:
             rows = np.array(self.cfg.goal_track)
             goal_track = GoalTrack(rows[:, 0], rows[:, 1:])

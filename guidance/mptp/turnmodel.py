@@ -8,12 +8,15 @@ A state is flown over: the aircraft arrives on its course, turns there by dchi o
 turn's exit course. A target is admissible when it lies ahead on the exit line of such a turn;
 no leg reserves anticipation, the next turn starts at the next state.
 
+Both models turn at the planning bank mu = turn_bank_rad = turn_bank_fraction * bank_max
+(config.py), below the follower's bank limit so that it has bank left to catch up.
+
 - "approximate" (5.2): the bank is established at once; the turn is a circular arc of
-  R = V^2 / (g tan(bank_max)) (a Dubins turn) at the tightest bank of the thesis's Fig. 5.2.
+  R = V^2 / (g tan(mu)) (a Dubins turn, one of the thesis's Fig. 5.2 family).
 - "simulated" (5.3, eq. 5.58): chi' = g tan(mu) / V, mu' = +-p at p = roll_rate_max from wings
   level and back (Fig. 5.5: roll-in, constant bank, roll-out). A turn that does not reach
-  bank_max rolls for the half roll time t_r = arccos(exp(-p V dchi / (2 g))) / p each way
-  (eq. 5.62); otherwise t_r = bank_max / p and the bank is held for the rest of the course change
+  mu rolls for the half roll time t_r = arccos(exp(-p V dchi / (2 g))) / p each way
+  (eq. 5.62); otherwise t_r = mu / p and the bank is held for the rest of the course change
   at R (eq. 5.68). The course is closed-form, the position the trapezoidal integral of V (cos chi,
   sin chi) over STEPS steps (the thesis uses a Taylor series).
 
@@ -57,12 +60,12 @@ def _course_profile(theta: np.ndarray, cfg: MptpConfig, s: np.ndarray) -> tuple[
     """Duration T (K,) [s] of turns of ``theta`` (K,) [rad] and their course (K, S) [rad] at the
     fractions ``s`` (S,) of T."""
     v, g = cfg.tas_mps, cfg.g
-    rate = v / cfg.turn_radius_m  # course rate at bank_max [rad/s]
+    rate = v / cfg.fly_over_radius_m  # course rate at the planning bank [rad/s]
     theta = np.asarray(theta, float)
     if cfg.turn_model == "approximate":
         t_total = theta / rate
         return t_total, theta[:, None] * s[None, :]
-    p, mu = cfg.roll_rate_max, cfg.bank_max
+    p, mu = cfg.roll_rate_max, cfg.turn_bank_rad
     roll_chi = -2.0 * g / (v * p) * math.log(math.cos(mu))  # course change of roll-in and roll-out to mu
     t_r = np.where(theta < roll_chi, np.arccos(np.exp(-p * v * theta / (2.0 * g))) / p, mu / p)
     t_hold = np.maximum(theta - roll_chi, 0.0) / rate
@@ -100,7 +103,7 @@ def turn_table(cfg: MptpConfig) -> TurnTable:
     """The (cached) table of ``cfg``'s turn model (approximate or simulated)."""
     if cfg.turn_model == "simple":
         raise ValueError("turn_table: the simple model has no fly-over turns")
-    names = ("tas_mps", "bank_max", "course_change_max", "roll_rate_max", "g", "turn_model")
+    names = ("tas_mps", "bank_max", "course_change_max", "roll_rate_max", "turn_bank_fraction", "g", "turn_model")
     return _table(tuple((n, getattr(cfg, n)) for n in names))
 
 
@@ -110,6 +113,17 @@ def exit_offset_m(cfg: MptpConfig) -> float:
     (a chord of a longer leg comes closer to the exit line)."""
     tab = turn_table(cfg)
     return float(np.max(np.abs(tab.x * np.sin(tab.theta) - tab.y * np.cos(tab.theta))))
+
+
+def vertex_spacing_m(cfg: MptpConfig) -> float:
+    """Lower bound [m] of the step between consecutive written-out vertices (turn_points) of a
+    turn of at least SAMPLE_RAD: a turn just past k SAMPLE_RAD splits length(k SAMPLE_RAD) into
+    k + 1 steps, so min over the table of length / (floor(turn / SAMPLE_RAD) + 1). A follower
+    must switch legs closer to a vertex than this, or it skips the turn's vertices and cuts the
+    turn. A turn of less than SAMPLE_RAD is one chord, cut by at most R (1 - cos(SAMPLE_RAD / 2))."""
+    tab = turn_table(cfg)
+    big = tab.theta >= SAMPLE_RAD - 1e-12
+    return float(np.min(tab.length[big] / (np.floor(tab.theta[big] / SAMPLE_RAD + 1e-9) + 1.0)))
 
 
 def _frame(course: float) -> tuple[np.ndarray, np.ndarray]:
