@@ -668,7 +668,7 @@ ENCOUNTERS: dict[str, dict] = {
                 "initial": {"altitude": 18000.0, "airspeed": 26.0, "heading": 0.0},
                 "mission": {
                     "cruise_speed": 26.0,
-                    "acceptance_radius": 500.0,
+                    "acceptance_radius": 10.0,  # below the fly-over turns' vertex spacing (turn_model)
                     "waypoints": [{"north": 0.0, "east": 50000.0, "altitude": 18000.0}],
                 },
                 "planner": {"type": "mptp", "rate_hz": 1.0, "options": {"max_expansions": 40}},
@@ -814,6 +814,7 @@ def _decision_table() -> dict[str, Decision]:
     out[prefix + "safety_line_m"] = ("mptp", _options(line_aspect=1.0), _options(safety_line_m=[1000.0] * 3))
     out[prefix + "wind_forecast"] = ("mptp", _set("wind.east", 10.0), _options(wind_forecast="none"))
     out[prefix + "roll_rate_max"] = ("mptp", _options(turn_model="simulated"), _options(roll_rate_max=0.5))
+    out[prefix + "turn_bank_fraction"] = ("mptp", _options(turn_model="simulated"), _options(turn_bank_fraction=0.5))
     prefix = "vehicle.planner<ReachsetPlanner>.options.rules_"
     filed = _options(rules_filed={"uas3": {"category": "uas_autonomous", "maneuverability": "vtol"}})
     out[prefix + "converging"] = ("rules_pair", None, _options(rules_converging=20.0))
