@@ -228,12 +228,8 @@ def test_vertex_spacing_is_the_shortest_written_out_step(model):
     """vertex_spacing_m is the shortest step between written-out vertices over turns of 5..45 deg
     (checked on a 0.1 deg sweep) bounded from below to within 3 %."""
     cfg = MptpConfig(turn_model=model)
-    steps = [
-        np.diff(turn_points(np.zeros(2), 0.0, math.radians(d), cfg)[1]).min(initial=np.inf)
-        for d in np.arange(5.1, 45.0, 0.1)
-    ]
-    firsts = [turn_points(np.zeros(2), 0.0, math.radians(d), cfg)[1][0] for d in np.arange(5.1, 45.0, 0.1)]
-    shortest = min(min(steps), min(firsts))
+    along = [turn_points(np.zeros(2), 0.0, math.radians(d), cfg)[1] for d in np.arange(5.1, 45.0, 0.1)]
+    shortest = min(np.diff(a, prepend=0.0).min() for a in along)
     assert vertex_spacing_m(cfg) <= shortest + 1e-6 and shortest < 1.03 * vertex_spacing_m(cfg)
 
 
