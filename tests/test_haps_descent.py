@@ -1,0 +1,88 @@
+"""The HAPS's descent from station to low altitude on the descent EAS schedule, on the EKF.
+
+``scenarios/haps_descent_to_low_altitude.toml``: 18 km -> 1 km (slow, ~9.1 h of flight); the CI
+test flies its last 500 m (1.5 km -> 1 km) from the same file. TECS must fly the schedule's
+descent EAS at a sink rate within its limit — ``sink_rate_max``, or the drag polar's glide sink at
+that EAS where less (aircraft/haps/autopilot.py) — never near the stall, and end holding the
+commanded altitude at the mission's cruise speed.
+"""
+
+import math
+import tomllib
+
+import numpy as np
+import pytest
+
+from aircraft.haps.gains import RHO0, HapsGains
+from sim.core.constants import STANDARD_GRAVITY
+from sim.mcap_read import read_topic
+from sim.runner import run_scenario
+from sim.scenario import parse_scenario
+
+SCENARIO = "scenarios/haps_descent_to_low_altitude.toml"
+TARGET_M = 1000.0
+CRUISE_EAS = 10.0  # the scenario's 10.5 m/s TAS at 1 km
+STALL_EAS = 6.74  # 1 g, CLmax 1.32 (aircraft/haps/README.md, "Aerodynamics")
+ALPHA_CLMAX_DEG = 9.0
+
+
+def _glide_sink(g: HapsGains, tas_per_eas: np.ndarray) -> np.ndarray:
+    """The polar's glide sink [m/s] at the descent EAS, written out independently of TECS."""
+    cl = g.mass_kg * STANDARD_GRAVITY / (0.5 * RHO0 * g.descent_eas**2 * g.wing_area_m2)
+    return g.descent_eas * tas_per_eas * (g.cd0 + g.k_induced * cl * cl) / cl
+
+
+def _fly(tmp_path, start_m: float | None, tas: float | None, duration_s: float | None) -> dict:
+    with open(SCENARIO, "rb") as fh:
+        data = tomllib.load(fh)
+    initial = data["vehicle"][0]["initial"]
+    if start_m is not None:
+        initial["altitude"], initial["airspeed"], data["duration"] = start_m, tas, duration_s
+    path = tmp_path / "descent.mcap"
+    assert run_scenario(parse_scenario(data), path).status == "duration_elapsed"
+    st = [m for _, m in read_topic(path, "/haps/truth/state")]
+    return {k: np.array([m[k] for m in st]) for k in ("t", "alt_msl_m", "eas_mps", "tas_mps", "alpha_rad", "euler")}
+
+
+def _check_descent(s: dict, start_m: float) -> None:
+    g = HapsGains.load()
+    t, h, eas = s["t"], s["alt_msl_m"], s["eas_mps"]
+    # descending phase: demand beyond the schedule band, after the first minute's transition
+    desc = (h > TARGET_M + g.schedule_band_m + 20.0) & (t > 60.0)
+    assert desc.sum() > 300
+    assert abs(eas[desc].mean() - g.descent_eas) < 0.3
+    assert np.abs(eas[desc] - g.descent_eas).max() < 1.0
+    # sink rate over 10 s: within the limit (+25 % for the phugoid), and the descent does go on
+    sink = -(h[10:] - h[:-10]) / (t[10:] - t[:-10])
+    in_desc = desc[10:]
+    limit = np.minimum(g.sink_rate_max, _glide_sink(g, s["tas_mps"][10:] / s["eas_mps"][10:]))
+    assert (sink[in_desc] <= 1.25 * limit[in_desc]).all()
+    assert sink[in_desc].mean() > 0.8 * limit[in_desc].mean()
+    # never near the stall, bank within the limit (a lateral divergence banks beyond 40 deg)
+    flying = t > 5.0
+    assert eas[flying].min() > 1.2 * STALL_EAS
+    assert np.degrees(s["alpha_rad"]).max() < ALPHA_CLMAX_DEG - 3.0
+    assert np.degrees(np.abs(s["euler"][:, 0])).max() < g.roll_limit_rad * 180.0 / math.pi + 5.0
+    # ends holding the commanded altitude at the cruise speed
+    assert h[0] == pytest.approx(start_m, abs=1.0)
+    end = t > t[-1] - 200.0
+    assert np.abs(h[end] - TARGET_M).max() < 5.0
+    assert np.abs(eas[end] - CRUISE_EAS).max() < 0.8
+
+
+@pytest.mark.closed_loop
+def test_last_500_m_of_the_descent_on_the_schedule(tmp_path):
+    """1.5 km -> 1 km: glide-limited sink (0.35 m/s) at EAS 9 m/s, then 1 km at EAS 10 m/s."""
+    s = _fly(tmp_path, 1500.0, 10.8, 1800.0)
+    _check_descent(s, 1500.0)
+
+
+@pytest.mark.slow
+@pytest.mark.closed_loop
+def test_descent_from_station_to_1_km(tmp_path):
+    """The shipped scenario whole: 18 km -> 1 km in ~9.1 h (0.8 m/s above ~16 km, the glide
+    sink below)."""
+    s = _fly(tmp_path, None, None, None)
+    _check_descent(s, 18_000.0)
+    reached = s["t"][s["alt_msl_m"] < TARGET_M + 5.0]
+    assert reached.size and 8.5 * 3600.0 < reached[0] < 9.6 * 3600.0
