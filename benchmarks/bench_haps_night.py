@@ -1,29 +1,27 @@
-"""The HAPS's nights in parallel segments: state of charge at dawn (June) and the time the
-battery runs empty (December), from the shipped scenarios, in a fraction of a 24 h run's wall time.
+"""The HAPS's night energy budget from closed-loop power pieces: state of charge at dawn (June,
+with and without the altitude schedule) and the time the battery runs empty (December).
 
-A night is cut into consecutive segments flown at the same time in separate interpreters, each
-the shipped scenario (same aircraft, energy model, mission, EKF) started at the segment's UTC time
-from a trim at station. The battery model is linear in stored energy away from its limits
-(``sim/energy/battery.py``: no state-of-charge dependence between empty and full), so the stored
-energy of the whole night is the chain: E(t) = E_end(previous segment) + E_segment(t) -
-E_segment(start). The chain is valid only where a segment neither fills nor empties its battery;
-the script checks that and refuses the result otherwise. What it does not reproduce: the
-aircraft's position on the square and the TECS state carried across a segment boundary (a trim
-transient of ~1 min per segment).
+A full 24 h closed-loop run (``bench_haps_24h.py``) takes ~30 min of CPU; this script flies only
+the pieces whose power differs, each from the shipped scenario (same aircraft, mission, energy
+model, EKF) started at the piece's UTC time from a trim, and integrates the rest:
 
-Cases (``--case``):
-- ``june``: ``haps_station_june_47n`` from 17:00 UTC on 21 June (battery full: solar power
-  exceeds the consumption until ~18:00 and the day run fills the battery by mid-morning; the
-  first segment checks that the battery is full and curtailing at its start) to 05:30 UTC.
-- ``june_schedule``: the same night with the altitude schedule: the first segment starts at
-  the ceiling (21 km, state ``up``, where the schedule holds the aircraft through the afternoon),
-  glides to the 18 km floor once the battery falls to 0.90 and must end there; from then on the
-  aircraft flies exactly the plain case (18 km, same speed), so the chain continues with the
-  ``june`` segments.
-- ``december``: ``haps_station_december_60n`` from its shipped start (06:00 UTC, full) in 3 h
-  segments: the time the chained stored energy reaches zero (``energy_depleted``).
+- ``station``: 18 km at the shipped station speed, at night (21:00 UTC), 20 min: mean propulsion
+  electrical power over the last 15 min (after the trim transient);
+- ``ceiling``: the altitude-schedule scenario at its 21 km ceiling (17:00 UTC, battery full:
+  schedule ``up``), 20 min: mean propulsion power there;
+- ``glide``: the same at 21 km with the battery at the schedule's ``soc_low`` (19:00 UTC):
+  TECS glides to the 18 km floor; its duration and propulsion energy.
 
-    python benchmarks/bench_haps_night.py [--case june|june_schedule|december|all] [--jobs 6]
+Then per minute from noon (battery full: the shipped June run fills it by 08:33 UTC and solar
+power exceeds the consumption until ~18:00) to 06:00 UTC the next day, the project's own models:
+array power of a level wing at the site (``sim.energy.solar``, pvlib) and the battery
+(``sim.energy.battery``) under the measured propulsion plus the loads. June with the schedule
+flies ``ceiling`` power until the battery falls to ``soc_low``, then the ``glide``, then
+``station``. December starts at the shipped 06:00 UTC, full, at ``station`` power (same altitude
+and speed). What it leaves out: bank in turns on the array (level wing), TECS transients, the
+aircraft's drift on the square.
+
+    python benchmarks/bench_haps_night.py [--out benchmarks/results/haps_night.json]
 """
 
 from __future__ import annotations
@@ -34,28 +32,34 @@ import subprocess
 import sys
 import tempfile
 import tomllib
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from sim.energy.altitude_schedule import AltitudeManager, AltitudeSchedule  # noqa: E402
+from sim.energy.battery import Battery  # noqa: E402
+from sim.energy.params import EnergyParams  # noqa: E402
+from sim.energy.solar import SunTracker, array_power  # noqa: E402
 from sim.mcap_read import read_topic  # noqa: E402
 
-H = 3600.0
-JUNE_NIGHT = datetime(2026, 6, 21, 17, 0, tzinfo=UTC)
-JUNE_BOUNDS_H = [0.0, 3.5, 6.0, 8.5, 11.0, 12.5]  # after 17:00 UTC: to 05:30 UTC
-DECEMBER_BOUNDS_H = [0.0, 3.0, 6.0, 9.0, 12.0, 15.0]  # after the shipped 06:00 UTC start
-MID_SOC = 0.7  # start of every chained segment: room to fall ~6 kWh without emptying
+JUNE = "haps_station_june_47n"
+SCHEDULE = "haps_station_june_47n_altitude_schedule"
+DECEMBER = "haps_station_december_60n"
+AT_CEILING = (21_000.0, 29.4)  # [m], TAS [m/s] = EAS 7.3 m/s, TECS's floor there
+STEP_S = 60.0
 
 
-def _segment_toml(name: str, start: datetime, hours: float, soc: float, at: tuple[float, float] | None = None) -> dict:
-    """The shipped scenario ``name`` as a dict, started at ``start`` for ``hours`` at ``soc``,
-    optionally at ``at`` = (altitude [m], true airspeed [m/s]) instead of the shipped ones."""
+def _scenario(name: str, start: datetime, minutes: float, soc: float, at: tuple[float, float] | None) -> dict:
+    """The shipped scenario ``name`` as a dict, from ``start`` for ``minutes`` at ``soc``, at
+    ``at`` = (altitude [m], TAS [m/s]) instead of the shipped initial state if given."""
     data = tomllib.loads((ROOT / "scenarios" / f"{name}.toml").read_text())
-    data["start_time"] = start
-    data["duration"] = hours * H
+    data["start_time"], data["duration"] = start, minutes * 60.0
     vehicle = data["vehicle"][0]
     vehicle.setdefault("energy", {})["initial_soc"] = soc
     if at is not None:
@@ -63,8 +67,8 @@ def _segment_toml(name: str, start: datetime, hours: float, soc: float, at: tupl
     return data
 
 
-def _fly(data: dict, out: Path) -> None:
-    """Fly the scenario dict in a child interpreter (its own core, its own memory)."""
+def _fly(data: dict, out: Path) -> dict[str, np.ndarray]:
+    """Fly ``data`` in a child interpreter; the logged energy record and altitude per second."""
     code = (
         f"import sys, json, datetime; sys.path.insert(0, {str(ROOT)!r})\n"
         "from sim.runner import run_scenario\n"
@@ -76,111 +80,97 @@ def _fly(data: dict, out: Path) -> None:
     payload = json.dumps({**data, "start_time": data["start_time"].isoformat()})
     proc = subprocess.run([sys.executable, "-c", code], input=payload, capture_output=True, text=True, check=False)
     if proc.returncode != 0:
-        raise RuntimeError(f"segment {out.name} failed: {proc.stderr.strip().splitlines()[-1:]}")
-
-
-def _read(path: Path, start: datetime) -> dict:
-    rec = [m for _, m in read_topic(path, "/haps/energy")]
-    alt = [m["alt_msl_m"] for _, m in read_topic(path, "/haps/truth/state")]
+        raise RuntimeError(f"{out.name} failed: {proc.stderr.strip().splitlines()[-1:]}")
+    rec = [m for _, m in read_topic(out, "/haps/energy")]
+    alt = [m["alt_msl_m"] for _, m in read_topic(out, "/haps/truth/state")]
+    n = min(len(rec), len(alt))
     return {
-        "utc_h": [(start.timestamp() + r["t"]) / H for r in rec],  # POSIX hours
-        "energy_wh": [r["energy_wh"] for r in rec],
-        "soc": [r["state_of_charge"] for r in rec],
-        "sun_deg": [r["sun_elevation_deg"] for r in rec],
-        "curtailed_w": [r["curtailed_w"] for r in rec],
-        "capacity_wh": rec[0]["energy_wh"] / max(rec[0]["state_of_charge"], 1e-9),
-        "alt_end_m": alt[-1],
+        "t": np.array([r["t"] for r in rec[:n]]),
+        "propulsion_w": np.array([r["propulsion_w"] for r in rec[:n]]),
+        "alt_m": np.array(alt[:n]),
     }
 
 
-def _chain(first: dict, rest: list[dict]) -> tuple[list[float], list[float], list[float]]:
-    """Stored energy [Wh] of the chained night: (POSIX hours, energy, sun elevation).
-    ValueError if a chained segment touched empty or full."""
-    t, e, s = list(first["utc_h"]), list(first["energy_wh"]), list(first["sun_deg"])
-    for seg in rest:
-        if min(seg["soc"]) <= 1e-6 or max(seg["soc"][1:]) >= 1.0 - 1e-6:
-            raise ValueError("a chained segment reached an empty or a full battery: chain invalid")
-        offset = e[-1] - seg["energy_wh"][0]
-        t += seg["utc_h"][1:]
-        e += [x + offset for x in seg["energy_wh"][1:]]
-        s += seg["sun_deg"][1:]
-    return t, e, s
-
-
-def _dawn(t: list[float], e: list[float], s: list[float], capacity: float) -> dict:
-    """State of charge at the first sunrise at the vehicle after the night, and the minimum."""
-    night = False
-    out: dict = {}
-    for ti, ei, si in zip(t, e, s, strict=True):
-        if si < 0.0:
-            night = True
-        elif night:
-            out.update(dawn_utc=_iso(ti), soc_at_dawn=ei / capacity)
-            break
-    i = min(range(len(e)), key=e.__getitem__)
-    out.update(soc_min=e[i] / capacity, soc_min_utc=_iso(t[i]))
+def _pieces(tmp: Path, soc_low: float) -> dict[str, float]:
+    """Fly the three pieces at once; their powers [W] and the glide's duration [s]."""
+    day = datetime(2026, 6, 21, tzinfo=UTC)
+    jobs = {
+        "station": _scenario(JUNE, day + timedelta(hours=21), 20.0, 0.7, None),
+        "ceiling": _scenario(SCHEDULE, day + timedelta(hours=17), 20.0, 1.0, AT_CEILING),
+        "glide": _scenario(SCHEDULE, day + timedelta(hours=19), 80.0, soc_low, AT_CEILING),
+    }
+    with ThreadPoolExecutor(max_workers=len(jobs)) as pool:
+        logs = dict(zip(jobs, pool.map(lambda k: _fly(jobs[k], tmp / f"{k}.mcap"), jobs), strict=True))
+    out = {k: float(logs[k]["propulsion_w"][logs[k]["t"] > 300.0].mean()) for k in ("station", "ceiling")}
+    g = logs["glide"]
+    down = g["alt_m"] < 18_010.0
+    if not down.any():
+        raise ValueError("glide: the aircraft did not reach the 18 km floor within 80 min")
+    i = int(np.argmax(down))
+    out["glide_s"] = float(g["t"][i])
+    out["glide_w"] = float(g["propulsion_w"][: i + 1].mean())
     return out
 
 
-def _iso(posix_h: float) -> str:
-    return datetime.fromtimestamp(posix_h * H, UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+def _integrate(name: str, start: datetime, hours: float, soc: float, power_w: Callable[[float, float], float]) -> dict:
+    """Minute steps of the level-wing array and the battery from ``start``; ``power_w(t, soc)``
+    is the propulsion power [W]. SoC at the first sunrise after a night, minimum, depletion."""
+    params = EnergyParams.load(ROOT / "aircraft" / "haps" / "energy.toml")
+    site = tomllib.loads((ROOT / "scenarios" / f"{name}.toml").read_text())["origin"]
+    sun, battery = SunTracker(start, params.atmosphere), Battery(params.battery, soc)
+    loads = params.loads.avionics_w + params.loads.payload_w
+    out: dict = {}
+    night, low = False, (soc, start)
+    for t in np.arange(0.0, hours * 3600.0, STEP_S):
+        s = sun.sample(float(t), site["lat"], site["lon"], 18_000.0)
+        solar, _ = array_power(params.array, s, np.zeros(3))
+        battery.step(solar - power_w(float(t), battery.soc) - loads, STEP_S)
+        now = start + timedelta(seconds=float(t) + STEP_S)
+        if battery.soc < low[0]:
+            low = (battery.soc, now)
+        if s.elevation_deg < 0.0:
+            night = True
+        elif night and "soc_at_dawn" not in out:
+            out.update(dawn_utc=f"{now:%Y-%m-%dT%H:%M}Z", soc_at_dawn=battery.soc)
+        if battery.energy_wh <= 0.0 and "energy_depleted_utc" not in out:
+            out["energy_depleted_utc"] = f"{now:%Y-%m-%dT%H:%M}Z"
+    out.update(soc_min=low[0], soc_min_utc=f"{low[1]:%Y-%m-%dT%H:%M}Z", capacity_wh=params.battery.capacity_wh)
+    return out
 
 
-def _run_all(jobs: list[tuple[str, dict]], workers: int, tmp: Path) -> dict[str, dict]:
-    def one(job: tuple[str, dict]) -> tuple[str, dict]:
-        key, data = job
-        out = tmp / f"{key}.mcap"
-        _fly(data, out)
-        return key, _read(out, data["start_time"])
+def _schedule_power(p: dict[str, float], schedule: AltitudeSchedule) -> Callable[[float, float], float]:
+    """Propulsion power [W] of the schedule night: ceiling while ``up``, then the glide, then
+    station. Starts ``up`` (battery full)."""
+    manager = AltitudeManager(schedule, 1.0)
+    glide_from: list[float] = []  # the time the schedule turned down [s]
 
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        return dict(pool.map(one, jobs))
+    def power(t: float, soc: float) -> float:
+        if not glide_from:
+            if manager.altitude(soc) > schedule.floor_m:
+                return p["ceiling"]
+            glide_from.append(t)
+        return p["glide_w"] if t - glide_from[0] < p["glide_s"] else p["station"]
+
+    return power
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--case", choices=["june", "june_schedule", "december", "all"], default="all")
-    ap.add_argument("--jobs", type=int, default=6, help="segments flown at the same time")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "haps_night.json"))
     args = ap.parse_args()
-    cases = ["june", "june_schedule", "december"] if args.case == "all" else [args.case]
-    jobs: list[tuple[str, dict]] = []
-    june = "haps_station_june_47n"
-    if {"june", "june_schedule"} & set(cases):
-        b = JUNE_BOUNDS_H
-        for i in range(len(b) - 1):
-            soc = 1.0 if i == 0 else MID_SOC
-            start = JUNE_NIGHT + timedelta(hours=b[i])
-            jobs.append((f"june{i}", _segment_toml(june, start, b[i + 1] - b[i], soc)))
-    if "june_schedule" in cases:
-        at_ceiling = (21_000.0, 29.4)  # EAS 7.3 m/s, TECS's floor: the shipped 23.8 m/s TAS is below it there
-        sched = _segment_toml(f"{june}_altitude_schedule", JUNE_NIGHT, JUNE_BOUNDS_H[1], 1.0, at_ceiling)
-        jobs.append(("june_schedule0", sched))
-    if "december" in cases:
-        dec = "haps_station_december_60n"
-        start = tomllib.loads((ROOT / "scenarios" / f"{dec}.toml").read_text())["start_time"]
-        b = DECEMBER_BOUNDS_H
-        for i in range(len(b) - 1):
-            soc = 1.0 if i == 0 else MID_SOC
-            jobs.append((f"december{i}", _segment_toml(dec, start + timedelta(hours=b[i]), b[i + 1] - b[i], soc)))
+    opts = tomllib.loads((ROOT / "scenarios" / f"{SCHEDULE}.toml").read_text())["vehicle"][0]["energy"]
+    sched_opts = opts["altitude_schedule"]
+    schedule = AltitudeSchedule(18_000.0, 21_000.0, sched_opts["soc_high"], sched_opts["soc_low"])
     with tempfile.TemporaryDirectory() as d:
-        segs = _run_all(jobs, args.jobs, Path(d))
-    results: dict = {}
-    if "june" in segs:
-        results["june_start_curtailed_w"] = segs["june0"]["curtailed_w"][0]
-    for case in cases:
-        if case == "december":
-            n = len(DECEMBER_BOUNDS_H) - 1
-            t, e, _ = _chain(segs["december0"], [segs[f"december{i}"] for i in range(1, n)])
-            empty = next((_iso(ti) for ti, ei in zip(t, e, strict=True) if ei <= 0.0), None)
-            results[case] = {"energy_depleted_utc": empty, "capacity_wh": segs["december0"]["capacity_wh"]}
-            continue
-        first = segs["june_schedule0" if case == "june_schedule" else "june0"]
-        if case == "june_schedule" and abs(first["alt_end_m"] - 18_000.0) > 50.0:
-            raise ValueError(f"june_schedule: first segment ends at {first['alt_end_m']:.0f} m, not the floor")
-        n = len(JUNE_BOUNDS_H) - 1
-        t, e, s = _chain(first, [segs[f"june{i}"] for i in range(1, n)])
-        results[case] = _dawn(t, e, s, first["capacity_wh"]) | {"capacity_wh": first["capacity_wh"]}
+        p = _pieces(Path(d), schedule.soc_low)
+    noon = datetime(2026, 6, 21, 12, tzinfo=UTC)
+    dec = tomllib.loads((ROOT / "scenarios" / f"{DECEMBER}.toml").read_text())["start_time"]
+    results = {
+        "pieces": p,
+        "june": _integrate(JUNE, noon, 18.0, 1.0, lambda t, soc: p["station"]),
+        "june_schedule": _integrate(SCHEDULE, noon, 18.0, 1.0, _schedule_power(p, schedule)),
+        "december": _integrate(DECEMBER, dec, 24.0, 1.0, lambda t, soc: p["station"]),
+    }
     print(json.dumps(results, indent=1))
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(results, indent=1))
