@@ -8,7 +8,6 @@ commanded altitude at the mission's cruise speed.
 """
 
 import math
-import tomllib
 
 import numpy as np
 import pytest
@@ -16,10 +15,8 @@ import pytest
 from aircraft.haps.gains import RHO0, HapsGains
 from sim.core.constants import STANDARD_GRAVITY
 from sim.mcap_read import read_topic
-from sim.runner import run_scenario
-from sim.scenario import parse_scenario
 
-SCENARIO = "scenarios/haps_descent_to_low_altitude.toml"
+SCENARIO = "haps_descent_to_low_altitude"
 TARGET_M = 1000.0
 CRUISE_EAS = 10.0  # the scenario's 10.5 m/s TAS at 1 km
 STALL_EAS = 6.74  # 1 g, CLmax 1.32 (aircraft/haps/README.md, "Aerodynamics")
@@ -32,15 +29,9 @@ def _glide_sink(g: HapsGains, tas_per_eas: np.ndarray) -> np.ndarray:
     return g.descent_eas * tas_per_eas * (g.cd0 + g.k_induced * cl * cl) / cl
 
 
-def _fly(tmp_path, start_m: float | None, tas: float | None, duration_s: float | None) -> dict:
-    with open(SCENARIO, "rb") as fh:
-        data = tomllib.load(fh)
-    initial = data["vehicle"][0]["initial"]
-    if start_m is not None:
-        initial["altitude"], initial["airspeed"], data["duration"] = start_m, tas, duration_s
-    path = tmp_path / "descent.mcap"
-    assert run_scenario(parse_scenario(data), path).status == "duration_elapsed"
-    st = [m for _, m in read_topic(path, "/haps/truth/state")]
+def _states(flight) -> dict:
+    assert flight.result.status == "duration_elapsed"
+    st = [m for _, m in read_topic(flight.path, "/haps/truth/state")]
     return {k: np.array([m[k] for m in st]) for k in ("t", "alt_msl_m", "eas_mps", "tas_mps", "alpha_rad", "euler")}
 
 
@@ -71,18 +62,20 @@ def _check_descent(s: dict, start_m: float) -> None:
 
 
 @pytest.mark.closed_loop
-def test_last_500_m_of_the_descent_on_the_schedule(tmp_path):
+def test_last_500_m_of_the_descent_on_the_schedule(scenario_data, fly):
     """1.5 km -> 1 km: glide-limited sink (0.35 m/s) at EAS 9 m/s, then 1 km at EAS 10 m/s."""
-    s = _fly(tmp_path, 1500.0, 10.8, 1800.0)
-    _check_descent(s, 1500.0)
+    data = scenario_data(SCENARIO)
+    data["vehicle"][0]["initial"] |= {"altitude": 1500.0, "airspeed": 10.8}  # EAS 10.2 m/s
+    data["duration"] = 1800.0
+    _check_descent(_states(fly(data)), 1500.0)
 
 
 @pytest.mark.slow
 @pytest.mark.closed_loop
-def test_descent_from_station_to_1_km(tmp_path):
+def test_descent_from_station_to_1_km(fly):
     """The shipped scenario whole: 18 km -> 1 km in ~9.1 h (0.8 m/s above ~16 km, the glide
     sink below)."""
-    s = _fly(tmp_path, None, None, None)
+    s = _states(fly(SCENARIO))
     _check_descent(s, 18_000.0)
     reached = s["t"][s["alt_msl_m"] < TARGET_M + 5.0]
     assert reached.size and 8.5 * 3600.0 < reached[0] < 9.6 * 3600.0
