@@ -79,3 +79,14 @@ def test_descent_from_station_to_1_km(fly):
     _check_descent(s, 18_000.0)
     reached = s["t"][s["alt_msl_m"] < TARGET_M + 5.0]
     assert reached.size and 8.5 * 3600.0 < reached[0] < 9.6 * 3600.0
+
+
+@pytest.mark.slow
+@pytest.mark.closed_loop
+@pytest.mark.parametrize("seed", range(1, 21), ids=lambda s: f"seed{s:02d}")
+def test_last_500_m_across_seeds(scenario_data, fly, seed):
+    """The CI descent segment on 20 seeds (sensor noise, EKF)."""
+    data = scenario_data(SCENARIO)
+    data["vehicle"][0]["initial"] |= {"altitude": 1500.0, "airspeed": 10.8}
+    data["duration"], data["seed"] = 1800.0, seed
+    _check_descent(_states(fly(data)), 1500.0)
