@@ -1,6 +1,6 @@
 """The thesis's Monte-Carlo study of the MPTP heuristics (seed 002, 6.2) on synthetic storm fields.
 
-    python benchmarks/bench_mptp_montecarlo.py run [--trials 10000] [--per-field 50] [--workers 2]
+    python benchmarks/bench_mptp_montecarlo.py run [--trials 10000] [--per-field 10] [--workers 2]
         [--seed 1] [--dask ADDRESS] [--out benchmarks/results/mptp_mc]
     python benchmarks/bench_mptp_montecarlo.py table [--out benchmarks/results/mptp_mc]
 
@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("command", choices=("run", "table"))
     ap.add_argument("--trials", type=int, default=10_000)
-    ap.add_argument("--per-field", type=int, default=50, help="trials per storm field")
+    ap.add_argument("--per-field", type=int, default=10, help="trials per storm field")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1, help="master seed of the trial draws")
     ap.add_argument("--dask", metavar="ADDRESS", help="run on this Dask scheduler instead of a process pool")
@@ -69,11 +69,17 @@ def main(argv: list[str] | None = None) -> None:
 
         def progress(k: int, n: int, field: int, rows: list[dict]) -> None:
             done[0] += len(rows)
-            ok = {h: sum(r["success"] for r in rows if r["heuristic"] == h) for h in dict.fromkeys(r["heuristic"] for r in rows)}
+            ok = {
+                h: sum(r["success"] for r in rows if r["heuristic"] == h)
+                for h in dict.fromkeys(r["heuristic"] for r in rows)
+            }
             el = time.perf_counter() - wall
             eta = el / k * (n - k)
             succ = ", ".join(f"{h} {s}" for h, s in ok.items())
-            print(f"[{k}/{n} fields] field {field}: {succ} of {len(rows) // len(ok)}; {el:.0f} s, eta {eta:.0f} s", flush=True)
+            print(
+                f"[{k}/{n} fields] field {field}: {succ} of {len(rows) // len(ok)}; {el:.0f} s, eta {eta:.0f} s",
+                flush=True,
+            )
 
         rows = run_study(a.trials, a.per_field, a.seed, a.out, executor, a.workers, progress)
     else:

@@ -102,7 +102,9 @@ def draw_cells(spec: FieldSpec, seed: int) -> Cells:
     return Cells(outlines, velocities)
 
 
-def nowcast(cells: Cells, t_issue: float = 0.0, horizon_s: float = 3600.0, step_s: float = 300.0) -> list[StormSnapshot]:
+def nowcast(
+    cells: Cells, t_issue: float = 0.0, horizon_s: float = 3600.0, step_s: float = 300.0
+) -> list[StormSnapshot]:
     """Snapshots at t_issue + k step_s [s], k = 0 .. horizon/step: every cell moved with its
     velocity (cells are kept apart, as a nowcaster reports them; the planner merges margins)."""
     out = []

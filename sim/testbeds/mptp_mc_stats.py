@@ -38,6 +38,8 @@ def t_interval(x: np.ndarray, level: float = LEVEL) -> tuple[float, float]:
     x = np.asarray(x, float)
     if len(x) < 2:
         return (math.nan, math.nan)
+    if np.ptp(x) == 0.0:
+        return (float(x[0]), float(x[0]))
     lo, hi = stats.t.interval(level, len(x) - 1, loc=x.mean(), scale=stats.sem(x))
     return (float(lo), float(hi))
 
@@ -66,6 +68,10 @@ def summarise(rows: list[dict]) -> dict:
     by = _paired(rows)
     keys = sorted(set.intersection(*(set(d) for d in by.values())))
     out: dict = {"trials": len(keys), "fields": len({k[0] for k in keys}), "heuristics": {}}
+    cov = {r["field"]: (r["coverage_issue"], r["coverage_horizon"]) for r in rows if "coverage_issue" in r}
+    if cov:
+        c = np.array(list(cov.values()))
+        out["coverage"] = {"issue": float(c[:, 0].mean()), "horizon": float(c[:, 1].mean())}
     for h, d in by.items():
         rs = [d[k] for k in keys]
         ok = np.array([r["success"] for r in rs], bool)
@@ -111,8 +117,15 @@ def _pct(x: float) -> str:
 def markdown(summary: dict) -> str:
     """The study's table (ours beside the thesis's numbers)."""
     n = summary["trials"]
+    cov = summary.get("coverage")
+    cov_s = (
+        f"; mean mission-area coverage by the margined cells {_pct(cov['issue'])} % at issue, "
+        f"{_pct(cov['horizon'])} % after 1 h (thesis 18.2 %, 26.4 %)"
+        if cov
+        else ""
+    )
     lines = [
-        f"{n} trials on {summary['fields']} synthetic fields, 95 % intervals (success: Wilson; "
+        f"{n} trials on {summary['fields']} synthetic fields{cov_s}; 95 % intervals (success: Wilson; "
         "runtime: t; ratio: paired bootstrap)",
         "",
         "| heuristic | success [%] | thesis | success ≤ 20 EXST [%] | thesis | mean EXST (successes) "

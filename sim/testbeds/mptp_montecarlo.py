@@ -135,7 +135,9 @@ def draw_trials(tl: ObstacleTimeline, cfg: MptpConfig, field: int, n: int, seed:
         course = int(rng.integers(0, 359, endpoint=True))
         if course == to_goal:
             continue
-        out.append(Trial(field, len(out), (float(p[0, 0]), float(p[0, 1])), (float(goal[0]), float(goal[1])), course, d))
+        out.append(
+            Trial(field, len(out), (float(p[0, 0]), float(p[0, 1])), (float(goal[0]), float(goal[1])), course, d)
+        )
     return out
 
 
