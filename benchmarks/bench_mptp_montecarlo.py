@@ -2,12 +2,13 @@
 
     python benchmarks/bench_mptp_montecarlo.py run [--trials 10000] [--per-field 10] [--workers 2]
         [--seed 1] [--dask ADDRESS] [--out benchmarks/results/mptp_mc]
-    python benchmarks/bench_mptp_montecarlo.py table [--out benchmarks/results/mptp_mc]
+    python benchmarks/bench_mptp_montecarlo.py table [--out benchmarks/results/mptp_mc] [--write]
 
 ``run`` plans every trial once per heuristic (sim/testbeds/mptp_montecarlo.py) on a process pool
 (or a Dask cluster's executor), storing each field's rows as it finishes (an interrupted run
 resumes), then writes ``trials.csv`` (one row per trial and heuristic) and ``summary.json`` and
-prints the Markdown table; ``table`` does the last two from the stored fields. Success counts
+prints the Markdown table; ``table`` does the last two from the stored fields; ``--write``
+puts the table into docs/mptp.md (between its ``montecarlo`` markers). Success counts
 are deterministic for a seed; runtimes are the worker's CPU time per search on this (shared)
 machine, so the table also gives them as ratios to EDH measured on the same trials in the same run.
 """
@@ -26,6 +27,7 @@ sys.path.insert(0, str(ROOT))
 
 from sim.testbeds import mptp_mc_stats as stats  # noqa: E402
 from sim.testbeds.mptp_montecarlo import run_study  # noqa: E402
+from sim.testbeds.mptp_tables import DOC, replace_generated  # noqa: E402
 
 OUT = ROOT / "benchmarks" / "results" / "mptp_mc"
 
@@ -55,15 +57,17 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--seed", type=int, default=1, help="master seed of the trial draws")
     ap.add_argument("--dask", metavar="ADDRESS", help="run on this Dask scheduler instead of a process pool")
     ap.add_argument("--out", type=Path, default=OUT)
+    ap.add_argument("--write", action="store_true", help=f"put the table into {DOC}")
     a = ap.parse_args(argv)
     if a.trials < 1 or a.per_field < 1 or a.workers < 1:
         ap.error("--trials, --per-field and --workers must be >= 1")
     if a.command == "run":
-        executor = None
+        executor, client = None, None
         if a.dask:
             from distributed import Client
 
-            executor = Client(a.dask).get_executor()
+            client = Client(a.dask)
+            executor = client.get_executor()
         wall = time.perf_counter()
         done = [0]
 
@@ -81,13 +85,20 @@ def main(argv: list[str] | None = None) -> None:
                 flush=True,
             )
 
-        rows = run_study(a.trials, a.per_field, a.seed, a.out, executor, a.workers, progress)
+        try:
+            rows = run_study(a.trials, a.per_field, a.seed, a.out, executor, a.workers, progress)
+        finally:
+            if client is not None:
+                client.close()
     else:
         rows = _stored_rows(a.out)
         if not rows:
             ap.error(f"no stored fields in {a.out / 'fields'}")
     summary = write_results(rows, a.out)
-    print(stats.markdown(summary))
+    table = stats.markdown(summary)
+    print(table)
+    if a.write:
+        DOC.write_text(replace_generated(DOC.read_text(), "montecarlo", table))
 
 
 if __name__ == "__main__":

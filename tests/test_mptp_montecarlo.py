@@ -190,6 +190,7 @@ def test_runtime_ratio_of_paired_samples():
 
 def _row(field, index, h, ok, exst, trst=3, length=1000.0, rt=1.0):
     return {
+        "status": "ok" if ok else "limit",
         "field": field,
         "index": index,
         "heuristic": h,
@@ -212,7 +213,7 @@ def test_summary_counts_successes_fast_successes_and_paired_lengths():
         _row(9, 9, "ssph", True, 1),  # no EDH row: not a paired trial, left out
     ]
     s = mcs.summarise(rows)
-    assert s["trials"] == 3 and s["fields"] == 2
+    assert s["trials"] == 3 and s["fields"] == 2 and s["same_search"] == 0
     edh, ssph = s["heuristics"]["edh"], s["heuristics"]["ssph"]
     assert (edh["success"], edh["fast_success"]) == (2, 1)
     assert (ssph["success"], ssph["fast_success"]) == (3, 2)
@@ -220,6 +221,8 @@ def test_summary_counts_successes_fast_successes_and_paired_lengths():
     assert ssph["runtime_ratio"][0] == pytest.approx(0.5)
     assert s["both"]["n"] == 2 and s["both"]["length_diff_m"] == pytest.approx(10.0)
     assert "| SSPH | 100.00" in mcs.markdown(s)
+    same = [_row(0, 0, h, True, 7, length=1500.0, rt=rt) for h, rt in (("edh", 1.0), ("ssph", 2.0))]
+    assert mcs.summarise(same)["same_search"] == 1
 
 
 def test_a_twenty_trial_study_on_the_process_pool_resumes(tmp_path):

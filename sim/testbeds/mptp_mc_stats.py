@@ -68,6 +68,11 @@ def summarise(rows: list[dict]) -> dict:
     by = _paired(rows)
     keys = sorted(set.intersection(*(set(d) for d in by.values())))
     out: dict = {"trials": len(keys), "fields": len({k[0] for k in keys}), "heuristics": {}}
+    out["same_search"] = sum(
+        len({(d[k]["status"], d[k]["exst"], round(float(np.nan_to_num(d[k]["length_m"])), 3)) for d in by.values()})
+        == 1
+        for k in keys
+    )
     cov = {r["field"]: (r["coverage_issue"], r["coverage_horizon"]) for r in rows if "coverage_issue" in r}
     if cov:
         c = np.array(list(cov.values()))
@@ -145,6 +150,11 @@ def markdown(summary: dict) -> str:
             f"| {e['exst_mean_ok']:.1f} | {_pct(e['efficiency_ok'])} "
             f"| {e['runtime_mean_s']:.2f} [{rlo:.2f}, {rhi:.2f}] | {ratio_s} |"
         )
+    lines += [
+        "",
+        f"Every heuristic ends in the same state with the same EXST and length in {summary['same_search']} "
+        f"of {n} trials.",
+    ]
     both = summary.get("both")
     if both and both["n"]:
         lo, hi = both["length_diff_ci_m"]
