@@ -179,6 +179,22 @@ def test_a_goal_walled_in_for_the_hour_is_a_failure_within_the_cap():
     assert not row["success"] and row["exst"] <= mc.MAX_EXPANSIONS and math.isnan(row["length_m"])
 
 
+def test_a_planner_exception_is_a_failed_trial_with_its_message(monkeypatch, field0):
+    cfg, tl = field0
+
+    def crash(*args, **kwargs):
+        raise AttributeError("'NoneType' object has no attribute 'distance'")
+
+    monkeypatch.setattr(mc, "plan_trajectory", crash)
+    trial = mc.Trial(0, 0, (100_000.0, 100_000.0), (150_000.0, 150_000.0), 0, 0.0)
+    row = mc.run_trial(tl, trial, cfg)
+    assert (
+        not row["success"] and row["status"] == "error: AttributeError: 'NoneType' object has no attribute 'distance'"
+    )
+    summary = mcs.summarise([{**row, "field": 0, "index": 0}])
+    assert summary["heuristics"]["ssph"]["errors"] == 1 and "Planner exceptions" in mcs.markdown(summary)
+
+
 def test_wilson_interval_matches_the_closed_form():
     k, n, z = 9963, 10_000, stats.norm.ppf(0.975)
     p = k / n

@@ -88,6 +88,7 @@ def summarise(rows: list[dict]) -> dict:
             "n": len(rs),
             "success": int(ok.sum()),
             "success_ci": wilson(int(ok.sum()), len(rs)),
+            "errors": sum(str(r["status"]).startswith("error") for r in rs),
             "fast_success": int(fast.sum()),
             "fast_ci": wilson(int(fast.sum()), len(rs)),
             "exst_mean_ok": float(exst[ok].mean()) if ok.any() else math.nan,
@@ -150,6 +151,14 @@ def markdown(summary: dict) -> str:
             f"| {e['exst_mean_ok']:.1f} | {_pct(e['efficiency_ok'])} "
             f"| {e['runtime_mean_s']:.2f} [{rlo:.2f}, {rhi:.2f}] | {ratio_s} |"
         )
+    errors = {h: e["errors"] for h, e in summary["heuristics"].items() if e["errors"]}
+    if errors:
+        lines += [
+            "",
+            "Planner exceptions (counted as failures): "
+            + ", ".join(f"{h.upper()} {k}" for h, k in errors.items())
+            + " (trials.csv: status `error: ...`).",
+        ]
     lines += [
         "",
         f"Every heuristic ends in the same state with the same EXST and length in {summary['same_search']} "

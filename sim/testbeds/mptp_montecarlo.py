@@ -144,11 +144,16 @@ def draw_trials(tl: ObstacleTimeline, cfg: MptpConfig, field: int, n: int, seed:
 def run_trial(tl: ObstacleTimeline, trial: Trial, cfg: MptpConfig) -> dict:
     """Plan once from the trial's start; the row: success, EXST, TRST, length [m], arrival [s],
     ``runtime_s`` the CPU time of this process for the search [s] (less disturbed by other jobs
-    on a loaded machine than ``wall_s``, the wall clock)."""
+    on a loaded machine than ``wall_s``, the wall clock). A search that raises is a failure with
+    status "error: <exception>" and EXST 0."""
     p0, goal = np.array(trial.start), np.array(trial.goal)
     work = default_workspace(np.vstack([p0, goal]), cfg, cfg.mission_area)
     wall, cpu = time.perf_counter(), time.process_time()
-    tr = plan_trajectory(tl, p0, 0.0, math.radians(trial.course_deg), GoalTrack.fixed(goal), cfg, work)
+    try:
+        tr = plan_trajectory(tl, p0, 0.0, math.radians(trial.course_deg), GoalTrack.fixed(goal), cfg, work)
+    except Exception as exc:  # noqa: BLE001 - a planner crash is this trial's outcome (a failure), kept in the row
+        cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
+        return {**_failed(cfg.heuristic, cpu, wall), "status": f"error: {type(exc).__name__}: {exc}"}
     cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
     ok = tr.status == "ok"
     return {
@@ -159,6 +164,21 @@ def run_trial(tl: ObstacleTimeline, trial: Trial, cfg: MptpConfig) -> dict:
         "trst": max(len(tr.positions) - 1, 0) if ok else 0,
         "length_m": tr.length_m if ok else float("nan"),
         "arrival_s": float(tr.times[-1]) if ok else float("nan"),
+        "runtime_s": cpu,
+        "wall_s": wall,
+    }
+
+
+def _failed(heuristic: str, cpu: float, wall: float) -> dict:
+    nan = float("nan")
+    return {
+        "heuristic": heuristic,
+        "success": False,
+        "status": "error",
+        "exst": 0,
+        "trst": 0,
+        "length_m": nan,
+        "arrival_s": nan,
         "runtime_s": cpu,
         "wall_s": wall,
     }
