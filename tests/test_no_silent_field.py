@@ -614,6 +614,18 @@ ENCOUNTERS: dict[str, dict] = {
             _uas("uas3", -30.0, 30.0, 0.0, (40.0, 30.0), {"rules": _RULES}),
         ],
     },
+    # one of them under the rules with weather cases, a storm cell across its route 60-100 m ahead
+    "rules_weather": {
+        "name": "silent_rules_weather",
+        "seed": 3,
+        "duration": 4.0,
+        "origin": _ORIGIN,
+        "weather": {"cells": 0, "nowcast_period": 10.0, "horizon": 60.0, "step": 10.0}
+        | {"storm": [{"points": [[-20.0, 60.0], [20.0, 60.0], [20.0, 100.0], [-20.0, 100.0]]}]},
+        "vehicle": [
+            _uas("uas1", 0.0, 0.0, 90.0, (0.0, 200.0), {"rules": [*_RULES, "weather"], "rules_unit": 5.0}),
+        ],
+    },
     # a quadrotor pursues one of two others
     "pursuit": {
         "name": "silent_pursuit",
@@ -770,6 +782,7 @@ _PLANNER_MODEL = {
     "reachset": "ReachsetPlanner",
     "rules": "ReachsetPlanner",
     "rules_pair": "ReachsetPlanner",
+    "rules_weather": "ReachsetPlanner",
     "pursuit": "PursuitPlanner",
     "mptp": "MptpPlanner",
 }
@@ -818,6 +831,9 @@ def _decision_table() -> dict[str, Decision]:
         _options(rules_airspace="controlled"),
     )
     out[prefix + "close_after"] = ("rules_pair", None, _options(rules_close_after=5))
+    out[prefix + "plane_horizon"] = ("rules_pair", None, _options(rules_plane_horizon=10.0))
+    out[prefix + "plans"] = ("rules_pair", None, _options(rules_plans={"uas3": [[-20.0, 30.0], [-20.0, -100.0]]}))
+    out[prefix + "weather_margin"] = ("rules_weather", None, _options(rules_weather_margin=10.0))
     out["vehicle.planner<PursuitPlanner>.options.target"] = ("pursuit", None, _options(target="uas2"))
     return out
 
@@ -844,6 +860,7 @@ RECORDS_ONLY = {
             "converging_extra",
             "filed",
             "overtake",
+            "plane_horizon",
             "plane_tolerance",
             "widest",
         )
