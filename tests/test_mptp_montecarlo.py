@@ -268,3 +268,14 @@ def test_a_twenty_trial_study_on_the_process_pool_resumes(tmp_path):
     again = mc.run_study(20, 10, 3, tmp_path, workers=1)
     assert any(r["status"] == "from disk" for r in again)
     assert [r["success"] for r in again] == [r["success"] for r in rows]
+
+
+def test_the_trapped_trial_whose_obstacle_was_a_collection_is_planned():
+    """Field 16, trial 7 (seed 1) starts trapped in a margin whose region came out as a
+    GeometryCollection; it raised AttributeError in free_space before the obstacle was cut to
+    its polygons."""
+    cfg = mc.study_config("edh")
+    tl = ObstacleTimeline(nowcast(draw_cells(mc.study_field_spec(), 16)), cfg, 2 * mc.HORIZON_S)
+    trial = mc.draw_trials(tl, cfg, 16, 10, 1)[7]
+    row = mc.run_trial(tl, trial, cfg)
+    assert not row["status"].startswith("error") and row["success"]
