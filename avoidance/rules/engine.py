@@ -18,6 +18,7 @@ import numpy as np
 
 from avoidance.utm.cases import CaseBook
 from avoidance.utm.collision_case import CollisionCase
+from avoidance.utm.directives import UtmInbox
 from avoidance.utm.notification import PositionNotification
 
 if TYPE_CHECKING:
@@ -60,6 +61,7 @@ class RuleContext:
     deadlock_frames: int = 0  # consecutive frames without a restricted path (carried over)
     case: CollisionCase | None = None  # the case a manoeuvre / restriction rule works on
     margin: float = 0.0  # the margin [m] the safety-margin rule enforces for ``case``
+    utm: UtmInbox | None = None  # the central UTM's directives (None: virtual UTM only)
 
     @property
     def unit(self) -> float:
