@@ -223,6 +223,32 @@ def _merged(base: dict[str, Any], given: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+_Time = Annotated[float, quantity("time", 0.0, 30 * 86400.0)]
+
+
+class Outage(_Strict):
+    """A window of sim time [start, end) in which a vehicle's C2/UTM link carries nothing."""
+
+    start: _Time
+    end: _Time
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Outage:
+        if not self.end > self.start:
+            raise ValueError(f"end ({self.end:g} s) must be after start ({self.start:g} s)")
+        return self
+
+
+class UtmLink(_Strict):
+    """A vehicle's C2/UTM link to the authority (``sim/utm_link.py``), both directions: one-way
+    ``latency``, message ``loss`` probability, ``outage`` windows. Needs the ``[utm]`` section;
+    a vehicle without it has an ideal link."""
+
+    latency: Annotated[float, quantity("time", 0.0, 60.0)] = 0.0
+    loss: Annotated[float, Field(ge=0.0, lt=1.0)] = 0.0
+    outage: list[Outage] = []
+
+
 class VehicleSpec(_Strict):
     name: Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$")]
     aircraft: str
@@ -594,32 +620,6 @@ class Gust(_Fault):
 
 
 Fault = Annotated[GnssLoss | SensorBias | SensorStuck | MotorFailure | Gust, Field(discriminator="kind")]
-
-
-_Time = Annotated[float, quantity("time", 0.0, 30 * 86400.0)]
-
-
-class Outage(_Strict):
-    """A window of sim time [start, end) in which a vehicle's C2/UTM link carries nothing."""
-
-    start: _Time
-    end: _Time
-
-    @model_validator(mode="after")
-    def _ordered(self) -> Outage:
-        if not self.end > self.start:
-            raise ValueError(f"end ({self.end:g} s) must be after start ({self.start:g} s)")
-        return self
-
-
-class UtmLink(_Strict):
-    """A vehicle's C2/UTM link to the authority (``sim/utm_link.py``), both directions: one-way
-    ``latency``, message ``loss`` probability, ``outage`` windows. Needs the ``[utm]`` section;
-    a vehicle without it has an ideal link."""
-
-    latency: Annotated[float, quantity("time", 0.0, 60.0)] = 0.0
-    loss: Annotated[float, Field(ge=0.0, lt=1.0)] = 0.0
-    outage: list[Outage] = []
 
 
 class UtmSpoof(_Strict):

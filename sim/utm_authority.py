@@ -8,11 +8,11 @@ notification of every vehicle that arrived during frame i-1 or earlier and is no
 ``lost_after`` (a vehicle silent for longer has lost its link: it is left out, its cases close),
 updates its case book (:class:`avoidance.utm.cases.CaseBook`: chaining, roundabouts; positions
 adjusted to the frame time along the filed plans = trajectory intersection, 6.187-6.189), and
-sends every joined vehicle a directive with its active cases (a heartbeat when it has none).
+sends every vehicle a directive with its active cases (a heartbeat when it has none).
 Then every vehicle sends its notification of frame i: the estimate (GCF) and its filed plan, the
 remaining mission waypoints from the estimate at cruise speed sampled every frame. Joined
-vehicles (rules planners, :meth:`avoidance.rules.planner.RulesAvoider.join_utm`) acknowledge every
-directive they receive; the others only notify.
+vehicles (rules planners, :meth:`avoidance.rules.planner.RulesAvoider.join_utm`) obey and
+acknowledge every directive they receive; the others only notify (their directives go unheard).
 
 Topics: ``/utm/notification``, ``/utm/frame``, ``/utm/directive``, ``/utm/ack``, ``/utm/link``
 (the authority's view of a vehicle's link: lost / up), ``/utm/breach`` (an active case whose
@@ -137,8 +137,6 @@ class UtmAuthority:
             _META,
         )
         for name, m in self.members.items():
-            if m.planner is None:
-                continue
             cases = [as_roundabout(c, rbs[name]) if name in rbs else c for c in active if name in c.ids]
             d = Directive(self.frame_no, t, name, tuple(cases) + self._spoofed(t, name))
             self._send_down(t, m, d)
