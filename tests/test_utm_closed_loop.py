@@ -64,7 +64,8 @@ def check_roles_and_margin(log: RunLog) -> None:
     assert GIVE_WAY in e1
     assert "rule:case_open:self-uas1:converging:right_of_way" in e2
     assert not any(e.startswith(("rule:converging", "rule:right_plane_heading")) for e in e2)
-    assert not any(e.startswith(("rule:case_unresolved", "rule:deadlock")) for e in e1 | e2)
+    bad = sorted(e for e in e1 | e2 if e.startswith(("rule:case_unresolved", "rule:deadlock")))
+    assert not bad, bad
 
 
 @pytest.fixture(scope="module")
