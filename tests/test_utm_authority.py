@@ -2,6 +2,7 @@
 two diverging plans, and the scenario's utm options' errors."""
 
 import re
+from typing import Any
 
 import numpy as np
 import pytest
@@ -34,29 +35,29 @@ def test_diverging_filed_plans_within_the_margin_open_no_case():
     assert case is not None and case.trajectory and case.t_cpa == 0.0 and case.distance == 30.0
     assert not case.flagged
     c, d = plan_note("c", (0, 0, 0), (1.0, 0, 0)), plan_note("d", (30, 0, 0), (-1.0, 0, 0))  # converging
-    assert compute_collision_case(c, d, 0.0, UtmConfig(time_margin=20.0)).flagged
+    meet = compute_collision_case(c, d, 0.0, UtmConfig(time_margin=20.0))
+    assert meet is not None and meet.flagged
 
 
-BASE = {
+QUAD: dict[str, Any] = {
+    "name": "q",
+    "aircraft": "quadrotor",
+    "initial": {"altitude": 20.0},
+    "mission": {"cruise_speed": 2.0, "waypoints": [{"north": 5.0, "east": 0.0, "altitude": 20.0}]},
+}
+BASE: dict[str, Any] = {
     "name": "u",
     "seed": 1,
     "duration": 5.0,
     "origin": {"lat": 47.0, "lon": 8.0},
-    "vehicle": [
-        {
-            "name": "q",
-            "aircraft": "quadrotor",
-            "initial": {"altitude": 20.0},
-            "mission": {"cruise_speed": 2.0, "waypoints": [{"north": 5.0, "east": 0.0, "altitude": 20.0}]},
-        }
-    ],
+    "vehicle": [QUAD],
 }
 
 
 @pytest.mark.parametrize(
     "change, message",
     [
-        ({"vehicle": [{**BASE["vehicle"][0], "utm_link": {}}]}, "vehicle[0].utm_link needs the [utm] section"),
+        ({"vehicle": [{**QUAD, "utm_link": {}}]}, "vehicle[0].utm_link needs the [utm] section"),
         ({"utm": {"frame": 2.0, "lost_after": 1.0}}, "lost_after (1 s) must be at least one frame (2 s)"),
         ({"utm": {"frame": 0.05}}, "utm.frame: 0.05 s is shorter than a log tick (0.1 s)"),
         (
@@ -64,10 +65,10 @@ BASE = {
             "utm.spoof[0].vehicle: no vehicle 'x'",
         ),
         (
-            {"utm": {}, "vehicle": [{**BASE["vehicle"][0], "utm_link": {"outage": [{"start": 2.0, "end": 1.0}]}}]},
+            {"utm": {}, "vehicle": [{**QUAD, "utm_link": {"outage": [{"start": 2.0, "end": 1.0}]}}]},
             "end (1 s) must be after start (2 s)",
         ),
-        ({"utm": {}, "vehicle": [{**BASE["vehicle"][0], "utm_link": {"loss": 1.0}}]}, "loss"),
+        ({"utm": {}, "vehicle": [{**QUAD, "utm_link": {"loss": 1.0}}]}, "loss"),
     ],
 )
 def test_bad_utm_options_are_one_line_errors(change, message):
