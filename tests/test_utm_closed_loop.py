@@ -1,6 +1,6 @@
 """The central UTM authority in the closed loop (sim/utm_authority.py; docs/rules.md "UTM
-authority"): S9 flown with the authority (roles and margin of the virtual-UTM S9), a C2/UTM link outage in the
-middle of the encounter, and a forged UTM case. JSBSim quadrotors on their EKF estimates; every
+authority"): S9 flown with the authority (roles and margin of the virtual-UTM S9), a C2/UTM
+link outage in the middle of the encounter, and a forged UTM case. JSBSim quadrotors on their EKF estimates; every
 number read back from the MCAP (replay metrics, decision events, ``/utm/*`` topics)."""
 
 from __future__ import annotations
