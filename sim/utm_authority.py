@@ -56,6 +56,9 @@ def filed_plan(pos_ned: np.ndarray, waypoints_ned: np.ndarray, speed: float, t: 
 
 @dataclass(slots=True)
 class Member:
+    """A vehicle as the authority knows it: its link, filed registration, newest notification,
+    newest acknowledged frame and whether its link counts as lost."""
+
     vehicle: Vehicle
     link: Link
     registration: Registration
@@ -67,6 +70,12 @@ class Member:
 
 
 class UtmAuthority:
+    """One authority over every vehicle of the run. Rules vehicles join with their filed
+    registration (:meth:`RulesAvoider.join_utm`); the case parameters (time margin, closing
+    hysteresis, doubts) are those the first of them files, so the authority and the vehicles'
+    virtual UTMs compute cases alike. Other vehicles notify with the default registration
+    (thesis margins, unscaled) and obey nothing."""
+
     def __init__(self, cfg: Utm, vehicles: list[Vehicle], links: dict[str, Link], log: McapLog, origin_alt: float):
         self.cfg, self.log, self.origin_alt = cfg, log, origin_alt
         self.members: dict[str, Member] = {}
