@@ -327,7 +327,10 @@ UTM_DIRECTIVE = _obj(
         "t": (_NUM, "sim time sent (frame start) [s]"),
         "frame": ({"type": "integer"}, "UTM frame index"),
         "to": ({"type": "string"}, "the recipient"),
-        "delivered_t": (_NUM_OR_NULL, "arrival time over the link [s]; null: lost"),
+        "received_t": (
+            _NUM_OR_NULL,
+            "sim time the recipient gets it (the first authority tick at or after its arrival) [s]; null: lost",
+        ),
         "cases": (_CASES, "the recipient's active cases (roundabout members re-targeted): " + _CASE_FIELDS),
     },
 )

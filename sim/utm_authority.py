@@ -23,6 +23,7 @@ scenario origin, sim seconds.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -76,8 +77,11 @@ class UtmAuthority:
     virtual UTMs compute cases alike. Other vehicles notify with the default registration
     (thesis margins, unscaled) and obey nothing."""
 
-    def __init__(self, cfg: Utm, vehicles: list[Vehicle], links: dict[str, Link], log: McapLog, origin_alt: float):
-        self.cfg, self.log, self.origin_alt = cfg, log, origin_alt
+    def __init__(
+        self, cfg: Utm, vehicles: list[Vehicle], links: dict[str, Link], log: McapLog, origin_alt: float, tick_hz: float
+    ):
+        """``tick_hz``: the rate :meth:`tick` is called at (the log rate)."""
+        self.cfg, self.log, self.origin_alt, self.tick_hz = cfg, log, origin_alt, tick_hz
         self.members: dict[str, Member] = {}
         book_cfg: UtmConfig | None = None
         for v in vehicles:
@@ -182,7 +186,7 @@ class UtmAuthority:
                 "t": t,
                 "frame": d.frame,
                 "to": d.to,
-                "delivered_t": due,
+                "received_t": self._handed(due),
                 "cases": [c.record() for c in d.cases],
             },
             S.UTM_DIRECTIVE,
@@ -190,6 +194,10 @@ class UtmAuthority:
         )
         if due is not None:
             m.down.put(due, d)
+
+    def _handed(self, due: float | None) -> float | None:
+        """When a message arriving at ``due`` [s] is handed over: the first tick at or after it."""
+        return None if due is None else math.ceil(due * self.tick_hz - 1e-6) / self.tick_hz
 
     def _spoofed(self, t: float, name: str) -> tuple[CollisionCase, ...]:
         """Forged head-on cases injected on ``name``'s downlink (scenario ``utm.spoof``)."""

@@ -177,7 +177,7 @@ class World:
             links[v.name] = Link(
                 c.latency, c.loss, tuple((o.start, o.end) for o in c.outage), np.random.default_rng(ss)
             )
-        return UtmAuthority(scenario.utm, self.vehicles, links, log, self.origin.alt_m)
+        return UtmAuthority(scenario.utm, self.vehicles, links, log, self.origin.alt_m, scenario.logging.rate_hz)
 
     # -- sensing the rest of the world ---------------------------------------------------------
     def sense(self, t: float) -> None:

@@ -14,7 +14,9 @@ import numpy as np
 import pytest
 
 from sim import log_schemas as S
+from sim.replay import rerun
 from sim.replay.report import log_metrics
+from sim.replay.rerun import rerun_planner
 from sim.replay.runlog import RunLog
 
 pytestmark = pytest.mark.closed_loop
@@ -95,13 +97,23 @@ def test_s9_with_the_authority_gives_the_same_roles_and_keeps_the_margin(s9_utm)
     assert opened[0]["t"] < first_own  # the authority, on intent, sees it before the vehicles
     assert not log.has("/utm/breach")
     # every delivered directive is acknowledged unless the ack is lost (2 % loss on the uplink)
-    sent = [d for d in log.topic("/utm/directive").messages if d["delivered_t"] is not None]
+    sent = [d for d in log.topic("/utm/directive").messages if d["received_t"] is not None]
     acks = log.topic("/utm/ack").messages
     assert {(a["from"], a["frame"]) for a in acks} <= {(d["to"], d["frame"]) for d in sent}
     assert 0.9 * len(sent) <= len(acks) < len(sent) + 1
     assert len(sent) < len(log.topic("/utm/directive").messages)  # the 2 % loss acts
     notes = log.topic("/utm/notification").messages
     assert all(abs(n["t"] - n["sent_t"] - 0.2) < 0.11 for n in notes)  # 0.2 s latency, 0.1 s log tick
+
+
+def test_rerun_of_the_authority_run_needs_the_directives(s9_utm, monkeypatch):
+    """The vehicle's planner re-run on the log reproduces every plan with the logged directives
+    (tests/test_replay_rerun.py) and not without them: the directives act on the plans."""
+    path = s9_utm.path
+    assert rerun_planner(path, "uas1").differences == []
+    monkeypatch.setattr(rerun, "_directives", lambda *a: [])
+    rep = rerun_planner(path, "uas1")
+    assert rep.same < rep.plans
 
 
 def test_link_outage_mid_encounter_falls_back_to_blind_mode_and_keeps_the_margin(s9_degraded):

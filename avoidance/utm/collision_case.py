@@ -211,6 +211,26 @@ class CollisionCase:
     def other(self, uas: str) -> str:
         return self.ids[1 - self.ids.index(uas)]
 
+    @staticmethod
+    def from_record(r: dict) -> CollisionCase:
+        """The case a :meth:`record` describes (chain links are not recorded)."""
+        return CollisionCase(
+            r["t"],
+            (r["ids"][0], r["ids"][1]),
+            Encounter(r["encounter"]),
+            r["alpha_deg"],
+            (Role(r["roles"][0]), Role(r["roles"][1])),
+            np.asarray(r["collision_point_enu"], float),
+            r["distance_m"],
+            r["t_cpa_s"],
+            r["margin_m"],
+            r["flagged"],
+            linear=not r["trajectory"],
+            trajectory=r["trajectory"],
+            head=r["head_t"],
+            separation=r["separation_m"],
+        )
+
     def record(self) -> dict:
         """JSON-ready values (GCF ENU point)."""
         return {
