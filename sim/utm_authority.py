@@ -5,7 +5,8 @@ acknowledgements and breach reports, every message over each vehicle's modelled 
 
 UTM frame i starts at ``i * frame`` [s] (6.181). At its start the authority takes the newest
 notification of every vehicle that arrived during frame i-1 or earlier and is not older than
-``lost_after`` (a vehicle silent for longer has lost its link: it is left out, its cases close),
+``lost_after`` (a vehicle silent for longer has lost its link: it is left out, its cases close)
+of the vehicles past their start transient (the rules' ``settle`` and ``established_speed``),
 updates its case book (:class:`avoidance.utm.cases.CaseBook`: chaining, roundabouts; positions
 adjusted to the frame time along the filed plans = trajectory intersection, 6.187-6.189), and
 sends every vehicle a directive with its active cases (a heartbeat when it has none).
@@ -68,6 +69,8 @@ class Member:
     last_note: PositionNotification | None = None
     last_ack: int = -1
     lost: bool = True  # no fresh notification (before the first one, too)
+    first_t: float | None = None  # send time of its first notification [s]
+    established: bool = False  # past its start transient (:meth:`UtmAuthority._established`)
 
 
 class UtmAuthority:
@@ -124,7 +127,7 @@ class UtmAuthority:
                 state = "lost" if m.lost else "up"
                 self.log.write_json("/utm/link", t, {"t": t, "vehicle": name, "state": state}, S.UTM_LINK)
                 self.log.event(t, f"utm: link to {name} {state}", "warning" if m.lost else "info", "utm")
-            if fresh and m.last_note is not None:
+            if fresh and m.last_note is not None and self._established(m, m.last_note):
                 notes.append(m.last_note)
         opened, closed = self.book.update(notes, t)
         rbs = {u: rb for rb in self.book.roundabouts() for u in rb.members}
@@ -155,6 +158,20 @@ class UtmAuthority:
             self._send_down(t, m, d)
         for name, m in self.members.items():
             self._send_up(t, name, ("note", name, self._notification(m, t)))
+
+    def _established(self, m: Member, note: PositionNotification) -> bool:
+        """Whether the vehicle takes part in cases: as in its own *detect* rule, once it has
+        flown its rules' ``settle`` [s] since its first notification and reached their
+        ``established_speed`` share of its cruise speed (start transients make early headings
+        meaningless, and the head case fixes the roles); then for good."""
+        if m.first_t is None:
+            m.first_t = note.t
+        if not m.established and m.planner is not None:
+            rules = m.planner.rules
+            m.established = (
+                note.t >= m.first_t + rules.settle and note.speed >= rules.established_speed * m.registration.max_cruise
+            )
+        return m.established or m.planner is None
 
     def _unacknowledged(self) -> list[str]:
         """Directed vehicles whose newest acknowledgement is more than ``lost_after`` old."""
