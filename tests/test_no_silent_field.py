@@ -481,6 +481,14 @@ LABELS = {
 
 _WIRED = "tests/test_mavlink_authority.py::test_scenario_mavlink_settings_reach_every_link (scenario to every link)"
 SHOWN_ELSEWHERE = {
+    "vehicle.planner<MptpPlanner>.options.hold_speed_correction": (
+        "acts when the goal is covered over the whole horizon (a holding orbit): "
+        "tests/test_mptp_holding_speed.py::test_the_planner_holds_on_the_corrected_circle_when_the_goal_is_covered"
+    ),
+    "vehicle.planner<MptpPlanner>.options.holding_points": (
+        "acts when the goal is covered over the whole horizon (a holding orbit): "
+        "tests/test_mptp_holding_speed.py::test_a_predefined_holding_location_is_used_when_it_is_free"
+    ),
     "vehicle.planner<MptpPlanner>.options.dominance_s": (
         "acts once the capped search meets a place again at another time (waiting): "
         "tests/test_mptp_optimality.py::test_the_dominance_window_changes_the_search"
@@ -768,6 +776,9 @@ _MPTP = {
     "mission_area": [[-20000, -5000], [-20000, 60000], [5000, 60000], [5000, -5000]],
     "prob_margin_max_m": 1000.0,
     "probability": 0.5,
+    "probabilities": [0.999, 0.5],
+    "downwind_factor": 3.0,
+    "safety_area_steps": [[1.0, 5000.0]],
     "replan_period_s": 1.0,
     "ring_segments": 8,
     "safety_single_m": [1000.0, 1000.0, 1000.0],
