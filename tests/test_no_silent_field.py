@@ -375,6 +375,33 @@ EFFECTS: dict[str, Effect] = {
     "vehicle.planner<FollowMissionPlanner>.rate_hz": (_QUAD, None, _set("vehicle.0.planner.rate_hz", 2.0)),
 }
 
+_UTM_LINK = {"latency": 0.1, "loss": 0.0, "outage": [{"start": 1.0, "end": 2.0}]}
+_SPOOF = {"vehicle": "quad", "peer": "ghost", "at": 1.0, "north": 5.0, "east": 0.0, "altitude": 420.0}
+
+
+def _utm(d: dict) -> None:
+    """The UTM authority over the quadrotor (which only notifies it), an outage of its link
+    and a forged case on its downlink."""
+    d["utm"] = {"spoof": [dict(_SPOOF)]}
+    _quad(d)["utm_link"] = copy.deepcopy(_UTM_LINK)
+
+
+EFFECTS |= {
+    "utm.frame": (_QUAD, _utm, _set("utm.frame", 0.5)),
+    "utm.lost_after": (_QUAD, _utm, _set("utm.lost_after", 1.0)),  # the outage then loses the link
+    "utm.spoof.peer": (_QUAD, _utm, _set("utm.spoof.0.peer", "phantom")),
+    "utm.spoof.at": (_QUAD, _utm, _set("utm.spoof.0.at", 2.0)),
+    "utm.spoof.duration": (_QUAD, _utm, _set("utm.spoof.0.duration", 1.0)),
+    "utm.spoof.north": (_QUAD, _utm, _set("utm.spoof.0.north", 6.0)),
+    "utm.spoof.east": (_QUAD, _utm, _set("utm.spoof.0.east", 1.0)),
+    "utm.spoof.altitude": (_QUAD, _utm, _set("utm.spoof.0.altitude", 421.0)),
+    "utm.spoof.margin": (_QUAD, _utm, _set("utm.spoof.0.margin", 20.0)),
+    "vehicle.utm_link.latency": (_QUAD, _utm, _set("vehicle.0.utm_link.latency", 0.3)),
+    "vehicle.utm_link.loss": (_QUAD, _utm, _set("vehicle.0.utm_link.loss", 0.5)),
+    "vehicle.utm_link.outage.start": (_QUAD, _utm, _set("vehicle.0.utm_link.outage.0.start", 0.0)),
+    "vehicle.utm_link.outage.end": (_QUAD, _utm, _set("vehicle.0.utm_link.outage.0.end", 2.5)),
+}
+
 _LIDAR: dict[str, object] = {
     "latency_s": 0.05,
     "max_range_m": 6.0,
@@ -447,6 +474,7 @@ LABELS = {
     "obstacle.id": "names the obstacle",
     "geofence.id": "names the geofence",
     "vehicle.name": "names the vehicle",
+    "utm.spoof.vehicle": "names the vehicle whose downlink carries the forged case",
     **{f"fault<{k}>.vehicle": "names the faulty vehicle" for k in _FAULTS},
     **{f"fault<{k}>.kind": "the union's tag" for k in _FAULTS},
 }
