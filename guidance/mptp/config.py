@@ -59,6 +59,10 @@ class MptpConfig:
     Wind (read by the engine when it builds the planner, see wind.py): ``wind_forecast``
     "scenario" = the planner is given the scenario's steady wind plus ``wind_error_ne_mps``
     (north, east) [m/s] as its forecast; "none" = still air (wind-blind planning).
+
+    Storm tops (vertical.py): a cell is avoided while the heights the aircraft can reach over the
+    horizon, climbing or descending towards the goal at up to ``climb_rate_mps`` [m/s], come
+    within ``vertical_margin_m`` [m] of the cell's base-to-top extent.
     """
 
     tas_mps: float = 26.0
@@ -87,6 +91,8 @@ class MptpConfig:
     g: float = STANDARD_GRAVITY
     wind_forecast: WindSource = "scenario"
     wind_error_ne_mps: tuple[float, float] = (0.0, 0.0)
+    vertical_margin_m: float = 1000.0
+    climb_rate_mps: float = 1.0
 
     def __post_init__(self) -> None:
         if self.tas_mps <= 0 or self.dt_s <= 0 or self.horizon_s < self.dt_s:
@@ -95,6 +101,8 @@ class MptpConfig:
             raise ValueError("bank_max must be in (0, 90) deg and course_change_max in (0, 90] deg")
         if not self.search_weight >= 1.0 or not self.dominance_s > 0:
             raise ValueError("need search_weight >= 1 and dominance_s > 0")
+        if not self.vertical_margin_m >= 0 or not self.climb_rate_mps >= 0:
+            raise ValueError("need vertical_margin_m >= 0 and climb_rate_mps >= 0")
         if not 0 <= self.probability < 1:
             raise ValueError("probability must be in [0, 1)")
         if self.heuristic not in ("dijkstra", "edh", "ssph") or self.turning not in ("both", "right", "left"):

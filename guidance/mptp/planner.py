@@ -21,6 +21,11 @@ level (the mean of the estimate's and the goal's heights): storms drift at their
 the wind, the goal drifts at minus the wind, the course is that of the air velocity, and the
 planned states map back to the ground at their times.
 
+Each replan plans at the vehicle's current true airspeed (the estimate's; the configured
+``tas_mps`` only while the estimate has none), so the turn radius and leg lengths follow the
+speed as it grows with altitude at a fixed equivalent airspeed; and only with the storm cells
+whose vertical extent the vehicle can be near over the horizon (vertical.py).
+
 The plan's vertices are the trajectory states; labels are -1 except the goal (its waypoint
 index); the altitude goes linearly (constant climb angle) from the estimate's to the goal's.
 """
@@ -41,6 +46,7 @@ from guidance.mptp.holding import holding_orbit, safe_area_leg
 from guidance.mptp.search import Trajectory, default_workspace, plan_trajectory
 from guidance.mptp.statespace import free_space
 from guidance.mptp.timeline import ObstacleTimeline
+from guidance.mptp.vertical import altitude_band, cells_in_band
 from guidance.mptp.wind import WindForecast, air_goal, to_air, to_ground
 from sim.core.mission import Mission
 from sim.core.plan import Plan, PlanStatus, Threats
@@ -112,14 +118,31 @@ class MptpPlanner:
         shift = to_ground(np.zeros(2), t, self.wind_ne, self.timeline.t_issue)
         return shapely.affinity.translate(self.timeline.shape_at(t), *shift)
 
-    def _timeline_for(self, storms: list[StormSnapshot], t: float, wind: np.ndarray) -> tuple[ObstacleTimeline, float]:
-        key = (*((id(s), s.t) for s in storms), tuple(wind))
+    def _timeline_for(
+        self, storms: list[StormSnapshot], t: float, wind: np.ndarray, cfg: MptpConfig, key: tuple
+    ) -> tuple[ObstacleTimeline, float]:
+        """The timeline of ``storms``, rebuilt when ``key`` (the nowcast and the cells that apply),
+        the wind or the planning speed changed since the last one."""
+        key = (*key, tuple(wind), cfg.tas_mps)
         if key != self._nowcast_key or self.timeline is None:
             wall = time.perf_counter()
-            self.timeline = ObstacleTimeline(storms, self.cfg, t + 2 * self.cfg.horizon_s, wind)
+            self.timeline = ObstacleTimeline(storms, cfg, t + 2 * cfg.horizon_s, wind)
             self._nowcast_key = key
             return self.timeline, time.perf_counter() - wall
         return self.timeline, 0.0
+
+    def config_now(self, est: VehicleState) -> MptpConfig:
+        """The configuration at the vehicle's current true airspeed [m/s] (the configured one
+        while the estimate's is below ``MIN_AIRSPEED``)."""
+        return self.cfg.with_(tas_mps=float(est.tas_mps)) if est.tas_mps >= MIN_AIRSPEED else self.cfg
+
+    def _storms_near(self, est: VehicleState, storms: list[StormSnapshot], k: int, cfg: MptpConfig):
+        """The cells the vehicle can come near in height over the horizon (vertical.py), the
+        cache key of that selection, and the number of cells left out of the first snapshot."""
+        up_goal = -float(self.mission.waypoints[k, 2])
+        band = altitude_band(-float(est.pos_ned[2]), up_goal, cfg.climb_rate_mps, cfg.horizon_s)
+        near, dropped = cells_in_band(storms, band, cfg.vertical_margin_m)
+        return near, (*((id(s), s.t) for s in storms), dropped), len(dropped[0]) if dropped else 0
 
     def _wind_at(self, est: VehicleState, k: int) -> np.ndarray:
         if self.wind is None:
@@ -127,20 +150,26 @@ class MptpPlanner:
         return self.wind.at(-0.5 * (float(est.pos_ned[2]) + float(self.mission.waypoints[k, 2])))
 
     def _replan(self, est: VehicleState, storms: list[StormSnapshot], t: float, k: int) -> Plan:
-        cfg = self.cfg
+        cfg = self.config_now(est)
         w = self.wind_ne = self._wind_at(est, k)
-        tl, weather_s = self._timeline_for(storms, t, w)
+        near, key, ignored = self._storms_near(est, storms, k, cfg)
+        tl, weather_s = self._timeline_for(near, t, w, cfg, key)
         t_ref = tl.t_issue
         ground_goal = self.goal_track or GoalTrack.fixed(self.mission.waypoints[k, :2])
         goal = air_goal(ground_goal, w, t_ref, t, t + 2 * cfg.horizon_s) if w.any() else ground_goal
         p0 = to_air(np.asarray(est.pos_ned[:2], float), t, w, t_ref)
         v_air = np.asarray(est.vel_ned[:2], float) - w
         course = math.atan2(v_air[1], v_air[0]) if np.hypot(*v_air) >= MIN_AIRSPEED else est.yaw
-        diag: dict[str, float | int | str] = {"heuristic": cfg.heuristic, "weather_s": weather_s}
+        diag: dict[str, float | int | str] = {
+            "heuristic": cfg.heuristic,
+            "weather_s": weather_s,
+            "tas_mps": cfg.tas_mps,
+            "cells_ignored": ignored,
+        }
         if w.any():
             diag.update(wind_north_mps=float(w[0]), wind_east_mps=float(w[1]))
         wall = time.perf_counter()
-        workspace = self._workspace(p0, goal, t, w, t_ref)
+        workspace = self._workspace(p0, goal, t, w, t_ref, cfg)
         availability = GoalAvailability(tl, goal)
         levels = tl.interval(t + np.arange(0.0, cfg.horizon_s + cfg.dt_s, cfg.dt_s))
         if all(availability.covered(int(j)) for j in levels):
@@ -185,10 +214,11 @@ class MptpPlanner:
         diag["reason"] = "search " + traj.status
         return self._to_plan(t, est, pts, times, np.full(2, -1), PlanStatus.NO_SOLUTION, diag)
 
-    def _workspace(self, p0: np.ndarray, goal: GoalTrack, t: float, w: np.ndarray, t_ref: float) -> Polygon:
+    def _workspace(
+        self, p0: np.ndarray, goal: GoalTrack, t: float, w: np.ndarray, t_ref: float, cfg: MptpConfig
+    ) -> Polygon:
         """The search's workspace in the air-mass frame: the start and the goal over the horizon,
         padded; the mission area is swept by -w over the horizon (a convex superset)."""
-        cfg = self.cfg
         area = cfg.mission_area
         if area is not None and w.any():
             ends = [to_air(np.zeros(2), x, w, t_ref) for x in (t, t + cfg.horizon_s)]
