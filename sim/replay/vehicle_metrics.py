@@ -75,8 +75,9 @@ class VehicleMetrics:
     - control effort: RMS of each commanded JSBSim property (JSBSim units);
     - estimation: RMS estimate errors per NED axis, fraction inside the 3-sigma bounds, mean NEES
       of position+velocity (diagonal covariance; a consistent filter gives about 6);
-    - storms: distance to the nearest TRUE storm cell (:func:`storm_distance`, 3-D), checked every ``STORM_CHECK_S`` (at least
-      ``STORM_CHECKS_MIN`` times over the planned duration), its minimum and the time inside cells.
+    - storms: distance to the nearest TRUE storm cell (a prism, :func:`storm_distance`), checked
+      every ``STORM_CHECK_S`` (at least ``STORM_CHECKS_MIN`` times over the planned duration), its
+      minimum and the time inside cells.
     """
 
     def __init__(self, name: str, kind: str, world: MetricsWorld):
