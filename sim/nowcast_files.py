@@ -104,9 +104,9 @@ def parse_nowcast(doc: dict[str, Any], origin: GeoPoint | None = None, where: st
         if any(has) and not all(has):
             raise NowcastError(f"{where}: t={t}: some cells have properties.velocity_ne and some do not")
         vel = np.array([v for _, v, _ in cells]) if all(has) else None
-        ext = np.array([e for _, _, e in cells])
-        bounded = bool(np.isfinite(ext).any())
-        out.append(StormSnapshot(t, tuple(p for p, _, _ in cells), vel, ext if bounded else None))
+        extents = np.array([e for _, _, e in cells])
+        bounded = bool(np.isfinite(extents).any())
+        out.append(StormSnapshot(t, tuple(p for p, _, _ in cells), vel, extents if bounded else None))
     return out
 
 
