@@ -97,6 +97,8 @@ def test_each_replan_plans_at_the_current_airspeed_and_its_turn_radius():
         speeds.append(planner.plan(est, Threats(), t).diagnostics["tas_mps"])
     assert speeds == [10.3, 14.0]
     assert planner.config_now(vehicle_state(0.0, np.zeros(2), 0.0, 0.0)).tas_mps == cfg.tas_mps  # no airspeed yet
+    fixed = MptpPlanner(planner.mission, cfg.with_(speed_source="config"))  # the thesis's constant speed
+    assert fixed.plan(vehicle_state(0.0, np.zeros(2), math.pi / 2, 10.3), Threats(), 0.0).diagnostics["tas_mps"] == 26.0
 
 
 def test_storm_distance_is_to_the_prism():

@@ -260,6 +260,18 @@ EFFECTS: dict[str, Effect] = {
         _set("weather", {"nowcast_files": [_NOWCASTS + "nowcast_00000s.geojson"]}),
         _set("weather.nowcast_files", [_NOWCASTS + "nowcast_00300s.geojson"]),  # issued at 300 s
     ),
+    "weather.base": (_QUAD, _set("weather", _WEATHER), _set("weather.base", 500.0)),
+    "weather.top": (_QUAD, _set("weather", _WEATHER), _set("weather.top", 9000.0)),
+    "weather.storm.base": (
+        _QUAD,
+        _set("weather", _WEATHER | {"storm": [{"points": [[0, 0], [0, 900], [900, 0]]}]}),
+        _set("weather.storm.0.base", 500.0),
+    ),
+    "weather.storm.top": (
+        _QUAD,
+        _set("weather", _WEATHER | {"storm": [{"points": [[0, 0], [0, 900], [900, 0]]}]}),
+        _set("weather.storm.0.top", 9000.0),
+    ),
     "weather.storm.points": (
         _QUAD,
         _set("weather", _WEATHER | {"storm": [{"points": [[0, 0], [0, 900], [900, 0]]}]}),
@@ -747,7 +759,6 @@ _MPTP = {
     "sigma_back_mps": 3.0,
     "sigma_front_mps": 3.0,
     "simplify_tol_m": 2000.0,
-    "tas_mps": 20.0,
     "turning": "left",
     "wind_error_ne_mps": [5.0, 5.0],
 }
@@ -788,6 +799,16 @@ def _decision_table() -> dict[str, Decision]:
     prefix = "vehicle.planner<MptpPlanner>.options."
     out[prefix + "safety_line_m"] = ("mptp", _options(line_aspect=1.0), _options(safety_line_m=[1000.0] * 3))
     out[prefix + "wind_forecast"] = ("mptp", _set("wind.east", 10.0), _options(wind_forecast="none"))
+    out[prefix + "tas_mps"] = ("mptp", _options(speed_source="config"), _options(tas_mps=20.0))
+    out[prefix + "speed_source"] = ("mptp", _options(tas_mps=20.0), _options(speed_source="config"))
+    # cells topped 1.5 km under the HAPS: outside the 1 km vertical margin, inside a 2 km one
+    out[prefix + "vertical_margin_m"] = ("mptp", _set("weather.top", 16_500.0), _options(vertical_margin_m=2000.0))
+    # cells from 19.5 km up, the goal at 20 km: reached within the horizon at 1 m/s, not at 0.1 m/s
+    out[prefix + "climb_rate_mps"] = (
+        "mptp",
+        lambda d: (_set("weather.base", 19_500.0)(d), _set("vehicle.0.mission.waypoints.0.altitude", 20_000.0)(d)),
+        _options(climb_rate_mps=0.1),
+    )
     prefix = "vehicle.planner<ReachsetPlanner>.options.rules_"
     filed = _options(rules_filed={"uas3": {"category": "uas_autonomous", "maneuverability": "vtol"}})
     out[prefix + "converging"] = ("rules_pair", None, _options(rules_converging=20.0))

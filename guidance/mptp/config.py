@@ -21,6 +21,7 @@ NM = 1852.0  # m per nautical mile
 
 Heuristic = Literal["dijkstra", "edh", "ssph"]
 WindSource = Literal["scenario", "none"]
+SpeedSource = Literal["estimate", "config"]
 Turning = Literal["both", "right", "left"]
 
 
@@ -28,7 +29,9 @@ Turning = Literal["both", "right", "left"]
 class MptpConfig:
     """Everything one replan depends on besides the nowcast and the states.
 
-    Aircraft: ``tas_mps`` planning speed [m/s]; ``bank_max`` [rad]; ``course_change_max`` the
+    Aircraft: ``tas_mps`` planning speed [m/s] (``speed_source`` "estimate": each replan plans at
+    the estimate's true airspeed instead, ``tas_mps`` only while it has none; "config": always
+    ``tas_mps``, the thesis's constant-speed model); ``bank_max`` [rad]; ``course_change_max`` the
     largest course change at one state [rad] (thesis |dchi_max|); ``dt_s`` planning time
     increment [s] (auxiliary-state leg = tas * dt; a divisor of the nowcast step keeps levels
     on nowcast times); ``horizon_s`` planning horizon T_P [s]; ``replan_period_s`` cadence [s].
@@ -93,6 +96,7 @@ class MptpConfig:
     wind_error_ne_mps: tuple[float, float] = (0.0, 0.0)
     vertical_margin_m: float = 1000.0
     climb_rate_mps: float = 1.0
+    speed_source: SpeedSource = "estimate"
 
     def __post_init__(self) -> None:
         if self.tas_mps <= 0 or self.dt_s <= 0 or self.horizon_s < self.dt_s:
@@ -107,6 +111,8 @@ class MptpConfig:
             raise ValueError("probability must be in [0, 1)")
         if self.heuristic not in ("dijkstra", "edh", "ssph") or self.turning not in ("both", "right", "left"):
             raise ValueError(f"unknown heuristic {self.heuristic!r} or turning {self.turning!r}")
+        if self.speed_source not in ("estimate", "config"):
+            raise ValueError(f"speed_source: expected 'estimate' or 'config', got {self.speed_source!r}")
         if self.wind_forecast not in ("scenario", "none"):
             raise ValueError(f"wind_forecast: expected 'scenario' or 'none', got {self.wind_forecast!r}")
         err = np.asarray(self.wind_error_ne_mps, float) if _is_numeric(self.wind_error_ne_mps) else np.empty(0)

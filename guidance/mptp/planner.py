@@ -22,9 +22,10 @@ the wind, the goal drifts at minus the wind, the course is that of the air veloc
 planned states map back to the ground at their times.
 
 Each replan plans at the vehicle's current true airspeed (the estimate's; the configured
-``tas_mps`` only while the estimate has none), so the turn radius and leg lengths follow the
-speed as it grows with altitude at a fixed equivalent airspeed; and only with the storm cells
-whose vertical extent the vehicle can be near over the horizon (vertical.py).
+``tas_mps`` only while the estimate has none, or always with ``speed_source = "config"``), so
+the turn radius and leg lengths follow the speed as it grows with altitude at a fixed
+equivalent airspeed; and only with the storm cells whose vertical extent the vehicle can be
+near over the horizon (vertical.py).
 
 The plan's vertices are the trajectory states; labels are -1 except the goal (its waypoint
 index); the altitude goes linearly (constant climb angle) from the estimate's to the goal's.
@@ -132,9 +133,11 @@ class MptpPlanner:
         return self.timeline, 0.0
 
     def config_now(self, est: VehicleState) -> MptpConfig:
-        """The configuration at the vehicle's current true airspeed [m/s] (the configured one
-        while the estimate's is below ``MIN_AIRSPEED``)."""
-        return self.cfg.with_(tas_mps=float(est.tas_mps)) if est.tas_mps >= MIN_AIRSPEED else self.cfg
+        """The configuration at the vehicle's current true airspeed [m/s] (``speed_source``
+        "estimate"; the configured one while the estimate's is below ``MIN_AIRSPEED``)."""
+        if self.cfg.speed_source == "config" or est.tas_mps < MIN_AIRSPEED:
+            return self.cfg
+        return self.cfg.with_(tas_mps=float(est.tas_mps))
 
     def _storms_near(self, est: VehicleState, storms: list[StormSnapshot], k: int, cfg: MptpConfig):
         """The cells the vehicle can come near in height over the horizon (vertical.py), the
