@@ -146,11 +146,13 @@ def test_storm_tops_are_validated(where, value, message):
         parse_scenario(data)
 
 
-def _launch(fly, scenario_data, name: str, duration_s: float, cell_east: tuple[float, float], top: str, **changes):
+def _launch(
+    fly, scenario_data, name: str, duration_s: float, cell_east: tuple[float, float], top: str, seed=1, **changes
+):
     """The shipped launch-through-storms flight, shortened, with one cell 3 km wide across the
     launch track (east from (0, -40 km)); ``changes``: top-level vehicle fields to update."""
     data = scenario_data("haps_climb_through_storms")
-    data["duration"] = duration_s
+    data["duration"], data["seed"] = duration_s, seed
     w, e = cell_east
     data["weather"]["storm"] = [{"points": [[-1500.0, w], [-1500.0, e], [1500.0, e], [1500.0, w]], "top": top}]
     for key, value in changes.items():
@@ -176,6 +178,16 @@ def test_launch_climb_goes_around_a_storm_in_its_first_minutes(fly, scenario_dat
         fly, scenario_data, "blind", 1000.0, (-31_000.0, -28_000.0), "14 km", planner={"type": "follow_mission"}
     )
     assert blind[1]["time_inside_s"] > 0.0
+
+
+@pytest.mark.slow
+@pytest.mark.closed_loop
+@pytest.mark.parametrize("seed", range(1, 21))
+def test_launch_climb_goes_around_the_storm_on_20_seeds(fly, scenario_data, seed):
+    """CI's short launch flight on 20 seeds (EKF and sensor noise): never inside, past the cell."""
+    _, storms, truth = _launch(fly, scenario_data, "mptp", 1500.0, (-31_000.0, -28_000.0), "14 km", seed=seed)
+    assert storms["time_inside_s"] == 0.0 and storms["min_distance_m"] > 5000.0
+    assert truth["pos_ned"][-1, 1] > -28_000.0
 
 
 @pytest.mark.closed_loop
