@@ -669,6 +669,12 @@ ENCOUNTERS: dict[str, dict] = {
     },
 }
 
+# the same with the HAPS at 17 km climbing to 18 km and the cells from 18.5 km up (the MPTP's
+# vertical options: within 1 km of the heights it reaches in the horizon at 1 m/s)
+ENCOUNTERS["mptp_high_cells"] = copy.deepcopy(ENCOUNTERS["mptp"]) | {"name": "silent_mptp_high_cells"}
+ENCOUNTERS["mptp_high_cells"]["weather"]["base"] = 18_500.0
+ENCOUNTERS["mptp_high_cells"]["vehicle"][0]["initial"]["altitude"] = 17_000.0
+
 
 def _options(**values: object) -> Callable[[dict], None]:
     """A change setting planner options of every vehicle whose planner takes options (all but
@@ -801,14 +807,10 @@ def _decision_table() -> dict[str, Decision]:
     out[prefix + "wind_forecast"] = ("mptp", _set("wind.east", 10.0), _options(wind_forecast="none"))
     out[prefix + "tas_mps"] = ("mptp", _options(speed_source="config"), _options(tas_mps=20.0))
     out[prefix + "speed_source"] = ("mptp", _options(tas_mps=20.0), _options(speed_source="config"))
-    # cells topped 1.5 km under the HAPS: outside the 1 km vertical margin, inside a 2 km one
-    out[prefix + "vertical_margin_m"] = ("mptp", _set("weather.top", 16_500.0), _options(vertical_margin_m=2000.0))
-    # cells from 19.5 km up, the goal at 20 km: reached within the horizon at 1 m/s, not at 0.1 m/s
-    out[prefix + "climb_rate_mps"] = (
-        "mptp",
-        lambda d: (_set("weather.base", 19_500.0)(d), _set("vehicle.0.mission.waypoints.0.altitude", 20_000.0)(d)),
-        _options(climb_rate_mps=0.1),
-    )
+    # the cells' base 500 m over the 18 km the HAPS reaches: inside the 1 km margin, outside 200 m
+    out[prefix + "vertical_margin_m"] = ("mptp_high_cells", None, _options(vertical_margin_m=200.0))
+    # at 0.1 m/s the HAPS reaches only 17.36 km in the horizon: 1.14 km under the cells' base
+    out[prefix + "climb_rate_mps"] = ("mptp_high_cells", None, _options(climb_rate_mps=0.1))
     prefix = "vehicle.planner<ReachsetPlanner>.options.rules_"
     filed = _options(rules_filed={"uas3": {"category": "uas_autonomous", "maneuverability": "vtol"}})
     out[prefix + "converging"] = ("rules_pair", None, _options(rules_converging=20.0))
