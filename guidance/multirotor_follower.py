@@ -89,8 +89,11 @@ class MultirotorPlanFollower:
         self._arrived = False
 
     def _leg_speed(self, u: np.ndarray) -> float:
-        """Cruise speed, reduced so that the vertical rate of unit direction ``u`` is in limits."""
+        """Cruise speed (or the plan's lower commanded speed), reduced so that the vertical rate of
+        unit direction ``u`` is in limits."""
         v = self.cruise_speed
+        if self.plan is not None and self.plan.speed is not None:
+            v = min(v, self.plan.speed)
         if u[2] < -1e-9:
             v = min(v, self.max_climb / -u[2])
         elif u[2] > 1e-9:

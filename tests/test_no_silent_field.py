@@ -465,6 +465,14 @@ LABELS = {
 
 _WIRED = "tests/test_mavlink_authority.py::test_scenario_mavlink_settings_reach_every_link (scenario to every link)"
 SHOWN_ELSEWHERE = {
+    "vehicle.planner<MptpPlanner>.options.hold_speed_correction": (
+        "acts when the goal is covered over the whole horizon (a holding orbit): "
+        "tests/test_mptp_holding_speed.py::test_the_planner_holds_on_the_corrected_circle_when_the_goal_is_covered"
+    ),
+    "vehicle.planner<MptpPlanner>.options.holding_points": (
+        "acts when the goal is covered over the whole horizon (a holding orbit): "
+        "tests/test_mptp_holding_speed.py::test_a_predefined_holding_location_is_used_when_it_is_free"
+    ),
     "vehicle.planner<MptpPlanner>.options.dominance_s": (
         "acts once the capped search meets a place again at another time (waiting): "
         "tests/test_mptp_optimality.py::test_the_dominance_window_changes_the_search"
@@ -618,6 +626,18 @@ ENCOUNTERS: dict[str, dict] = {
             _uas("uas3", -30.0, 30.0, 0.0, (40.0, 30.0), {"rules": _RULES}),
         ],
     },
+    # one of them under the rules with weather cases, a storm cell across its route 60-100 m ahead
+    "rules_weather": {
+        "name": "silent_rules_weather",
+        "seed": 3,
+        "duration": 4.0,
+        "origin": _ORIGIN,
+        "weather": {"cells": 0, "nowcast_period": 10.0, "horizon": 60.0, "step": 10.0}
+        | {"storm": [{"points": [[-20.0, 60.0], [20.0, 60.0], [20.0, 100.0], [-20.0, 100.0]]}]},
+        "vehicle": [
+            _uas("uas1", 0.0, 0.0, 90.0, (0.0, 200.0), {"rules": [*_RULES, "weather"], "rules_unit": 5.0}),
+        ],
+    },
     # a quadrotor pursues one of two others
     "pursuit": {
         "name": "silent_pursuit",
@@ -758,6 +778,9 @@ _MPTP = {
     "mission_area": [[-20000, -5000], [-20000, 60000], [5000, 60000], [5000, -5000]],
     "prob_margin_max_m": 1000.0,
     "probability": 0.5,
+    "probabilities": [0.999, 0.5],
+    "downwind_factor": 3.0,
+    "safety_area_steps": [[1.0, 5000.0]],
     "replan_period_s": 1.0,
     "ring_segments": 8,
     "safety_single_m": [1000.0, 1000.0, 1000.0],
@@ -776,6 +799,7 @@ _PLANNER_MODEL = {
     "reachset": "ReachsetPlanner",
     "rules": "ReachsetPlanner",
     "rules_pair": "ReachsetPlanner",
+    "rules_weather": "ReachsetPlanner",
     "pursuit": "PursuitPlanner",
     "mptp": "MptpPlanner",
 }
@@ -830,6 +854,9 @@ def _decision_table() -> dict[str, Decision]:
         _options(rules_airspace="controlled"),
     )
     out[prefix + "close_after"] = ("rules_pair", None, _options(rules_close_after=5))
+    out[prefix + "plane_horizon"] = ("rules_pair", None, _options(rules_plane_horizon=10.0))
+    out[prefix + "plans"] = ("rules_pair", None, _options(rules_plans={"uas3": [[-20.0, 30.0], [-20.0, -100.0]]}))
+    out[prefix + "weather_margin"] = ("rules_weather", None, _options(rules_weather_margin=10.0))
     out["vehicle.planner<PursuitPlanner>.options.target"] = ("pursuit", None, _options(target="uas2"))
     return out
 
@@ -856,6 +883,7 @@ RECORDS_ONLY = {
             "converging_extra",
             "filed",
             "overtake",
+            "plane_horizon",
             "plane_tolerance",
             "widest",
         )

@@ -58,8 +58,9 @@ def test_body_rating_covers_the_swept_body_and_stays_within_one_sample_of_it():
     """An intruder crossing the grid (5 m body, 5 m/s): every cell that holds a point of the swept
     body (brute force: lattice points within the radius of the path) is hit, no cell farther from
     the path than radius + half a sample is, and the hit times contain the brute-force times of
-    arrival (each body point carries its centre's time) to within one sample."""
-    m = model(GRID, timed=False)
+    arrival (each body point carries its centre's time) to within one sample. Straight-line
+    prediction only (the give-way turn, D-21: tests/test_reachset_give_way.py)."""
+    m = model(GRID, timed=False, give_way_turn_rate=0.0)
     x, v, r = np.array([30.0, -20.0, 3.0]), np.array([-2.0, 4.5, -0.5]), 5.0
     motion = np.array([[*x, *v, r]])
     hit, i_e, i_l = m._body(motion, np.linalg.norm(motion[:, 3:6], axis=1))

@@ -91,6 +91,7 @@ def test_s12_s13_overtake_on_the_right(name, tmp_path):
     e1 = events(log, "uas1")
     assert "rule:overtake:self-uas2:overtake:overtaking" in e1
     assert any(e.startswith("rule:overtake_waypoint:self-uas2:") for e in e1)
+    assert not any(e.startswith("rule:overtake_speed") for e in e1)  # one overtake: 6.202 does not act
     # abeam (east positions equal), the overtaking uas1 is south of uas2: on its right
     s1, s2 = log.topic("/uas1/truth/state"), log.topic("/uas2/truth/state")
     p1, p2 = s1["pos_ned"], s2["pos_ned"][np.searchsorted(s2.t, s1.t).clip(max=len(s2.t) - 1)]

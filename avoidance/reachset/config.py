@@ -147,7 +147,11 @@ class IntruderModelConfig:
     layer depths of the grid (the body is grown by half of it, so the sampled balls cover the swept
     body); ``spacing`` the cone's lattice spacing [m]; ``time_error`` widens the UAS window [s];
     ``cone_steps`` lattice points per ellipse axis; ``density`` ``mean`` (6.133) or ``product``;
-    ``body_margin`` [m] is added to every intruder's body radius (safety-margin bloat, §8.2)."""
+    ``body_margin`` [m] is added to every intruder's body radius (safety-margin bloat, §8.2);
+    ``give_way_turn_rate`` [rad/s]: every intruder is also predicted turning right at this rate,
+    as the rules of the air have aircraft give way, in the intruder space and in the last
+    resort's clearance, and the last resort turns right (D-21; 0 = straight lines only, D-18;
+    default the thesis' 15° per 1 s movement)."""
 
     line: bool = True
     body: bool = True
@@ -161,6 +165,7 @@ class IntruderModelConfig:
     cone_steps: int = 7
     density: str = "mean"
     body_margin: float = 0.0
+    give_way_turn_rate: float = pi / 12
 
     @staticmethod
     def cooperative(**kw) -> IntruderModelConfig:

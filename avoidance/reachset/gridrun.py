@@ -13,6 +13,8 @@ import numpy as np
 
 from avoidance.reachset.fusion import EMERGENCY_ORDER, Categories, Fused, ThreatParts, fuse
 from avoidance.reachset.grid import AvoidanceGrid
+from avoidance.reachset.movement import MovementType
+from avoidance.reachset.threats.intruders import predicted_positions, prediction_rates
 from avoidance.reachset.tree import ReachSetTree
 
 
@@ -165,28 +167,44 @@ def emergency_runs(
             if len(runs) > 1:
                 dropped = runs[-2].categories.intruders and not cats.intruders
                 least = least_threat_path(
-                    tree, runs[-1].fused, runs[-2].fused, goal_lcf, parts.intruder_motion if dropped else None
+                    tree,
+                    runs[-1].fused,
+                    runs[-2].fused,
+                    goal_lcf,
+                    parts.intruder_motion if dropped else None,
+                    parts.give_way_turn_rate,
                 )
                 runs[-1].path = least if least.ok else runs[-1].path
             return runs, len(runs) - 1
     return runs, -1
 
 
-def closest_approach(tree: ReachSetTree, motion: np.ndarray) -> np.ndarray:
+def closest_approach(tree: ReachSetTree, motion: np.ndarray, right_turn_rate: float) -> np.ndarray:
     """Per node (N,): the smallest predicted clearance [m] between the path root -> node and the
-    intruders' bodies on their linear predictions ``motion`` (rows: LCF position at the grid time
-    [m], velocity [m/s], body radius [m]; :func:`avoidance.reachset.threats.intruders.intruder_motion`),
-    over every sample of the path at its own time (the root: +inf)."""
+    intruders' bodies (``motion`` rows: LCF position at the grid time [m], velocity [m/s], body
+    radius [m]; :func:`avoidance.reachset.threats.intruders.intruder_motion`), over every sample of
+    the path at its own time (the root: +inf). Each intruder is predicted on its straight line and,
+    with ``right_turn_rate`` > 0 [rad/s], also turning right at that rate (it gives way by the
+    rules of the air, D-21); the clearance is the smaller of the two."""
     t = tree.sample_times()  # (N, S) [s]
-    other = motion[:, None, None, :3] + t[None, :, :, None] * motion[:, None, None, 3:6]  # (I, N, S, 3)
-    gap = np.linalg.norm(tree.samples[None] - other, axis=-1) - motion[:, 6, None, None]
-    closest = gap.min(axis=(0, 2))
+    closest = np.full(tree.n_nodes, np.inf)
+    for rate in prediction_rates(right_turn_rate):
+        other = predicted_positions(
+            motion[:, None, None, :3], motion[:, None, None, 3:6], t[None], rate
+        )  # (I, N, S, 3)
+        gap = np.linalg.norm(tree.samples[None] - other, axis=-1) - motion[:, 6, None, None]
+        closest = np.minimum(closest, gap.min(axis=(0, 2)))
     closest[tree.depth == 0] = np.inf
     return tree.along_paths(closest, np.minimum)
 
 
 def least_threat_path(
-    tree: ReachSetTree, fused: Fused, stricter: Fused, goal_lcf: np.ndarray, intruder_motion: np.ndarray | None = None
+    tree: ReachSetTree,
+    fused: Fused,
+    stricter: Fused,
+    goal_lcf: np.ndarray,
+    intruder_motion: np.ndarray | None = None,
+    give_way_turn_rate: float = 0.0,
 ) -> PathResult:
     """The path of a relaxed run (a threat category dropped because no path respects it, spec
     §6.2 step 11): of the full-length trajectories feasible in ``fused``, the one least exposed to
@@ -195,12 +213,16 @@ def least_threat_path(
     the tip nearest the goal. Steering at the goal alone flew straight through the intruder,
     building margin or storm that made the stricter run fail.
 
-    With ``intruder_motion`` (the intruders were dropped, rows as in :func:`closest_approach`):
-    first the path with the largest predicted clearance to the intruders' bodies, rounded to
-    1 cm (D-18). The exposure to the intruder space (line, body, time window) does not say which
-    side is farther from the aircraft: two vehicles in each other's space chose independently and
-    flew side by side (S8); maximising the closest approach to the other's linear prediction
-    makes each turn away from where the other goes."""
+    With ``intruder_motion`` (the intruders were dropped, rows as in :func:`closest_approach`)
+    and a ``give_way_turn_rate`` > 0, first the paths that never turn left of the heading, as the
+    others are assumed to turn right, if the set can turn right level (a set whose right turns
+    descend, like the slash set, would trade the level convention for a height change the others
+    cannot foresee) (D-21); then the path with the largest predicted clearance to the intruders'
+    bodies, rounded to 1 cm (D-18), each intruder on its straight line and turning right at
+    ``give_way_turn_rate`` [rad/s] (:func:`closest_approach`). The exposure to the intruder space
+    (line, body, time window) does not say which side is farther from the aircraft: two vehicles
+    in each other's space chose independently and flew side by side (S8). Against straight lines
+    alone, two converging vehicles each passed behind the other and turned into each other."""
     leaves = tree.leaves()
     cand = leaves[fused.node_ok[leaves]]
     if len(cand) == 0:
@@ -216,6 +238,9 @@ def least_threat_path(
     near = np.linalg.norm(tree.tip[cand] - goal_lcf, axis=1)
     keys = [cand, near, -clear[cand], np.round(exposure[cand], 9)]
     if intruder_motion is not None and len(intruder_motion):
-        keys.append(-np.round(closest_approach(tree, intruder_motion)[cand], 2))
+        keys.append(-np.round(closest_approach(tree, intruder_motion, give_way_turn_rate)[cand], 2))
+        if give_way_turn_rate > 0.0 and (tree.movement == MovementType.RIGHT).any():
+            left = tree.along_paths(tree.tip_att[:, 2] > 1e-9, np.logical_or)  # ever left of the heading
+            keys.append(left[cand])
     best = int(cand[np.lexsort(keys)[0]])
     return PathResult(best, int(tree.tip_cell[best]))

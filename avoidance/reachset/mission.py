@@ -27,7 +27,7 @@ from avoidance.reachset.cache import reach_set
 from avoidance.reachset.config import AvoidanceConfig
 from avoidance.reachset.costtogo import CostToGo
 from avoidance.reachset.frames import GridPose
-from avoidance.reachset.fusion import Categories
+from avoidance.reachset.fusion import Categories, ThreatParts
 from avoidance.reachset.grid import AvoidanceGrid
 from avoidance.reachset.gridrun import (
     GoalCost,
@@ -276,7 +276,7 @@ class MissionControl:
         goal_lcf: np.ndarray,
         steering: Steering,
         goal_cost: GoalCost | None,
-        intruder_motion: np.ndarray,
+        parts: ThreatParts,
     ) -> None:
         """In an emergency, the previous path's future movements stay the start of the new path
         while they are feasible in the selected run (its best continuation is chosen by alg. 6.6
@@ -291,7 +291,9 @@ class MissionControl:
         tree = plan.trees[self.mode]
         kept = dataclasses.replace(run.fused, node_ok=run.fused.node_ok & tree.subtree(node))
         if d.selected > 0 and not run.categories.intruders:
-            path = least_threat_path(tree, kept, d.runs[d.selected - 1].fused, goal_lcf, intruder_motion)
+            path = least_threat_path(
+                tree, kept, d.runs[d.selected - 1].fused, goal_lcf, parts.intruder_motion, parts.give_way_turn_rate
+            )
         else:
             path = find_best_path(plan.grid, tree, kept, goal_lcf, steering, goal_cost)
         if path.ok:
@@ -302,7 +304,7 @@ class MissionControl:
         self,
         d: Decision,
         plan: SegmentPlanning,
-        parts,
+        parts: ThreatParts,
         goal_lcf: np.ndarray,
         steering: Steering,
         goal_cost: GoalCost | None,
@@ -320,7 +322,7 @@ class MissionControl:
             d.runs, d.selected = [run], 0 if run.path.ok else -1
         else:
             d.runs, d.selected = emergency_runs(plan.grid, tree, parts, goal_lcf, threshold, steering, goal_cost)
-            self._keep_course(d, plan, goal_lcf, steering, goal_cost, parts.intruder_motion)
+            self._keep_course(d, plan, goal_lcf, steering, goal_cost, parts)
         chosen = d.run
         if chosen is None:
             raise RuntimeError("mission control: the grid run step made no run")

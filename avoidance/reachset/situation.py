@@ -59,6 +59,7 @@ class Assessor:
             IntruderTrack(s.id, s.t, s.center_ned, s.vel_ned, s.radius_m) for s in moving
         ]
         parts.intruder_motion = intruder_motion(pose, t_grid, tracks, cfg.intruders.body_margin)
+        parts.give_way_turn_rate = cfg.intruders.give_way_turn_rate
         parts.intruders = self.intruder_model.ratings(parts.intruder_motion)
         parts.hard, parts.soft = classify(
             grid, pose, self.constraints(threats, t_grid), cfg.constraints, t_grid, self.uas_leave

@@ -15,7 +15,17 @@ from avoidance.reachset.config import AvoidanceConfig, ExpansionConfig, ReachSet
 from avoidance.utm.collision_case import UtmConfig
 from avoidance.utm.notification import Category, Maneuverability, Margins, Registration
 
-RULE_CODES = ("detect", "resolve", "close", "head_on", "converging", "overtake", "right_plane_heading", "safety_margin")
+RULE_CODES = (
+    "detect",
+    "resolve",
+    "close",
+    "head_on",
+    "converging",
+    "overtake",
+    "right_plane_heading",
+    "safety_margin",
+    "weather",
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -33,8 +43,11 @@ class RulesConfig:
     to the emergency avoidance; ``plane_tolerance`` [unit] how far left of the right-plane a
     trajectory may reach (the plane moves with the estimates: without slack every frame whose
     heading is a little left of the line to the collision point disables all turns,
-    docs/rules.md); ``time_margin`` [grid ranges at cruise] how far ahead a closest approach
-    opens a case; ``airspace`` ``uncontrolled`` (ball, 6.218)
+    docs/rules.md); ``plane_horizon`` [s] the turning time horizon of the right plane's linear
+    projection from every movement end (6.217; 0 = only the trajectory's own points, 6.216);
+    ``time_margin`` [grid ranges at cruise] how far ahead a closest approach
+    opens a case; ``weather_margin`` [unit] the soft band around a weather case's body (§7.5);
+    ``airspace`` ``uncontrolled`` (ball, 6.218)
     or ``controlled`` (well-clear barrel of half height ``barrel_half_height`` [m], 6.219);
     ``navigation``: the planar separations of the ACAS-like navigation reach set the rules
     restrict (the [R] cooperative scenarios S9-S13 use ``horizontal``: a right-plane heading
@@ -44,7 +57,11 @@ class RulesConfig:
     heading is postponed for ever; 9 as the harmonic default turns first, docs/rules.md);
     ``filed``: registrations the UTM holds for peers that differ from the own one, peer id ->
     ``{"category": ..., "maneuverability": ...}`` (e.g. a HAPS, ``linear_propulsion``, among
-    multirotors: it gets the right of way); a peer not listed files the own registration."""
+    multirotors: it gets the right of way); a peer not listed files the own registration;
+    ``plans``: mission plans the UTM holds for peers (intent sharing), peer id -> horizontal
+    waypoints ``[[north, east], ...]`` [m] from the scenario origin, flown at the peer's current
+    altitude: such a peer is predicted along its plan's remaining legs (a waypoint counts as
+    reached once the peer's track comes within two movement lengths of it), not linearly."""
 
     enabled: tuple[str, ...] = RULE_CODES
     unit: float = 1.0
@@ -54,9 +71,11 @@ class RulesConfig:
     overtake: float = 5.0
     converging_extra: float = 0.0
     plane_tolerance: float = 1.0
+    plane_horizon: float = 0.0
     widest: bool = True
     bloat: float = 1.0
     time_margin: float = 2.0
+    weather_margin: float = 5.0
     airspace: str = "uncontrolled"
     barrel_half_height: float = 76.2
     category: str = "uas_autonomous"
@@ -68,6 +87,7 @@ class RulesConfig:
     navigation: tuple[str, ...] = ("horizontal",)
     navigation_spread: int = 9
     filed: dict[str, dict[str, str]] = field(default_factory=dict)
+    plans: dict[str, list[list[float]]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.enabled) - set(RULE_CODES))
@@ -80,6 +100,13 @@ class RulesConfig:
             if not isinstance(reg, dict) or set(reg) - {"category", "maneuverability"}:
                 raise ValueError(f"filed.{peer}: a table of category and/or maneuverability, not {reg!r}")
             _check_class(reg.get("category", self.category), reg.get("maneuverability", self.maneuverability))
+        for peer, plan in self.plans.items():
+            if not (
+                isinstance(plan, list | tuple)
+                and plan
+                and all(isinstance(w, list | tuple) and len(w) == 2 for w in plan)
+            ):
+                raise ValueError(f"plans.{peer}: a list of [north, east] waypoints [m], not {plan!r}")
         bad = sorted(set(self.navigation) - {"horizontal", "vertical", "slash", "backslash"})
         if bad or not self.navigation:
             raise ValueError(
@@ -98,7 +125,9 @@ class RulesConfig:
             "converging_extra",
             "bloat",
             "time_margin",
+            "weather_margin",
             "plane_tolerance",
+            "plane_horizon",
             "established_speed",
             "settle",
         ):

@@ -19,6 +19,7 @@ import numpy as np
 from avoidance.utm.cases import CaseBook
 from avoidance.utm.collision_case import CollisionCase
 from avoidance.utm.notification import PositionNotification
+from avoidance.utm.weather_case import WeatherCase
 
 if TYPE_CHECKING:
     from avoidance.reachset.frames import GridPose
@@ -60,6 +61,9 @@ class RuleContext:
     deadlock_frames: int = 0  # consecutive frames without a restricted path (carried over)
     case: CollisionCase | None = None  # the case a manoeuvre / restriction rule works on
     margin: float = 0.0  # the margin [m] the safety-margin rule enforces for ``case``
+    speed: float | None = None  # the speed [m/s] the rules command this frame (6.202), None: cruise
+    weather: list[WeatherCase] = field(default_factory=list)  # this frame's weather cases
+    goal: np.ndarray | None = None  # GCF [m] the run flies to (mission goal or the rules' override)
 
     @property
     def unit(self) -> float:

@@ -38,6 +38,7 @@ from avoidance.rules.engine import DecisionPoint, RuleContext, RuleEngine
 from avoidance.rules.rules_of_air import make_rules
 from avoidance.utm.cases import CaseBook
 from avoidance.utm.notification import PositionNotification, from_track
+from avoidance.utm.weather_case import weather_cases
 from sim.core.frames import ned_to_enu
 from sim.core.mission import Mission
 from sim.core.plan import Plan, Threats
@@ -71,13 +72,29 @@ class RulesAvoider(ReachSetAvoider):
         self._deadlock_frames = 0
         self._unresolved: set = set()
         self._start: float | None = None
+        self._progress: dict[str, int] = {}  # peers' filed plans: index of the next waypoint
 
     def notifications(self, estimate: VehicleState, threats: Threats, t: float) -> list[PositionNotification]:
         own = PositionNotification(t, self.registration, ned_to_enu(estimate.pos_ned), ned_to_enu(estimate.vel_ned))
         peers = [
-            from_track(tr, self.rules.registration(tr.id, self.speed)) for tr in threats.intruders if tr.cooperative
+            self._with_plan(from_track(tr, self.rules.registration(tr.id, self.speed)))
+            for tr in threats.intruders
+            if tr.cooperative
         ]
         return [own, *peers]
+
+    def _with_plan(self, note: PositionNotification) -> PositionNotification:
+        """A peer with a filed plan (``RulesConfig.plans``) predicted along its remaining legs
+        over the UTM's time margin (intent sharing); its progress is kept per peer."""
+        plan = self.rules.plans.get(note.id)
+        if plan is None:
+            return note
+        wps = np.array([[e, n, note.pos[2]] for n, e in plan], float)  # GCF: x east, y north, at its altitude
+        k = self._progress.get(note.id, 0)
+        while k < len(wps) and float(np.hypot(*(wps[k, :2] - note.pos[:2]))) <= 2.0 * self.length:
+            k += 1
+        self._progress[note.id] = k
+        return note.with_intent(wps[k:], self.book.cfg.time_margin, self.frame)
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         if self._last is not None and not self.frame_due(t):
@@ -97,14 +114,23 @@ class RulesAvoider(ReachSetAvoider):
         )
         self._ctx = ctx
         self._start = ctx.start
+        weather = self.engine.enabled("weather")
+        if weather:  # storm cells become weather cases, handled by the rules instead of the run's constraints
+            ctx.weather = weather_cases(threats.storms, t, self.rules.weather_margin * self.rules.unit)
+        ctl = self.control
+        ctx.goal = ctl.waypoints[min(max(ctl.goal, self.mission.next_index), len(ctl.waypoints) - 1)]
         self.engine.invoke(DecisionPoint.BEFORE_AVOIDANCE_RUN, ctx)
         sensed = dataclasses.replace(
-            threats, intruders=[tr for tr in threats.intruders if tr.id not in ctx.managed or tr.id in ctx.emergency]
+            threats,
+            intruders=[tr for tr in threats.intruders if tr.id not in ctx.managed or tr.id in ctx.emergency],
+            storms=[] if weather else threats.storms,
         )
-        ctl = self.control
         goal = max(ctl.goal, self.mission.next_index)
-        override = ctx.goal_override if goal < len(ctl.waypoints) else None  # overtake: the rule's waypoint
+        override = ctx.goal_override if goal < len(ctl.waypoints) else None  # the rules' waypoint
         plan = self.decide(estimate, sensed, t, override, emergency_threats=threats)
+        if ctx.speed is not None:  # 6.202: slower along the plan (the follower honours it)
+            plan.speed = ctx.speed
+            plan.diagnostics["speed_mps"] = ctx.speed
         ctx.decision = self.last_decision
         d = ctx.current_decision()
         self.engine.invoke(DecisionPoint.AFTER_AVOIDANCE_RUN, ctx)
@@ -121,6 +147,7 @@ class RulesAvoider(ReachSetAvoider):
                 for r in self.book.roundabouts()
             ],
             "emergency": sorted(ctx.emergency),
+            "weather": [w.record() for w in ctx.weather],
             "mode": d.mode.value,
         }
         self._ctx = None

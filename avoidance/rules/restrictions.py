@@ -10,26 +10,37 @@ subtree (``ReachSetTree.along_paths`` with ``np.logical_or``).
 from __future__ import annotations
 
 import numpy as np
+import shapely
 
 from avoidance.reachset.frames import GridPose
 from avoidance.reachset.tree import ReachSetTree
 
 
 def right_plane_heading_mask(
-    tree: ReachSetTree, pose: GridPose, collision_point: np.ndarray, tol: float = 1e-6
+    tree: ReachSetTree, pose: GridPose, collision_point: np.ndarray, tol: float = 1e-6, horizon: float = 0.0
 ) -> np.ndarray:
     """(6.215-6.216) Separation plane through the UAS (grid origin), the collision point and
     the vertical; nodes with any sample more than ``tol`` [m] left of it (left of the line
-    origin -> collision point) are disabled. Only applies while the collision point is in front
-    (X+ > 0); else nothing is disabled. (A turn at a bounded rate starts along the heading: with
-    ``tol`` = 0 a heading a fraction of a degree left of the line disables every trajectory.)"""
+    origin -> collision point) are disabled. (6.217) With ``horizon`` [s] > 0, also nodes whose
+    linear projection ``tip + v·t``, t in [0, horizon], from the movement's end (a decision
+    point: the trajectory can be re-planned there) with its end velocity ``v`` (last sample
+    step) gets more than ``tol`` left: a trajectory ending on the right but heading left.
+    Only applies while the collision point is in front (X+ > 0); else nothing is disabled. (A
+    turn at a bounded rate starts along the heading: with ``tol`` = 0 a heading a fraction of a
+    degree left of the line disables every trajectory.)"""
     cp = pose.to_lcf(np.asarray(collision_point, float))
     if cp[0] <= 0.0:
         return np.zeros(tree.n_nodes, bool)
     u = cp[:2] / max(float(np.hypot(cp[0], cp[1])), 1e-9)
     s = tree.samples
     left = u[0] * s[..., 1] - u[1] * s[..., 0]  # z of u x p: > 0 = left
-    return tree.along_paths((left > tol).any(axis=1), np.logical_or)
+    bad = (left > tol).any(axis=1)
+    if horizon > 0.0:  # left() is linear: the projection stays right iff its end at the horizon does
+        n_sub = s.shape[1] - 1
+        v = (s[:, -1] - s[:, -2]) * n_sub / tree.period
+        end = s[:, -1] + horizon * v
+        bad |= u[0] * end[:, 1] - u[1] * end[:, 0] > tol
+    return tree.along_paths(bad, np.logical_or)
 
 
 def safety_margin_mask(
@@ -103,3 +114,17 @@ def widest_per_cell(tree: ReachSetTree, feasible: np.ndarray, clearance: np.ndar
     first = np.r_[True, tree.tip_cell[ranked][1:] != tree.tip_cell[ranked][:-1]]
     out[ranked[~first]] = True
     return out
+
+
+def weather_masks(tree: ReachSetTree, pose: GridPose, body, velocity: np.ndarray, dt: float, margin: float):
+    """(hard, soft) node masks of a weather cell (spec §7.5): a node is hard when a sample of its
+    path lies in the body, soft when one lies within ``margin`` [m] of it. ``body`` is the cell's
+    polygon GCF (x east, y north) [m] at ``dt`` [s] before the grid's time, moving with
+    ``velocity`` GCF [m/s]: each sample is tested against the body where it is at that sample's
+    time (the sample shifted back by the cell's motion)."""
+    xy = pose.to_gcf(tree.samples)[..., :2] - (dt + tree.sample_times())[..., None] * np.asarray(velocity, float)
+    x, y = xy[..., 0].ravel(), xy[..., 1].ravel()
+    shape = tree.samples.shape[:2]
+    inside = shapely.contains_xy(body, x, y).reshape(shape).any(axis=1)
+    near = shapely.dwithin(body, shapely.points(x, y), margin).reshape(shape).any(axis=1)
+    return tree.along_paths(inside, np.logical_or), tree.along_paths(near, np.logical_or)

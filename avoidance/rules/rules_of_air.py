@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+import shapely
 
 from avoidance.rules.engine import DecisionPoint, RuleContext, RuleEngine
 from avoidance.rules.restrictions import (
@@ -16,12 +17,14 @@ from avoidance.rules.restrictions import (
     path_clearance,
     right_plane_heading_mask,
     safety_margin_mask,
+    weather_masks,
     widest_per_cell,
 )
 from avoidance.utm.cases import as_roundabout
-from avoidance.utm.collision_case import CollisionCase, Encounter, Role
+from avoidance.utm.collision_case import CollisionCase, Encounter, Role, closest_approach
 
 SEVERITY = {Encounter.HEAD_ON: 0, Encounter.CONVERGING: 1, Encounter.OVERTAKE: 2}
+ROUNDABOUT_LEAD_RAD = 0.5  # a chord of 0.5 rad keeps 97 % of the roundabout radius from the centre
 RESOLVING = {Role.ROUNDABOUT: "head_on", Role.CONVERGING: "converging", Role.OVERTAKING: "overtake"}
 
 
@@ -60,7 +63,11 @@ class DetectCollisionCases:
     update the case book from this frame's notifications (the peers whose pair could be
     assessed are managed by the rules, the rest stay intruders), re-target roundabout members,
     report unresolved cases (separation below the case margin: handed to the emergency
-    avoidance), select the own cases to resolve (own role gives way) by severity."""
+    avoidance), select the own cases to resolve (own role gives way) by severity. With several
+    overtaking roles, or one and another give-way role, the UAS slows to
+    ``max(minCruise, min peer speed)`` over those cases (6.202, :func:`overtake_speed`; the spec's
+    divergence order from a central UTM does not exist here: it stays at that speed behind them
+    while the situation lasts)."""
 
     code: str = "detect"
     point: DecisionPoint = DecisionPoint.BEFORE_AVOIDANCE_RUN
@@ -96,10 +103,11 @@ class DetectCollisionCases:
                 ctx.unresolved.add((c.ids, c.head))
                 ctx.emergency.add(c.other(ctx.uas))
                 ctx.record("case_unresolved", c, separation_m=c.separation, margin_m=c.margin)
-        overtakes = [c for c in own if c.role_of(ctx.uas) == Role.OVERTAKING]
-        if len(overtakes) > 1:
-            speeds = [n.speed for n in ctx.notifications if n.id in {c.other(ctx.uas) for c in overtakes}]
-            ctx.record("overtake_speed", speed_mps=overtake_speed(own_note.registration.min_cruise, speeds))
+        giving = [c for c in own if c.role_of(ctx.uas) in RESOLVING]
+        if any(c.role_of(ctx.uas) == Role.OVERTAKING for c in giving) and len(giving) > 1:
+            speeds = [n.speed for n in ctx.notifications if n.id in {c.other(ctx.uas) for c in giving}]
+            ctx.speed = overtake_speed(own_note.registration.min_cruise, speeds)
+            ctx.record("overtake_speed", speed_mps=ctx.speed, peers=sorted(c.other(ctx.uas) for c in giving))
         ctx.resolve = sorted(
             (c for c in own if c.role_of(ctx.uas) in RESOLVING and c.other(ctx.uas) not in ctx.emergency), key=_severity
         )
@@ -241,7 +249,9 @@ def _pass_behind_goal(ctx: RuleContext, case: CollisionCase) -> None:
 @dataclass(frozen=True)
 class RightPlaneHeading:
     """(tab. 6.16) Disable navigation trajectories with a point left of the separation plane
-    (beyond the config's ``plane_tolerance``)."""
+    (beyond the config's ``plane_tolerance``, 6.216) or, with the config's ``plane_horizon`` > 0,
+    whose linear projection from a movement's end over that horizon enters the left subspace
+    (6.217)."""
 
     code: str = "right_plane_heading"
     point: None = None
@@ -253,7 +263,8 @@ class RightPlaneHeading:
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
         tree, pose = ctx.navigation_tree()
         case = ctx.current_case()
-        mask = right_plane_heading_mask(tree, pose, case.collision_point, ctx.cfg.plane_tolerance * ctx.unit)
+        tol = ctx.cfg.plane_tolerance * ctx.unit
+        mask = right_plane_heading_mask(tree, pose, case.collision_point, tol, ctx.cfg.plane_horizon)
         ctx.disable(self.code, mask, case)
 
 
@@ -316,6 +327,94 @@ class CloseCollisionCases:
         )
 
 
+def roundabout_aim(p_uas, centre, radius: float, lead: float) -> np.ndarray:
+    """Where a UAS passing a static weather case like a roundabout aims (GCF [m], the UAS'
+    height): on the circle of ``radius`` [m] around ``centre``, counter-clockwise (the centre on
+    its left), at the tangent point seen from the UAS or, closer in, ``lead`` [rad] ahead of it
+    (a chord of ``lead`` keeps ``radius·cos(lead/2)`` from the centre)."""
+    p, c = np.asarray(p_uas, float), np.asarray(centre, float)
+    off = p[:2] - c[:2]
+    dist = max(float(np.hypot(*off)), 1e-9)
+    angle = float(np.arctan2(off[1], off[0])) + max(float(np.arccos(min(radius / dist, 1.0))), lead)
+    return np.array([c[0] + radius * np.cos(angle), c[1] + radius * np.sin(angle), p[2]])
+
+
+@dataclass(frozen=True)
+class WeatherCases:
+    """(§7.5, tab. 6.9) Before the run: a weather case whose body + band the route to this
+    frame's goal crosses is passed like a roundabout, its centre kept on the left at the radius
+    body + band + bloat (:func:`roundabout_aim` is flown as the run's goal, unless a collision
+    case set one). A static cell where it is; a moving one (intruder-like) where it will be when
+    the UAS, flying its route at cruise, is closest to its centre (linear CPA). The restrictions
+    follow in :class:`WeatherRestriction`."""
+
+    code: str = "weather"
+    point: DecisionPoint = DecisionPoint.BEFORE_AVOIDANCE_RUN
+    priority: int = 1
+
+    def condition(self, ctx: RuleContext) -> bool:
+        return bool(ctx.weather) and ctx.goal is not None and ctx.goal_override is None
+
+    def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
+        own = next(n for n in ctx.notifications if n.id == ctx.uas)
+        goal = np.asarray(ctx.goal, float)
+        route = shapely.LineString([own.pos[:2], goal[:2]])
+        ahead = goal - own.pos
+        cruise = ahead / max(float(np.linalg.norm(ahead)), 1e-9) * own.registration.max_cruise
+        for w in ctx.weather:
+            # a moving cell where the UAS, flying its route at cruise, is closest to its centre
+            c0 = w.centre + np.array([*w.velocity, 0.0]) * (ctx.t - w.t)
+            t_cpa = max(closest_approach(own.pos[:2], cruise[:2], c0[:2], w.velocity)[0], 0.0) if w.moving else 0.0
+            if not shapely.dwithin(w.moved(ctx.t + t_cpa), route, w.margin):
+                continue
+            radius = w.radius + w.margin + ctx.cfg.bloat * ctx.unit
+            centre = c0 + np.array([*w.velocity, 0.0]) * t_cpa
+            ctx.goal_override = roundabout_aim(own.pos, centre, radius, ROUNDABOUT_LEAD_RAD)
+            ctx.events.append(f"rule:weather_roundabout:{w.id}")
+            ctx.decisions.append(
+                {"rule": "weather_roundabout", "weather_case": w.record(), "aim_enu": ctx.goal_override.tolist()}
+            )
+            return  # one aim per frame: the first listed cell the route crosses
+
+
+@dataclass(frozen=True)
+class WeatherRestriction:
+    """(§7.5) Every weather case restricts the navigation reach set: its body is hard (nodes with
+    a sample in it are disabled), its margin band soft (disabled unless that leaves no
+    trajectory); a UAS already inside the band keeps its current distance instead. A moving cell
+    is handled like an intruder: body and band where the cell is at each sample's time."""
+
+    code: str = "weather_restriction"
+    point: DecisionPoint = DecisionPoint.TRAJECTORY_RESTRICTIONS
+    priority: int = 1
+
+    def condition(self, ctx: RuleContext) -> bool:
+        return bool(ctx.weather) and ctx.run is not None
+
+    def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
+        tree, pose = ctx.navigation_tree()
+        t_grid = ctx.current_decision().t_grid
+        ok = ctx.current_run().fused.node_ok
+        for w in ctx.weather:
+            here = float(shapely.distance(w.moved(t_grid), shapely.Point(*pose.origin[:2])))
+            band = min(w.margin, here)
+            hard, soft = weather_masks(tree, pose, w.body, w.velocity, t_grid - w.t, band)
+            before = np.zeros(tree.n_nodes, bool) if ctx.disabled is None else ctx.disabled
+            soft_kept = not (ok & ~(before | hard | soft)).any()  # soft: given up only when nothing is left
+            ctx.disabled = before | hard if soft_kept else before | hard | soft
+            ctx.events.append(f"rule:weather:{w.id}:{'moving' if w.moving else 'static'}")
+            ctx.decisions.append(
+                {
+                    "rule": "weather",
+                    "weather_case": w.record(),
+                    "band_m": band,
+                    "hard_nodes": int((hard & ~before).sum()),
+                    "soft_nodes": 0 if soft_kept else int((soft & ~before & ~hard).sum()),
+                    "soft_kept": soft_kept,
+                }
+            )
+
+
 def make_rules(enabled) -> list:
     """The rule objects of the enabled codes."""
     every = {
@@ -327,5 +426,7 @@ def make_rules(enabled) -> list:
         "overtake": Overtake(),
         "right_plane_heading": RightPlaneHeading(),
         "safety_margin": EnforceSafetyMargin(),
+        "weather": WeatherCases(),
     }
-    return [every[c] for c in enabled]
+    extra = [WeatherRestriction()] if "weather" in enabled else []
+    return [every[c] for c in enabled] + extra

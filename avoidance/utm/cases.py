@@ -11,7 +11,8 @@ which the pair is past its closest approach, at least the head's margin apart an
 away from the head's collision point (spec §7.2) and, for an overtake, the overtaking UAS is the
 margin ahead of the overtaken (:func:`overtaken`), or the peer is no longer reported. (Closing
 as soon as the pair diverged let a 4-UAS roundabout cut back across its centre and meet again.)
-Merge: the active chains that share a UAS form a cluster; a cluster of two or more chains is a
+Merge: the active head-on and converging chains that share a UAS form a cluster (overtakes are
+not merged: several at once slow the overtaking UAS, 6.202); a cluster of two or more chains is a
 virtual roundabout with centre = mean of the head collision points (weights 1, 6.195) and margin
 = the largest margin of its cases (6.196); every member then circles it (role roundabout).
 Frames/units: GCF (ENU) [m], sim seconds [s].
@@ -113,8 +114,10 @@ class CaseBook:
         return [c.case for k, c in sorted(self.chains.items()) if uas is None or uas in k]
 
     def roundabouts(self) -> list[Roundabout]:
-        """Clusters of two or more active cases sharing a UAS, as virtual roundabouts."""
-        cases = self.active()
+        """Clusters of two or more active head-on / converging cases sharing a UAS, as virtual
+        roundabouts. Overtakes stay apart: they are resolved by their divergence / convergence
+        waypoints and, several at once, by the speed change (6.202)."""
+        cases = [c for c in self.active() if c.encounter != Encounter.OVERTAKE]
         parent: dict[str, str] = {}
 
         def find(x: str) -> str:

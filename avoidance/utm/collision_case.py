@@ -3,7 +3,7 @@
 Frames and units: z-up GCF (ENU) [m], velocities [m/s], times sim seconds [s], angles degrees
 (the angle of approach α, as in the thesis' thresholds). Steps: adjust both notifications to the
 frame time; linear closest point of approach (6.184-6.185 corrected); trajectory intersection of
-the movement predictions when both are known (6.187-6.189, midpoint); flag when the predicted
+the movement predictions when one is known (6.187-6.189, midpoint; the other linear); flag when the predicted
 distance is within the collision margin (6.186) no later than ``time_margin``; then the
 encounter by α (6.190-6.191), the roles and the case's safety margin (6.192-6.194).
 """
@@ -235,16 +235,16 @@ def compute_collision_case(
 ) -> CollisionCase | None:
     """The case of the pair at frame time ``t`` [s], or None when they cannot meet (different
     flight levels) or one of them hovers (below ``min_speed``). ``flagged`` is set when the
-    closest approach (trajectory intersection when both predictions are known, else linear) lies
+    closest approach (trajectory intersection when a prediction is known, else linear) lies
     in [0, time_margin] and within the collision margin (6.186)."""
     if not n1.shares_level(n2) or min(n1.speed, n2.speed) < cfg.min_speed:
         return None
     a1, a2 = n1.adjusted(t), n2.adjusted(t)
     t_cpa, dist, cp = closest_approach(a1.pos, a1.vel, a2.pos, a2.vel)
     trajectory = False
-    t1, t2 = a1.trajectory_t, a2.trajectory_t
-    if a1.trajectory is not None and a2.trajectory is not None and t1 is not None and t2 is not None:
-        times = np.union1d(t1, t2)
+    known = [n.trajectory_t for n in (a1, a2) if n.trajectory is not None and n.trajectory_t is not None]
+    if known:  # one filed prediction is enough: the other UAS is then predicted linearly on its times
+        times = np.union1d(known[0], known[-1])
         times = times[(times >= t) & (times <= t + cfg.time_margin)]
         if len(times) > 1:
             p1 = np.stack([a1.adjusted(s).pos for s in times])

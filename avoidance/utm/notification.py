@@ -94,8 +94,9 @@ def flight_levels(altitude_m: float, climb_rate: float = 0.0, climbing: float = 
 @dataclass(frozen=True, slots=True)
 class PositionNotification:
     """One UAS at time ``t``: position / velocity in GCF (ENU) [m, m/s], flight levels and its
-    registration; ``trajectory`` (T, 3) GCF at ``trajectory_t`` (T,) [s] is the filed movement
-    prediction (6.187) when known (own UAS), else None (peers: linear prediction)."""
+    registration; ``trajectory`` (T, 3) GCF at ``trajectory_t`` (T,) [s] is the movement
+    prediction (6.187) when known (a filed plan: :meth:`with_intent`), else None (linear
+    prediction)."""
 
     t: float
     registration: Registration
@@ -130,6 +131,21 @@ class PositionNotification:
         else:
             pos = self.pos + self.vel * (t - self.t)
         return replace(self, t=t, pos=pos)
+
+    def with_intent(self, plan: np.ndarray, horizon: float, step: float = 1.0) -> PositionNotification:
+        """This notification predicted along its filed mission plan (intent sharing, §7.4 step
+        1): ``plan`` (K, 3) GCF [m] = the plan's waypoints not yet reached, the next first; the UAS
+        flies from its position to the next waypoint, then leg by leg, at its current speed,
+        holding at the last one; sampled every ``step`` [s] over [t, t + horizon]."""
+        plan = np.asarray(plan, float).reshape(-1, 3)
+        times = self.t + np.arange(0.0, horizon + step / 2, step)
+        if len(plan) == 0:
+            return self
+        path = np.vstack([self.pos, plan])
+        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+        flown = np.minimum(self.speed * (times - self.t), arc[-1])
+        traj = np.stack([np.interp(flown, arc, path[:, k]) for k in range(3)], axis=1)
+        return replace(self, trajectory=traj, trajectory_t=times)
 
 
 def from_track(track: IntruderTrack, registration: Registration) -> PositionNotification:

@@ -47,9 +47,21 @@ class MptpConfig:
     sigma from ``sigma_back_mps`` (against the motion) to ``sigma_front_mps`` (along it), capped
     at ``prob_margin_max_m``; safety margins [m] by cell speed band (<10, <20, >=20 m/s) for a
     single cell and a line of storms (aspect ratio >= ``line_aspect``); both added (ch. 6
-    "sum of safety and probabilistic margins"). ``cluster_eps_m`` > 0 closes passages narrower
-    than it (3.1.4); ``simplify_tol_m`` is the Douglas-Peucker tolerance, added to the margins
-    first so that smoothing never undercuts them (Fig. 4.3).
+    "sum of safety and probabilistic margins"). ``probabilities``: several P levels planned
+    for, the feasible plan of the largest P flown (3.1.1 end); empty = ``probability`` alone.
+    ``safety_area_steps``: rows [area [km^2], extra [m]] with increasing area, the extra of
+    the largest step at or below a cell's area added to its safety margin (3.1.2: the margin
+    grows with a cell's size). ``downwind_factor`` >= 1: the safety margin on the downwind
+    side of a cell over the one on its upwind side (3.1.2: turbulence and hail are met
+    downwind), the wind being the planner's forecast or, in still air, the cell's motion.
+    ``cluster_eps_m`` > 0 closes passages narrower than it (3.1.4); ``simplify_tol_m`` is the
+    Douglas-Peucker tolerance, added to the margins first so that smoothing never undercuts
+    them (Fig. 4.3).
+
+    Holding (5.4): ``hold_speed_correction`` flies a holding orbit on the circumcircle of its
+    n-gon of fly-over states at V_cor = V dV(n) (eq. 5.78), so each state is reached after dt;
+    ``holding_points``: pre-defined holding locations [[north, east], ...] [m], used (nearest
+    first) when the goal is covered over the whole horizon and the orbit there is free.
 
     ``mission_area``: where the aircraft may fly, (north, east) [m], a Polygon or its exterior
     vertices [[north, east], ...] (scenario files); None = unrestricted (the workspace is then the
@@ -80,15 +92,20 @@ class MptpConfig:
     search_weight: float = 1.1
     dominance_s: float = 240.0
     probability: float = 0.9
+    probabilities: tuple[float, ...] = ()
     sigma_front_mps: float = 1.5
     sigma_back_mps: float = 0.75
     prob_margin_max_m: float = 15_000.0
     safety_single_m: tuple[float, float, float] = (5_000.0, 6_000.0, 8_000.0)
     safety_line_m: tuple[float, float, float] = (8_000.0, 9_000.0, 10_000.0)
     line_aspect: float = 3.0
+    safety_area_steps: tuple[tuple[float, float], ...] = ()
+    downwind_factor: float = 1.0
     cluster_eps_m: float = 0.0
     simplify_tol_m: float = 200.0
     ring_segments: int = 72
+    hold_speed_correction: bool = False
+    holding_points: tuple[tuple[float, float], ...] = ()
     mission_area: Polygon | None = None
     goal_track: tuple[tuple[float, float, float], ...] | None = None
     g: float = STANDARD_GRAVITY
@@ -109,6 +126,18 @@ class MptpConfig:
             raise ValueError("need vertical_margin_m >= 0 and climb_rate_mps >= 0")
         if not 0 <= self.probability < 1:
             raise ValueError("probability must be in [0, 1)")
+        levels = _rows(self.probabilities, 0, "probabilities: expected a list of P in [0, 1)")
+        if not all(0 <= p < 1 for p in levels):
+            raise ValueError("probabilities: expected a list of P in [0, 1)")
+        object.__setattr__(self, "probabilities", tuple(float(p) for p in levels))
+        steps = _rows(self.safety_area_steps, 2, "safety_area_steps: expected rows [area km^2, extra m]")
+        if len(steps) and (np.any(steps < 0) or np.any(np.diff(steps[:, 0]) <= 0)):
+            raise ValueError("safety_area_steps: expected rows [area km^2, extra m] >= 0 with increasing area")
+        object.__setattr__(self, "safety_area_steps", tuple(map(tuple, steps.tolist())))
+        if not self.downwind_factor >= 1.0:
+            raise ValueError(f"downwind_factor: expected >= 1, got {self.downwind_factor!r}")
+        points = _rows(self.holding_points, 2, "holding_points: expected rows [north, east] [m]")
+        object.__setattr__(self, "holding_points", tuple(map(tuple, points.tolist())))
         if self.heuristic not in ("dijkstra", "edh", "ssph") or self.turning not in ("both", "right", "left"):
             raise ValueError(f"unknown heuristic {self.heuristic!r} or turning {self.turning!r}")
         if self.speed_source not in ("estimate", "config"):
@@ -130,6 +159,11 @@ class MptpConfig:
     def turn_radius_m(self) -> float:
         """Minimum turn radius R = V^2 / (g tan(bank_max)) [m] (seed 002 eq. 5.67)."""
         return self.tas_mps**2 / (self.g * math.tan(self.bank_max))
+
+    @property
+    def probability_levels(self) -> tuple[float, ...]:
+        """The P levels planned for, largest first (3.1.1)."""
+        return tuple(sorted(set(self.probabilities or (self.probability,)), reverse=True))
 
     @property
     def leg_m(self) -> float:
@@ -168,6 +202,17 @@ def _is_numeric(value) -> bool:
     except (TypeError, ValueError):
         return False
     return True
+
+
+def _rows(value, width: int, message: str) -> np.ndarray:
+    """``value`` as a finite float array: (N,) for width 0, else (N, width) (N may be 0)."""
+    try:
+        arr = np.asarray(value, float).reshape(-1) if width == 0 else np.asarray(value, float).reshape(-1, width)
+    except (TypeError, ValueError):
+        raise ValueError(message) from None
+    if not np.isfinite(arr).all() or (width and np.ndim(value) != 2 and len(arr)):
+        raise ValueError(message)
+    return arr
 
 
 def _area(vertices) -> Polygon:

@@ -10,7 +10,14 @@
   is not in the seed; this closed form has the same three properties (grows with t, largest in
   the moving direction, larger for larger P) and is bounded by ``prob_margin_max_m``.
 - Safety margin: FAA-style clearance by cell speed band and by appearance (single cell or line
-  of storms, Table 3.1), independent of the lead time.
+  of storms, Table 3.1, its wind-speed bands applied to the cell's speed: cells move with the
+  wind of their steering level), plus an extra by the cell's area (``safety_area_steps``),
+  independent of the lead time. On the downwind side it is ``downwind_factor`` f times the
+  upwind one (3.1.2: turbulence and hail are frequently met downwind): around every vertex
+  the safety reach in the offset direction phi is s (1 + (f - 1)(1 + cos phi) / 2), phi the
+  angle between that direction and the downwind one (a limacon instead of a circle: s
+  upwind, f s downwind, (1 + f) s / 2 across). The downwind direction is the wind's (the
+  planner's forecast) or, in still air, the cell's motion.
 - The two are superimposed by adding their radii (ch. 6: "the sum of safety and probabilistic
   margins"); the margin polygon is the convex hull of the cell and all circles, each circle a
   circumscribed polygon so that the hull contains the true discs.
@@ -39,10 +46,29 @@ def probability_factor(p: float) -> float:
     return math.sqrt(-2.0 * math.log1p(-p))
 
 
-def safety_margin_m(speed_mps: np.ndarray, is_line: np.ndarray, cfg: MptpConfig) -> np.ndarray:
-    """Safety clearance [m] per cell from its speed band and appearance (Table 3.1)."""
+def safety_margin_m(
+    speed_mps: np.ndarray, is_line: np.ndarray, cfg: MptpConfig, area_m2: np.ndarray | None = None
+) -> np.ndarray:
+    """Safety clearance [m] per cell from its speed band and appearance (Table 3.1), plus the
+    extra of its area step [m^2] (``safety_area_steps``; none when ``area_m2`` is None)."""
     band = np.searchsorted(SPEED_BANDS_MPS, np.asarray(speed_mps, float), side="right")
-    return np.where(is_line, np.take(cfg.safety_line_m, band), np.take(cfg.safety_single_m, band))
+    base = np.where(is_line, np.take(cfg.safety_line_m, band), np.take(cfg.safety_single_m, band))
+    if area_m2 is None or not cfg.safety_area_steps:
+        return base
+    steps = np.asarray(cfg.safety_area_steps)
+    k = np.searchsorted(steps[:, 0] * 1e6, np.asarray(area_m2, float), side="right")
+    return base + np.concatenate([[0.0], steps[:, 1]])[k]
+
+
+def downwind_scale(directions: np.ndarray, downwind: np.ndarray, factor: float) -> np.ndarray:
+    """Factor on the safety margin in the offset ``directions`` (K, 2) (unit vectors): 1 against
+    the ``downwind`` direction (2,) (any length; zero = no wind, 1 everywhere), ``factor`` along
+    it, 1 + (factor - 1)(1 + cos phi) / 2 in between (a limacon, convex for factor <= 3)."""
+    norm = float(np.hypot(*downwind))
+    if factor == 1.0 or norm < 1e-9:
+        return np.ones(len(directions))
+    cos_p = (directions @ downwind) / (np.linalg.norm(directions, axis=1) * norm)
+    return 1.0 + (factor - 1.0) * 0.5 * (1.0 + cos_p)
 
 
 def is_line_of_storms(hulls: np.ndarray, aspect: float) -> np.ndarray:
@@ -63,14 +89,18 @@ def margin_hulls(
     lead_s: float,
     cfg: MptpConfig,
     extra_m: float = 0.0,
+    wind_ne: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Convex margin polygon of every cell at lead time ``lead_s`` [s] (array of Polygons)."""
+    """Convex margin polygon of every cell at lead time ``lead_s`` [s] (array of Polygons);
+    ``wind_ne`` (north, east) [m/s] the wind whose downwind side gets ``downwind_factor``
+    (None or zero: each cell's motion)."""
     if len(cells) == 0:
         return np.empty(0, object)
     hulls = shapely.convex_hull(np.asarray(cells, object))
     vel = np.zeros((len(cells), 2)) if velocities_ne is None else np.asarray(velocities_ne, float).reshape(-1, 2)
     speed = np.hypot(vel[:, 0], vel[:, 1])
-    safety = safety_margin_m(speed, is_line_of_storms(hulls, cfg.line_aspect), cfg)
+    safety = safety_margin_m(speed, is_line_of_storms(hulls, cfg.line_aspect), cfg, shapely.area(hulls))
+    wind = np.zeros(2) if wind_ne is None else np.asarray(wind_ne, float).reshape(2)
     k = probability_factor(cfg.probability) * max(lead_s, 0.0)
     ang = np.linspace(0.0, 2 * math.pi, CIRCLE_SEGMENTS, endpoint=False)
     unit = np.stack([np.cos(ang), np.sin(ang)], 1) / math.cos(math.pi / CIRCLE_SEGMENTS)
@@ -85,7 +115,8 @@ def margin_hulls(
         else:
             sigma = np.full(len(v), 0.5 * (cfg.sigma_front_mps + cfg.sigma_back_mps))
         r = safety[i] + np.minimum(k * sigma, cfg.prob_margin_max_m) + extra_m
-        pts = (v[:, None, :] + r[:, None, None] * unit[None]).reshape(-1, 2)
+        grow = safety[i] * (downwind_scale(unit, wind if wind.any() else vel[i], cfg.downwind_factor) - 1.0)
+        pts = (v[:, None, :] + r[:, None, None] * unit[None] + grow[None, :, None] * unit[None]).reshape(-1, 2)
         coords.append(pts)
         owner.append(np.full(len(pts), i))
     mp = shapely.multipoints(np.vstack(coords), indices=np.concatenate(owner))

@@ -6,8 +6,10 @@ times in sim seconds [s]. The planner keeps its last plan and replans at a fixed
 whenever a new nowcast arrives (the thesis replans at every nowcast update); in between it
 returns the same plan. A replan (Algorithm 2 of seed 002):
 
-1. the storm nowcast (``threats.storms``) becomes an ObstacleTimeline (cached per nowcast);
-2. if the goal stays covered over the whole horizon: a holding orbit (status DEGRADED);
+1. the storm nowcast (``threats.storms``) becomes an ObstacleTimeline (cached per nowcast and
+   probability level);
+2. if the goal stays covered over the whole horizon: a holding orbit (status DEGRADED), at the
+   nearest pre-defined holding location the search reaches with a free orbit, else here;
 3. else the time-dependent A* from the estimated state (position, course) to the goal, with
    one-way auxiliary states while the goal is covered at the direct arrival time (5.4);
    a plan that circles (holding) is DEGRADED;
@@ -15,6 +17,11 @@ returns the same plan. A replan (Algorithm 2 of seed 002):
    state with the best heuristic that lasts until the next replan (DEGRADED; every leg is
    conflict free like any other), else straight flight inside the estimated safe area
    (NO_SOLUTION).
+
+Steps 1-4 run for every probability level of the config, largest P first; the first plan that
+reaches the goal is flown (3.1.1: "the feasible solution with the highest P"), and when no
+level's does, the largest P's fall-back (the largest margins; a smaller P only earns its
+smaller margins by reaching the goal). Diagnostics ``probability`` and ``levels_tried``.
 
 With a wind forecast (wind.py) every step runs in the air-mass frame of the wind at the flight
 level (the mean of the estimate's and the goal's heights): storms drift at their velocity minus
@@ -87,6 +94,7 @@ class MptpPlanner:
         self._t_plan = -math.inf
         self._goal_index = -1
         self._nowcast_key: tuple | None = None
+        self._timelines: dict[float, ObstacleTimeline] = {}  # of the last nowcast, per P
         self._issue: tuple = ()  # identity of the last nowcast seen
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
@@ -122,15 +130,16 @@ class MptpPlanner:
     def _timeline_for(
         self, storms: list[StormSnapshot], t: float, wind: np.ndarray, cfg: MptpConfig, key: tuple
     ) -> tuple[ObstacleTimeline, float]:
-        """The timeline of ``storms``, rebuilt when ``key`` (the nowcast and the cells that apply),
-        the wind or the planning speed changed since the last one."""
+        """The timeline of ``storms`` at ``cfg``'s probability, cached per P while ``key`` (the
+        nowcast and the cells that apply), the wind and the planning speed stay the same."""
         key = (*key, tuple(wind), cfg.tas_mps)
-        if key != self._nowcast_key or self.timeline is None:
+        if key != self._nowcast_key:
+            self._timelines, self._nowcast_key = {}, key
+        if cfg.probability not in self._timelines:
             wall = time.perf_counter()
-            self.timeline = ObstacleTimeline(storms, cfg, t + 2 * cfg.horizon_s, wind)
-            self._nowcast_key = key
-            return self.timeline, time.perf_counter() - wall
-        return self.timeline, 0.0
+            self._timelines[cfg.probability] = ObstacleTimeline(storms, cfg, t + 2 * cfg.horizon_s, wind)
+            return self._timelines[cfg.probability], time.perf_counter() - wall
+        return self._timelines[cfg.probability], 0.0
 
     def config_now(self, est: VehicleState) -> MptpConfig:
         """The configuration at the vehicle's current true airspeed [m/s] (``speed_source``
@@ -153,10 +162,37 @@ class MptpPlanner:
         return self.wind.at(-0.5 * (float(est.pos_ned[2]) + float(self.mission.waypoints[k, 2])))
 
     def _replan(self, est: VehicleState, storms: list[StormSnapshot], t: float, k: int) -> Plan:
-        cfg = self.config_now(est)
-        w = self.wind_ne = self._wind_at(est, k)
-        near, key, ignored = self._storms_near(est, storms, k, cfg)
-        tl, weather_s = self._timeline_for(near, t, w, cfg, key)
+        """Plans for every probability level, largest P first, and keeps the first feasible
+        plan (one that reaches the goal); when none is, the largest P's fall-back (3.1.1). Every
+        level plans at the current airspeed with the cells the vehicle can come near in height."""
+        self.wind_ne = self._wind_at(est, k)
+        now = self.config_now(est)
+        near, key, ignored = self._storms_near(est, storms, k, now)
+        levels = self.cfg.probability_levels
+        fallback: tuple[Plan, ObstacleTimeline, Trajectory | None] | None = None
+        for p in levels:
+            cfg = now if p == now.probability else now.with_(probability=p)
+            plan, traj = self._replan_at(cfg, est, near, key, t, k)
+            plan.diagnostics.update(probability=p, levels_tried=levels.index(p) + 1, cells_ignored=ignored)
+            assert self.timeline is not None
+            if traj is not None and traj.status == "ok":
+                self.trajectory = traj
+                return plan
+            fallback = fallback or (plan, self.timeline, traj)
+        assert fallback is not None
+        plan, self.timeline, self.trajectory = fallback
+        plan.diagnostics["levels_tried"] = len(levels)
+        return plan
+
+    def _replan_at(
+        self, cfg: MptpConfig, est: VehicleState, storms: list[StormSnapshot], key: tuple, t: float, k: int
+    ) -> tuple[Plan, Trajectory | None]:
+        """One replan at ``cfg``'s probability and speed on ``storms`` (``key``: their cache key):
+        the plan and the search's trajectory (None when the goal is covered over the whole
+        horizon and the plan holds)."""
+        w = self.wind_ne
+        tl, weather_s = self._timeline_for(storms, t, w, cfg, key)
+        self.timeline = tl
         t_ref = tl.t_issue
         ground_goal = self.goal_track or GoalTrack.fixed(self.mission.waypoints[k, :2])
         goal = air_goal(ground_goal, w, t_ref, t, t + 2 * cfg.horizon_s) if w.any() else ground_goal
@@ -167,7 +203,6 @@ class MptpPlanner:
             "heuristic": cfg.heuristic,
             "weather_s": weather_s,
             "tas_mps": cfg.tas_mps,
-            "cells_ignored": ignored,
         }
         if w.any():
             diag.update(wind_north_mps=float(w[0]), wind_east_mps=float(w[1]))
@@ -176,11 +211,11 @@ class MptpPlanner:
         availability = GoalAvailability(tl, goal)
         levels = tl.interval(t + np.arange(0.0, cfg.horizon_s + cfg.dt_s, cfg.dt_s))
         if all(availability.covered(int(j)) for j in levels):
-            orbit = holding_orbit(tl, p0, t, course, t + cfg.replan_period_s, cfg, _one_way(cfg.turning))
-            if orbit is not None:
-                pts, times, _ = orbit
-                diag.update(runtime_s=time.perf_counter() - wall, holding_s=float(times[-1] - t), reason="goal covered")
-                return self._to_plan(t, est, pts, times, np.full(len(pts), -1), PlanStatus.DEGRADED, diag)
+            hold = self._hold_at_point(cfg, tl, p0, t, course) or self._hold_here(cfg, tl, p0, t, course)
+            if hold is not None:
+                pts, times, reason = hold
+                diag.update(runtime_s=time.perf_counter() - wall, holding_s=float(times[-1] - t), reason=reason)
+                return self._to_plan(t, est, pts, times, np.full(len(pts), -1), PlanStatus.DEGRADED, diag), None
         arrival = float(goal.intercept(p0, np.array([t]), cfg.tas_mps)[0])
         turning = _one_way(cfg.turning) if availability.covered(int(tl.interval(arrival))) else cfg.turning
         # a partial trajectory must last until the next replan (the follower flies straight on
@@ -188,7 +223,6 @@ class MptpPlanner:
         traj = plan_trajectory(
             tl, p0, t, course, goal, cfg, workspace, turning=turning, min_partial_s=cfg.replan_period_s
         )
-        self.trajectory = traj
         diag.update(
             expanded=traj.expanded,
             trst=max(len(traj.positions) - 1, 0),
@@ -204,18 +238,55 @@ class MptpPlanner:
             labels[-1] = k
             diag.update(eta_s=float(traj.times[-1] - t), holding_turns=traj.holding_turn / (2 * math.pi))
             status = PlanStatus.DEGRADED if holding else PlanStatus.OK
-            return self._to_plan(t, est, traj.positions, traj.times, labels, status, diag)
+            return self._to_plan(t, est, traj.positions, traj.times, labels, status, diag), traj
         if len(traj.positions) >= 2:  # the search's best progress towards the goal
             diag.update(reason="search " + traj.status + ": partial plan", eta_s=float(traj.times[-1] - t))
-            return self._to_plan(
+            plan = self._to_plan(
                 t, est, traj.positions, traj.times, np.full(len(traj.positions), -1), PlanStatus.DEGRADED, diag
             )
+            return plan, traj
         fs = traj.start_space or free_space(tl, p0, t, workspace, cfg.tas_mps, cfg.ring_segments)
         end, _ = safe_area_leg(fs, course, cfg, cfg.tas_mps * cfg.replan_period_s * 2)
         pts = np.vstack([p0, end])
         times = t + np.r_[0.0, np.linalg.norm(end - p0) / cfg.tas_mps]
         diag["reason"] = "search " + traj.status
-        return self._to_plan(t, est, pts, times, np.full(2, -1), PlanStatus.NO_SOLUTION, diag)
+        return self._to_plan(t, est, pts, times, np.full(2, -1), PlanStatus.NO_SOLUTION, diag), traj
+
+    def _hold_here(
+        self, cfg: MptpConfig, tl: ObstacleTimeline, p0: np.ndarray, t: float, course: float
+    ) -> tuple[np.ndarray, np.ndarray, str] | None:
+        """A holding orbit from the current state until the next replan, or None."""
+        orbit = holding_orbit(tl, p0, t, course, t + cfg.replan_period_s, cfg, _one_way(cfg.turning))
+        return None if orbit is None else (orbit[0], orbit[1], "goal covered")
+
+    def _hold_at_point(
+        self, cfg: MptpConfig, tl: ObstacleTimeline, p0: np.ndarray, t: float, course: float
+    ) -> tuple[np.ndarray, np.ndarray, str] | None:
+        """The trajectory to the nearest pre-defined holding location (5.4) that the search
+        reaches and whose orbit, for a replan period after arrival, is free; None when none is."""
+        points = np.asarray(cfg.holding_points, float).reshape(-1, 2)
+        w, t_ref = self.wind_ne, tl.t_issue
+        ground = to_air(points, t, w, t_ref) if w.any() else points
+        for i in np.argsort(np.linalg.norm(ground - p0, axis=1), kind="stable"):
+            fix = GoalTrack.fixed(points[i])
+            goal = air_goal(fix, w, t_ref, t, t + 2 * cfg.horizon_s) if w.any() else fix
+            traj = plan_trajectory(tl, p0, t, course, goal, cfg, self._workspace(p0, goal, t, w, t_ref, cfg))
+            if traj.status != "ok":
+                continue
+            t_arr = float(traj.times[-1])
+            orbit = holding_orbit(
+                tl,
+                traj.positions[-1],
+                t_arr,
+                float(traj.courses[-1]),
+                t_arr + cfg.replan_period_s,
+                cfg,
+                _one_way(cfg.turning),
+            )
+            if orbit is not None:
+                pts = np.vstack([traj.positions, orbit[0][1:]])
+                return pts, np.concatenate([traj.times, orbit[1][1:]]), f"goal covered: holding at point {int(i)}"
+        return None
 
     def _workspace(
         self, p0: np.ndarray, goal: GoalTrack, t: float, w: np.ndarray, t_ref: float, cfg: MptpConfig

@@ -75,7 +75,8 @@ class ObstacleTimeline:
     will ask about (cells are extrapolated up to it); ``cfg``: margins, dt and tolerances;
     ``drift_ne`` [m/s]: the velocity of the frame the shapes are given in (the wind, for the
     air-mass frame, see wind.py): a shape at time t is moved by -drift (t - t_issue). Margins
-    and cell matching use the ground velocities of the nowcast.
+    and cell matching use the ground velocities of the nowcast; the drift is also the wind
+    whose downwind side the safety margins grow on (margins.py).
     """
 
     def __init__(
@@ -92,7 +93,9 @@ class ObstacleTimeline:
         snaps = _extrapolate(snaps, t_end, cfg.dt_s * max(1, round(300.0 / cfg.dt_s)))
         self.snapshots = snaps
         self.times = np.array([s.t for s in snaps])
-        hulls = [margin_hulls(s.cells, s.velocities_ne, s.t - self.t_issue, cfg, self.extra_m) for s in snaps]
+        hulls = [
+            margin_hulls(s.cells, s.velocities_ne, s.t - self.t_issue, cfg, self.extra_m, self.drift) for s in snaps
+        ]
         self._pairs = [
             self._interval_pairs(snaps[k], snaps[k + 1], hulls[k], hulls[k + 1]) for k in range(len(snaps) - 1)
         ] or [self._held_pairs(hulls[0])]
@@ -111,7 +114,7 @@ class ObstacleTimeline:
         pairs = [(ha[i], hb[j]) for i, j in zip(ia, jb, strict=False)]
         lost = np.setdiff1d(np.arange(len(a.cells)), ia)
         if len(lost):
-            ext = margin_hulls(list(moved[lost]), va[lost], b.t - self.t_issue, self.cfg, self.extra_m)
+            ext = margin_hulls(list(moved[lost]), va[lost], b.t - self.t_issue, self.cfg, self.extra_m, self.drift)
             pairs += list(zip(ha[lost], ext, strict=False))
         pairs += [(hb[j], hb[j]) for j in np.setdiff1d(np.arange(len(b.cells)), jb)]
         return self._pairset_of(a.t, b.t, [minkowski_sequences(_ring(p), _ring(q)) for p, q in pairs])

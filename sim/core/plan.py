@@ -28,7 +28,9 @@ class PlanStatus(str, Enum):
 class Plan:
     """Reference trajectory: ``positions`` (N, 3) NED [m], ``times`` (N,) sim time [s] at which
     each vertex is due, optional ``velocities`` (N, 3) NED [m/s], and per-vertex ``labels``
-    (mission waypoint index, or -1 for a vertex the planner added)."""
+    (mission waypoint index, or -1 for a vertex the planner added). ``speed`` [m/s]: a speed the
+    planner commands along the plan below the mission's cruise speed (the rules' overtake speed
+    change, 6.202), honoured by the multirotor follower; None = the cruise speed."""
 
     t: float
     positions: np.ndarray
@@ -38,6 +40,7 @@ class Plan:
     velocities: np.ndarray | None = None
     planner: str = ""
     diagnostics: dict[str, float | int | str] = field(default_factory=dict)
+    speed: float | None = None
 
     def __post_init__(self) -> None:
         n = len(self.positions)

@@ -1,4 +1,5 @@
-"""Intruders (spec §5.4, (6.116)-(6.151), A-29, A-31): linear prediction in the LCF and three
+"""Intruders (spec §5.4, (6.116)-(6.151), A-29, A-31): linear prediction in the LCF (and, with a
+give-way turn rate, a right-turning one as well, D-21 of docs/reachset.md) and three
 space-intersection models (line, body volume, manoeuvre-uncertainty elliptic cone), each with
 its time-intersection rate against the UAS entry/leave window of the cell.
 
@@ -52,6 +53,26 @@ def _time_rate(i_e: np.ndarray, i_l: np.ndarray, u_e: np.ndarray, u_l: np.ndarra
         return np.where(span > 1e-9, overlap / span, inst)
 
 
+def predicted_positions(pos: np.ndarray, vel: np.ndarray, t: np.ndarray, right_turn_rate: float) -> np.ndarray:
+    """LCF positions [m] at the times ``t`` [s] of intruders at ``pos`` [m] with velocity ``vel``
+    [m/s] at t = 0 (``pos``, ``vel`` (..., 3) broadcast against ``t`` (...)): on the straight line
+    if ``right_turn_rate`` is 0, else turning right (clockwise seen from above, LCF z up) at that
+    rate [rad/s] at constant speed and climb rate."""
+    t = np.asarray(t, float)[..., None]
+    if right_turn_rate == 0.0:
+        return pos + t * vel
+    a = right_turn_rate * t[..., 0]
+    s, k = np.sin(a) / right_turn_rate, (1.0 - np.cos(a)) / right_turn_rate
+    vx, vy, vz = vel[..., 0], vel[..., 1], vel[..., 2]
+    return pos + np.stack([vx * s + vy * k, vy * s - vx * k, vz * t[..., 0]], axis=-1)
+
+
+def prediction_rates(give_way_turn_rate: float) -> tuple[float, ...]:
+    """Turn rates [rad/s] of the predictions of every intruder: the straight line, and with
+    ``give_way_turn_rate`` > 0 a right turn at that rate (giving way by the rules of the air, D-21)."""
+    return (0.0, give_way_turn_rate) if give_way_turn_rate > 0.0 else (0.0,)
+
+
 class IntruderModel:
     """Combined intruder model (6.150/6.151) for one grid and one reach set's UAS windows.
 
@@ -59,11 +80,13 @@ class IntruderModel:
     sampled every ``path_step`` layer depths of the path, and a cell is hit at τ when its exact
     distance to ``x(τ)`` (:meth:`AvoidanceGrid.distance`) is at most the body radius plus half
     the sample spacing, so the sampled balls cover the swept body; ``[i_e, i_l]`` is the hull of
-    the hit times (every ball point carries its centre's time). The line is the body of radius
-    0, inside the body in space and time, so with the body on its rate never exceeds the body's
-    and only the body is rated. The cone (6.129-6.149) keeps its lattice at ``spacing``.
-    Intruders whose reachable volume within the horizon (the capsule of the model's radius
-    around the predicted segment) misses the grid's bounding ball are skipped: their rating is 0.
+    the hit times (every ball point carries its centre's time). With ``give_way_turn_rate`` > 0
+    the centre is sampled on the straight and on the right-turning prediction, and hits and times
+    are the union over both (D-21). The line is the body of radius 0, inside the body in space and
+    time, so with the body on its rate never exceeds the body's and only the body is rated. The
+    cone (6.129-6.149) keeps its lattice at ``spacing``. Intruders whose reachable volume within
+    the horizon (the capsule of the model's radius around the predicted segment, or with the turn
+    the ball of the path length) misses the grid's bounding ball are skipped: their rating is 0.
     """
 
     max_block = 1 << 20  # distance entries evaluated at once (memory bound per decision)
@@ -114,12 +137,15 @@ class IntruderModel:
     def reachable(self, motion: np.ndarray) -> np.ndarray:
         """(n,) whether each intruder's reachable volume within the horizon meets the grid's
         bounding ball (origin, radius = grid range): exact distance of the predicted segment
-        x_s + v·τ, τ ∈ [0, horizon], to the origin against range + :meth:`reach`."""
+        x_s + v·τ, τ ∈ [0, horizon], to the origin against range + :meth:`reach`; with a give-way
+        turn rate also |x_s| − |v|·horizon, a lower bound of the turning prediction's distance."""
         x, v = motion[:, :3], motion[:, 3:6]
         vv = np.einsum("ij,ij->i", v, v)
         with np.errstate(invalid="ignore", divide="ignore"):
             tau = np.clip(np.where(vv > 0, -np.einsum("ij,ij->i", x, v) / vv, 0.0), 0.0, self.horizon)
         gap = np.linalg.norm(x + tau[:, None] * v, axis=1)
+        if self.cfg.give_way_turn_rate > 0.0:  # the turning prediction stays in the ball of its path length
+            gap = np.minimum(gap, np.linalg.norm(x, axis=1) - np.sqrt(vv) * self.horizon)
         return gap <= self.grid.range + self.reach(motion) + 1e-9 * (1.0 + self.grid.range)  # rounding
 
     def ratings(self, motion: np.ndarray) -> np.ndarray:
@@ -149,7 +175,11 @@ class IntruderModel:
         owner = np.repeat(np.arange(n), n_t)
         first = np.cumsum(n_t) - n_t
         tau = (np.arange(len(owner)) - first[owner]) * (self.horizon / (n_t[owner] - 1))
-        centres = motion[owner, :3] + tau[:, None] * motion[owner, 3:6]
+        rates = prediction_rates(self.cfg.give_way_turn_rate)
+        centres = np.concatenate([predicted_positions(motion[owner, :3], motion[owner, 3:6], tau, r) for r in rates])
+        owner, tau = np.tile(owner, len(rates)), np.tile(tau, len(rates))
+        order = np.argsort(owner, kind="stable")  # samples grouped per intruder (reduceat below)
+        owner, tau, centres = owner[order], tau[order], centres[order]
         bound = (motion[owner, 6] if self.cfg.body else 0.0) + 0.5 * speed[owner] * self.horizon / (n_t[owner] - 1)
         hit = np.zeros((n, n_cells))
         i_e = np.full((n, n_cells), np.inf)
