@@ -184,10 +184,11 @@ def test_launch_climb_goes_around_a_storm_in_its_first_minutes(fly, scenario_dat
 @pytest.mark.closed_loop
 @pytest.mark.parametrize("seed", range(1, 21))
 def test_launch_climb_goes_around_the_storm_on_20_seeds(fly, scenario_data, seed):
-    """CI's short launch flight on 20 seeds (EKF and sensor noise): never inside, past the cell."""
+    """CI's short launch flight on 20 seeds (EKF and sensor noise): never inside, around the cell
+    (measured: closest 6.11-6.30 km, 7.98-8.05 km north at most, docs/mptp.md)."""
     _, storms, truth = _launch(fly, scenario_data, "mptp", 1500.0, (-31_000.0, -28_000.0), "14 km", seed=seed)
     assert storms["time_inside_s"] == 0.0 and storms["min_distance_m"] > 5000.0
-    assert truth["pos_ned"][-1, 1] > -28_000.0
+    assert np.abs(truth["pos_ned"][:, 0]).max() > 5000.0
 
 
 @pytest.mark.closed_loop
