@@ -788,6 +788,7 @@ _MPTP = {
     "sigma_back_mps": 3.0,
     "sigma_front_mps": 3.0,
     "simplify_tol_m": 2000.0,
+    "turn_model": "simulated",
     "turning": "left",
     "wind_error_ne_mps": [5.0, 5.0],
 }
@@ -835,6 +836,7 @@ def _decision_table() -> dict[str, Decision]:
     out[prefix + "vertical_margin_m"] = ("mptp_high_cells", None, _options(vertical_margin_m=200.0))
     # at 0.1 m/s the HAPS reaches only 17.36 km in the horizon: 1.14 km under the cells' base
     out[prefix + "climb_rate_mps"] = ("mptp_high_cells", None, _options(climb_rate_mps=0.1))
+    out[prefix + "roll_rate_max"] = ("mptp", _options(turn_model="simulated"), _options(roll_rate_max=0.5))
     prefix = "vehicle.planner<ReachsetPlanner>.options.rules_"
     filed = _options(rules_filed={"uas3": {"category": "uas_autonomous", "maneuverability": "vtol"}})
     out[prefix + "converging"] = ("rules_pair", None, _options(rules_converging=20.0))

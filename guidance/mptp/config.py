@@ -23,6 +23,7 @@ Heuristic = Literal["dijkstra", "edh", "ssph"]
 WindSource = Literal["scenario", "none"]
 SpeedSource = Literal["estimate", "config"]
 Turning = Literal["both", "right", "left"]
+TurnModelName = Literal["simple", "approximate", "simulated"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -35,6 +36,12 @@ class MptpConfig:
     largest course change at one state [rad] (thesis |dchi_max|); ``dt_s`` planning time
     increment [s] (auxiliary-state leg = tas * dt; a divisor of the nowcast step keeps levels
     on nowcast times); ``horizon_s`` planning horizon T_P [s]; ``replan_period_s`` cadence [s].
+
+    Turns (turnmodel.py): ``turn_model`` "simple" = fly-by states with the simple auxiliary
+    states of seed 002 5.1; "approximate" = fly-over states, the turn a circular arc at the bank
+    limit (5.2); "simulated" = fly-over states, the turn simulated with the bank slewed at
+    ``roll_rate_max`` [rad/s] to and from the bank limit (5.3; default 6 deg/s, the HAPS's
+    bank-command slew limit in aircraft/haps/gains.toml).
 
     Search: ``heuristic``; ``turning`` sense(s) of the auxiliary states; ``max_expansions``
     caps A* (the thesis's Monte-Carlo success criterion used 100); ``search_weight`` w >= 1
@@ -88,6 +95,8 @@ class MptpConfig:
     replan_period_s: float = 300.0
     heuristic: Heuristic = "ssph"
     turning: Turning = "both"
+    turn_model: TurnModelName = "simple"
+    roll_rate_max: float = math.radians(6.0)
     max_expansions: int = 120
     search_weight: float = 1.1
     dominance_s: float = 240.0
@@ -142,6 +151,10 @@ class MptpConfig:
             raise ValueError(f"unknown heuristic {self.heuristic!r} or turning {self.turning!r}")
         if self.speed_source not in ("estimate", "config"):
             raise ValueError(f"speed_source: expected 'estimate' or 'config', got {self.speed_source!r}")
+        if self.turn_model not in ("simple", "approximate", "simulated"):
+            raise ValueError(f"turn_model: expected 'simple', 'approximate' or 'simulated', got {self.turn_model!r}")
+        if not self.roll_rate_max > 0:
+            raise ValueError("roll_rate_max must be > 0 [rad/s]")
         if self.wind_forecast not in ("scenario", "none"):
             raise ValueError(f"wind_forecast: expected 'scenario' or 'none', got {self.wind_forecast!r}")
         err = np.asarray(self.wind_error_ne_mps, float) if _is_numeric(self.wind_error_ne_mps) else np.empty(0)

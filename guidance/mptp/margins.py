@@ -36,6 +36,7 @@ from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
 
 from guidance.mptp.config import MptpConfig
+from guidance.mptp.turnmodel import exit_offset_m
 
 CIRCLE_SEGMENTS = 16
 SPEED_BANDS_MPS = (10.0, 20.0)
@@ -141,6 +142,9 @@ def close_gaps(geom: BaseGeometry, eps_m: float) -> BaseGeometry:
 
 
 def turn_cut_m(cfg: MptpConfig) -> float:
-    """How far a fly-by arc of the minimum radius cuts inside a corner of |dchi_max| [m]:
-    R (1/cos(dchi/2) - 1)."""
+    """How far the flown path strays from the planned legs [m]: a fly-by arc of the minimum
+    radius cuts inside a corner of |dchi_max| by R (1/cos(dchi/2) - 1) (simple model); a fly-over
+    turn runs outside its leg's chord by at most its exit offset (turnmodel.exit_offset_m)."""
+    if cfg.turn_model != "simple":
+        return exit_offset_m(cfg)
     return cfg.turn_radius_m * (1.0 / math.cos(0.5 * cfg.course_change_max) - 1.0)

@@ -34,7 +34,8 @@ the turn radius and leg lengths follow the speed as it grows with altitude at a 
 equivalent airspeed; and only with the storm cells whose vertical extent the vehicle can be
 near over the horizon (vertical.py).
 
-The plan's vertices are the trajectory states; labels are -1 except the goal (its waypoint
+The plan's vertices are the trajectory states, with the modelled turns written out between them
+for the fly-over turn models (turnmodel.written_out); labels are -1 except the goal (its waypoint
 index); the altitude goes linearly (constant climb angle) from the estimate's to the goal's.
 """
 
@@ -51,9 +52,10 @@ from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
 from guidance.mptp.heuristics import GoalAvailability
 from guidance.mptp.holding import holding_orbit, safe_area_leg
-from guidance.mptp.search import Trajectory, default_workspace, plan_trajectory
+from guidance.mptp.search import HOLD, Trajectory, default_workspace, plan_trajectory
 from guidance.mptp.statespace import free_space
 from guidance.mptp.timeline import ObstacleTimeline
+from guidance.mptp.turnmodel import written_out
 from guidance.mptp.vertical import altitude_band, cells_in_band
 from guidance.mptp.wind import WindForecast, air_goal, to_air, to_ground
 from sim.core.mission import Mission
@@ -232,19 +234,19 @@ class MptpPlanner:
         )
         if traj.start_space is not None:
             diag["vertices"] = len(traj.start_space.boundary.verts)
+        pts, times = traj.positions, traj.times
+        if cfg.turn_model != "simple" and len(pts) >= 2:
+            pts, times = written_out(pts, times, traj.courses, traj.kinds[1:] == HOLD, cfg)
         if traj.status == "ok":
             holding = traj.holding_turn >= 2 * math.pi - 1e-6
-            labels = np.full(len(traj.positions), -1)
+            labels = np.full(len(pts), -1)
             labels[-1] = k
             diag.update(eta_s=float(traj.times[-1] - t), holding_turns=traj.holding_turn / (2 * math.pi))
             status = PlanStatus.DEGRADED if holding else PlanStatus.OK
-            return self._to_plan(t, est, traj.positions, traj.times, labels, status, diag), traj
-        if len(traj.positions) >= 2:  # the search's best progress towards the goal
+            return self._to_plan(t, est, pts, times, labels, status, diag), traj
+        if len(pts) >= 2:  # the search's best progress towards the goal
             diag.update(reason="search " + traj.status + ": partial plan", eta_s=float(traj.times[-1] - t))
-            plan = self._to_plan(
-                t, est, traj.positions, traj.times, np.full(len(traj.positions), -1), PlanStatus.DEGRADED, diag
-            )
-            return plan, traj
+            return self._to_plan(t, est, pts, times, np.full(len(pts), -1), PlanStatus.DEGRADED, diag), traj
         fs = traj.start_space or free_space(tl, p0, t, workspace, cfg.tas_mps, cfg.ring_segments)
         end, _ = safe_area_leg(fs, course, cfg, cfg.tas_mps * cfg.replan_period_s * 2)
         pts = np.vstack([p0, end])

@@ -39,7 +39,9 @@ from guidance.mptp.heuristics import GoalAvailability, StaticBound, edh
 from guidance.mptp.statespace import FreeSpace, free_space
 from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.turning import SENSES, admissible, aux_states, hold_lap_s, hold_orbit, min_leg_m
-from guidance.mptp.visibility import blocked, visible_vertices
+from guidance.mptp.turnmodel import aux_states as fly_over_aux
+from guidance.mptp.turnmodel import turn_to
+from guidance.mptp.visibility import Boundary, blocked, visible_vertices
 from guidance.mptp.waitbound import WaitBound
 
 START, VERTEX, AUX, GOAL, HOLD = "start", "vertex", "aux", "goal", "hold"
@@ -131,14 +133,10 @@ class _Expander:
         t_goal = float(self.goal.intercept(p, np.array([s.t]), v)[0])
         g_pt = self.goal.at(t_goal) if np.isfinite(t_goal) else self.goal.points[-1]
         _, vi = visible_vertices(p[None], b)
-        aux_p, _ = aux_states(p, s.course, cfg, self.turning, from_start=s.kind == START)
-        aux_p = aux_p[~blocked(np.repeat(p[None], len(aux_p), 0), aux_p, b)]
         goal_ok = np.isfinite(t_goal) and not blocked(p[None], g_pt[None], b)[0]
-        pts = np.vstack([g_pt[None] if goal_ok else np.empty((0, 2)), b.verts[vi], aux_p])
-        kinds = np.array([GOAL] * int(goal_ok) + [VERTEX] * len(vi) + [AUX] * len(aux_p))
-        ok, chi, leg = admissible(p, s.course, pts, cfg, to_goal=kinds == GOAL, from_start=s.kind == START)
-        pts, chi, leg, kinds = pts[ok], chi[ok], leg[ok], kinds[ok]
-        times = s.t + leg / v
+        targets = np.vstack([g_pt[None] if goal_ok else np.empty((0, 2)), b.verts[vi]])
+        kinds0 = np.array([GOAL] * int(goal_ok) + [VERTEX] * len(vi), dtype="<U6")
+        pts, chi, leg, kinds = self._moves(s, b, targets, kinds0)
         holds, sides = self._holds(s) if s.kind not in (START, GOAL) else (np.empty(0), np.empty(0))
         pts = np.vstack([pts, np.repeat(p[None], len(holds), 0)])
         chi = np.concatenate([chi, np.full(len(holds), s.course)])
@@ -155,6 +153,32 @@ class _Expander:
                 float(cost[k]),
                 float(h[k]),
             )
+
+    def _moves(
+        self, s: State, b: Boundary, targets: np.ndarray, target_kinds: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Flyable successors of s among ``targets`` (N, 2) of ``target_kinds`` (GOAL / VERTEX)
+        and its auxiliary states not blocked by the boundary b: positions, courses at arrival
+        [rad], flown distances [m] and kinds. Fly-by (simple model, turning.py) or fly-over
+        (turnmodel.py) states by ``turn_model``."""
+        cfg, p, start = self.cfg, np.array(s.p), s.kind == START
+        if cfg.turn_model == "simple":
+            aux_p, _ = aux_states(p, s.course, cfg, self.turning, from_start=start)
+            aux_p = aux_p[~blocked(np.repeat(p[None], len(aux_p), 0), aux_p, b)]
+            pts = np.vstack([targets, aux_p])
+            kinds = np.concatenate([target_kinds, [AUX] * len(aux_p)])
+            ok, chi, leg = admissible(p, s.course, pts, cfg, to_goal=kinds == GOAL, from_start=start)
+            return pts[ok], chi[ok], leg[ok], kinds[ok]
+        ok, _, chi, leg = turn_to(p, s.course, targets, cfg)
+        aux_p, aux_chi, aux_leg = fly_over_aux(p, s.course, cfg, SENSES[self.turning])
+        free = ~blocked(np.repeat(p[None], len(aux_p), 0), aux_p, b)
+        kinds = np.concatenate([target_kinds[ok], [AUX] * int(free.sum())])
+        return (
+            np.vstack([targets[ok], aux_p[free]]),
+            np.concatenate([chi[ok], aux_chi[free]]),
+            np.concatenate([leg[ok], aux_leg[free]]),
+            kinds,
+        )
 
     def _holds(self, s: State) -> tuple[np.ndarray, np.ndarray]:
         """Admissible waits at s: durations [s] (whole laps of HOLD_LAPS ending by t_end) and the

@@ -1,0 +1,202 @@
+"""Fly-over turn models of the auxiliary states (seed 002, 5.2 and 5.3).
+
+Frames/units: (north, east) [m], courses [rad] from north (a right turn increases the course),
+times [s]; a turn's own frame has x along the course at its start and y towards its side [m].
+
+A state is flown over: the aircraft arrives on its course, turns there by dchi one way
+(|dchi| <= course_change_max) and flies straight on to the next state, which it reaches on the
+turn's exit course. A target is admissible when it lies ahead on the exit line of such a turn;
+no leg reserves anticipation, the next turn starts at the next state.
+
+- "approximate" (5.2): the bank is established at once; the turn is a circular arc of
+  R = V^2 / (g tan(bank_max)) (a Dubins turn) at the tightest bank of the thesis's Fig. 5.2.
+- "simulated" (5.3, eq. 5.58): chi' = g tan(mu) / V, mu' = +-p at p = roll_rate_max from wings
+  level and back (Fig. 5.5: roll-in, constant bank, roll-out). A turn that does not reach
+  bank_max rolls for the half roll time t_r = arccos(exp(-p V dchi / (2 g))) / p each way
+  (eq. 5.62); otherwise t_r = bank_max / p and the bank is held for the rest of the course change
+  at R (eq. 5.68). The course is closed-form, the position the trapezoidal integral of V (cos chi,
+  sin chi) over STEPS steps (the thesis uses a Taylor series).
+
+In wind the planner works in the air-mass frame (wind.py), where these turns are exact; on the
+ground they are the drifted ones.
+
+Each model is tabulated once per aircraft: the exit point (x, y) and flown length of turns of
+0..course_change_max at GRID + 1 turn angles. A target's turn is where its offset from the exit
+line changes sign, interpolated linearly between grid angles.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from guidance.mptp.config import MptpConfig
+from guidance.mptp.turning import wrap
+
+GRID = 360  # turn-angle intervals of a table
+STEPS = 400  # integration steps of one turn
+SAMPLE_RAD = math.radians(5.0)  # written-out turns: one vertex per this much course change
+MIN_STRAIGHT_M = 1.0  # a written-out turn ending closer than this to its state ends at the state
+
+
+@dataclass(frozen=True, slots=True)
+class TurnTable:
+    """Turns of ``theta`` (K,) [rad] from (0, 0) on course 0 towards +y: exit points ``x``, ``y``
+    (K,) [m] and flown lengths ``length`` (K,) [m]."""
+
+    theta: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    length: np.ndarray
+
+
+def _course_profile(theta: np.ndarray, cfg: MptpConfig, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Duration T (K,) [s] of turns of ``theta`` (K,) [rad] and their course (K, S) [rad] at the
+    fractions ``s`` (S,) of T."""
+    v, g = cfg.tas_mps, cfg.g
+    rate = v / cfg.turn_radius_m  # course rate at bank_max [rad/s]
+    theta = np.asarray(theta, float)
+    if cfg.turn_model == "approximate":
+        t_total = theta / rate
+        return t_total, theta[:, None] * s[None, :]
+    p, mu = cfg.roll_rate_max, cfg.bank_max
+    roll_chi = -2.0 * g / (v * p) * math.log(math.cos(mu))  # course change of roll-in and roll-out to mu
+    t_r = np.where(theta < roll_chi, np.arccos(np.exp(-p * v * theta / (2.0 * g))) / p, mu / p)
+    t_hold = np.maximum(theta - roll_chi, 0.0) / rate
+    t_total = 2.0 * t_r + t_hold
+    t = t_total[:, None] * s[None, :]
+
+    def rolled(tau: np.ndarray) -> np.ndarray:  # course turned after rolling for tau [s]
+        return -g / (v * p) * np.log(np.cos(p * np.clip(tau, 0.0, t_r[:, None])))
+
+    t1, t2 = t_r[:, None], (t_r + t_hold)[:, None]
+    held = rolled(t1) + rate * (t - t1)
+    chi = np.where(t <= t1, rolled(t), np.where(t <= t2, held, theta[:, None] - rolled(t_total[:, None] - t)))
+    return t_total, chi
+
+
+def _integrate(theta: np.ndarray, cfg: MptpConfig, steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """Turns of ``theta`` (K,): positions (K, steps + 1, 2) in the turn frame [m] and lengths (K,) [m]."""
+    s = np.linspace(0.0, 1.0, steps + 1)
+    t_total, chi = _course_profile(theta, cfg, s)
+    vel = cfg.tas_mps * np.stack([np.cos(chi), np.sin(chi)], -1)
+    h = (t_total / steps)[:, None, None]
+    pos = np.concatenate([np.zeros((len(theta), 1, 2)), np.cumsum(0.5 * h * (vel[:, 1:] + vel[:, :-1]), axis=1)], 1)
+    return pos, cfg.tas_mps * t_total
+
+
+@functools.lru_cache(maxsize=16)
+def _table(key: tuple) -> TurnTable:
+    cfg = MptpConfig(**dict(key))
+    theta = np.linspace(0.0, cfg.course_change_max, GRID + 1)
+    pos, length = _integrate(theta, cfg, STEPS)
+    return TurnTable(theta, pos[:, -1, 0], pos[:, -1, 1], length)
+
+
+def turn_table(cfg: MptpConfig) -> TurnTable:
+    """The (cached) table of ``cfg``'s turn model (approximate or simulated)."""
+    if cfg.turn_model == "simple":
+        raise ValueError("turn_table: the simple model has no fly-over turns")
+    names = ("tas_mps", "bank_max", "course_change_max", "roll_rate_max", "g", "turn_model")
+    return _table(tuple((n, getattr(cfg, n)) for n in names))
+
+
+def exit_offset_m(cfg: MptpConfig) -> float:
+    """Largest distance [m] between a fly-over leg's flown path and its chord: the exit line's
+    offset from the turn's start, x sin(dchi) - y cos(dchi), over the turns within the limit
+    (a chord of a longer leg comes closer to the exit line)."""
+    tab = turn_table(cfg)
+    return float(np.max(np.abs(tab.x * np.sin(tab.theta) - tab.y * np.cos(tab.theta))))
+
+
+def _frame(course: float) -> tuple[np.ndarray, np.ndarray]:
+    """Unit vectors along ``course`` and to its right [north, east]."""
+    return np.array([math.cos(course), math.sin(course)]), np.array([-math.sin(course), math.cos(course)])
+
+
+def turn_to(
+    p: np.ndarray, course: float, targets: np.ndarray, cfg: MptpConfig
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The fly-over turn from p on ``course`` towards each target (N, 2), on the target's side.
+
+    Returns (admissible: a turn within course_change_max points at the target, signed turn
+    [rad] (+ = right), course at arrival [rad], flown distance [m] = turn length + straight)."""
+    tab = turn_table(cfg)
+    u, n = _frame(course)
+    d = np.asarray(targets, float).reshape(-1, 2) - np.asarray(p, float)
+    x, lat = d @ u, d @ n
+    side = np.where(lat >= 0.0, 1.0, -1.0)
+    y = np.abs(lat)
+    c, s = np.cos(tab.theta), np.sin(tab.theta)
+    off = c * (y[:, None] - tab.y) - s * (x[:, None] - tab.x)  # target's offset from the exit line
+    w = np.clip(off[:, :-1] / np.where(off[:, :-1] == off[:, 1:], 1.0, off[:, :-1] - off[:, 1:]), 0.0, 1.0)
+    th = tab.theta[:-1] + w * np.diff(tab.theta)
+    ex = tab.x[:-1] + w * np.diff(tab.x)
+    ey = tab.y[:-1] + w * np.diff(tab.y)
+    ahead = np.cos(th) * (x[:, None] - ex) + np.sin(th) * (y[:, None] - ey)
+    valid = (off[:, :-1] >= 0.0) & (off[:, 1:] < 0.0) & (ahead >= 0.0)
+    last = np.abs(off[:, -1]) <= 1e-9 * np.maximum(np.hypot(x, y), 1.0)  # exactly on the limit's exit line
+    valid = np.column_stack([valid, last & (ahead[:, -1] >= 0.0)])
+    k = np.argmax(valid, axis=1)
+    ok = np.asarray(valid.any(axis=1))
+    rows = np.arange(len(d))
+    kk = np.minimum(k, GRID - 1)
+    theta = np.where(k == GRID, tab.theta[-1], th[rows, kk])
+    length = np.where(k == GRID, tab.length[-1], tab.length[kk] + w[rows, kk] * (tab.length[kk + 1] - tab.length[kk]))
+    straight = np.where(
+        k == GRID, np.cos(tab.theta[-1]) * (x - tab.x[-1]) + np.sin(tab.theta[-1]) * (y - tab.y[-1]), ahead[rows, kk]
+    )
+    turn = side * theta
+    return ok, turn, wrap(course + turn), length + straight
+
+
+def aux_states(
+    p: np.ndarray, course: float, cfg: MptpConfig, senses: tuple[float, ...]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Auxiliary states of a fly-over state for the turning ``senses`` (+1 right, -1 left): a
+    turn of course_change_max, then straight for the rest of LD (none when the turn is longer).
+    Returns positions (k, 2) [m], courses (k,) [rad] and flown distances (k,) [m]."""
+    tab = turn_table(cfg)
+    u, n = _frame(course)
+    side = np.asarray(senses, float)
+    chi = course + side * tab.theta[-1]
+    straight = max(cfg.leg_m - float(tab.length[-1]), 0.0)
+    end = np.asarray(p, float) + tab.x[-1] * u + np.outer(side * tab.y[-1], n)
+    pts = end + straight * np.stack([np.cos(chi), np.sin(chi)], 1)
+    return pts, wrap(chi), np.full(len(side), tab.length[-1] + straight)
+
+
+def turn_points(p: np.ndarray, course: float, turn: float, cfg: MptpConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Points along the turn ``turn`` [rad] (+ = right) from p on ``course``, one per SAMPLE_RAD of
+    course change, the start excluded and its end included: positions (M, 2) [m] and the
+    distances flown to them (M,) [m]."""
+    m = max(1, math.ceil(abs(turn) / SAMPLE_RAD - 1e-9))
+    pos, length = _integrate(np.array([abs(turn)]), cfg, m * 40)
+    pick = pos[0, 40::40]
+    u, n = _frame(course)
+    out = np.asarray(p, float) + np.outer(pick[:, 0], u) + np.outer(math.copysign(1.0, turn) * pick[:, 1], n)
+    return out, length[0] * np.arange(1, m + 1) / m
+
+
+def written_out(
+    positions: np.ndarray, times: np.ndarray, courses: np.ndarray, into_hold: np.ndarray, cfg: MptpConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """The states (N, 2) [m] at ``times`` (N,) [s], arriving on ``courses`` (N,) [rad], with every
+    fly-over turn written out as vertices (turn_points) at their times of flight at V, so the
+    path a follower tracks is the modelled one. Legs into a holding vertex (``into_hold`` (N-1,)
+    True) are fly-by orbit legs and stay straight. Returns positions (M, 2) and times (M,)."""
+    pos, tim = [positions[:1]], [times[:1]]
+    for i in range(len(positions) - 1):
+        if not into_hold[i]:
+            ok, turn, _, flown = turn_to(positions[i], float(courses[i]), positions[i + 1 : i + 2], cfg)
+            if ok[0] and abs(turn[0]) > 1e-6:
+                pts, dist = turn_points(positions[i], float(courses[i]), float(turn[0]), cfg)
+                keep = dist < flown[0] - MIN_STRAIGHT_M  # no zero-length leg into the state
+                pos.append(pts[keep])
+                tim.append(times[i] + dist[keep] / cfg.tas_mps)
+        pos.append(positions[i + 1 : i + 2])
+        tim.append(times[i + 1 : i + 2])
+    return np.vstack(pos), np.concatenate(tim)

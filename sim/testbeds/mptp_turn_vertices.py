@@ -1,0 +1,136 @@
+"""Cross-track at the MPTP plan's vertices, from run logs (seed 002 ch. 5: are the plans flown?).
+
+For every plan the MPTP logged (``/<v>/plan``), its corners (interior vertices where the plan
+turns by at least MIN_TURN_DEG) that fell due while it was the newest plan, at least SETTLE_S
+before the next plan: the closest approach [m] of the true horizontal track flown while it was
+the newest plan, signed + on the inside of the corner (the side the plan turns to: a cut corner)
+and - on the outside. Frames: local-level NED [m] of the log.
+
+``python -m sim.testbeds.mptp_turn_vertices SCENARIO.toml ... --seeds 1-20 --models simple
+simulated --out DIR`` flies every scenario with each seed and ``turn_model`` (the scenario's
+planner options otherwise unchanged; ``--acceptance`` overrides the MPTP vehicles' acceptance
+radius, ``--duration`` the sim time), keeps the logs in DIR and prints a Markdown table per
+scenario and model: corners, median |xte|, 95th percentile of the cut, largest cut, largest
+outside pass [m], and the missions completed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import tomli_w
+
+from sim import scenario as sc
+from sim.mcap_read import read_info, read_topic
+from sim.runner import run_scenario
+
+MIN_TURN_DEG = 1.0  # a vertex turning less is not a corner
+SETTLE_S = 60.0  # corners due later than this before the next plan are left out [s]
+
+
+def vertex_cross_track(log: str | Path, vehicle: str) -> np.ndarray:
+    """Signed closest approach [m] of the true track to each flown corner (see module doc)."""
+    plans = [
+        (t, np.asarray(m["positions"], float)[:, :2], np.asarray(m["times"], float))
+        for t, m in read_topic(log, f"/{vehicle}/plan")
+    ]
+    track = read_topic(log, f"/{vehicle}/truth/state")
+    return corner_cross_track(plans, np.array([t for t, _ in track]), np.array([m["pos_ned"][:2] for _, m in track]))
+
+
+def corner_cross_track(plans: list[tuple[float, np.ndarray, np.ndarray]], tt: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """Signed closest approach [m] of the track ``xy`` (K, 2) [m] at times ``tt`` (K,) [s] to the
+    corners of ``plans`` (issue time [s], vertices (N, 2) [m], due times (N,) [s]), in time
+    order; + inside the corner, - outside (see module doc)."""
+    out: list[float] = []
+    ends = [t for t, _, _ in plans[1:]] + [math.inf]
+    for (t0, pts, due), t1 in zip(plans, ends, strict=True):
+        window = (tt >= t0) & (tt < t1)
+        if len(pts) < 3 or not window.any():
+            continue
+        seg = xy[window]
+        for k in range(1, len(pts) - 1):
+            a, b = pts[k] - pts[k - 1], pts[k + 1] - pts[k]
+            na, nb = np.linalg.norm(a), np.linalg.norm(b)
+            if na < 1e-6 or nb < 1e-6 or due[k] > t1 - SETTLE_S:
+                continue
+            inward = b / nb - a / na
+            if np.linalg.norm(inward) < 2.0 * math.sin(0.5 * math.radians(MIN_TURN_DEG)):
+                continue
+            r = seg - pts[k]
+            j = int(np.argmin(np.einsum("ij,ij->i", r, r)))
+            out.append(float(np.linalg.norm(r[j]) * np.sign(r[j] @ inward)))
+    return np.array(out)
+
+
+def _variant(data: dict, seed: int, model: str, accept: float | None, duration: float | None) -> dict:
+    out = copy.deepcopy(data)
+    out["seed"] = seed
+    if duration is not None:
+        out["duration"] = duration
+    for v in out["vehicle"]:
+        if v.get("planner", {}).get("type") == "mptp":
+            v["planner"].setdefault("options", {})["turn_model"] = model
+            if accept is not None:
+                v["mission"]["acceptance_radius"] = accept
+    return out
+
+
+def fly(
+    scenario: Path, seed: int, model: str, out_dir: Path, accept: float | None = None, duration: float | None = None
+) -> tuple[Path, bool]:
+    """Fly ``scenario`` with ``seed``, ``turn_model`` = ``model``, the MPTP vehicles' acceptance
+    radius ``accept`` [m] and ``duration`` [s] (None: the scenario's); the log and whether every
+    mission completed."""
+    data = _variant(tomllib.loads(scenario.read_text()), seed, model, accept, duration)
+    tag = "" if accept is None else f"_a{accept:g}"
+    path = out_dir / f"{scenario.stem}_{model}{tag}_s{seed}.mcap"
+    if not path.exists():
+        run_scenario(sc.parse_scenario(data, str(scenario)), path, scenario_text=tomli_w.dumps(data))
+    result = read_info(path).metadata.get("result", {})
+    return path, all(v == "True" for k, v in result.items() if k.endswith(".mission_complete"))
+
+
+def _seeds(text: str) -> list[int]:
+    """Seeds from "1-20" or "1-3,5" (ranges and single seeds, comma separated)."""
+    out: list[int] = []
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        out += range(int(lo), int(hi or lo) + 1)
+    return out
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("scenarios", nargs="+", type=Path)
+    ap.add_argument("--seeds", default="1-20")
+    ap.add_argument("--models", nargs="+", default=["simple", "simulated"])
+    ap.add_argument("--acceptance", type=float, default=None, help="acceptance radius [m] (default: the scenario's)")
+    ap.add_argument("--duration", type=float, default=None, help="sim time [s] (default: the scenario's)")
+    ap.add_argument("--out", type=Path, default=Path("logs/mptp_turn_vertices"))
+    args = ap.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    cols = ["scenario", "acceptance [m]", "turn model", "runs completed", "corners", "median abs [m]", "cut p95 [m]"]
+    cols += ["largest cut [m]", "largest outside [m]"]
+    print("| " + " | ".join(cols) + " |\n|" + "---|" * len(cols))
+    for scenario in args.scenarios:
+        for model in args.models:
+            xte, done, seeds = [], 0, _seeds(args.seeds)
+            for seed in seeds:
+                path, ok = fly(scenario, seed, model, args.out, args.acceptance, args.duration)
+                done += ok
+                xte.append(vertex_cross_track(path, "haps"))
+            x = np.concatenate(xte)
+            cut = np.maximum(x, 0.0)
+            row = [scenario.stem, args.acceptance or "shipped", model, f"{done}/{len(seeds)}", len(x)]
+            row += [f"{v:.1f}" for v in (np.median(np.abs(x)), np.percentile(cut, 95), cut.max(), max(-x.min(), 0))]
+            print("| " + " | ".join(map(str, row)) + " |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
