@@ -135,7 +135,9 @@ THREATS = _obj(
         "storms": (
             {"type": "array", "items": {"type": "object"}},
             "storm nowcast snapshots: t [s], cells = polygons [[north, east], ...] [m], "
-            "velocities_ne = cell velocities [[north, east], ...] [m/s] or null",
+            "velocities_ne = cell velocities [[north, east], ...] [m/s] or null, "
+            "extents_up_m = cell heights above the origin [[base, top], ...] [m] (null where unbounded) "
+            "or null",
         ),
         "lidar_hits": ({"type": "integer"}, "returns in the latest LiDAR scan"),
         "lidar": (

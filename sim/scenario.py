@@ -98,6 +98,9 @@ class MissionSpec(_Strict):
     repeat: bool = False
 
 
+REPEAT_PLANNERS: Final = ("follow_mission", "mptp")  # planners that plan leg by leg, so may fly a mission again
+
+
 class Initial(_Strict):
     """Initial state: NED offset from the origin [m], altitude MSL [m], TAS [m/s], heading."""
 
@@ -319,8 +322,8 @@ class VehicleSpec(_Strict):
             if self.mission.repeat:
                 raise ValueError(f"mission.repeat: for fixed wing ({self.aircraft} is {kind})")
             return self
-        if self.mission.repeat and self.planner.type != "follow_mission":
-            raise ValueError("mission.repeat: only with the follow_mission planner")
+        if self.mission.repeat and self.planner.type not in REPEAT_PLANNERS:
+            raise ValueError(f"mission.repeat: only with the {' or '.join(REPEAT_PLANNERS)} planner")
         if self.mission.land:
             raise ValueError(f"mission.land: only multirotors land at the end of a mission ({self.aircraft} is {kind})")
         if self.initial.on_ground:
@@ -515,10 +518,29 @@ class Surveillance(_Strict):
     velocity_noise: Speed = 0.5
 
 
-class StormCell(_Strict):
+class _StormExtent(_Strict):
+    """Vertical extent of storm cells: ``base`` and ``top`` altitudes MSL [m]; no base = from the
+    ground, no top = unbounded (a cell is the prism of its outline between them)."""
+
+    base: _Altitude | None = None
+    top: _Altitude | None = None
+
+    @model_validator(mode="after")
+    def _top_above_base(self) -> _StormExtent:
+        if self.base is not None and self.top is not None and not self.top > self.base:
+            raise ValueError(f"top ({self.top:g} m) must be above base ({self.base:g} m)")
+        return self
+
+    def extent_up(self, origin_alt_m: float) -> tuple[float, float]:
+        """[base, top] heights above the origin [m] (-inf / inf where not given)."""
+        base = -math.inf if self.base is None else self.base - origin_alt_m
+        return base, math.inf if self.top is None else self.top - origin_alt_m
+
+
+class StormCell(_StormExtent):
     """A scripted storm cell (not drawn by the generator): polygon ``points`` [[north, east], ...]
-    [m] at t = 0, drifting at constant (``drift_north``, ``drift_east``) [m/s]; from the ground
-    up, like the synthetic cells."""
+    [m] at t = 0, drifting at constant (``drift_north``, ``drift_east``) [m/s], between ``base``
+    and ``top`` (altitudes MSL [m]; default from the ground up without a top)."""
 
     points: list[tuple[float, float]]
     drift_north: Speed = 0.0
@@ -530,10 +552,11 @@ class StormCell(_Strict):
         return _simple_polygon(v)
 
 
-class Weather(_Strict):
+class Weather(_StormExtent):
     """Synthetic convective weather (seeded from the scenario): ``cells`` storm cells over a
     box of ``size`` x ``size`` [m] south-west-cornered at the origin, drifting at
-    (``drift_north``, ``drift_east``) [m/s] +- ``drift_spread``, mean radius ``radius``; a
+    (``drift_north``, ``drift_east``) [m/s] +- ``drift_spread``, mean radius ``radius``, between
+    ``base`` and ``top`` (altitudes MSL [m]; default from the ground up without a top); a
     nowcast of the next ``horizon`` in ``step`` slices is issued every ``nowcast_period`` (what
     the vehicles see). ``seed``: the field's own seed (default: drawn from the scenario seed);
     ``pop_up``: cells may be born after the start (unforeseen by earlier nowcasts); false = every
@@ -573,7 +596,7 @@ class Weather(_Strict):
 
     @model_validator(mode="after")
     def _one_source(self) -> Weather:
-        mixed = self.nowcast_files and ({"cells", "storm", "centres"} & self.model_fields_set)
+        mixed = self.nowcast_files and ({"cells", "storm", "centres", "base", "top"} & self.model_fields_set)
         if mixed:
             raise ValueError(
                 f"nowcast_files replace the synthetic and scripted cells: remove {', '.join(sorted(mixed))}"

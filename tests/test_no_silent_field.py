@@ -260,6 +260,18 @@ EFFECTS: dict[str, Effect] = {
         _set("weather", {"nowcast_files": [_NOWCASTS + "nowcast_00000s.geojson"]}),
         _set("weather.nowcast_files", [_NOWCASTS + "nowcast_00300s.geojson"]),  # issued at 300 s
     ),
+    "weather.base": (_QUAD, _set("weather", _WEATHER), _set("weather.base", 500.0)),
+    "weather.top": (_QUAD, _set("weather", _WEATHER), _set("weather.top", 9000.0)),
+    "weather.storm.base": (
+        _QUAD,
+        _set("weather", _WEATHER | {"storm": [{"points": [[0, 0], [0, 900], [900, 0]]}]}),
+        _set("weather.storm.0.base", 500.0),
+    ),
+    "weather.storm.top": (
+        _QUAD,
+        _set("weather", _WEATHER | {"storm": [{"points": [[0, 0], [0, 900], [900, 0]]}]}),
+        _set("weather.storm.0.top", 9000.0),
+    ),
     "weather.storm.points": (
         _QUAD,
         _set("weather", _WEATHER | {"storm": [{"points": [[0, 0], [0, 900], [900, 0]]}]}),
@@ -705,6 +717,12 @@ ENCOUNTERS: dict[str, dict] = {
     },
 }
 
+# the same with the HAPS at 17 km climbing to 18 km and the cells from 18.5 km up (the MPTP's
+# vertical options: within 1 km of the heights it reaches in the horizon at 1 m/s)
+ENCOUNTERS["mptp_high_cells"] = copy.deepcopy(ENCOUNTERS["mptp"]) | {"name": "silent_mptp_high_cells"}
+ENCOUNTERS["mptp_high_cells"]["weather"]["base"] = 18_500.0
+ENCOUNTERS["mptp_high_cells"]["vehicle"][0]["initial"]["altitude"] = 17_000.0
+
 
 def _options(**values: object) -> Callable[[dict], None]:
     """A change setting planner options of every vehicle whose planner takes options (all but
@@ -798,7 +816,6 @@ _MPTP = {
     "sigma_back_mps": 3.0,
     "sigma_front_mps": 3.0,
     "simplify_tol_m": 2000.0,
-    "tas_mps": 20.0,
     "turn_model": "simulated",
     "turning": "left",
     "wind_error_ne_mps": [5.0, 5.0],
@@ -841,6 +858,12 @@ def _decision_table() -> dict[str, Decision]:
     prefix = "vehicle.planner<MptpPlanner>.options."
     out[prefix + "safety_line_m"] = ("mptp", _options(line_aspect=1.0), _options(safety_line_m=[1000.0] * 3))
     out[prefix + "wind_forecast"] = ("mptp", _set("wind.east", 10.0), _options(wind_forecast="none"))
+    out[prefix + "tas_mps"] = ("mptp", _options(speed_source="config"), _options(tas_mps=20.0))
+    out[prefix + "speed_source"] = ("mptp", _options(tas_mps=20.0), _options(speed_source="config"))
+    # the cells' base 500 m over the 18 km the HAPS reaches: inside the 1 km margin, outside 200 m
+    out[prefix + "vertical_margin_m"] = ("mptp_high_cells", None, _options(vertical_margin_m=200.0))
+    # at 0.1 m/s the HAPS reaches only 17.36 km in the horizon: 1.14 km under the cells' base
+    out[prefix + "climb_rate_mps"] = ("mptp_high_cells", None, _options(climb_rate_mps=0.1))
     out[prefix + "roll_rate_max"] = ("mptp", _options(turn_model="simulated"), _options(roll_rate_max=0.5))
     prefix = "vehicle.planner<ReachsetPlanner>.options.rules_"
     filed = _options(rules_filed={"uas3": {"category": "uas_autonomous", "maneuverability": "vtol"}})

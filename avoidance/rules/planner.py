@@ -136,7 +136,8 @@ class RulesAvoider(ReachSetAvoider):
         self._start = ctx.start
         weather = self.engine.enabled("weather")
         if weather:  # storm cells become weather cases, handled by the rules instead of the run's constraints
-            ctx.weather = weather_cases(threats.storms, t, self.rules.weather_margin * self.rules.unit)
+            margin = self.rules.weather_margin * self.rules.unit
+            ctx.weather = weather_cases(threats.storms, t, margin, up_m=-float(estimate.pos_ned[2]))
         ctl = self.control
         ctx.goal = ctl.waypoints[min(max(ctl.goal, self.mission.next_index), len(ctl.waypoints) - 1)]
         self.engine.invoke(DecisionPoint.BEFORE_AVOIDANCE_RUN, ctx)
