@@ -135,7 +135,9 @@ THREATS = _obj(
         "storms": (
             {"type": "array", "items": {"type": "object"}},
             "storm nowcast snapshots: t [s], cells = polygons [[north, east], ...] [m], "
-            "velocities_ne = cell velocities [[north, east], ...] [m/s] or null",
+            "velocities_ne = cell velocities [[north, east], ...] [m/s] or null, "
+            "extents_up_m = cell heights above the origin [[base, top], ...] [m] (null where unbounded) "
+            "or null",
         ),
         "lidar_hits": ({"type": "integer"}, "returns in the latest LiDAR scan"),
         "lidar": (
@@ -282,5 +284,88 @@ CRASH = _obj(
         "hit": ({"type": "string"}, "\"ground\", the obstacle's id, the other vehicle's name or the object's id"),
         "impact_speed_mps": (_NUM, "speed relative to what it hit [m/s] (ground: just before first contact)"),
         "pos_ned": (_VEC3, "true position at the contact, local-level NED from the scenario origin [m]"),
+    },
+)
+
+# -- the central UTM authority (sim/utm_authority.py); GCF = ENU [m] from the scenario origin ----
+_CASES = {"type": "array", "items": {"type": "object"}}
+_CASE_FIELDS = (
+    "collision case records: t, ids, encounter, alpha_deg, roles, collision_point_enu [m], distance_m, "
+    "t_cpa_s, margin_m, flagged, trajectory, head_t, separation_m"
+)
+
+UTM_NOTIFICATION = _obj(
+    "cosim.UtmNotification",
+    {
+        "t": (_NUM, "sim time the authority received it [s]"),
+        "sent_t": (_NUM, "sim time the vehicle sent it (its UTM frame) [s]"),
+        "from": ({"type": "string"}, "the notifying vehicle"),
+        "pos_enu": (_VEC3, "estimated position, GCF ENU [m]"),
+        "vel_enu": (_VEC3, "estimated velocity, GCF ENU [m/s]"),
+        "plan_enu": ({"type": "array", "items": _VEC3}, "filed mission plan, one point per UTM frame from sent_t [m]"),
+    },
+)
+
+UTM_FRAME = _obj(
+    "cosim.UtmFrame",
+    {
+        "t": (_NUM, "frame start, sim time [s]"),
+        "frame": ({"type": "integer"}, "UTM frame index"),
+        "notified": ({"type": "array", "items": {"type": "string"}}, "vehicles with a fresh notification"),
+        "opened": (_CASES, "cases opened this frame: " + _CASE_FIELDS),
+        "closed": (_CASES, "cases closed this frame"),
+        "active": (_CASES, "active (head-chained) cases"),
+        "roundabouts": (_CASES, "virtual roundabouts: members, centre_enu [m], margin_m"),
+        "unacknowledged": (
+            {"type": "array", "items": {"type": "string"}},
+            "directed vehicles without an acknowledgement within lost_after",
+        ),
+    },
+)
+
+UTM_DIRECTIVE = _obj(
+    "cosim.UtmDirective",
+    {
+        "t": (_NUM, "sim time sent (frame start) [s]"),
+        "frame": ({"type": "integer"}, "UTM frame index"),
+        "to": ({"type": "string"}, "the recipient"),
+        "received_t": (
+            _NUM_OR_NULL,
+            "sim time the recipient gets it (the first authority tick at or after its arrival) [s]; null: lost",
+        ),
+        "cases": (_CASES, "the recipient's active cases (roundabout members re-targeted): " + _CASE_FIELDS),
+    },
+)
+
+UTM_ACK = _obj(
+    "cosim.UtmAck",
+    {
+        "t": (_NUM, "sim time the authority received it [s]"),
+        "from": ({"type": "string"}, "the acknowledging vehicle"),
+        "frame": ({"type": "integer"}, "the acknowledged directive's frame"),
+    },
+    extra=True,
+)
+
+UTM_LINK = _obj(
+    "cosim.UtmLink",
+    {
+        "t": (_NUM, "sim time [s]"),
+        "vehicle": ({"type": "string"}, "the vehicle"),
+        "state": ({"enum": ["lost", "up"]}, "the authority's view: lost = no notification within lost_after"),
+    },
+)
+
+UTM_BREACH = _obj(
+    "cosim.UtmBreach",
+    {"t": (_NUM, "sim time [s]"), "case": ({"type": "object"}, "the breached case (separation_m < margin_m)")},
+)
+
+UTM_SPOOF = _obj(
+    "cosim.UtmSpoof",
+    {
+        "t": (_NUM, "sim time injected [s]"),
+        "to": ({"type": "string"}, "the vehicle whose downlink carries the forged case"),
+        "case": ({"type": "object"}, "the forged case"),
     },
 )

@@ -9,12 +9,16 @@ Format (documented in docs/mptp.md)::
                    "geometry": {"type": "Polygon" | "MultiPolygon", "coordinates": ...},
                    "properties": {"t": 300.0,               # sim time of the step [s]
                                   "velocity_ne": [0.5, 9.8], # optional, cell motion [m/s]
+                                  "base_m": 0.0,             # optional, altitude MSL [m]
+                                  "top_m": 14000.0,          # optional, altitude MSL [m]
                                   "cell_id": "c7"}}]}        # optional, informative
 
 "wgs84" coordinates are RFC 7946 [lon, lat] degrees, converted to the scenario's local-level NED
 through sim.geodesy; "local_ne" coordinates are [north, east] metres from the scenario origin.
 A MultiPolygon is several cells with the same properties. Within one time step either every
-cell has a velocity or none has.
+cell has a velocity or none has. A cell is the prism of its polygon between ``base_m`` (default:
+from the ground) and ``top_m`` (default: no top), with top > base; the snapshots hold them as
+heights above the origin's altitude (the scenario's origin, or the file's ``origin.alt_m``).
 """
 
 from __future__ import annotations
@@ -77,7 +81,8 @@ def parse_nowcast(doc: dict[str, Any], origin: GeoPoint | None = None, where: st
     feats = doc.get("features")
     if not isinstance(feats, list):
         raise NowcastError(f"{where}: features: expected a list")
-    steps: dict[float, list[tuple[Polygon, np.ndarray | None]]] = {}
+    alt0 = 0.0 if origin is None else origin.alt_m
+    steps: dict[float, list[tuple[Polygon, np.ndarray | None, tuple[float, float]]]] = {}
     for i, f in enumerate(feats):
         at = f"{where}: features[{i}]"
         props = f.get("properties") if isinstance(f, dict) else None
@@ -89,17 +94,31 @@ def parse_nowcast(doc: dict[str, Any], origin: GeoPoint | None = None, where: st
             if not (isinstance(vel, list) and len(vel) == 2):
                 raise NowcastError(f"{at}.properties.velocity_ne: expected [north, east] in m/s")
             vel = np.array([_number(v, f"{at}.properties.velocity_ne") for v in vel])
+        ext = _extent(props, alt0, f"{at}.properties")
         for poly in _cells(f.get("geometry"), f"{at}.geometry", origin if frame == "wgs84" else None):
-            steps.setdefault(t, []).append((poly, vel))
+            steps.setdefault(t, []).append((poly, vel, ext))
     out = []
     for t in sorted(steps):
         cells = steps[t]
-        has = [v is not None for _, v in cells]
+        has = [v is not None for _, v, _ in cells]
         if any(has) and not all(has):
             raise NowcastError(f"{where}: t={t}: some cells have properties.velocity_ne and some do not")
-        vel = np.array([v for _, v in cells]) if all(has) else None
-        out.append(StormSnapshot(t, tuple(p for p, _ in cells), vel))
+        vel = np.array([v for _, v, _ in cells]) if all(has) else None
+        extents = np.array([e for _, _, e in cells])
+        bounded = bool(np.isfinite(extents).any())
+        out.append(StormSnapshot(t, tuple(p for p, _, _ in cells), vel, extents if bounded else None))
     return out
+
+
+def _extent(props: dict[str, Any], alt0: float, at: str) -> tuple[float, float]:
+    """[base, top] heights above the origin [m] from ``base_m``/``top_m`` (altitudes MSL [m])."""
+    base, top = (
+        sign * math.inf if props.get(k) is None else _number(props[k], f"{at}.{k}") - alt0
+        for k, sign in (("base_m", -1.0), ("top_m", 1.0))
+    )
+    if not top > base:
+        raise NowcastError(f"{at}.top_m: {top + alt0:g} m must be above base_m {base + alt0:g} m")
+    return base, top
 
 
 def _number(x: object, at: str) -> float:
@@ -138,7 +157,9 @@ def dump_nowcast(
         raise ValueError("frame must be 'local_ne', or 'wgs84' with an origin")
     geo = origin if frame == "wgs84" else None
     feats = []
+    alt0 = 0.0 if origin is None else origin.alt_m
     for s in snapshots:
+        ext = s.extents()
         for i, c in enumerate(s.cells):
             ne = np.asarray(c.exterior.coords)
             if geo is not None:
@@ -147,6 +168,9 @@ def dump_nowcast(
             props: dict[str, Any] = {"t": float(s.t)}
             if s.velocities_ne is not None:
                 props["velocity_ne"] = [float(v) for v in s.velocities_ne[i]]
+            props.update(
+                {k: float(h + alt0) for k, h in zip(("base_m", "top_m"), ext[i], strict=True) if math.isfinite(h)}
+            )
             feats.append({"type": "Feature", "geometry": mapping(Polygon(ne)), "properties": props})
     doc: dict[str, Any] = {"type": "FeatureCollection", "frame": frame, "features": feats}
     if geo is not None:

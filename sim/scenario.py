@@ -98,6 +98,9 @@ class MissionSpec(_Strict):
     repeat: bool = False
 
 
+REPEAT_PLANNERS: Final = ("follow_mission", "mptp")  # planners that plan leg by leg, so may fly a mission again
+
+
 class Initial(_Strict):
     """Initial state: NED offset from the origin [m], altitude MSL [m], TAS [m/s], heading."""
 
@@ -223,6 +226,32 @@ def _merged(base: dict[str, Any], given: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+_Time = Annotated[float, quantity("time", 0.0, 30 * 86400.0)]
+
+
+class Outage(_Strict):
+    """A window of sim time [start, end) in which a vehicle's C2/UTM link carries nothing."""
+
+    start: _Time
+    end: _Time
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Outage:
+        if not self.end > self.start:
+            raise ValueError(f"end ({self.end:g} s) must be after start ({self.start:g} s)")
+        return self
+
+
+class UtmLink(_Strict):
+    """A vehicle's C2/UTM link to the authority (``sim/utm_link.py``), both directions: one-way
+    ``latency``, message ``loss`` probability, ``outage`` windows. Needs the ``[utm]`` section;
+    a vehicle without it has an ideal link."""
+
+    latency: Annotated[float, quantity("time", 0.0, 60.0)] = 0.0
+    loss: Annotated[float, Field(ge=0.0, lt=1.0)] = 0.0
+    outage: list[Outage] = []
+
+
 class VehicleSpec(_Strict):
     name: Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$")]
     aircraft: str
@@ -237,6 +266,7 @@ class VehicleSpec(_Strict):
     mission: MissionSpec
     planner: PlannerConfig = Field(default_factory=_PLANNER_MODELS["follow_mission"])
     energy: EnergyOptions = EnergyOptions()
+    utm_link: UtmLink | None = None
 
     @model_validator(mode="before")
     @classmethod
@@ -292,8 +322,8 @@ class VehicleSpec(_Strict):
             if self.mission.repeat:
                 raise ValueError(f"mission.repeat: for fixed wing ({self.aircraft} is {kind})")
             return self
-        if self.mission.repeat and self.planner.type != "follow_mission":
-            raise ValueError("mission.repeat: only with the follow_mission planner")
+        if self.mission.repeat and self.planner.type not in REPEAT_PLANNERS:
+            raise ValueError(f"mission.repeat: only with the {' or '.join(REPEAT_PLANNERS)} planner")
         if self.mission.land:
             raise ValueError(f"mission.land: only multirotors land at the end of a mission ({self.aircraft} is {kind})")
         if self.initial.on_ground:
@@ -488,10 +518,29 @@ class Surveillance(_Strict):
     velocity_noise: Speed = 0.5
 
 
-class StormCell(_Strict):
+class _StormExtent(_Strict):
+    """Vertical extent of storm cells: ``base`` and ``top`` altitudes MSL [m]; no base = from the
+    ground, no top = unbounded (a cell is the prism of its outline between them)."""
+
+    base: _Altitude | None = None
+    top: _Altitude | None = None
+
+    @model_validator(mode="after")
+    def _top_above_base(self) -> _StormExtent:
+        if self.base is not None and self.top is not None and not self.top > self.base:
+            raise ValueError(f"top ({self.top:g} m) must be above base ({self.base:g} m)")
+        return self
+
+    def extent_up(self, origin_alt_m: float) -> tuple[float, float]:
+        """[base, top] heights above the origin [m] (-inf / inf where not given)."""
+        base = -math.inf if self.base is None else self.base - origin_alt_m
+        return base, math.inf if self.top is None else self.top - origin_alt_m
+
+
+class StormCell(_StormExtent):
     """A scripted storm cell (not drawn by the generator): polygon ``points`` [[north, east], ...]
-    [m] at t = 0, drifting at constant (``drift_north``, ``drift_east``) [m/s]; from the ground
-    up, like the synthetic cells."""
+    [m] at t = 0, drifting at constant (``drift_north``, ``drift_east``) [m/s], between ``base``
+    and ``top`` (altitudes MSL [m]; default from the ground up without a top)."""
 
     points: list[tuple[float, float]]
     drift_north: Speed = 0.0
@@ -503,10 +552,11 @@ class StormCell(_Strict):
         return _simple_polygon(v)
 
 
-class Weather(_Strict):
+class Weather(_StormExtent):
     """Synthetic convective weather (seeded from the scenario): ``cells`` storm cells over a
     box of ``size`` x ``size`` [m] south-west-cornered at the origin, drifting at
-    (``drift_north``, ``drift_east``) [m/s] +- ``drift_spread``, mean radius ``radius``; a
+    (``drift_north``, ``drift_east``) [m/s] +- ``drift_spread``, mean radius ``radius``, between
+    ``base`` and ``top`` (altitudes MSL [m]; default from the ground up without a top); a
     nowcast of the next ``horizon`` in ``step`` slices is issued every ``nowcast_period`` (what
     the vehicles see). ``seed``: the field's own seed (default: drawn from the scenario seed);
     ``pop_up``: cells may be born after the start (unforeseen by earlier nowcasts); false = every
@@ -546,7 +596,7 @@ class Weather(_Strict):
 
     @model_validator(mode="after")
     def _one_source(self) -> Weather:
-        mixed = self.nowcast_files and ({"cells", "storm", "centres"} & self.model_fields_set)
+        mixed = self.nowcast_files and ({"cells", "storm", "centres", "base", "top"} & self.model_fields_set)
         if mixed:
             raise ValueError(
                 f"nowcast_files replace the synthetic and scripted cells: remove {', '.join(sorted(mixed))}"
@@ -595,6 +645,39 @@ class Gust(_Fault):
 Fault = Annotated[GnssLoss | SensorBias | SensorStuck | MotorFailure | Gust, Field(discriminator="kind")]
 
 
+class UtmSpoof(_Strict):
+    """A forged head-on case injected into ``vehicle``'s directives from ``at`` for ``duration``
+    (None: to the end): a case with ``peer`` (which need not exist) at the collision point
+    ``north``/``east``/``altitude`` (MSL) with ``margin``. Anti-spoofing tests: the vehicle must
+    not obey it until its own surveillance confirms the peer."""
+
+    vehicle: str
+    peer: Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$")]
+    at: _Time
+    duration: Annotated[float, quantity("time", 0.0, 30 * 86400.0, lo_open=True)] | None = None
+    north: _Offset
+    east: _Offset
+    altitude: _Altitude
+    margin: Annotated[float, quantity("length", 0.0, 1e5, lo_open=True)] = 50.0
+
+
+class Utm(_Strict):
+    """The central UTM authority (``sim/utm_authority.py``): decision ``frame`` period; a link is
+    lost after ``lost_after`` without a message (the authority drops a silent vehicle from its
+    cases; a vehicle without directives flies blind, the rules of the air on its own tracks);
+    ``spoof``: forged cases (:class:`UtmSpoof`)."""
+
+    frame: Annotated[float, quantity("time", 0.0, 60.0, lo_open=True)] = 1.0
+    lost_after: Annotated[float, quantity("time", 0.0, 600.0, lo_open=True)] = 3.0
+    spoof: list[UtmSpoof] = []
+
+    @model_validator(mode="after")
+    def _lost_after_frames(self) -> Utm:
+        if self.lost_after < self.frame:
+            raise ValueError(f"lost_after ({self.lost_after:g} s) must be at least one frame ({self.frame:g} s)")
+        return self
+
+
 class Metrics(_Strict):
     """Thresholds of the run metrics: the well-clear volume between two aircraft (horizontal
     radius, vertical half height; default ASTM F3442 small-UAS well clear) and the near mid-air
@@ -636,6 +719,7 @@ class Scenario(_Strict):
     obstacle: list[Obstacle] = []
     geofence: list[GeofenceSpec] = []
     fault: list[Fault] = []
+    utm: Utm | None = None
     vehicle: Annotated[list[VehicleSpec], Field(min_length=1)]
 
     @field_validator("start_time")
@@ -664,6 +748,17 @@ class Scenario(_Strict):
         for k, f in enumerate(self.fault):
             if f.vehicle not in names:
                 raise ValueError(f"fault[{k}].vehicle: no vehicle {f.vehicle!r} (vehicles: {', '.join(names)})")
+        for k, v in enumerate(self.vehicle):
+            if v.utm_link is not None and self.utm is None:
+                raise ValueError(f"vehicle[{k}].utm_link needs the [utm] section (the authority)")
+        for k, sp in enumerate(self.utm.spoof if self.utm is not None else []):
+            if sp.vehicle not in names:
+                raise ValueError(f"utm.spoof[{k}].vehicle: no vehicle {sp.vehicle!r} (vehicles: {', '.join(names)})")
+        if self.utm is not None and self.utm.frame < 1.0 / self.logging.rate_hz - 1e-9:
+            raise ValueError(
+                f"utm.frame: {self.utm.frame:g} s is shorter than a log tick ({1.0 / self.logging.rate_hz:g} s), "
+                "the authority's tick"
+            )
         traffic = names + [o.id for o in self.object]
         dup = sorted({i for i in traffic if traffic.count(i) > 1})
         if dup:

@@ -81,6 +81,7 @@ class StormField:
     span_s: float = 3600.0
     centres: np.ndarray | None = None  # (n_cells, 2) [m]: place the cells here (t = t0) instead
     births_after_t0: bool = True  # False: every cell is alive at t0 (no cell pops up unforeseen)
+    extent_up_m: tuple[float, float] = (-math.inf, math.inf)  # [base, top] of every cell above the origin [m]
 
     def __post_init__(self) -> None:
         rng = np.random.default_rng(self.seed)
@@ -147,8 +148,9 @@ class StormField:
             for sgn, dv in ((1.0, rng.uniform(0.2, 0.5) * drift), (-1.0, rng.uniform(0.2, 0.5) * drift))
         ]
 
-    def cell_shapes(self, t: float) -> tuple[list[Polygon], np.ndarray]:
-        """Live cells at time t (before merging) and their velocities (N, 2)."""
+    def cell_shapes(self, t: float) -> tuple[list[Polygon], np.ndarray, np.ndarray]:
+        """Live cells at time t (before merging), their velocities (N, 2) [m/s] and vertical
+        extents (N, 2) [base, top] [m]."""
         shapes, vel = [], []
         for c in self.cells:
             if c.split_at is not None and t >= c.split_at:
@@ -157,7 +159,7 @@ class StormField:
             if p is not None:
                 shapes.append(p)
                 vel.append(c.velocity)
-        return shapes, np.array(vel).reshape(-1, 2)
+        return shapes, np.array(vel).reshape(-1, 2), np.tile(np.asarray(self.extent_up_m, float), (len(shapes), 1))
 
     def truth(self, t: float) -> StormSnapshot:
         """The storm field at time t with overlapping cells merged."""
@@ -165,30 +167,36 @@ class StormField:
 
     def nowcast(self, t_issue: float, horizon_s: float = 3600.0, step_s: float = 300.0) -> list[StormSnapshot]:
         """Snapshots at t_issue + k step: observed cells extrapolated with their velocities."""
-        observed, vel = _union(*self.cell_shapes(t_issue))
+        observed, vel, ext = _union(*self.cell_shapes(t_issue))
         out = []
         for k in range(round(horizon_s / step_s) + 1):
             d = k * step_s
             cells = tuple(shapely.affinity.translate(c, *(vel[i] * d)) for i, c in enumerate(observed))
-            out.append(StormSnapshot(t_issue + d, cells, vel.copy()))
+            out.append(StormSnapshot(t_issue + d, cells, vel.copy(), ext.copy()))
         return out
 
 
-def merge_cells(t: float, shapes: list[Polygon], velocities: np.ndarray) -> StormSnapshot:
-    """Union overlapping cells into one, with the area-weighted mean velocity."""
-    return StormSnapshot(t, *_union(shapes, velocities))
+def merge_cells(t: float, shapes: list[Polygon], velocities: np.ndarray, extents: np.ndarray) -> StormSnapshot:
+    """Union overlapping cells into one, with the area-weighted mean velocity and the lowest
+    base and highest top of its parts."""
+    return StormSnapshot(t, *_union(shapes, velocities, extents))
 
 
-def _union(shapes: list[Polygon], velocities: np.ndarray) -> tuple[tuple[Polygon, ...], np.ndarray]:
-    """Overlapping cells unioned, and their area-weighted mean velocities (N, 2) [m/s]."""
+def _union(
+    shapes: list[Polygon], velocities: np.ndarray, extents: np.ndarray
+) -> tuple[tuple[Polygon, ...], np.ndarray, np.ndarray]:
+    """Overlapping cells unioned, their area-weighted mean velocities (N, 2) [m/s] and vertical
+    extents (N, 2) [base, top] [m] (lowest base, highest top of the parts)."""
     if not shapes:
-        return (), np.zeros((0, 2))
+        return (), np.zeros((0, 2)), np.zeros((0, 2))
     arr = np.asarray(shapes, object)
     merged = shapely.get_parts(shapely.union_all(arr))
     tree = shapely.STRtree(arr)
     area = shapely.area(arr)
     vel = np.zeros((len(merged), 2))
+    ext = np.zeros((len(merged), 2))
     for m, geom in enumerate(merged):
         idx = tree.query(geom, predicate="intersects")
         vel[m] = (area[idx, None] * velocities[idx]).sum(0) / area[idx].sum()
-    return tuple(merged), vel
+        ext[m] = extents[idx, 0].min(), extents[idx, 1].max()
+    return tuple(merged), vel, ext

@@ -120,6 +120,7 @@ def threats_dict(t: float, th: Threats, with_scan: bool = True) -> dict:
                 "t": s.t,
                 "cells": [list(c.exterior.coords) for c in s.cells],
                 "velocities_ne": None if s.velocities_ne is None else np.asarray(s.velocities_ne).tolist(),
+                "extents_up_m": None if s.extents_up_m is None else _extents_json(s.extents()),
             }
             for s in th.storms
         ],
@@ -141,6 +142,15 @@ def threats_dict(t: float, th: Threats, with_scan: bool = True) -> dict:
     return d
 
 
+def _extents_json(ext: np.ndarray) -> list[list[float | None]]:
+    """Cell extents [[base, top], ...] [m] with null where unbounded (JSON has no infinity)."""
+    return [[float(b) if np.isfinite(b) else None, float(t) if np.isfinite(t) else None] for b, t in ext]
+
+
+def _extents_from_json(rows: list[list[float | None]]) -> np.ndarray:
+    return np.array([[-np.inf if b is None else b, np.inf if t is None else t] for b, t in rows], float).reshape(-1, 2)
+
+
 def storms_from_dicts(storms: list[dict]) -> list[StormSnapshot]:
     """Logged storm snapshots (``threats_dict``'s ``storms``) back into StormSnapshots."""
     return [
@@ -148,6 +158,7 @@ def storms_from_dicts(storms: list[dict]) -> list[StormSnapshot]:
             s["t"],
             tuple(Polygon(c) for c in s["cells"]),
             None if s.get("velocities_ne") is None else np.asarray(s["velocities_ne"], float),
+            None if s.get("extents_up_m") is None else _extents_from_json(s["extents_up_m"]),
         )
         for s in storms
     ]

@@ -27,14 +27,16 @@ from sim.storm_synthetic import StormField
 @dataclass
 class ScriptedStormField(StormField):
     """A storm field with extra ``scripted`` cells: (polygon (north, east) [m] at t = 0,
-    velocity (2,) [m/s]) pairs that neither grow, decay nor split."""
+    velocity (2,) [m/s], vertical extent (2,) [base, top] above the origin [m]) triples that
+    neither grow, decay nor split."""
 
     scripted: tuple = ()
 
-    def cell_shapes(self, t: float) -> tuple[list[Polygon], np.ndarray]:
-        shapes, vel = super().cell_shapes(t)
-        shapes = shapes + [shapely.affinity.translate(p, *(v * t)) for p, v in self.scripted]
-        return shapes, np.vstack([vel.reshape(-1, 2)] + [v for _, v in self.scripted]).reshape(-1, 2)
+    def cell_shapes(self, t: float) -> tuple[list[Polygon], np.ndarray, np.ndarray]:
+        shapes, vel, ext = super().cell_shapes(t)
+        shapes = shapes + [shapely.affinity.translate(p, *(v * t)) for p, v, _ in self.scripted]
+        vel = np.vstack([vel.reshape(-1, 2)] + [v for _, v, _ in self.scripted]).reshape(-1, 2)
+        return shapes, vel, np.vstack([ext.reshape(-1, 2)] + [e for _, _, e in self.scripted]).reshape(-1, 2)
 
 
 class NowcastSeries:
@@ -58,16 +60,23 @@ class NowcastSeries:
             t,
             tuple(shapely.affinity.translate(c, *(vk * dt)) for c, vk in zip(a.cells, v, strict=True)),
             a.velocities_ne,
+            a.extents_up_m,
         )
 
 
 class WeatherService:
     def __init__(self, cfg: sc.Weather, seed: int, origin: GeoPoint | None = None):
-        """``origin``: the scenario's, for nowcast files in WGS84."""
+        """``origin``: the scenario's, for nowcast files in WGS84 and the cells' heights (altitudes
+        MSL in the scenario and the files, heights above the origin in the snapshots)."""
         self.cfg = cfg
         self.files = NowcastSeries(load_series(cfg.nowcast_files, origin)) if cfg.nowcast_files else None
+        alt0 = 0.0 if origin is None else origin.alt_m
         self.field = ScriptedStormField(
-            scripted=tuple((Polygon(c.points), np.array([c.drift_north, c.drift_east])) for c in cfg.storm),
+            scripted=tuple(
+                (Polygon(c.points), np.array([c.drift_north, c.drift_east]), np.array(c.extent_up(alt0)))
+                for c in cfg.storm
+            ),
+            extent_up_m=cfg.extent_up(alt0),
             seed=seed if cfg.seed is None else cfg.seed,
             births_after_t0=cfg.pop_up,
             n_cells=cfg.cells,
@@ -101,13 +110,18 @@ class WeatherService:
 
 
 def storms_geojson(snapshot: StormSnapshot, to_lonlat) -> str:
-    """A snapshot as a GeoJSON FeatureCollection string (lon/lat via ``to_lonlat(coords)``)."""
+    """A snapshot as a GeoJSON FeatureCollection string (lon/lat via ``to_lonlat(coords)``);
+    a bounded cell's properties have its ``base_m``/``top_m`` heights above the origin [m]."""
     features = [
         {
             "type": "Feature",
-            "properties": {"kind": "storm", "t": snapshot.t},
+            "properties": {"kind": "storm", "t": snapshot.t} | _extent_props(e),
             "geometry": {"type": "Polygon", "coordinates": [to_lonlat(list(c.exterior.coords))]},
         }
-        for c in snapshot.cells
+        for c, e in zip(snapshot.cells, snapshot.extents(), strict=True)
     ]
     return json.dumps({"type": "FeatureCollection", "features": features})
+
+
+def _extent_props(extent: np.ndarray) -> dict[str, float]:
+    return {k: float(v) for k, v in zip(("base_m", "top_m"), extent, strict=True) if np.isfinite(v)}

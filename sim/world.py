@@ -25,11 +25,13 @@ from sim.hull import Hull, load_hull
 from sim.mcap_log import McapLog
 from sim.perception import Perception
 from sim.planner_registry import planner_awareness
-from sim.scenario import Scenario
+from sim.scenario import Scenario, UtmLink
 from sim.scheduler import LockstepScheduler, Stage
 from sim.sensors.lidar import Lidar
 from sim.sensors.truth import TruthSampler
 from sim.traffic import TrafficObject
+from sim.utm_authority import UtmAuthority
+from sim.utm_link import Link
 from sim.vehicle import Vehicle
 from sim.vehicle_log import NED_FRAME, write_map
 from sim.weather import WeatherService, storms_geojson
@@ -38,6 +40,12 @@ from sim.weather import WeatherService, storms_geojson
 def seed_streams(seed: int) -> tuple:
     """The run's independent seed streams: vehicles, surveillance sensing, weather, LiDARs."""
     return tuple(np.random.SeedSequence(seed).spawn(4))
+
+
+def link_streams(seed: int, n: int) -> list[np.random.SeedSequence]:
+    """The C2/UTM links' streams, one per vehicle (a fifth child of the run's seed: the other
+    four streams are unchanged by it)."""
+    return np.random.SeedSequence(seed).spawn(5)[4].spawn(n)
 
 
 def weather_seed(weather_ss: np.random.SeedSequence) -> int:
@@ -98,6 +106,7 @@ class World:
             self.obstacles,
         )
         self.crashes: list[Crash] = []
+        self.utm = self._authority(scenario, log) if scenario.utm is not None else None
         write_map(log, self.obstacles, self.fences, self.origin)
         log.metadata("vehicles", {v.name: v.airframe.kind for v in self.vehicles})
 
@@ -124,6 +133,8 @@ class World:
                 sched.add_task(
                     f"{v.name}.lidar", self.lidars[v.name][0].cfg.rate_hz, Stage.SENSE, partial(self._scan, v)
                 )
+        if self.utm is not None:
+            sched.add_task("utm", log_hz, Stage.SENSE, self.utm.tick)
         if self.objects:
             sched.add_task("world.log", log_hz, Stage.LOG, self._log_objects)
         if len(self.vehicles) > 1:
@@ -155,6 +166,18 @@ class World:
                 "/world/crash", t, c.record(), S.CRASH, {"frame": "local-level NED from the scenario origin"}
             )
         self.crashes += found
+
+    def _authority(self, scenario: Scenario, log: McapLog) -> UtmAuthority:
+        """The UTM authority over every vehicle, each on its modelled link (scenario ``utm``,
+        ``vehicle.utm_link``)."""
+        assert scenario.utm is not None
+        links = {}
+        for v, ss in zip(scenario.vehicle, link_streams(scenario.seed, len(scenario.vehicle)), strict=True):
+            c = v.utm_link or UtmLink()
+            links[v.name] = Link(
+                c.latency, c.loss, tuple((o.start, o.end) for o in c.outage), np.random.default_rng(ss)
+            )
+        return UtmAuthority(scenario.utm, self.vehicles, links, log, self.origin.alt_m, scenario.logging.rate_hz)
 
     # -- sensing the rest of the world ---------------------------------------------------------
     def sense(self, t: float) -> None:

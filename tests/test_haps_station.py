@@ -33,9 +33,10 @@ def _square(repeat: bool, planner: str = "follow_mission") -> dict:
     }
 
 
-def test_repeat_needs_the_follow_mission_planner():
-    with pytest.raises(ScenarioError, match="repeat"):
-        parse_scenario(_square(True, planner="mptp"))
+def test_repeat_needs_a_planner_that_plans_leg_by_leg():
+    with pytest.raises(ScenarioError, match=r"mission\.repeat: only with the follow_mission or mptp planner"):
+        parse_scenario(_square(True, planner="reachset"))
+    assert parse_scenario(_square(True, planner="mptp")).vehicle[0].mission.repeat
 
 
 @pytest.mark.closed_loop

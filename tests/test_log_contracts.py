@@ -32,6 +32,7 @@ SCENARIOS = [
     ("geometric/s2_climb_over.toml", 10.0),
     ("reachset/s2_slalom.toml", 10.0),
     ("rules/s10_head_on.toml", 10.0),
+    ("rules/s9_converging_utm.toml", 10.0),  # the UTM authority's /utm/* topics
     ("mptp/storm_crossing.toml", 120.0),
     ("reachset/building_lidar.toml", 10.0),
     ("quad_motor_failure.toml", 10.0),  # ends in a crash (/world/crash)

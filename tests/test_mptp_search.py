@@ -18,7 +18,7 @@ from guidance.mptp.goal import GoalTrack
 from guidance.mptp.heuristics import GoalAvailability, edh
 from guidance.mptp.planner import MptpPlanner
 from guidance.mptp.search import default_workspace, plan_trajectory
-from guidance.mptp.statespace import free_space
+from guidance.mptp.statespace import free_space, polygonal
 from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.turning import flyby_path, wrap
 from guidance.mptp.visibility import (
@@ -263,3 +263,14 @@ def test_no_leg_from_a_boundary_vertex_into_the_obstacle():
         s = np.linspace(0.0, 1.0, 50)[:, None]
         pts = p + s * (q - p)
         assert not shapely.contains_xy(margin, pts[:, 0], pts[:, 1]).any(), f"leg {p} -> {q} enters the margins"
+
+
+def test_polygonal_keeps_the_areas_of_a_collection_and_drops_its_lines():
+    """Two margins that touch leave a line in their intersections' union: the obstacle is the
+    polygons only (a collection has no boundary to escape a trapped state from)."""
+    sq = box(0, 0, 10, 10)
+    mixed = shapely.GeometryCollection([sq, shapely.LineString([(10, 0), (20, 0)]), shapely.Point(30, 30)])
+    out = polygonal(mixed)
+    assert out.geom_type == "Polygon" and out.equals(sq) and out.boundary is not None
+    assert polygonal(sq) is sq
+    assert polygonal(shapely.GeometryCollection([shapely.LineString([(0, 0), (1, 1)])])).is_empty

@@ -260,6 +260,18 @@ EFFECTS: dict[str, Effect] = {
         _set("weather", {"nowcast_files": [_NOWCASTS + "nowcast_00000s.geojson"]}),
         _set("weather.nowcast_files", [_NOWCASTS + "nowcast_00300s.geojson"]),  # issued at 300 s
     ),
+    "weather.base": (_QUAD, _set("weather", _WEATHER), _set("weather.base", 500.0)),
+    "weather.top": (_QUAD, _set("weather", _WEATHER), _set("weather.top", 9000.0)),
+    "weather.storm.base": (
+        _QUAD,
+        _set("weather", _WEATHER | {"storm": [{"points": [[0, 0], [0, 900], [900, 0]]}]}),
+        _set("weather.storm.0.base", 500.0),
+    ),
+    "weather.storm.top": (
+        _QUAD,
+        _set("weather", _WEATHER | {"storm": [{"points": [[0, 0], [0, 900], [900, 0]]}]}),
+        _set("weather.storm.0.top", 9000.0),
+    ),
     "weather.storm.points": (
         _QUAD,
         _set("weather", _WEATHER | {"storm": [{"points": [[0, 0], [0, 900], [900, 0]]}]}),
@@ -375,6 +387,33 @@ EFFECTS: dict[str, Effect] = {
     "vehicle.planner<FollowMissionPlanner>.rate_hz": (_QUAD, None, _set("vehicle.0.planner.rate_hz", 2.0)),
 }
 
+_UTM_LINK = {"latency": 0.1, "loss": 0.0, "outage": [{"start": 1.0, "end": 2.0}]}
+_SPOOF = {"vehicle": "quad", "peer": "ghost", "at": 1.0, "north": 5.0, "east": 0.0, "altitude": 420.0}
+
+
+def _utm(d: dict) -> None:
+    """The UTM authority over the quadrotor (which only notifies it), an outage of its link
+    and a forged case on its downlink."""
+    d["utm"] = {"spoof": [dict(_SPOOF)]}
+    _quad(d)["utm_link"] = copy.deepcopy(_UTM_LINK)
+
+
+EFFECTS |= {
+    "utm.frame": (_QUAD, _utm, _set("utm.frame", 0.5)),
+    "utm.lost_after": (_QUAD, _utm, _set("utm.lost_after", 1.0)),  # the outage then loses the link
+    "utm.spoof.peer": (_QUAD, _utm, _set("utm.spoof.0.peer", "phantom")),
+    "utm.spoof.at": (_QUAD, _utm, _set("utm.spoof.0.at", 2.0)),
+    "utm.spoof.duration": (_QUAD, _utm, _set("utm.spoof.0.duration", 1.0)),
+    "utm.spoof.north": (_QUAD, _utm, _set("utm.spoof.0.north", 6.0)),
+    "utm.spoof.east": (_QUAD, _utm, _set("utm.spoof.0.east", 1.0)),
+    "utm.spoof.altitude": (_QUAD, _utm, _set("utm.spoof.0.altitude", 421.0)),
+    "utm.spoof.margin": (_QUAD, _utm, _set("utm.spoof.0.margin", 20.0)),
+    "vehicle.utm_link.latency": (_QUAD, _utm, _set("vehicle.0.utm_link.latency", 0.3)),
+    "vehicle.utm_link.loss": (_QUAD, _utm, _set("vehicle.0.utm_link.loss", 0.5)),
+    "vehicle.utm_link.outage.start": (_QUAD, _utm, _set("vehicle.0.utm_link.outage.0.start", 0.0)),
+    "vehicle.utm_link.outage.end": (_QUAD, _utm, _set("vehicle.0.utm_link.outage.0.end", 2.5)),
+}
+
 _LIDAR: dict[str, object] = {
     "latency_s": 0.05,
     "max_range_m": 6.0,
@@ -447,6 +486,7 @@ LABELS = {
     "obstacle.id": "names the obstacle",
     "geofence.id": "names the geofence",
     "vehicle.name": "names the vehicle",
+    "utm.spoof.vehicle": "names the vehicle whose downlink carries the forged case",
     **{f"fault<{k}>.vehicle": "names the faulty vehicle" for k in _FAULTS},
     **{f"fault<{k}>.kind": "the union's tag" for k in _FAULTS},
 }
@@ -677,6 +717,12 @@ ENCOUNTERS: dict[str, dict] = {
     },
 }
 
+# the same with the HAPS at 17 km climbing to 18 km and the cells from 18.5 km up (the MPTP's
+# vertical options: within 1 km of the heights it reaches in the horizon at 1 m/s)
+ENCOUNTERS["mptp_high_cells"] = copy.deepcopy(ENCOUNTERS["mptp"]) | {"name": "silent_mptp_high_cells"}
+ENCOUNTERS["mptp_high_cells"]["weather"]["base"] = 18_500.0
+ENCOUNTERS["mptp_high_cells"]["vehicle"][0]["initial"]["altitude"] = 17_000.0
+
 
 def _options(**values: object) -> Callable[[dict], None]:
     """A change setting planner options of every vehicle whose planner takes options (all but
@@ -770,7 +816,6 @@ _MPTP = {
     "sigma_back_mps": 3.0,
     "sigma_front_mps": 3.0,
     "simplify_tol_m": 2000.0,
-    "tas_mps": 20.0,
     "turn_model": "simulated",
     "turning": "left",
     "wind_error_ne_mps": [5.0, 5.0],
@@ -813,6 +858,12 @@ def _decision_table() -> dict[str, Decision]:
     prefix = "vehicle.planner<MptpPlanner>.options."
     out[prefix + "safety_line_m"] = ("mptp", _options(line_aspect=1.0), _options(safety_line_m=[1000.0] * 3))
     out[prefix + "wind_forecast"] = ("mptp", _set("wind.east", 10.0), _options(wind_forecast="none"))
+    out[prefix + "tas_mps"] = ("mptp", _options(speed_source="config"), _options(tas_mps=20.0))
+    out[prefix + "speed_source"] = ("mptp", _options(tas_mps=20.0), _options(speed_source="config"))
+    # the cells' base 500 m over the 18 km the HAPS reaches: inside the 1 km margin, outside 200 m
+    out[prefix + "vertical_margin_m"] = ("mptp_high_cells", None, _options(vertical_margin_m=200.0))
+    # at 0.1 m/s the HAPS reaches only 17.36 km in the horizon: 1.14 km under the cells' base
+    out[prefix + "climb_rate_mps"] = ("mptp_high_cells", None, _options(climb_rate_mps=0.1))
     out[prefix + "roll_rate_max"] = ("mptp", _options(turn_model="simulated"), _options(roll_rate_max=0.5))
     out[prefix + "turn_bank_fraction"] = ("mptp", _options(turn_model="simulated"), _options(turn_bank_fraction=0.5))
     prefix = "vehicle.planner<ReachsetPlanner>.options.rules_"

@@ -55,6 +55,7 @@ def _assert_reproduced(path: Path, vehicle: str) -> RunLog:
         ("reachset/s6_converging.toml", "uas1", 20.0, "decision", "intruders"),
         ("reachset/building_lidar.toml", "quad", 20.0, "decision", "lidar_hits"),
         ("rules/s9_converging.toml", "uas1", 30.0, "rules", "intruders"),
+        ("rules/s9_converging_utm.toml", "uas1", 30.0, "rules", "intruders"),  # and the UTM's directives
     ],
 )
 def test_avoidance_planner_rerun_reproduces_every_plan(tmp_path_factory, scenario, vehicle, duration, records, sensed):

@@ -14,6 +14,8 @@ from avoidance.rules.config import RulesConfig
 from avoidance.rules.restrictions import right_plane_heading_mask, weather_masks
 from avoidance.rules.rules_of_air import roundabout_aim
 from avoidance.utm.collision_case import Encounter, Role, UtmConfig, compute_collision_case
+from avoidance.utm.weather_case import weather_cases
+from sim.core.threats import StormSnapshot
 from sim.mcap_read import read_topic
 from sim.replay.report import log_metrics
 from tests.test_rules_utm import NAV, note
@@ -113,6 +115,18 @@ def test_weather_masks_move_the_body_with_the_cell():
     s2 = _node(MovementType.STRAIGHT, MovementType.STRAIGHT)
     assert weather_masks(NAV, pose, far, np.array([-2.0, 0.0]), 1.5, 0.0)[0][s2]
     assert not weather_masks(NAV, pose, far, np.array([-2.0, 0.0]), 0.0, 0.0)[0][s2]
+
+
+def test_a_cell_is_a_weather_case_only_within_its_heights_grown_by_the_band():
+    """Cells [0, 100] m and [500, 800] m with a 25 m band: at 110 m only the low one is a case
+    (ids keep the snapshot's indices), at 130 m neither, at 480 m the high one; a snapshot
+    without extents reaches every height."""
+    cells = [shapely.box(0, 0, 10, 10), shapely.box(50, 0, 60, 10)]
+    snap = StormSnapshot(0.0, tuple(cells), extents_up_m=np.array([[0.0, 100.0], [500.0, 800.0]]))
+    assert [w.id for w in weather_cases([snap], 1.0, 25.0, up_m=110.0)] == ["cell0"]
+    assert weather_cases([snap], 1.0, 25.0, up_m=130.0) == []
+    assert [w.id for w in weather_cases([snap], 1.0, 25.0, up_m=480.0)] == ["cell1"]
+    assert len(weather_cases([StormSnapshot(0.0, tuple(cells))], 1.0, 25.0, up_m=9000.0)) == 2
 
 
 WEATHER_BAND_M = 25.0  # rules_weather_margin 5 x rules_unit 5

@@ -15,7 +15,11 @@ TECS (total energy control, after ArduPilot ``AP_TECS``), per unit mass [J/kg]:
 - energy balance SEB = (2-w) g h - w V^2/2 -> pitch: demanded balance rate / (g V) + P on the
   balance-rate error + I on the balance error (the I term holds the trim angle of attack).
 Airspeed schedule: while the altitude demand is more than ``schedule_band_m`` away, the speed
-demand is the climb or descent EAS (converted to TAS at the current density ratio). Demands are
+demand is the climb or descent EAS (converted to TAS at the current density ratio).
+Sink limit: ``sink_rate_max``, but never more than the drag polar's glide sink at the descent EAS
+(TAS x CD/CL in level 1-g flight at the current density): lower down the airframe cannot lose
+height faster at that airspeed with the motors at idle, so a larger sink demand would be flown
+by diving faster than the schedule (EAS 11 instead of 9 m/s below 3 km). Demands are
 shaped first: the altitude and airspeed references move toward the setpoint no
 faster than the climb/sink and acceleration limits and stay within the linear range of the
 P loops, so integrators do not wind up on large steps. Integrators are clamped and frozen while
@@ -85,6 +89,13 @@ class HapsAutopilot:
         power = q_s * (g.cd0 + g.k_induced * cl * cl) * tas / g.prop_efficiency
         return power / g.power_max_w
 
+    def _glide_sink(self, tas_per_eas: float) -> float:
+        """Sink rate [m/s] of the drag polar's glide at the descent EAS: TAS x CD / CL (1 g)."""
+        g = self.gains
+        q_s = 0.5 * RHO0 * g.descent_eas**2 * g.wing_area_m2
+        cl = g.mass_kg * STANDARD_GRAVITY / q_s
+        return g.descent_eas * tas_per_eas * (g.cd0 + g.k_induced * cl * cl) / cl
+
     def _scheduled_tas(self, sp: FixedWingSetpoint, h: float, tas_per_eas: float) -> float:
         """Airspeed demand [m/s TAS]: the climb or descent EAS of the schedule while the altitude
         demand is beyond the band, else the setpoint's."""
@@ -123,14 +134,15 @@ class HapsAutopilot:
             self._v_ref + _clamp(v_dem - self._v_ref, -g.accel_max * dt, g.accel_max * dt), v - v_lead, v + v_lead
         )
         v_ref_rate = (v_ref - self._v_ref) / dt
+        sink_max = min(g.sink_rate_max, self._glide_sink(tas_per_eas))
         h_ref = _clamp(
-            self._h_ref + _clamp(sp.altitude_m - self._h_ref, -g.sink_rate_max * dt, g.climb_rate_max * dt),
-            h - g.sink_rate_max * g.alt_time_const_s,
+            self._h_ref + _clamp(sp.altitude_m - self._h_ref, -sink_max * dt, g.climb_rate_max * dt),
+            h - sink_max * g.alt_time_const_s,
             h + g.climb_rate_max * g.alt_time_const_s,
         )
         h_ref_rate = (h_ref - self._h_ref) / dt
         self._v_ref, self._h_ref = v_ref, h_ref
-        hdot_dem = _clamp(h_ref_rate + (h_ref - h) / g.alt_time_const_s, -g.sink_rate_max, g.climb_rate_max)
+        hdot_dem = _clamp(h_ref_rate + (h_ref - h) / g.alt_time_const_s, -sink_max, g.climb_rate_max)
         vdot_dem = _clamp(v_ref_rate + (v_ref - v) / g.spd_time_const_s, -g.accel_max, g.accel_max)
 
         # total energy -> throttle
@@ -168,6 +180,7 @@ class HapsAutopilot:
             "v_dem_mps": v_dem,
             "v_ref_mps": v_ref,
             "hdot_dem_mps": hdot_dem,
+            "sink_max_mps": sink_max,
             "vdot_dem_mps2": vdot_dem,
             "vdot_mps2": vdot,
             "ste_err_jkg": ste_err,

@@ -59,6 +59,7 @@ class SegmentPlanning:
     trees: dict[Mode, ReachSetTree]
     assessors: dict[Mode, Assessor]
     nodes: dict[Mode, dict[tuple[int, ...], int]]  # node of every buffer
+    turns: bool  # some path of a reach set changes heading (False: e.g. the vertical ACAS set)
 
 
 @dataclass(slots=True)
@@ -133,6 +134,7 @@ class MissionControl:
                 trees,
                 {m: Assessor(grid, t, self.cfg) for m, t in trees.items()},
                 {m: {b: n for n, b in enumerate(t.buffers())} for m, t in trees.items()},
+                any(bool(np.any(t.tip_att[:, 2] != 0.0)) for t in trees.values()),
             )
         return self._segments[index]
 

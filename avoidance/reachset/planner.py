@@ -7,7 +7,9 @@ points of the executing movement and of every planned movement, due at their mov
 
 The kinematic state of a decision comes from the estimate (never truth): position; heading from
 the estimated ground velocity when it is at least ``heading_from_velocity`` of the planning speed
-(else the yaw); level (pitch 0: the measured flight-path angle, carried into the executing
+(else the yaw) -- unless no path of the active segment's reach sets turns: then the bearing from
+the estimate to the goal (D-22: a set without turns can never correct a course error, e.g. the one
+flown from a misaligned first estimate); level (pitch 0: the measured flight-path angle, carried into the executing
 movement's prediction, made every sink or climb of the vehicle its own next plan, and with
 horizontal reach sets nothing pulled it back: the vehicle sank to the ground); speed = the
 planning speed (the MA keeps speed constant, so the segment is chosen by the commanded speed,
@@ -55,7 +57,10 @@ class ReachSetAvoider:
         self._last: Plan | None = None
         self._last_goal = -1
 
-    def kin_state(self, est: VehicleState, t: float) -> KinState:
+    def kin_state(self, est: VehicleState, t: float, goal_override: np.ndarray | None = None) -> KinState:
+        """Planning state of a decision at ``t`` [s] from the estimate (GCF, ENU [m], yaw [rad]);
+        ``goal_override`` (ENU [m]) as in :meth:`decide`."""
+        ctl = self.control
         vel = ned_to_enu(est.vel_ned)
         ground = float(np.hypot(vel[0], vel[1]))
         psi = (
@@ -64,12 +69,16 @@ class ReachSetAvoider:
             else heading_from_yaw_ned(est.yaw)
         )
         pos = ned_to_enu(est.pos_ned)
+        if not ctl.complete and not ctl.segment(ctl.sma.active_index(KinState(pos, np.zeros(3), t, self.speed))).turns:
+            to_goal = ctl.goal_point(goal_override) - pos
+            if np.hypot(to_goal[0], to_goal[1]) > 0.0:
+                return KinState(pos, np.array([0.0, 0.0, float(np.arctan2(to_goal[1], to_goal[0]))]), t, self.speed)
         d = self.last_decision
         if d is not None and not d.complete and abs(t - d.t_grid) < 1e-6:
             # the heading the last decision planned for now, while the vehicle keeps within one
             # movement's yaw increment of it: re-measuring it every frame made the ±15° movements
             # chatter left/right around a straight course (S4 flew straight into the storm)
-            dyaw = self.control.sma.active(KinState(pos, np.zeros(3), t, self.speed)).table.config.dyaw
+            dyaw = ctl.sma.active(KinState(pos, np.zeros(3), t, self.speed)).table.config.dyaw
             planned = d.pose.psi
             if abs(np.angle(np.exp(1j * (psi - planned)))) < dyaw:
                 psi = planned
@@ -119,7 +128,7 @@ class ReachSetAvoider:
         see :meth:`MissionControl.step`."""
         ctl = self.control
         ctl.goal = max(ctl.goal, self.mission.next_index)  # progress marked by the plan follower
-        d = ctl.step(self.kin_state(estimate, t), threats, goal_override, emergency_threats)
+        d = ctl.step(self.kin_state(estimate, t, goal_override), threats, goal_override, emergency_threats)
         self.last_decision = d
         pos, times, labels = self._vertices(d, estimate, threats)
         vel = (

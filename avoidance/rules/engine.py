@@ -18,6 +18,7 @@ import numpy as np
 
 from avoidance.utm.cases import CaseBook
 from avoidance.utm.collision_case import CollisionCase
+from avoidance.utm.directives import UtmInbox
 from avoidance.utm.notification import PositionNotification
 from avoidance.utm.weather_case import WeatherCase
 
@@ -64,6 +65,7 @@ class RuleContext:
     speed: float | None = None  # the speed [m/s] the rules command this frame (6.202), None: cruise
     weather: list[WeatherCase] = field(default_factory=list)  # this frame's weather cases
     goal: np.ndarray | None = None  # GCF [m] the run flies to (mission goal or the rules' override)
+    utm: UtmInbox | None = None  # the central UTM's directives (None: virtual UTM only)
 
     @property
     def unit(self) -> float:

@@ -37,7 +37,8 @@ from avoidance.rules.config import RulesConfig
 from avoidance.rules.engine import DecisionPoint, RuleContext, RuleEngine
 from avoidance.rules.rules_of_air import make_rules
 from avoidance.utm.cases import CaseBook
-from avoidance.utm.notification import PositionNotification, from_track
+from avoidance.utm.directives import Directive, UtmInbox
+from avoidance.utm.notification import PositionNotification, Registration, from_track
 from avoidance.utm.weather_case import weather_cases
 from sim.core.frames import ned_to_enu
 from sim.core.mission import Mission
@@ -73,6 +74,20 @@ class RulesAvoider(ReachSetAvoider):
         self._unresolved: set = set()
         self._start: float | None = None
         self._progress: dict[str, int] = {}  # peers' filed plans: index of the next waypoint
+        self.utm: UtmInbox | None = None  # set when a central UTM authority directs this UAS
+
+    def join_utm(self, name: str, lost_after: float) -> Registration:
+        """Register with a central UTM as ``name``: directives are merged with the own cases from
+        now on; the link counts as lost after ``lost_after`` [s] without a directive. Returns
+        the registration filed."""
+        self.utm = UtmInbox(OWN, lost_after)
+        return dataclasses.replace(self.registration, id=name)
+
+    def receive_directive(self, d: Directive, t: float) -> dict:
+        """A UTM directive arrived at ``t`` [s]; returns the acknowledgement."""
+        if self.utm is None:
+            raise RuntimeError("receive_directive before join_utm")
+        return self.utm.receive(d, t)
 
     def notifications(self, estimate: VehicleState, threats: Threats, t: float) -> list[PositionNotification]:
         own = PositionNotification(t, self.registration, ned_to_enu(estimate.pos_ned), ned_to_enu(estimate.vel_ned))
@@ -111,12 +126,18 @@ class RulesAvoider(ReachSetAvoider):
             deadlock_frames=self._deadlock_frames,
             unresolved=self._unresolved,
             start=self._start if self._start is not None else t,
+            utm=self.utm,
         )
+        if self.utm is not None:
+            mode = self.utm.update(t)
+            if mode is not None:
+                ctx.record(f"utm_{mode.value}")
         self._ctx = ctx
         self._start = ctx.start
         weather = self.engine.enabled("weather")
         if weather:  # storm cells become weather cases, handled by the rules instead of the run's constraints
-            ctx.weather = weather_cases(threats.storms, t, self.rules.weather_margin * self.rules.unit)
+            margin = self.rules.weather_margin * self.rules.unit
+            ctx.weather = weather_cases(threats.storms, t, margin, up_m=-float(estimate.pos_ned[2]))
         ctl = self.control
         ctx.goal = ctl.waypoints[min(max(ctl.goal, self.mission.next_index), len(ctl.waypoints) - 1)]
         self.engine.invoke(DecisionPoint.BEFORE_AVOIDANCE_RUN, ctx)
@@ -149,6 +170,7 @@ class RulesAvoider(ReachSetAvoider):
             "emergency": sorted(ctx.emergency),
             "weather": [w.record() for w in ctx.weather],
             "mode": d.mode.value,
+            "utm_link": None if self.utm is None else self.utm.mode.value,
         }
         self._ctx = None
         return plan

@@ -20,6 +20,7 @@ from avoidance.rules.restrictions import (
     weather_masks,
     widest_per_cell,
 )
+from avoidance.rules.utm_merge import merge_utm
 from avoidance.utm.cases import as_roundabout
 from avoidance.utm.collision_case import CollisionCase, Encounter, Role, closest_approach
 
@@ -98,6 +99,7 @@ class DetectCollisionCases:
         for c in ctx.book.active(ctx.uas):
             rb = rbs.get(ctx.uas)
             own.append(as_roundabout(c, rb) if rb is not None else c)
+        own = merge_utm(ctx, own)
         for c in own:
             if c.separation < c.margin and (c.ids, c.head) not in ctx.unresolved:  # once per chain
                 ctx.unresolved.add((c.ids, c.head))

@@ -211,6 +211,26 @@ class CollisionCase:
     def other(self, uas: str) -> str:
         return self.ids[1 - self.ids.index(uas)]
 
+    @staticmethod
+    def from_record(r: dict) -> CollisionCase:
+        """The case a :meth:`record` describes (chain links are not recorded)."""
+        return CollisionCase(
+            r["t"],
+            (r["ids"][0], r["ids"][1]),
+            Encounter(r["encounter"]),
+            r["alpha_deg"],
+            (Role(r["roles"][0]), Role(r["roles"][1])),
+            np.asarray(r["collision_point_enu"], float),
+            r["distance_m"],
+            r["t_cpa_s"],
+            r["margin_m"],
+            r["flagged"],
+            linear=not r["trajectory"],
+            trajectory=r["trajectory"],
+            head=r["head_t"],
+            separation=r["separation_m"],
+        )
+
     def record(self) -> dict:
         """JSON-ready values (GCF ENU point)."""
         return {
@@ -236,7 +256,8 @@ def compute_collision_case(
     """The case of the pair at frame time ``t`` [s], or None when they cannot meet (different
     flight levels) or one of them hovers (below ``min_speed``). ``flagged`` is set when the
     closest approach (trajectory intersection when a prediction is known, else linear) lies
-    in [0, time_margin] and within the collision margin (6.186)."""
+    in [0, time_margin] (trajectories: (0, time_margin], their minimum at the frame time means
+    the pair is past it) and within the collision margin (6.186)."""
     if not n1.shares_level(n2) or min(n1.speed, n2.speed) < cfg.min_speed:
         return None
     a1, a2 = n1.adjusted(t), n2.adjusted(t)
@@ -252,7 +273,8 @@ def compute_collision_case(
             dist, cp, t_min = trajectory_min_distance(p1, p2, times)
             t_cpa, trajectory = t_min - t, True
     m1, m2 = n1.registration.margins, n2.registration.margins
-    flagged = 0.0 <= t_cpa <= cfg.time_margin and dist <= collision_margin(m1, m2)
+    ahead = t_cpa > 0.0 if trajectory else t_cpa >= 0.0  # a trajectory minimum at the frame time: diverging
+    flagged = ahead and t_cpa <= cfg.time_margin and dist <= collision_margin(m1, m2)
     alpha = angle_of_approach(a1.pos, a2.pos, cp)
     right1, side_sure = side_of_traffic(a1.pos, a1.vel, a2.pos, a2.vel, cp, cfg.angle_doubt)
     priorities = (n1.registration.priority(), n2.registration.priority())

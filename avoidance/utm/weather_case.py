@@ -64,15 +64,20 @@ class WeatherCase:
         }
 
 
-def weather_cases(storms: list[StormSnapshot], t: float, margin: float) -> list[WeatherCase]:
+def weather_cases(storms: list[StormSnapshot], t: float, margin: float, up_m: float = 0.0) -> list[WeatherCase]:
     """The cells of the newest snapshot not after ``t`` [s] (the first one if all are later) as
-    weather cases with the soft band ``margin`` [m]."""
+    weather cases with the soft band ``margin`` [m]: those whose prism, grown by ``margin`` up
+    and down, holds the own height ``up_m`` [m above the origin]; a cell flown over (or under)
+    by more than the band is no case. Ids are the cells' indices in the snapshot."""
     usable = sorted((s for s in storms if s.t <= t), key=lambda s: s.t) or sorted(storms, key=lambda s: s.t)[:1]
     if not usable:
         return []
     snap = usable[-1]
     vel = np.zeros((len(snap.cells), 2)) if snap.velocities_ne is None else ne_to_gcf_xy(snap.velocities_ne)
+    ext = snap.extents()
+    near = (ext[:, 0] - margin <= up_m) & (up_m <= ext[:, 1] + margin)
     return [
         WeatherCase(f"cell{k}", snap.t, shapely.transform(c, ne_to_gcf_xy), margin, np.asarray(v, float))
         for k, (c, v) in enumerate(zip(snap.cells, vel, strict=True))
+        if near[k]
     ]

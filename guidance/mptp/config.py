@@ -21,6 +21,7 @@ NM = 1852.0  # m per nautical mile
 
 Heuristic = Literal["dijkstra", "edh", "ssph"]
 WindSource = Literal["scenario", "none"]
+SpeedSource = Literal["estimate", "config"]
 Turning = Literal["both", "right", "left"]
 TurnModelName = Literal["simple", "approximate", "simulated"]
 
@@ -29,7 +30,9 @@ TurnModelName = Literal["simple", "approximate", "simulated"]
 class MptpConfig:
     """Everything one replan depends on besides the nowcast and the states.
 
-    Aircraft: ``tas_mps`` planning speed [m/s]; ``bank_max`` [rad]; ``course_change_max`` the
+    Aircraft: ``tas_mps`` planning speed [m/s] (``speed_source`` "estimate": each replan plans at
+    the estimate's true airspeed instead, ``tas_mps`` only while it has none; "config": always
+    ``tas_mps``, the thesis's constant-speed model); ``bank_max`` [rad]; ``course_change_max`` the
     largest course change at one state [rad] (thesis |dchi_max|); ``dt_s`` planning time
     increment [s] (auxiliary-state leg = tas * dt; a divisor of the nowcast step keeps levels
     on nowcast times); ``horizon_s`` planning horizon T_P [s]; ``replan_period_s`` cadence [s].
@@ -81,6 +84,10 @@ class MptpConfig:
     Wind (read by the engine when it builds the planner, see wind.py): ``wind_forecast``
     "scenario" = the planner is given the scenario's steady wind plus ``wind_error_ne_mps``
     (north, east) [m/s] as its forecast; "none" = still air (wind-blind planning).
+
+    Storm tops (vertical.py): a cell is avoided while the heights the aircraft can reach over the
+    horizon, climbing or descending towards the goal at up to ``climb_rate_mps`` [m/s], come
+    within ``vertical_margin_m`` [m] of the cell's base-to-top extent.
     """
 
     tas_mps: float = 26.0
@@ -117,6 +124,9 @@ class MptpConfig:
     g: float = STANDARD_GRAVITY
     wind_forecast: WindSource = "scenario"
     wind_error_ne_mps: tuple[float, float] = (0.0, 0.0)
+    vertical_margin_m: float = 1000.0
+    climb_rate_mps: float = 1.0
+    speed_source: SpeedSource = "estimate"
 
     def __post_init__(self) -> None:
         if self.tas_mps <= 0 or self.dt_s <= 0 or self.horizon_s < self.dt_s:
@@ -125,6 +135,8 @@ class MptpConfig:
             raise ValueError("bank_max must be in (0, 90) deg and course_change_max in (0, 90] deg")
         if not self.search_weight >= 1.0 or not self.dominance_s > 0:
             raise ValueError("need search_weight >= 1 and dominance_s > 0")
+        if not self.vertical_margin_m >= 0 or not self.climb_rate_mps >= 0:
+            raise ValueError("need vertical_margin_m >= 0 and climb_rate_mps >= 0")
         if not 0 <= self.probability < 1:
             raise ValueError("probability must be in [0, 1)")
         levels = _rows(self.probabilities, 0, "probabilities: expected a list of P in [0, 1)")
@@ -141,6 +153,8 @@ class MptpConfig:
         object.__setattr__(self, "holding_points", tuple(map(tuple, points.tolist())))
         if self.heuristic not in ("dijkstra", "edh", "ssph") or self.turning not in ("both", "right", "left"):
             raise ValueError(f"unknown heuristic {self.heuristic!r} or turning {self.turning!r}")
+        if self.speed_source not in ("estimate", "config"):
+            raise ValueError(f"speed_source: expected 'estimate' or 'config', got {self.speed_source!r}")
         if self.turn_model not in ("simple", "approximate", "simulated"):
             raise ValueError(f"turn_model: expected 'simple', 'approximate' or 'simulated', got {self.turn_model!r}")
         if not self.roll_rate_max > 0:

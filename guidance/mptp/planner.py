@@ -28,6 +28,12 @@ level (the mean of the estimate's and the goal's heights): storms drift at their
 the wind, the goal drifts at minus the wind, the course is that of the air velocity, and the
 planned states map back to the ground at their times.
 
+Each replan plans at the vehicle's current true airspeed (the estimate's; the configured
+``tas_mps`` only while the estimate has none, or always with ``speed_source = "config"``), so
+the turn radius and leg lengths follow the speed as it grows with altitude at a fixed
+equivalent airspeed; and only with the storm cells whose vertical extent the vehicle can be
+near over the horizon (vertical.py).
+
 The plan's vertices are the trajectory states, with the modelled turns written out between them
 for the fly-over turn models (turnmodel.written_out); labels are -1 except the goal (its waypoint
 index); the altitude goes linearly (constant climb angle) from the estimate's to the goal's.
@@ -50,6 +56,7 @@ from guidance.mptp.search import HOLD, Trajectory, default_workspace, plan_traje
 from guidance.mptp.statespace import free_space
 from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.turnmodel import vertex_spacing_m, written_out
+from guidance.mptp.vertical import altitude_band, cells_in_band
 from guidance.mptp.wind import WindForecast, air_goal, to_air, to_ground
 from sim.core.mission import Mission
 from sim.core.plan import Plan, PlanStatus, Threats
@@ -129,10 +136,11 @@ class MptpPlanner:
         return shapely.affinity.translate(self.timeline.shape_at(t), *shift)
 
     def _timeline_for(
-        self, storms: list[StormSnapshot], t: float, wind: np.ndarray, cfg: MptpConfig
+        self, storms: list[StormSnapshot], t: float, wind: np.ndarray, cfg: MptpConfig, key: tuple
     ) -> tuple[ObstacleTimeline, float]:
-        """The timeline of the nowcast at ``cfg``'s probability (cached per nowcast and P)."""
-        key = (*((id(s), s.t) for s in storms), tuple(wind))
+        """The timeline of ``storms`` at ``cfg``'s probability, cached per P while ``key`` (the
+        nowcast and the cells that apply), the wind and the planning speed stay the same."""
+        key = (*key, tuple(wind), cfg.tas_mps)
         if key != self._nowcast_key:
             self._timelines, self._nowcast_key = {}, key
         if cfg.probability not in self._timelines:
@@ -141,6 +149,21 @@ class MptpPlanner:
             return self._timelines[cfg.probability], time.perf_counter() - wall
         return self._timelines[cfg.probability], 0.0
 
+    def config_now(self, est: VehicleState) -> MptpConfig:
+        """The configuration at the vehicle's current true airspeed [m/s] (``speed_source``
+        "estimate"; the configured one while the estimate's is below ``MIN_AIRSPEED``)."""
+        if self.cfg.speed_source == "config" or est.tas_mps < MIN_AIRSPEED:
+            return self.cfg
+        return self.cfg.with_(tas_mps=float(est.tas_mps))
+
+    def _storms_near(self, est: VehicleState, storms: list[StormSnapshot], k: int, cfg: MptpConfig):
+        """The cells the vehicle can come near in height over the horizon (vertical.py), the
+        cache key of that selection, and the number of cells left out of the first snapshot."""
+        up_goal = -float(self.mission.waypoints[k, 2])
+        band = altitude_band(-float(est.pos_ned[2]), up_goal, cfg.climb_rate_mps, cfg.horizon_s)
+        near, dropped = cells_in_band(storms, band, cfg.vertical_margin_m)
+        return near, (*((id(s), s.t) for s in storms), dropped), len(dropped[0]) if dropped else 0
+
     def _wind_at(self, est: VehicleState, k: int) -> np.ndarray:
         if self.wind is None:
             return np.zeros(2)
@@ -148,14 +171,17 @@ class MptpPlanner:
 
     def _replan(self, est: VehicleState, storms: list[StormSnapshot], t: float, k: int) -> Plan:
         """Plans for every probability level, largest P first, and keeps the first feasible
-        plan (one that reaches the goal); when none is, the largest P's fall-back (3.1.1)."""
+        plan (one that reaches the goal); when none is, the largest P's fall-back (3.1.1). Every
+        level plans at the current airspeed with the cells the vehicle can come near in height."""
         self.wind_ne = self._wind_at(est, k)
+        now = self.config_now(est)
+        near, key, ignored = self._storms_near(est, storms, k, now)
         levels = self.cfg.probability_levels
         fallback: tuple[Plan, ObstacleTimeline, Trajectory | None] | None = None
         for p in levels:
-            cfg = self.cfg if p == self.cfg.probability else self.cfg.with_(probability=p)
-            plan, traj = self._replan_at(cfg, est, storms, t, k)
-            plan.diagnostics.update(probability=p, levels_tried=levels.index(p) + 1)
+            cfg = now if p == now.probability else now.with_(probability=p)
+            plan, traj = self._replan_at(cfg, est, near, key, t, k)
+            plan.diagnostics.update(probability=p, levels_tried=levels.index(p) + 1, cells_ignored=ignored)
             assert self.timeline is not None
             if traj is not None and traj.status == "ok":
                 self.trajectory = traj
@@ -167,12 +193,13 @@ class MptpPlanner:
         return plan
 
     def _replan_at(
-        self, cfg: MptpConfig, est: VehicleState, storms: list[StormSnapshot], t: float, k: int
+        self, cfg: MptpConfig, est: VehicleState, storms: list[StormSnapshot], key: tuple, t: float, k: int
     ) -> tuple[Plan, Trajectory | None]:
-        """One replan at ``cfg``'s probability: the plan and the search's trajectory (None
-        when the goal is covered over the whole horizon and the plan holds)."""
+        """One replan at ``cfg``'s probability and speed on ``storms`` (``key``: their cache key):
+        the plan and the search's trajectory (None when the goal is covered over the whole
+        horizon and the plan holds)."""
         w = self.wind_ne
-        tl, weather_s = self._timeline_for(storms, t, w, cfg)
+        tl, weather_s = self._timeline_for(storms, t, w, cfg, key)
         self.timeline = tl
         t_ref = tl.t_issue
         ground_goal = self.goal_track or GoalTrack.fixed(self.mission.waypoints[k, :2])
@@ -180,11 +207,15 @@ class MptpPlanner:
         p0 = to_air(np.asarray(est.pos_ned[:2], float), t, w, t_ref)
         v_air = np.asarray(est.vel_ned[:2], float) - w
         course = math.atan2(v_air[1], v_air[0]) if np.hypot(*v_air) >= MIN_AIRSPEED else est.yaw
-        diag: dict[str, float | int | str] = {"heuristic": cfg.heuristic, "weather_s": weather_s}
+        diag: dict[str, float | int | str] = {
+            "heuristic": cfg.heuristic,
+            "weather_s": weather_s,
+            "tas_mps": cfg.tas_mps,
+        }
         if w.any():
             diag.update(wind_north_mps=float(w[0]), wind_east_mps=float(w[1]))
         wall = time.perf_counter()
-        workspace = self._workspace(p0, goal, t, w, t_ref)
+        workspace = self._workspace(p0, goal, t, w, t_ref, cfg)
         availability = GoalAvailability(tl, goal)
         levels = tl.interval(t + np.arange(0.0, cfg.horizon_s + cfg.dt_s, cfg.dt_s))
         if all(availability.covered(int(j)) for j in levels):
@@ -247,7 +278,7 @@ class MptpPlanner:
         for i in np.argsort(np.linalg.norm(ground - p0, axis=1), kind="stable"):
             fix = GoalTrack.fixed(points[i])
             goal = air_goal(fix, w, t_ref, t, t + 2 * cfg.horizon_s) if w.any() else fix
-            traj = plan_trajectory(tl, p0, t, course, goal, cfg, self._workspace(p0, goal, t, w, t_ref))
+            traj = plan_trajectory(tl, p0, t, course, goal, cfg, self._workspace(p0, goal, t, w, t_ref, cfg))
             if traj.status != "ok":
                 continue
             t_arr = float(traj.times[-1])
@@ -265,10 +296,11 @@ class MptpPlanner:
                 return pts, np.concatenate([traj.times, orbit[1][1:]]), f"goal covered: holding at point {int(i)}"
         return None
 
-    def _workspace(self, p0: np.ndarray, goal: GoalTrack, t: float, w: np.ndarray, t_ref: float) -> Polygon:
+    def _workspace(
+        self, p0: np.ndarray, goal: GoalTrack, t: float, w: np.ndarray, t_ref: float, cfg: MptpConfig
+    ) -> Polygon:
         """The search's workspace in the air-mass frame: the start and the goal over the horizon,
         padded; the mission area is swept by -w over the horizon (a convex superset)."""
-        cfg = self.cfg
         area = cfg.mission_area
         if area is not None and w.any():
             ends = [to_air(np.zeros(2), x, w, t_ref) for x in (t, t + cfg.horizon_s)]

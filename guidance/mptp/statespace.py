@@ -97,7 +97,16 @@ def obstacle_region(
     hit = shapely.intersects(rings, env)
     if not hit.any():
         return Polygon()
-    return shapely.union_all(shapely.intersection(rings[hit], env[hit]))
+    return polygonal(shapely.union_all(shapely.intersection(rings[hit], env[hit])))
+
+
+def polygonal(geom: BaseGeometry) -> BaseGeometry:
+    """The areal part of ``geom``: the polygons of a collection, dropping the lines and points
+    that intersections of touching shapes leave (they have no area to avoid)."""
+    if geom.geom_type != "GeometryCollection":
+        return geom
+    parts = [p for p in shapely.get_parts(geom) if p.geom_type in ("Polygon", "MultiPolygon")]
+    return shapely.union_all(parts) if parts else Polygon()
 
 
 def _suffix_intersections(tl: ObstacleTimeline, env: np.ndarray, stop: int, k: int) -> np.ndarray:

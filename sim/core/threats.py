@@ -72,11 +72,21 @@ class Geofence:
 @dataclass(frozen=True, slots=True)
 class StormSnapshot:
     """Storm cells valid at time ``t``: polygons in (north, east) [m], optional velocity of
-    each cell [m/s] (N, E) for extrapolation."""
+    each cell [m/s] (N, E) for extrapolation, optional vertical extent of each cell
+    ``extents_up_m`` (N, 2) = [base, top] heights above the origin [m]: a cell is the prism of
+    its polygon between them (-inf base: from the ground; None: every cell from the ground up
+    without a top)."""
 
     t: float
     cells: tuple[Polygon, ...]
     velocities_ne: np.ndarray | None = None
+    extents_up_m: np.ndarray | None = None
+
+    def extents(self) -> np.ndarray:
+        """[base, top] heights above the origin [m] of every cell (N, 2), -inf/inf if unbounded."""
+        if self.extents_up_m is None:
+            return np.tile([-np.inf, np.inf], (len(self.cells), 1))
+        return np.asarray(self.extents_up_m, float).reshape(len(self.cells), 2)
 
 
 @dataclass(frozen=True, slots=True)

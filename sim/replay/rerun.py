@@ -7,23 +7,30 @@ options come from the attached scenario. The planner (the scenario's own, or ano
 parameter set) is called at every logged call with those inputs, in order, so its internal
 state (replan timers, committed plans, nowcast caches) evolves as in the run. Plans compare
 vertex by vertex (positions [m], due times [s], labels and status), and a call that made a new
-plan in one run but kept the previous plan in the other is a difference.
+plan in one run but kept the previous plan in the other is a difference. Under a UTM authority
+a rules planner joins it again and gets every directive (``/utm/directive``) at the time it
+received it in the run.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
 from aircraft.registry import get_airframe
+from avoidance.rules.planner import RulesAvoider
+from avoidance.utm.collision_case import CollisionCase
+from avoidance.utm.directives import Directive
 from sim.core.mission import Mission
 from sim.core.plan import Plan, Planner
 from sim.core.threats import StormSnapshot
 from sim.environment import geofence, obstacle_prism
 from sim.mcap_read import LogReadError, read_attached_scenario
 from sim.replay.runlog import RunLog
+from sim.scenario import Utm
 from sim.vehicle_log import restore_progress, state_from_dict, storms_from_dicts, threats_from_dict
 
 PlannerFactory = Callable[[Mission], Planner]
@@ -76,6 +83,7 @@ def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> 
     scenario_planner_name = inputs.messages[0]["planner"] if len(inputs) else ""
     logged_storms: list[dict] | None = None
     storms: list[StormSnapshot] = []
+    directives = _directives(log, vehicle, planner, scenario.utm)
     for rec_in, rec_th in zip(inputs.messages, threats.messages, strict=True):
         recorded = next(plans) if rec_in["new_plan"] else None
         if rec_in["planner"] != scenario_planner_name:  # a ground-station mode planner flew this call
@@ -84,9 +92,28 @@ def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> 
             logged_storms, storms = rec_th["storms"], storms_from_dicts(rec_th["storms"])
         restore_progress(mission, rec_in["mission"])
         t = float(rec_in["t"])
+        while directives and directives[0][0] <= t + 1e-9:  # handed over before the planner ran
+            received, d = directives.pop(0)
+            cast(RulesAvoider, planner).receive_directive(d, received)
         new = planner.plan(state_from_dict(rec_in["estimate"]), threats_from_dict(rec_th, obstacles, fences, storms), t)
         _compare(report, t, recorded, new if new.t == t else None)
     return report
+
+
+def _directives(log: RunLog, vehicle: str, planner: object, utm: Utm | None) -> list[tuple[float, Directive]]:
+    """The UTM directives ``vehicle`` received, in order (empty without an authority or for a
+    planner that does not obey one); the planner joins the authority as in the run."""
+    if utm is None or not isinstance(planner, RulesAvoider):
+        return []
+    planner.join_utm(vehicle, utm.lost_after)
+    recs = [m for m in log.topic("/utm/directive").messages if m["to"] == vehicle and m["received_t"] is not None]
+    return [
+        (
+            float(m["received_t"]),
+            Directive(m["frame"], m["t"], vehicle, tuple(CollisionCase.from_record(c) for c in m["cases"])),
+        )
+        for m in sorted(recs, key=lambda m: (m["received_t"], m["frame"]))
+    ]
 
 
 def _compare(report: RerunReport, t: float, rec: dict | None, new: Plan | None) -> None:

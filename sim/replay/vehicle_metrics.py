@@ -10,6 +10,7 @@ import math
 import numpy as np
 import shapely
 
+from sim.core.threats import StormSnapshot
 from sim.replay.metrics_world import MetricsWorld
 from sim.replay.reducers import CylinderSeparation, LatencySketch, RunningMin, RunningStats
 from sim.replay.trace import VehicleTrace
@@ -44,6 +45,19 @@ def _keep_in_margin(pos_ned: np.ndarray, g) -> np.ndarray:
     return np.minimum(h, np.minimum(up - g.up_min_m, g.up_max_m - up))
 
 
+def storm_distance(snapshot: StormSnapshot, pos_ned: np.ndarray) -> float:
+    """Euclidean distance [m] from ``pos_ned`` (NED [m]) to the nearest cell of ``snapshot``, each
+    the prism of its polygon between its base and top (0 inside one; inf without cells): the
+    horizontal distance to the polygon and the vertical one to the extent, combined."""
+    if not snapshot.cells:
+        return math.inf
+    h = shapely.distance(shapely.points(pos_ned[:2]), np.array(snapshot.cells, dtype=object))
+    ext = snapshot.extents()
+    up = -float(pos_ned[2])
+    v = np.maximum(0.0, np.maximum(ext[:, 0] - up, up - ext[:, 1]))
+    return float(np.min(np.hypot(h, v)))
+
+
 STORM_CHECK_S = 10.0  # storms are checked against the track this often [s] ...
 STORM_CHECKS_MIN = 200  # ... or more often, so that a run of the planned duration is checked this many times
 
@@ -61,8 +75,9 @@ class VehicleMetrics:
     - control effort: RMS of each commanded JSBSim property (JSBSim units);
     - estimation: RMS estimate errors per NED axis, fraction inside the 3-sigma bounds, mean NEES
       of position+velocity (diagonal covariance; a consistent filter gives about 6);
-    - storms: distance to the nearest TRUE storm cell, checked every ``STORM_CHECK_S`` (at least
-      ``STORM_CHECKS_MIN`` times over the planned duration), its minimum and the time inside cells.
+    - storms: distance to the nearest TRUE storm cell (a prism, :func:`storm_distance`), checked
+      every ``STORM_CHECK_S`` (at least ``STORM_CHECKS_MIN`` times over the planned duration), its
+      minimum and the time inside cells.
     """
 
     def __init__(self, name: str, kind: str, world: MetricsWorld):
@@ -185,12 +200,7 @@ class VehicleMetrics:
             if t < self.storm_next_s:
                 continue
             self.storm_next_s += step * (math.floor((t - self.storm_next_s) / step) + 1)
-            cells = weather.truth(t).cells
-            d = (
-                float(np.min(shapely.distance(shapely.points(tr.pos_ned[i, :2]), np.array(cells, dtype=object))))
-                if cells
-                else math.inf
-            )
+            d = storm_distance(weather.truth(t), tr.pos_ned[i])
             self.storm.add(np.array([t]), np.array([d]))
             self.storm_inside += d == 0.0
             self.storm_first_s = t if not self.storm_checks else self.storm_first_s

@@ -45,11 +45,12 @@ def from_geofence(g: Geofence, margin: float) -> Constraint:
 
 
 def from_storm(s: StormSnapshot, margin: float) -> list[Constraint]:
-    """Storm cells as moving constraints over all altitudes (the nowcast has no vertical extent)."""
+    """Storm cells as moving constraints between each cell's base and top (heights above the
+    origin [m]; unbounded where the nowcast gives none)."""
     vel = np.zeros((len(s.cells), 2)) if s.velocities_ne is None else ne_to_gcf_xy(np.asarray(s.velocities_ne, float))
     return [
-        Constraint(shapely.transform(c, ne_to_gcf_xy), (-np.inf, np.inf), margin, v, s.t)
-        for c, v in zip(s.cells, vel, strict=False)
+        Constraint(shapely.transform(c, ne_to_gcf_xy), (float(e[0]), float(e[1])), margin, v, s.t)
+        for c, v, e in zip(s.cells, vel, s.extents(), strict=False)
     ]
 
 

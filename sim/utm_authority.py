@@ -1,0 +1,274 @@
+"""The central UTM authority of one airspace cluster (spec §7.1, §7.3, §7.4): decision frames,
+position notifications with filed mission plans, collision cases computed centrally, directives,
+acknowledgements and breach reports, every message over each vehicle's modelled link
+(:mod:`sim.utm_link`) and on its own MCAP topic.
+
+UTM frame i starts at ``i * frame`` [s] (6.181). At its start the authority takes the newest
+notification of every vehicle that arrived during frame i-1 or earlier and is not older than
+``lost_after`` (a vehicle silent for longer has lost its link: it is left out, its cases close)
+of the vehicles past their start transient (the rules' ``settle`` and ``established_speed``),
+updates its case book (:class:`avoidance.utm.cases.CaseBook`: chaining, roundabouts; positions
+adjusted to the frame time along the filed plans = trajectory intersection, 6.187-6.189), and
+sends every vehicle a directive with its active cases (a heartbeat when it has none).
+Then every vehicle sends its notification of frame i: the estimate (GCF) and its filed plan, the
+remaining mission waypoints from the estimate at cruise speed sampled every frame. Joined
+vehicles (rules planners, :meth:`avoidance.rules.planner.RulesAvoider.join_utm`) obey and
+acknowledge every directive they receive; the others only notify (their directives go unheard).
+
+Topics: ``/utm/notification``, ``/utm/frame``, ``/utm/directive``, ``/utm/ack``, ``/utm/link``
+(the authority's view of a vehicle's link: lost / up), ``/utm/breach`` (an active case whose
+notified separation is below its margin, once per case chain), ``/utm/spoof`` (forged cases
+injected on a vehicle's downlink, scenario ``utm.spoof``). Frames: GCF (ENU) [m] from the
+scenario origin, sim seconds.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from avoidance.rules.planner import RulesAvoider
+from avoidance.utm.cases import CaseBook, as_roundabout
+from avoidance.utm.collision_case import CollisionCase, Encounter, Role, UtmConfig
+from avoidance.utm.directives import Directive
+from avoidance.utm.notification import PositionNotification, Registration
+from sim import log_schemas as S
+from sim.core.frames import ned_to_enu
+from sim.mcap_log import McapLog
+from sim.scenario import Utm, UtmSpoof
+from sim.utm_link import Link, Queue
+from sim.vehicle import Vehicle
+
+_META = {"frame": "GCF = ENU [m] from the scenario origin"}
+
+
+def filed_plan(pos_ned: np.ndarray, waypoints_ned: np.ndarray, speed: float, t: float, step: float, horizon: float):
+    """The filed mission plan (6.187): from ``pos_ned`` through ``waypoints_ned`` (K, 3) at
+    ``speed`` [m/s], sampled every ``step`` [s] from ``t`` for ``horizon`` [s], held at the last
+    waypoint. Returns GCF positions (T, 3) and their times (T,)."""
+    path = np.vstack([pos_ned, waypoints_ned])
+    dist = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+    times = t + np.arange(0.0, horizon + step / 2, step)
+    s = np.minimum((times - t) * speed, dist[-1])
+    pts = np.stack([np.interp(s, dist, path[:, k]) for k in range(3)], axis=1)
+    return ned_to_enu(pts), times
+
+
+@dataclass(slots=True)
+class Member:
+    """A vehicle as the authority knows it: its link, filed registration, newest notification,
+    newest acknowledged frame and whether its link counts as lost."""
+
+    vehicle: Vehicle
+    link: Link
+    registration: Registration
+    planner: RulesAvoider | None  # obeys directives and acknowledges them (None: only notifies)
+    down: Queue
+    last_note: PositionNotification | None = None
+    last_ack: int = -1
+    lost: bool = True  # no fresh notification (before the first one, too)
+    first_t: float | None = None  # send time of its first notification [s]
+    established: bool = False  # past its start transient (:meth:`UtmAuthority._established`)
+
+
+class UtmAuthority:
+    """One authority over every vehicle of the run. Rules vehicles join with their filed
+    registration (:meth:`RulesAvoider.join_utm`); the case parameters (time margin, closing
+    hysteresis, doubts) are those the first of them files, so the authority and the vehicles'
+    virtual UTMs compute cases alike. Other vehicles notify with the default registration
+    (thesis margins, unscaled) and obey nothing."""
+
+    def __init__(
+        self, cfg: Utm, vehicles: list[Vehicle], links: dict[str, Link], log: McapLog, origin_alt: float, tick_hz: float
+    ):
+        """``tick_hz``: the rate :meth:`tick` is called at (the log rate)."""
+        self.cfg, self.log, self.origin_alt, self.tick_hz = cfg, log, origin_alt, tick_hz
+        self.members: dict[str, Member] = {}
+        book_cfg: UtmConfig | None = None
+        for v in vehicles:
+            p = v.planner if isinstance(v.planner, RulesAvoider) else None
+            reg = p.join_utm(v.name, cfg.lost_after) if p is not None else Registration(v.name)
+            if p is not None and book_cfg is None:
+                book_cfg = p.book.cfg
+            self.members[v.name] = Member(v, links[v.name], reg, p, Queue())
+        self.book = CaseBook(book_cfg or UtmConfig())
+        self.up = Queue()
+        self.frame_no = 0
+        self._breached: set[tuple[tuple[str, str], float | None]] = set()
+
+    def tick(self, t: float) -> None:
+        """Deliver what arrived by ``t`` [s]; run a decision frame when one starts."""
+        for kind, name, msg in self.up.due(t):
+            m = self.members[name]
+            if kind == "ack":
+                m.last_ack = max(m.last_ack, msg["frame"])
+                self.log.write_json("/utm/ack", t, {"t": t, "from": name, **msg}, S.UTM_ACK)
+            elif m.last_note is None or msg.t > m.last_note.t:
+                m.last_note = msg
+                self._log_notification(t, msg)
+        for name, m in self.members.items():
+            for d in m.down.due(t):
+                if m.planner is not None:
+                    self._send_up(t, name, ("ack", name, m.planner.receive_directive(d, t)))
+        if t + 1e-9 >= self.frame_no * self.cfg.frame:
+            self.decide(t)
+            self.frame_no += 1
+
+    def decide(self, t: float) -> None:
+        """Decision frame ``frame_no`` at ``t`` [s]: cases from frame i-1's notifications,
+        directives, then this frame's notifications."""
+        notes = []
+        for name, m in self.members.items():
+            fresh = m.last_note is not None and t - m.last_note.t <= self.cfg.lost_after
+            if fresh == m.lost:
+                m.lost = not fresh
+                state = "lost" if m.lost else "up"
+                self.log.write_json("/utm/link", t, {"t": t, "vehicle": name, "state": state}, S.UTM_LINK)
+                self.log.event(t, f"utm: link to {name} {state}", "warning" if m.lost else "info", "utm")
+            if fresh and m.last_note is not None and self._established(m, m.last_note):
+                notes.append(m.last_note)
+        opened, closed = self.book.update(notes, t)
+        rbs = {u: rb for rb in self.book.roundabouts() for u in rb.members}
+        active = self.book.active()
+        self._report_breaches(t, active)
+        self.log.write_json(
+            "/utm/frame",
+            t,
+            {
+                "t": t,
+                "frame": self.frame_no,
+                "notified": sorted(n.id for n in notes),
+                "opened": [c.record() for c in opened],
+                "closed": [c.record() for c in closed],
+                "active": [c.record() for c in active],
+                "roundabouts": [
+                    {"members": sorted(r.members), "centre_enu": r.centre.tolist(), "margin_m": r.margin}
+                    for r in self.book.roundabouts()
+                ],
+                "unacknowledged": self._unacknowledged(),
+            },
+            S.UTM_FRAME,
+            _META,
+        )
+        for name, m in self.members.items():
+            cases = [as_roundabout(c, rbs[name]) if name in rbs else c for c in active if name in c.ids]
+            d = Directive(self.frame_no, t, name, tuple(cases) + self._spoofed(t, name))
+            self._send_down(t, m, d)
+        for name, m in self.members.items():
+            self._send_up(t, name, ("note", name, self._notification(m, t)))
+
+    def _established(self, m: Member, note: PositionNotification) -> bool:
+        """Whether the vehicle takes part in cases: as in its own *detect* rule, once it has
+        flown its rules' ``settle`` [s] since its first notification and reached their
+        ``established_speed`` share of its cruise speed (start transients make early headings
+        meaningless, and the head case fixes the roles); then for good."""
+        if m.first_t is None:
+            m.first_t = note.t
+        if not m.established and m.planner is not None:
+            rules = m.planner.rules
+            m.established = (
+                note.t >= m.first_t + rules.settle and note.speed >= rules.established_speed * m.registration.max_cruise
+            )
+        return m.established or m.planner is None
+
+    def _unacknowledged(self) -> list[str]:
+        """Directed vehicles whose newest acknowledgement is more than ``lost_after`` old."""
+        frames = max(1, round(self.cfg.lost_after / self.cfg.frame))
+        return sorted(
+            n for n, m in self.members.items() if m.planner is not None and m.last_ack < self.frame_no - frames
+        )
+
+    def _notification(self, m: Member, t: float) -> PositionNotification:
+        v, est = m.vehicle, m.vehicle.estimate
+        horizon = self.book.cfg.time_margin + self.cfg.lost_after
+        wps = v.mission.waypoints[v.mission.next_index :]
+        traj, times = filed_plan(est.pos_ned, wps, v.mission.cruise_speed, t, self.cfg.frame, horizon)
+        return PositionNotification(
+            t, m.registration, ned_to_enu(est.pos_ned), ned_to_enu(est.vel_ned), True, traj, times
+        )
+
+    def _send_up(self, t: float, name: str, msg: tuple) -> None:
+        due = self.members[name].link.arrival(t)
+        if due is not None:
+            self.up.put(due, msg)
+
+    def _send_down(self, t: float, m: Member, d: Directive) -> None:
+        due = m.link.arrival(t)
+        self.log.write_json(
+            "/utm/directive",
+            t,
+            {
+                "t": t,
+                "frame": d.frame,
+                "to": d.to,
+                "received_t": self._handed(due),
+                "cases": [c.record() for c in d.cases],
+            },
+            S.UTM_DIRECTIVE,
+            _META,
+        )
+        if due is not None:
+            m.down.put(due, d)
+
+    def _handed(self, due: float | None) -> float | None:
+        """When a message arriving at ``due`` [s] is handed over: the first tick at or after it."""
+        return None if due is None else math.ceil(due * self.tick_hz - 1e-6) / self.tick_hz
+
+    def _spoofed(self, t: float, name: str) -> tuple[CollisionCase, ...]:
+        """Forged head-on cases injected on ``name``'s downlink (scenario ``utm.spoof``)."""
+        out = []
+        for s in self.cfg.spoof:
+            if s.vehicle != name or t < s.at or (s.duration is not None and t >= s.at + s.duration):
+                continue
+            c = self._forged(s, t)
+            out.append(c)
+            self.log.write_json("/utm/spoof", t, {"t": t, "to": name, "case": c.record()}, S.UTM_SPOOF, _META)
+        return tuple(out)
+
+    def _forged(self, s: UtmSpoof, t: float) -> CollisionCase:
+        cp = np.array([s.east, s.north, s.altitude - self.origin_alt])
+        own = self.members[s.vehicle].last_note
+        sep = float(np.linalg.norm(own.pos - cp)) if own is not None else np.inf
+        return CollisionCase(
+            t,
+            (s.vehicle, s.peer),
+            Encounter.HEAD_ON,
+            180.0,
+            (Role.ROUNDABOUT, Role.ROUNDABOUT),
+            cp,
+            0.0,
+            0.0,
+            s.margin,
+            True,
+            head=t,
+            separation=sep,
+        )
+
+    def _report_breaches(self, t: float, active: list[CollisionCase]) -> None:
+        """Monitor adherence: a case whose separation is below its margin is a breach."""
+        for c in active:
+            key = (c.ids, c.head)
+            if c.separation < c.margin and key not in self._breached:
+                self._breached.add(key)
+                self.log.write_json("/utm/breach", t, {"t": t, "case": c.record()}, S.UTM_BREACH, _META)
+                self.log.event(
+                    t, f"utm: breach {c.ids[0]}-{c.ids[1]}: {c.separation:.1f} m < {c.margin:.1f} m", "warning", "utm"
+                )
+
+    def _log_notification(self, t: float, n: PositionNotification) -> None:
+        self.log.write_json(
+            "/utm/notification",
+            t,
+            {
+                "t": t,
+                "sent_t": n.t,
+                "from": n.id,
+                "pos_enu": n.pos,
+                "vel_enu": n.vel,
+                "plan_enu": n.trajectory if n.trajectory is not None else [],
+            },
+            S.UTM_NOTIFICATION,
+            _META,
+        )

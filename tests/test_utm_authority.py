@@ -1,0 +1,77 @@
+"""The central UTM authority's parts (sim/utm_authority.py): filed plans, the trajectory case of
+two diverging plans, and the scenario's utm options' errors."""
+
+import re
+from typing import Any
+
+import numpy as np
+import pytest
+
+from avoidance.utm.collision_case import UtmConfig, compute_collision_case
+from avoidance.utm.notification import PositionNotification, Registration
+from sim.scenario import ScenarioError, parse_scenario
+from sim.utm_authority import filed_plan
+
+
+def test_filed_plan_flies_the_waypoints_at_cruise_and_holds_at_the_last():
+    pts, times = filed_plan(np.zeros(3), np.array([[10.0, 0.0, 0.0], [10.0, 10.0, -5.0]]), 2.0, 3.0, 1.0, 12.0)
+    assert times[0] == 3.0 and times[-1] == 15.0 and len(times) == 13
+    assert np.allclose(pts[5], [0.0, 10.0, 0.0])  # 10 m north at 5 s: ENU (east, north, up)
+    assert np.allclose(pts[-1], [10.0, 10.0, 5.0])  # held at the last waypoint (path 21.2 m < 24 m flown)
+
+
+def plan_note(name: str, p0, v) -> PositionNotification:
+    t = np.arange(0.0, 21.0)
+    traj = np.asarray(p0, float) + np.outer(t, v)
+    return PositionNotification(0.0, Registration(name), traj[0], np.asarray(v, float), True, traj, t)
+
+
+def test_diverging_filed_plans_within_the_margin_open_no_case():
+    """Two plans already past their closest approach: the trajectory minimum is at the frame
+    time (t_cpa = 0); linearly they are diverging. No flag (a flag there re-opened a passed
+    converging pair as head-on at the authority)."""
+    a, b = plan_note("a", (0, 0, 0), (-1.0, 0, 0)), plan_note("b", (30, 0, 0), (1.0, 0, 0))
+    case = compute_collision_case(a, b, 0.0, UtmConfig(time_margin=20.0))
+    assert case is not None and case.trajectory and case.t_cpa == 0.0 and case.distance == 30.0
+    assert not case.flagged
+    c, d = plan_note("c", (0, 0, 0), (1.0, 0, 0)), plan_note("d", (30, 0, 0), (-1.0, 0, 0))  # converging
+    meet = compute_collision_case(c, d, 0.0, UtmConfig(time_margin=20.0))
+    assert meet is not None and meet.flagged
+
+
+QUAD: dict[str, Any] = {
+    "name": "q",
+    "aircraft": "quadrotor",
+    "initial": {"altitude": 20.0},
+    "mission": {"cruise_speed": 2.0, "waypoints": [{"north": 5.0, "east": 0.0, "altitude": 20.0}]},
+}
+BASE: dict[str, Any] = {
+    "name": "u",
+    "seed": 1,
+    "duration": 5.0,
+    "origin": {"lat": 47.0, "lon": 8.0},
+    "vehicle": [QUAD],
+}
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"vehicle": [{**QUAD, "utm_link": {}}]}, "vehicle[0].utm_link needs the [utm] section"),
+        ({"utm": {"frame": 2.0, "lost_after": 1.0}}, "lost_after (1 s) must be at least one frame (2 s)"),
+        ({"utm": {"frame": 0.05}}, "utm.frame: 0.05 s is shorter than a log tick (0.1 s)"),
+        (
+            {"utm": {"spoof": [{"vehicle": "x", "peer": "g", "at": 0.0, "north": 0, "east": 0, "altitude": 0}]}},
+            "utm.spoof[0].vehicle: no vehicle 'x'",
+        ),
+        (
+            {"utm": {}, "vehicle": [{**QUAD, "utm_link": {"outage": [{"start": 2.0, "end": 1.0}]}}]},
+            "end (1 s) must be after start (2 s)",
+        ),
+        ({"utm": {}, "vehicle": [{**QUAD, "utm_link": {"loss": 1.0}}]}, "loss"),
+    ],
+)
+def test_bad_utm_options_are_one_line_errors(change, message):
+    with pytest.raises(ScenarioError, match=re.escape(message)):
+        parse_scenario({**BASE, **change})
+    parse_scenario({**BASE, "utm": {}})  # the section alone is valid
