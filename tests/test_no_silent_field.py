@@ -149,6 +149,10 @@ def _set(path: str, value: object) -> Callable[[dict], None]:
     return change
 
 
+# one scripted cell next to the generated ones, for the storm.* fields
+_SCRIPTED_STORM = _set("weather", _WEATHER | {"storm": [{"points": [[0, 0], [0, 900], [900, 0]]}]})
+
+
 def _fault(kind: str, **values: object) -> Callable[[dict], None]:
     def change(d: dict) -> None:
         next(f for f in d["fault"] if f["kind"] == kind).update(values)
@@ -264,27 +268,27 @@ EFFECTS: dict[str, Effect] = {
     "weather.top": (_QUAD, _set("weather", _WEATHER), _set("weather.top", 9000.0)),
     "weather.storm.base": (
         _QUAD,
-        _set("weather", _WEATHER | {"storm": [{"points": [[0, 0], [0, 900], [900, 0]]}]}),
+        _SCRIPTED_STORM,
         _set("weather.storm.0.base", 500.0),
     ),
     "weather.storm.top": (
         _QUAD,
-        _set("weather", _WEATHER | {"storm": [{"points": [[0, 0], [0, 900], [900, 0]]}]}),
+        _SCRIPTED_STORM,
         _set("weather.storm.0.top", 9000.0),
     ),
     "weather.storm.points": (
         _QUAD,
-        _set("weather", _WEATHER | {"storm": [{"points": [[0, 0], [0, 900], [900, 0]]}]}),
+        _SCRIPTED_STORM,
         _set("weather.storm.0.points", [[0, 0], [0, 800], [800, 0]]),
     ),
     "weather.storm.drift_north": (
         _QUAD,
-        _set("weather", _WEATHER | {"storm": [{"points": [[0, 0], [0, 900], [900, 0]]}]}),
+        _SCRIPTED_STORM,
         _set("weather.storm.0.drift_north", 3.0),
     ),
     "weather.storm.drift_east": (
         _QUAD,
-        _set("weather", _WEATHER | {"storm": [{"points": [[0, 0], [0, 900], [900, 0]]}]}),
+        _SCRIPTED_STORM,
         _set("weather.storm.0.drift_east", 3.0),
     ),
     "object.radius": (_QUAD, None, _set("object.0.radius", 3.0)),
