@@ -33,7 +33,7 @@ from avoidance.rules.planner import RulesAvoider
 from avoidance.utm.cases import CaseBook, as_roundabout
 from avoidance.utm.collision_case import CollisionCase, Encounter, Role, UtmConfig
 from avoidance.utm.directives import Directive
-from avoidance.utm.notification import PositionNotification, Registration
+from avoidance.utm.notification import PositionNotification, Registration, along_path
 from sim import log_schemas as S
 from sim.core.frames import ned_to_enu
 from sim.mcap_log import McapLog
@@ -48,11 +48,7 @@ def filed_plan(pos_ned: np.ndarray, waypoints_ned: np.ndarray, speed: float, t: 
     """The filed mission plan (6.187): from ``pos_ned`` through ``waypoints_ned`` (K, 3) at
     ``speed`` [m/s], sampled every ``step`` [s] from ``t`` for ``horizon`` [s], held at the last
     waypoint. Returns GCF positions (T, 3) and their times (T,)."""
-    path = np.vstack([pos_ned, waypoints_ned])
-    dist = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
-    times = t + np.arange(0.0, horizon + step / 2, step)
-    s = np.minimum((times - t) * speed, dist[-1])
-    pts = np.stack([np.interp(s, dist, path[:, k]) for k in range(3)], axis=1)
+    pts, times = along_path(np.vstack([pos_ned, waypoints_ned]), speed, t, step, horizon)
     return ned_to_enu(pts), times
 
 

@@ -138,14 +138,20 @@ class PositionNotification:
         flies from its position to the next waypoint, then leg by leg, at its current speed,
         holding at the last one; sampled every ``step`` [s] over [t, t + horizon]."""
         plan = np.asarray(plan, float).reshape(-1, 3)
-        times = self.t + np.arange(0.0, horizon + step / 2, step)
         if len(plan) == 0:
             return self
-        path = np.vstack([self.pos, plan])
-        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
-        flown = np.minimum(self.speed * (times - self.t), arc[-1])
-        traj = np.stack([np.interp(flown, arc, path[:, k]) for k in range(3)], axis=1)
+        traj, times = along_path(np.vstack([self.pos, plan]), self.speed, self.t, step, horizon)
         return replace(self, trajectory=traj, trajectory_t=times)
+
+
+def along_path(path: np.ndarray, speed: float, t: float, step: float, horizon: float) -> tuple[np.ndarray, np.ndarray]:
+    """Positions flown along the polyline ``path`` (K, 3) [m, any Cartesian frame] from its first
+    point at ``speed`` [m/s], held at its last; sampled every ``step`` [s] over [t, t + horizon].
+    Returns the positions (T, 3) in the path's frame and their times (T,) [s]."""
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+    times = t + np.arange(0.0, horizon + step / 2, step)
+    flown = np.minimum(speed * (times - t), arc[-1])
+    return np.stack([np.interp(flown, arc, path[:, k]) for k in range(3)], axis=1), times
 
 
 def from_track(track: IntruderTrack, registration: Registration) -> PositionNotification:
