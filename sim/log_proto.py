@@ -33,9 +33,9 @@ FILE_NAME = "cosim/log.proto"
 _F = descriptor_pb2.FieldDescriptorProto
 D, F32, INT, B = _F.TYPE_DOUBLE, _F.TYPE_FLOAT, _F.TYPE_SINT64, _F.TYPE_BOOL
 S, BYTES = _F.TYPE_STRING, _F.TYPE_BYTES
-_MAP = "map"  # a map<string, double>
+MAP_FIELD = "map"  # a map<string, double>
 
-# message -> [(field, scalar type or message name or _MAP, repeated)]; field numbers in order
+# message -> [(field, scalar type or message name or MAP_FIELD, repeated)]; field numbers in order
 _VEC = True
 MESSAGES: dict[str, list[tuple[str, Any, bool]]] = {
     "VehicleState": [
@@ -72,7 +72,7 @@ MESSAGES: dict[str, list[tuple[str, Any, bool]]] = {
         ("cross_track_m", D, False),
         ("turning", B, False),
     ],
-    "Commands": [("t", D, False), ("properties", _MAP, False), ("debug", _MAP, False)],
+    "Commands": [("t", D, False), ("properties", MAP_FIELD, False), ("debug", MAP_FIELD, False)],
     # measured values in float32 (relative resolution 6e-8, far below every sensor's noise: 1 mm
     # of GNSS position at 20 km, 0.008 Pa of 1e5 Pa); their times in double
     "ImuRecord": [("t", D, False), ("dt", D, False), ("accel_body", F32, _VEC), ("gyro_body", F32, _VEC)],
@@ -115,7 +115,7 @@ MESSAGES: dict[str, list[tuple[str, Any, bool]]] = {
         ("sun_elevation_deg", D, False),
         ("incidence_cos", D, False),
         ("depleted", B, False),
-        ("cumulative_wh", _MAP, False),
+        ("cumulative_wh", MAP_FIELD, False),
     ],
     # A sweep as the sensor reports it: ray directions = pattern (sensor frame) @ rotation.T
     # (rotation: sensor -> NED DCM, row-major), ranges in whole steps of range_resolution_m
@@ -147,9 +147,9 @@ def _file() -> descriptor_pb2.FileDescriptorProto:
     for name, fields in MESSAGES.items():
         msg = fd.message_type.add(name=name)
         for number, (fname, ftype, repeated) in enumerate(fields, start=1):
-            label = _F.LABEL_REPEATED if repeated or ftype == _MAP else _F.LABEL_OPTIONAL
+            label = _F.LABEL_REPEATED if repeated or ftype == MAP_FIELD else _F.LABEL_OPTIONAL
             f = msg.field.add(name=fname, number=number, label=label, json_name=fname)
-            if ftype == _MAP:
+            if ftype == MAP_FIELD:
                 entry = f"{''.join(p.title() for p in fname.split('_'))}Entry"
                 nested = msg.nested_type.add(name=entry)
                 nested.options.map_entry = True
@@ -175,7 +175,7 @@ def _uses(name: str) -> list[str]:
     """``name`` and the messages its fields hold, each once, dependencies first."""
     out: list[str] = []
     for _, ftype, _ in MESSAGES[name]:
-        if isinstance(ftype, str) and ftype != _MAP:
+        if isinstance(ftype, str) and ftype != MAP_FIELD:
             out += [m for m in _uses(ftype) if m not in out]
     return [*out, name]
 

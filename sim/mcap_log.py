@@ -33,13 +33,15 @@ import sys
 from pathlib import Path
 from typing import IO, Any
 
+import numpy as np
 import orjson
 from foxglove_schemas_protobuf.Log_pb2 import Log
 from mcap_protobuf.schema import build_file_descriptor_set
 
-from sim import log_proto
+from sim import log_proto, log_rows
 from sim.mcap_writer import RecordWriter
 
+ROWS = 32  # log ticks of a row buffer handed to the writer at once
 LEVELS = {"debug": Log.DEBUG, "info": Log.INFO, "warning": Log.WARNING, "error": Log.ERROR, "fatal": Log.FATAL}
 _BATCH = 128  # records per hand-over to the writer process (a few log ticks)
 
@@ -107,6 +109,43 @@ class _WriterProcess:
         return out or (f"the writer process stopped (exit code {code})" if code else "")
 
 
+class RowBuffer:
+    """The rows of one layout (:mod:`sim.log_rows`) on its channels, one row per log tick,
+    handed to the writer ``ROWS`` at a time (and at the log's close) as one record; the writer
+    encodes each row's messages. Get one from :meth:`McapLog.rows`."""
+
+    def __init__(self, log: McapLog, layout: str, cids: tuple[int, ...], static: tuple):
+        self._log, self._layout, self._cids, self._static = log, layout, cids, static
+        self._ns: list[int] = []
+        self._seq: list[list[int]] = []
+        self._rows: list[list[float]] = []
+
+    def add(self, t: float, row: list[float]) -> None:
+        """One row at sim time ``t`` [s]: the layout's columns in order (floats; integers and
+        booleans as floats)."""
+        log = self._log
+        seqs = log._seq
+        seq = []
+        for cid in self._cids:
+            seqs[cid] = n = seqs[cid] + 1
+            seq.append(n)
+        self._ns.append(log.epoch_ns + round(t * 1e9))
+        self._seq.append(seq)
+        self._rows.append(row)
+        if len(self._rows) >= ROWS:
+            self.flush()
+
+    def flush(self) -> None:
+        """Hand the buffered rows to the writer (a numpy block: one pickle for all of them)."""
+        if not self._rows:
+            return
+        ns, seq, rows = self._ns, self._seq, self._rows
+        self._ns, self._seq, self._rows = [], [], []
+        self._log._record(
+            ("rows", self._layout, self._cids, self._static, np.array(ns, np.int64), np.array(seq), np.array(rows))
+        )
+
+
 class McapLog:
     """Writes one run to ``path``. Topics are registered on first write."""
 
@@ -139,6 +178,7 @@ class McapLog:
         self._channels: dict[str, int] = {}
         self._seq: dict[int, int] = {}
         self._failure: str | None = None  # why the writer stopped: every later write says so
+        self._row_buffers: list[RowBuffer] = []
         self.closed = False
 
     # -- registration --------------------------------------------------------------------
@@ -234,6 +274,31 @@ class McapLog:
             cid = self._channel(topic, "protobuf", sid, metadata or {})
         self._add(cid, t, message.SerializeToString(deterministic=True))
 
+    def rows(
+        self,
+        layout: str,
+        topics: tuple[str, ...],
+        static: tuple = (),
+        metadata: tuple[dict[str, str], ...] | None = None,
+    ) -> RowBuffer:
+        """A row buffer for ``layout`` writing its messages on ``topics`` (one per output of the
+        layout, a new channel registered with its ``metadata`` entry); ``static``: the rows'
+        constant part (map keys, frame name). A JSON log writes :meth:`write_json` records
+        instead (it has no row buffers)."""
+        outputs = log_rows.LAYOUTS[layout].outputs
+        if len(topics) != len(outputs):
+            raise ValueError(f"row layout {layout!r} writes {len(outputs)} topics, got {len(topics)}")
+        cids = []
+        for k, (topic, out) in enumerate(zip(topics, outputs, strict=True)):
+            cid = self._channels.get(topic)
+            if cid is None:
+                sid = self._schema(out.schema, "protobuf", out.schema_data)
+                cid = self._channel(topic, "protobuf", sid, metadata[k] if metadata else {})
+            cids.append(cid)
+        buf = RowBuffer(self, layout, tuple(cids), static)
+        self._row_buffers.append(buf)
+        return buf
+
     def event(self, t: float, text: str, level: str = "info", name: str = "cosim") -> None:
         """A ``foxglove.Log`` on ``/log`` (mission events, mode changes, errors)."""
         ns = self.epoch_ns + sim_ns(t)
@@ -254,7 +319,12 @@ class McapLog:
         Raises LogWriteError if the writer failed."""
         if self.closed:
             return
-        self.closed = True
+        try:
+            if self._failure is None:
+                for buf in self._row_buffers:
+                    buf.flush()
+        finally:
+            self.closed = True
         if self._failure is not None:
             raise LogWriteError(self._failure)
         if self._inline is not None:

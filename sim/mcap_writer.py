@@ -1,7 +1,7 @@
 """The MCAP writing half of :mod:`sim.mcap_log`: applies log records to an ``mcap`` writer, in
 the simulation process or as the writer process (``python -m sim.mcap_writer PATH CHUNK_SIZE``,
-fed pickled batches on stdin). Imports only ``mcap`` (and :mod:`sim.log_proto` at the first
-compact message), so the writer process starts quickly."""
+fed pickled batches on stdin). Imports only ``mcap`` (and :mod:`sim.log_proto`, :mod:`sim.log_rows` at the
+first compact message), so the writer process starts quickly."""
 
 from __future__ import annotations
 
@@ -24,6 +24,8 @@ class RecordWriter:
     encoding, data)``, ``("channel", id, topic, encoding, schema_id, metadata)``, ``("message",
     channel_id, time_ns, data, sequence)``, ``("proto", channel_id, time_ns, title, pickled dict,
     sequence)`` (a message to encode with :func:`sim.log_proto.encode`, imported at the first),
+    ``("rows", layout, channel_ids, static, times_ns, sequences, rows)`` (numpy blocks of a
+    :mod:`sim.log_rows` layout, imported at the first),
     ``("metadata", name, data)``, ``("attachment", time_ns, name, media_type, data)``. Ids are the
     log's own; mcap's are looked up."""
 
@@ -43,6 +45,8 @@ class RecordWriter:
             elif kind == "proto":
                 data = self._encode(r[3], pickle.loads(r[4]))
                 w.add_message(channels[r[1]], log_time=r[2], data=data, publish_time=r[2], sequence=r[5])
+            elif kind == "rows":
+                self._rows(*r[1:])
             elif kind == "channel":
                 channels[r[1]] = w.register_channel(r[2], r[3], self.schemas[r[4]], r[5])
             elif kind == "schema":
@@ -53,6 +57,20 @@ class RecordWriter:
                 w.add_attachment(create_time=r[1], log_time=r[1], name=r[2], media_type=r[3], data=r[4])
             else:
                 raise ValueError(f"unknown log record {kind!r}")
+
+    def _rows(self, layout: str, cids: tuple[int, ...], static: tuple, ns, seq, rows) -> None:
+        """A block of rows of a :mod:`sim.log_rows` layout: each row's messages, one per channel."""
+        add, channels = self.writer.add_message, [self.channels[c] for c in cids]
+        builds = [o.build for o in self._layouts[layout].outputs]
+        for t_ns, sq, row in zip(ns.tolist(), seq.tolist(), rows.tolist(), strict=True):
+            for ch, build, n in zip(channels, builds, sq, strict=True):
+                add(ch, log_time=t_ns, data=build(row, t_ns, static), publish_time=t_ns, sequence=n)
+
+    @cached_property
+    def _layouts(self):
+        from sim.log_rows import LAYOUTS
+
+        return LAYOUTS
 
     @cached_property
     def _encode(self) -> Callable[[str, dict], bytes]:

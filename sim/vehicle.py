@@ -252,14 +252,15 @@ class Vehicle:
             raise SimulationDiverged(f"{self.name}: state went non-finite at t={t:.2f} s")
         track = self.follower.track_error(truth.pos_ned)
         self.logw.tracking(t, track, self.follower.leg)
-        self.recorder.state(self.logw.truth(truth), self._setpoint, self._commands, track)
-        est_logged = self.logw.estimate(self.estimate)
+        self.logw.truth(truth)
+        self.recorder.state(truth, self._setpoint, self._commands, track)
+        self.logw.estimate(self.estimate)
         sigma3 = None
         if isinstance(self.estimator, SensorEstimator):
             est = self.estimator
             sigma3 = est.three_sigma()
             self.logw.sensors(t, est.measurements(), sigma3, est.biases())
-        self.recorder.estimate(est_logged, sigma3)
+        self.recorder.estimate(self.estimate, sigma3)
         self.logw.control(t, self._setpoint, self._setpoint_schema, self._commands, dict(self.controller.debug))
         if self.power is not None:
             self.logw.energy(t, self.power.record.as_dict())

@@ -23,6 +23,7 @@ from foxglove_schemas_protobuf.LocationFix_pb2 import LocationFix
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from shapely.geometry import Polygon
 
+from sim import log_rows
 from sim import log_schemas as S
 from sim.core.frames import euler_to_quat
 from sim.core.mission import Mission
@@ -40,7 +41,8 @@ from sim.core.threats import (
 )
 from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.log_proto import scan_record
-from sim.mcap_log import McapLog
+from sim.log_rows import flatten
+from sim.mcap_log import McapLog, RowBuffer
 from sim.planner_records import wallclock_metadata
 
 NED_FRAME = "ned"
@@ -254,8 +256,32 @@ def write_static_frames(log: McapLog) -> None:
     log.write_proto("/tf_static", 0.0, FrameTransforms(transforms=[tf]))
 
 
+_STATE_META = {"frame": "local-level NED from the scenario origin", "units": "SI, rad"}
+_SIGMA_META = {"frame": "NED; attitude error in body axes", "units": "SI, rad"}
+
+
+def state_row(s: VehicleState) -> list[float]:
+    """A state as a ``truth``/``estimate`` row (:data:`sim.log_rows.STATE`)."""
+    return [
+        s.t,
+        *s.pos_ned.tolist(),
+        *s.vel_ned.tolist(),
+        *s.euler.tolist(),
+        *s.rates_body.tolist(),
+        s.alt_msl_m,
+        s.lat_deg,
+        s.lon_deg,
+        s.tas_mps,
+        s.eas_mps,
+        s.alpha_rad,
+        s.beta_rad,
+    ]
+
+
 class VehicleLogWriter:
-    """Formats and writes one vehicle's messages; topic names are built once."""
+    """Formats and writes one vehicle's messages; topic names are built once. In a compact log
+    the per-tick topics are rows (:mod:`sim.log_rows`) that the writer process encodes; a JSON
+    log writes each message as a dict."""
 
     def __init__(self, log: McapLog, name: str):
         self.log = log
@@ -269,19 +295,26 @@ class VehicleLogWriter:
         self.t_tracking = f"{p}/truth/tracking"
         self.t_energy = f"{p}/energy"
         self.t_lidar = f"{p}/threats/lidar"
+        self._rows: dict[tuple, RowBuffer] = {}
 
-    def truth(self, s: VehicleState) -> dict:
-        """Log the true state; returns the state as logged (a plain dict)."""
+    def _row(self, layout: str, topics: tuple[str, ...], t: float, row: list[float], static: tuple = (), meta=None):
+        """Append ``row`` to the buffer of ``(layout, topics, static)`` (made at the first row)."""
+        key = (layout, topics, static)
+        buf = self._rows.get(key)
+        if buf is None:
+            buf = self._rows[key] = self.log.rows(layout, topics, static, meta)
+        buf.add(t, row)
+
+    def truth(self, s: VehicleState) -> None:
+        """Log the true state (``cosim.VehicleState``, ``foxglove.LocationFix`` and the
+        ``ned`` -> vehicle transform on ``/tf``)."""
         log, t = self.log, s.t
+        if log.compact:
+            meta = (_STATE_META, {}, {})
+            self._row("truth", (self.t_state, self.t_loc, "/tf"), t, state_row(s), (("frame", self.name),), meta)
+            return
         ns = log.epoch_ns + round(t * 1e9)
-        sd = state_dict(s)
-        log.write_record(
-            self.t_state,
-            t,
-            sd,
-            S.VEHICLE_STATE,
-            {"frame": "local-level NED from the scenario origin", "units": "SI, rad"},
-        )
+        log.write_json(self.t_state, t, state_dict(s), S.VEHICLE_STATE, _STATE_META)
         fix = LocationFix(frame_id=self.name, latitude=s.lat_deg, longitude=s.lon_deg, altitude=s.alt_msl_m)
         fix.timestamp.FromNanoseconds(ns)
         log.write_proto(self.t_loc, t, fix)
@@ -293,34 +326,58 @@ class VehicleLogWriter:
         r = tf.rotation
         r.x, r.y, r.z, r.w = qx, qy, qz, qw
         log.write_proto("/tf", t, FrameTransforms(transforms=[tf]))
-        return sd
 
     def tracking(self, t: float, cross_track_m: float, leg: int) -> None:
         """True cross-track error to the leg being followed (what the metrics judge)."""
-        self.log.write_record(self.t_tracking, t, {"t": t, "cross_track_m": cross_track_m, "leg": leg}, S.TRACKING)
+        if self.log.compact:
+            self._row("tracking", (self.t_tracking,), t, [t, cross_track_m, leg])
+            return
+        self.log.write_json(self.t_tracking, t, {"t": t, "cross_track_m": cross_track_m, "leg": leg}, S.TRACKING)
 
-    def estimate(self, s: VehicleState) -> dict:
+    def estimate(self, s: VehicleState) -> None:
         """Log what controllers and planners saw (same schema as the truth)."""
-        sd = state_dict(s)
-        self.log.write_record(
-            self.t_est,
-            s.t,
-            sd,
-            S.VEHICLE_STATE,
-            {"frame": "local-level NED from the scenario origin", "units": "SI, rad"},
-        )
-        return sd
+        if self.log.compact:
+            self._row("estimate", (self.t_est,), s.t, state_row(s), (), (_STATE_META,))
+            return
+        self.log.write_json(self.t_est, s.t, state_dict(s), S.VEHICLE_STATE, _STATE_META)
 
     def sensors(self, t: float, measurements: dict, sigma3: dict, biases: dict) -> None:
         """Measurements delivered since the last log tick (one message, a list per sensor) and
-        the estimate's 3-sigma bounds and estimated biases."""
-        self.log.write_record(self.t_sensors, t, {"t": t, **measurements}, S.SENSORS, {"units": "SI, rad"})
-        self.log.write_record(
-            self.t_sigma,
+        the estimate's 3-sigma bounds and estimated biases (vectors: lists or arrays)."""
+        log = self.log
+        log.write_record(self.t_sensors, t, {"t": t, **measurements}, S.SENSORS, {"units": "SI, rad"})
+        sigma = {"t": t, **sigma3, "bias": biases}
+        if log.compact:
+            self._row("sigma", (self.t_sigma,), t, flatten(log_rows.SIGMA, sigma)[0], (), (_SIGMA_META,))
+            return
+        log.write_json(self.t_sigma, t, sigma, S.ESTIMATE_SIGMA, _SIGMA_META)
+
+    def control(
+        self, t: float, setpoint: dict, schema: dict, commands: dict[str, float], debug: dict[str, float]
+    ) -> None:
+        sp, cmd = {"t": t, **setpoint}, {"t": t, "properties": commands, "debug": debug}
+        if self.log.compact:
+            layout = log_rows.SETPOINT_LAYOUTS[schema["title"]]
+            self._row(layout, (self.t_sp,), t, flatten(log_rows.LAYOUTS[layout].columns, sp)[0])
+            self._row("commands", (self.t_cmd,), t, *flatten(log_rows.COMMANDS, cmd))
+            return
+        self.log.write_json(self.t_sp, t, sp, schema)
+        self.log.write_json(self.t_cmd, t, cmd, S.COMMANDS)
+
+    def energy(self, t: float, record: dict) -> None:
+        """The electrical bus (sim.energy.power_system.EnergyRecord)."""
+        meta = {"units": "W, Wh, state of charge 0..1"}
+        if self.log.compact:
+            self._row("energy", (self.t_energy,), t, *flatten(log_rows.ENERGY, record), (meta,))
+            return
+        self.log.write_json(self.t_energy, t, record, S.ENERGY, meta)
+
+    def mission(self, t: float, next_waypoint: int, waypoints: int, complete: bool) -> None:
+        self.log.write_json(
+            self.t_mission,
             t,
-            {"t": t, **sigma3, "bias": biases},
-            S.ESTIMATE_SIGMA,
-            {"frame": "NED; attitude error in body axes", "units": "SI, rad"},
+            {"t": t, "next_waypoint": next_waypoint, "waypoints": waypoints, "complete": complete},
+            S.MISSION_STATUS,
         )
 
     def threats(self, t: float, threats: Threats) -> None:
@@ -331,24 +388,6 @@ class VehicleLogWriter:
         self.log.write_json(self.t_threats, t, threats_dict(t, threats, with_scan=not compact), S.THREATS, frame)
         if compact and threats.lidar is not None:
             self.log.write_record(self.t_lidar, t, scan_record(threats.lidar), S.LIDAR_SCAN, frame)
-
-    def control(
-        self, t: float, setpoint: dict, schema: dict, commands: dict[str, float], debug: dict[str, float]
-    ) -> None:
-        self.log.write_record(self.t_sp, t, {"t": t, **setpoint}, schema)
-        self.log.write_record(self.t_cmd, t, {"t": t, "properties": commands, "debug": debug}, S.COMMANDS)
-
-    def energy(self, t: float, record: dict) -> None:
-        """The electrical bus (sim.energy.power_system.EnergyRecord)."""
-        self.log.write_record(self.t_energy, t, record, S.ENERGY, {"units": "W, Wh, state of charge 0..1"})
-
-    def mission(self, t: float, next_waypoint: int, waypoints: int, complete: bool) -> None:
-        self.log.write_json(
-            self.t_mission,
-            t,
-            {"t": t, "next_waypoint": next_waypoint, "waypoints": waypoints, "complete": complete},
-            S.MISSION_STATUS,
-        )
 
     def plan_input(self, t: float, planner: str, estimate: VehicleState, mission: Mission, new_plan: bool) -> None:
         """Per planner call: the planner's name, the estimate and mission progress it saw (the

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import shapely
 
+from sim.core.state import VehicleState
 from sim.core.threats import PrismObstacle
 from sim.replay.metrics import MetricsWorld, RunMetrics, run_metrics
 from sim.replay.reducers import LATENCY_EXACT, Intervals, LatencySketch, RunningStats
@@ -37,17 +38,23 @@ def _feed(ticks: int, sink, chunk: int = CHUNK) -> None:
         t = k / LOG_HZ
         for rec, east in recorders:
             pos = [25.0 * t, east + math.sin(0.01 * k), -100.0]
-            state = {
-                "t": t,
-                "pos_ned": pos,
-                "vel_ned": [25.0, 0.0, 0.0],
-                "alt_msl_m": 100.0,
-                "tas_mps": 25.0,
-                "euler": [0.1 * math.sin(0.02 * k), 0.05, 0.0],
-            }
+            state = VehicleState(
+                t=t,
+                pos_ned=np.array(pos),
+                vel_ned=np.array([25.0, 0.0, 0.0]),
+                euler=np.array([0.1 * math.sin(0.02 * k), 0.05, 0.0]),
+                rates_body=np.zeros(3),
+                alt_msl_m=100.0,
+                lat_deg=0.0,
+                lon_deg=0.0,
+                tas_mps=25.0,
+            )
             setpoint = {"altitude_m": 100.5, "cross_track_m": 0.0, "turning": k % 1200 < 30, "tas_mps": 25.0}
             rec.state(state, setpoint, {"ap/roll-cmd-rad": 0.01, "fcs/throttle-cmd-norm[0]": 0.8}, 0.5)
-            rec.estimate({"pos_ned": pos, "vel_ned": [25.0, 0.1, 0.0]}, sigma)
+            estimate = VehicleState(
+                t, np.array(pos), np.array([25.0, 0.1, 0.0]), state.euler, state.rates_body, 100.0, 0.0, 0.0
+            )
+            rec.estimate(estimate, sigma)
             rec.latency(1e-3 * (1 + k % 7))
     for rec, _ in recorders:
         rec.flush()

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from sim.core.state import VehicleState
 from sim.mcap_log import logged_time
 from sim.replay.runlog import RunLog
 
@@ -158,20 +159,21 @@ class TraceRecorder:
     _est: dict[str, list] = field(default_factory=lambda: {"pos_ned": [], "vel_ned": []})
     _sigma: dict[str, list] = field(default_factory=lambda: {"pos": [], "vel": []})
 
-    def estimate(self, est: dict, sigma3: dict | None) -> None:
+    def estimate(self, est: VehicleState, sigma3: dict | None) -> None:
         """The estimate logged at the tick of the last :meth:`state` (completes the tick)."""
-        for k in self._est:
-            self._est[k].append(est[k])
+        for k, values in self._est.items():
+            values.append(getattr(est, k))
         if sigma3 is not None:
             for k in self._sigma:
                 self._sigma[k].append(sigma3[k])
         if len(self._cross) >= self.chunk:
             self.flush()
 
-    def state(self, state: dict, setpoint: dict, commands: dict[str, float], cross_track_m: float) -> None:
+    def state(self, state: VehicleState, setpoint: dict, commands: dict[str, float], cross_track_m: float) -> None:
+        """The true state logged at a tick (its arrays are kept: the caller must not change them)."""
         self._cross.append(cross_track_m)
-        for k in _STATE:
-            self._state[k].append(state[k])
+        for k, values in self._state.items():
+            values.append(getattr(state, k))
         for k in _SETPOINT + _SETPOINT_OPTIONAL:
             if k in setpoint:
                 self._setpoint.setdefault(k, []).append(setpoint[k])
