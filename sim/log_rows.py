@@ -218,6 +218,28 @@ ENERGY: Columns = (
 )
 
 
+# cosim.Sensors: the row is ``t`` then each sensor's records, flat; how many records of which
+# sensor is the buffer's static ``(("counts", ((sensor, n), ...)),)``
+SENSOR_RECORDS: dict[str, Columns] = {
+    "imu": (("t", 0), ("dt", 0), ("accel_body", 3), ("gyro_body", 3)),
+    "gnss": (("t", 0), ("pos_ned", 3), ("vel_ned", 3)),
+    "baro": (("t", 0), ("pressure_pa", 0)),
+    "airspeed": (("t", 0), ("diff_pressure_pa", 0)),
+    "mag": (("t", 0), ("field_body_ut", 3)),
+}
+_RECORD_WIDTH = {name: sum(max(w, 1) for _, w in cols) for name, cols in SENSOR_RECORDS.items()}
+
+
+def _sensors(values: list[float], ns: int, static: Any) -> bytes:
+    d: dict[str, Any] = {"t": values[0]}
+    k = 1
+    for name, n in dict(static)["counts"]:
+        cols, w = SENSOR_RECORDS[name], _RECORD_WIDTH[name]
+        d[name] = [row_dict(cols, values[k + i * w : k + (i + 1) * w], (), {}) for i in range(n)]
+        k += n * w
+    return log_proto.encode("cosim.Sensors", d)
+
+
 def _layouts() -> dict[str, RowLayout]:
     state = _cosim("cosim.VehicleState", STATE)
     one = {
@@ -235,6 +257,8 @@ def _layouts() -> dict[str, RowLayout]:
         )
     }
     out.update({name: RowLayout(name, cols, (_cosim(title, cols),)) for name, (cols, title) in one.items()})
+    sensors = Output("cosim.Sensors", lambda: log_proto.schema_data("cosim.Sensors"), _sensors)
+    out["sensors"] = RowLayout("sensors", (("t", 0),), (sensors,))
     return out
 
 

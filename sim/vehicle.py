@@ -257,9 +257,7 @@ class Vehicle:
         self.logw.estimate(self.estimate)
         sigma3 = None
         if isinstance(self.estimator, SensorEstimator):
-            est = self.estimator
-            sigma3 = est.three_sigma()
-            self.logw.sensors(t, est.measurements(), sigma3, est.biases())
+            sigma3 = self.logw.estimator(t, self.estimator)
         self.recorder.estimate(self.estimate, sigma3)
         self.logw.control(t, self._setpoint, self._setpoint_schema, self._commands, dict(self.controller.debug))
         if self.power is not None:

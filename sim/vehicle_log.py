@@ -39,6 +39,7 @@ from sim.core.threats import (
     SphereThreat,
     StormSnapshot,
 )
+from sim.estimation.sensor_estimator import SensorEstimator
 from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.log_proto import scan_record
 from sim.log_rows import flatten
@@ -257,6 +258,7 @@ def write_static_frames(log: McapLog) -> None:
 
 
 _STATE_META = {"frame": "local-level NED from the scenario origin", "units": "SI, rad"}
+_SENSORS_META = {"units": "SI, rad"}
 _SIGMA_META = {"frame": "NED; attitude error in body axes", "units": "SI, rad"}
 
 
@@ -341,16 +343,21 @@ class VehicleLogWriter:
             return
         self.log.write_json(self.t_est, s.t, state_dict(s), S.VEHICLE_STATE, _STATE_META)
 
-    def sensors(self, t: float, measurements: dict, sigma3: dict, biases: dict) -> None:
+    def estimator(self, t: float, est: SensorEstimator) -> dict[str, Any]:
         """Measurements delivered since the last log tick (one message, a list per sensor) and
-        the estimate's 3-sigma bounds and estimated biases (vectors: lists or arrays)."""
+        the estimate's 3-sigma bounds and estimated biases; returns the 3-sigma bounds (``pos``,
+        ``vel``, ...: sequences of floats) as logged."""
         log = self.log
-        log.write_record(self.t_sensors, t, {"t": t, **measurements}, S.SENSORS, {"units": "SI, rad"})
-        sigma = {"t": t, **sigma3, "bias": biases}
         if log.compact:
-            self._row("sigma", (self.t_sigma,), t, flatten(log_rows.SIGMA, sigma)[0], (), (_SIGMA_META,))
-            return
-        log.write_json(self.t_sigma, t, sigma, S.ESTIMATE_SIGMA, _SIGMA_META)
+            counts, values = est.measurement_row()
+            self._row("sensors", (self.t_sensors,), t, [t, *values], (("counts", counts),), (_SENSORS_META,))
+            sigma = [t, *est.sigma_row()]
+            self._row("sigma", (self.t_sigma,), t, sigma, (), (_SIGMA_META,))
+            return {"pos": sigma[1:4], "vel": sigma[4:7]}
+        sigma3 = est.three_sigma()
+        log.write_json(self.t_sensors, t, {"t": t, **est.measurements()}, S.SENSORS, _SENSORS_META)
+        log.write_json(self.t_sigma, t, {"t": t, **sigma3, "bias": est.biases()}, S.ESTIMATE_SIGMA, _SIGMA_META)
+        return sigma3
 
     def control(
         self, t: float, setpoint: dict, schema: dict, commands: dict[str, float], debug: dict[str, float]

@@ -330,6 +330,30 @@ class SensorEstimator:
         self._log = {}
         return out
 
+    def measurement_row(self) -> tuple[tuple[tuple[str, int], ...], list[float]]:
+        """Measurements delivered since the last call (as :meth:`measurements`) as one flat row:
+        per sensor with records, ``(name, count)``, and the records' values in that order, each
+        record ``t`` then its fields in :meth:`measurements`' order (IMU: ``t``, ``dt``, accel,
+        gyro)."""
+        counts: list[tuple[str, int]] = []
+        row: list[float] = []
+        for name, items in self._log.items():
+            counts.append((name, len(items)))
+            if name == "imu":
+                for t, dt, mn in items:
+                    row += (t, dt, *mn.tolist())
+            else:
+                for z in items:
+                    row += _values(z)
+        self._log = {}
+        return tuple(counts), row
+
+    def sigma_row(self) -> list[float]:
+        """:meth:`three_sigma` then :meth:`biases` as one flat row in their keys' order."""
+        s, nav = self.ekf.three_sigma(), self.ekf.nav
+        parts = [s["pos"], s["vel"], s["att"], s["heading"], s["accel"], s["gyro"], s["baro"], nav.ba, nav.bg]
+        return [*np.concatenate(parts).tolist(), float(nav.bb), *nav.gm.tolist()]
+
     def three_sigma(self) -> dict[str, list[float]]:
         """3-sigma bounds of the estimate (see :meth:`InsEkf.three_sigma`), plain floats."""
         return {k: _floats(v) for k, v in self.ekf.three_sigma().items()}
@@ -339,6 +363,19 @@ class SensorEstimator:
         ``gnss_gm`` GNSS position error NED [m]."""
         nav = self.ekf.nav
         return {"accel": _floats(nav.ba), "gyro": _floats(nav.bg), "baro": [float(nav.bb)], "gnss_gm": _floats(nav.gm)}
+
+
+def _values(z: Measurement) -> list[float]:
+    """A measurement's time and values, flat in :func:`_record`'s order."""
+    if type(z) is GnssFix:
+        return [z.t, *z.pos_ned.tolist(), *z.vel_ned.tolist()]
+    if type(z) is BaroSample:
+        return [z.t, float(z.pressure_pa)]
+    if type(z) is AirspeedSample:
+        return [z.t, float(z.diff_pressure_pa)]
+    if type(z) is MagSample:
+        return [z.t, *np.asarray(z.field_body_ut, float).tolist()]
+    raise TypeError(f"unexpected measurement {z!r}")
 
 
 def _record(z: Measurement) -> dict[str, Any]:
