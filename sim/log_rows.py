@@ -5,16 +5,21 @@ list of floats instead of a message dict, its pickling and a protobuf message ea
 
 A layout (:data:`LAYOUTS`) names a row's columns and the messages one row becomes, one channel
 each: the ``truth`` row gives ``cosim.VehicleState``, ``foxglove.LocationFix`` and a
-``foxglove.FrameTransforms`` (``ned`` -> vehicle) on three channels. Columns: ``(field, width)``,
-width 0 a scalar, n a list of n floats, :data:`MAP` a ``map<string, double>`` whose keys the
-row buffer carries once (its ``static``: ``((field, keys), ...)``, and ``("frame", name)``, the
-vehicle's frame for the Foxglove messages). A dotted field is a field of a nested message (``bias.accel``). Each
-message is the one :mod:`sim.log_proto` encodes from the dict the row stands for, so a log
-reads back the same whichever way it was written. Units and frames: :mod:`sim.log_schemas`.
+``foxglove.FrameTransforms`` (``ned`` -> vehicle) on three channels. A row's first column is its
+log time, sim [s] (the message's ``t`` too, except ``energy``: a column of its own). Columns:
+``(field, width)``, width 0 a scalar, n a list of n floats, :data:`MAP` a ``map<string,
+double>`` whose keys the row buffer carries once (its ``static``: ``((field, keys), ...)``, and
+``("frame", name)``, the vehicle's frame for the Foxglove messages, ``("counts", ...)`` the
+sensors' records per row). A dotted field is a field of a nested message (``bias.accel``). Each
+message is the one :mod:`sim.log_proto` encodes from the dict the row stands for, so a log reads
+back the same whichever way it was written; ``sigma`` rows carry the covariance the 3-sigma
+bounds are computed from, in the writer. Units and frames: :mod:`sim.log_schemas`.
 """
 
 from __future__ import annotations
 
+import functools
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -26,7 +31,7 @@ from google.protobuf.message import Message
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from sim import log_proto
-from sim.core.frames import euler_to_quat
+from sim.core.frames import euler_to_quat, yaw_error_variance
 
 MAP = -1  # column width of a map<string, double>: its keys are in the buffer's static part
 NED_FRAME = "ned"
@@ -123,8 +128,7 @@ def flatten(columns: Columns, d: dict[str, Any]) -> tuple[list[float], tuple[tup
     :func:`row_dict`."""
     row: list[float] = []
     static: list[tuple[str, tuple[str, ...]]] = []
-    for name, width in columns:
-        head, _, tail = name.partition(".")
+    for name, head, tail, width in _split(columns):
         v = d[head][tail] if tail else d[name]
         if width == MAP:
             static.append((name, tuple(v)))
@@ -136,12 +140,26 @@ def flatten(columns: Columns, d: dict[str, Any]) -> tuple[list[float], tuple[tup
     return row, tuple(static)
 
 
-def _cosim(title: str, columns: Columns) -> Output:
+@functools.cache
+def _split(columns: Columns) -> list[tuple[str, str, str, int]]:
+    """Per column: its name, the name's head and tail (``bias.accel``: ``bias``, ``accel``) and
+    its width."""
+    return [(name, *_parts(name), width) for name, width in columns]
+
+
+def _parts(name: str) -> tuple[str, str]:
+    head, _, tail = name.partition(".")
+    return head, tail
+
+
+def _cosim(title: str, columns: Columns, lead: int = 0) -> Output:
+    """The message ``title`` of the row's columns after its first ``lead`` (a log time that is
+    not the message's own ``t``)."""
     kinds = _kinds(title)
     encode = log_proto.encode
 
     def build(values: list[float], ns: int, static: Any) -> bytes:
-        return encode(title, row_dict(columns, values, static, kinds))
+        return encode(title, row_dict(columns, values[lead:] if lead else values, static, kinds))
 
     return Output(title, lambda: log_proto.schema_data(title), build)
 
@@ -175,20 +193,47 @@ def _transform(v: list[float], ns: int, static: Any) -> bytes:
     return FrameTransforms(transforms=[tf]).SerializeToString(deterministic=True)
 
 
-SIGMA: Columns = (
+# the row of cosim.EstimateSigma: what the bounds are computed from (SensorEstimator.covariance_row)
+SIGMA_INPUTS: Columns = (
     ("t", 0),
-    ("pos", 3),
-    ("vel", 3),
-    ("att", 3),
-    ("heading", 1),
-    ("accel", 3),
-    ("gyro", 3),
-    ("baro", 1),
+    ("var", 16),
+    ("q", 4),
+    ("p_att", 9),
     ("bias.accel", 3),
     ("bias.gyro", 3),
     ("bias.baro", 1),
     ("bias.gnss_gm", 3),
 )
+
+
+def three_sd(variance: float) -> float:
+    """3 standard deviations [the variance's unit's root]; NaN for a negative variance (as numpy)."""
+    return 3.0 * math.sqrt(variance) if variance >= 0.0 else math.nan
+
+
+def sigma_bounds(var: Sequence[float], q: Sequence[float], p_att: Sequence[float]) -> dict[str, list[float]]:
+    """The 3-sigma bounds of :meth:`sim.estimation.ins_ekf.InsEkf.three_sigma` (bit for bit)
+    from the covariance diagonal ``var`` (16), attitude ``q`` and attitude-error block ``p_att``."""
+    sd = [three_sd(v) for v in var]
+    heading = three_sd(yaw_error_variance((q[0], q[1], q[2], q[3]), list(p_att)))
+    return {
+        "pos": sd[0:3],
+        "vel": sd[3:6],
+        "att": sd[6:9],
+        "heading": [heading],
+        "accel": sd[9:12],
+        "gyro": sd[12:15],
+        "baro": sd[15:16],
+    }
+
+
+def _sigma(values: list[float], ns: int, static: Any) -> bytes:
+    d = row_dict(SIGMA_INPUTS, values, static, {})
+    return log_proto.encode(
+        "cosim.EstimateSigma", {"t": d["t"], **sigma_bounds(d["var"], d["q"], d["p_att"]), "bias": d["bias"]}
+    )
+
+
 FIXED_WING_SETPOINT: Columns = (
     ("t", 0),
     ("roll_rad", 0),
@@ -245,11 +290,9 @@ def _layouts() -> dict[str, RowLayout]:
     one = {
         "estimate": (STATE, "cosim.VehicleState"),
         "tracking": (TRACKING, "cosim.Tracking"),
-        "sigma": (SIGMA, "cosim.EstimateSigma"),
         "fixed_wing_setpoint": (FIXED_WING_SETPOINT, "cosim.FixedWingSetpoint"),
         "multirotor_setpoint": (MULTIROTOR_SETPOINT, "cosim.MultirotorSetpoint"),
         "commands": (COMMANDS, "cosim.Commands"),
-        "energy": (ENERGY, "cosim.Energy"),
     }
     out = {
         "truth": RowLayout(
@@ -257,8 +300,12 @@ def _layouts() -> dict[str, RowLayout]:
         )
     }
     out.update({name: RowLayout(name, cols, (_cosim(title, cols),)) for name, (cols, title) in one.items()})
+    # the bus's record is the state at the end of the control step (its t): logged at the tick
+    out["energy"] = RowLayout("energy", (("log_t", 0), *ENERGY), (_cosim("cosim.Energy", ENERGY, lead=1),))
     sensors = Output("cosim.Sensors", lambda: log_proto.schema_data("cosim.Sensors"), _sensors)
     out["sensors"] = RowLayout("sensors", (("t", 0),), (sensors,))
+    sigma = Output("cosim.EstimateSigma", lambda: log_proto.schema_data("cosim.EstimateSigma"), _sigma)
+    out["sigma"] = RowLayout("sigma", SIGMA_INPUTS, (sigma,))
     return out
 
 

@@ -33,7 +33,6 @@ import sys
 from pathlib import Path
 from typing import IO, Any
 
-import numpy as np
 import orjson
 from foxglove_schemas_protobuf.Log_pb2 import Log
 from mcap_protobuf.schema import build_file_descriptor_set
@@ -112,38 +111,26 @@ class _WriterProcess:
 class RowBuffer:
     """The rows of one layout (:mod:`sim.log_rows`) on its channels, one row per log tick,
     handed to the writer ``ROWS`` at a time (and at the log's close) as one record; the writer
-    encodes each row's messages. Get one from :meth:`McapLog.rows`."""
+    encodes each row's messages, logged at the row's first column (sim time [s]), and numbers
+    them per channel. Get one from :meth:`McapLog.rows`."""
 
     def __init__(self, log: McapLog, layout: str, cids: tuple[int, ...], static: tuple):
         self._log, self._layout, self._cids, self._static = log, layout, cids, static
-        self._ns: list[int] = []
-        self._seq: list[list[int]] = []
         self._rows: list[list[float]] = []
 
-    def add(self, t: float, row: list[float]) -> None:
-        """One row at sim time ``t`` [s]: the layout's columns in order (floats; integers and
-        booleans as floats)."""
-        log = self._log
-        seqs = log._seq
-        seq = []
-        for cid in self._cids:
-            seqs[cid] = n = seqs[cid] + 1
-            seq.append(n)
-        self._ns.append(log.epoch_ns + round(t * 1e9))
-        self._seq.append(seq)
-        self._rows.append(row)
-        if len(self._rows) >= ROWS:
+    def add(self, row: list[float]) -> None:
+        """One row: the layout's columns in order, sim time [s] first (integers and booleans
+        as they are); the list is the caller's no more."""
+        rows = self._rows
+        rows.append(row)
+        if len(rows) >= ROWS:
             self.flush()
 
     def flush(self) -> None:
-        """Hand the buffered rows to the writer (a numpy block: one pickle for all of them)."""
-        if not self._rows:
-            return
-        ns, seq, rows = self._ns, self._seq, self._rows
-        self._ns, self._seq, self._rows = [], [], []
-        self._log._record(
-            ("rows", self._layout, self._cids, self._static, np.array(ns, np.int64), np.array(seq), np.array(rows))
-        )
+        """Hand the buffered rows to the writer (lists of floats pickle faster than arrays)."""
+        if self._rows:
+            rows, self._rows = self._rows, []
+            self._log._record(("rows", self._layout, self._cids, self._static, self._log.epoch_ns, rows))
 
 
 class McapLog:

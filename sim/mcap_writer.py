@@ -24,7 +24,7 @@ class RecordWriter:
     encoding, data)``, ``("channel", id, topic, encoding, schema_id, metadata)``, ``("message",
     channel_id, time_ns, data, sequence)``, ``("proto", channel_id, time_ns, title, pickled dict,
     sequence)`` (a message to encode with :func:`sim.log_proto.encode`, imported at the first),
-    ``("rows", layout, channel_ids, static, times_ns, sequences, rows)`` (numpy blocks of a
+    ``("rows", layout, channel_ids, static, epoch_ns, rows)`` (a block of rows of a
     :mod:`sim.log_rows` layout, imported at the first),
     ``("metadata", name, data)``, ``("attachment", time_ns, name, media_type, data)``. Ids are the
     log's own; mcap's are looked up."""
@@ -35,6 +35,7 @@ class RecordWriter:
         self.writer.start(profile=PROFILE, library=f"cosim {__version__}")
         self.schemas: dict[int, int] = {}
         self.channels: dict[int, int] = {}
+        self.row_seq: dict[int, int] = {}  # per mcap channel: the last row message's sequence
 
     def apply(self, records: list[tuple]) -> None:
         w, channels = self.writer, self.channels
@@ -58,12 +59,17 @@ class RecordWriter:
             else:
                 raise ValueError(f"unknown log record {kind!r}")
 
-    def _rows(self, layout: str, cids: tuple[int, ...], static: tuple, ns, seq, rows) -> None:
-        """A block of rows of a :mod:`sim.log_rows` layout: each row's messages, one per channel."""
+    def _rows(self, layout: str, cids: tuple[int, ...], static: tuple, epoch_ns: int, rows: list[list[float]]) -> None:
+        """A block of rows of a :mod:`sim.log_rows` layout: each row's messages, one per channel,
+        logged at the epoch plus the row's sim time (its first column) and numbered per channel
+        (row channels carry only rows)."""
         add, channels = self.writer.add_message, [self.channels[c] for c in cids]
         builds = [o.build for o in self._layouts[layout].outputs]
-        for t_ns, sq, row in zip(ns.tolist(), seq.tolist(), rows.tolist(), strict=True):
-            for ch, build, n in zip(channels, builds, sq, strict=True):
+        seq = self.row_seq
+        for row in rows:
+            t_ns = epoch_ns + round(row[0] * 1e9)
+            for ch, build in zip(channels, builds, strict=True):
+                seq[ch] = n = seq.get(ch, 0) + 1
                 add(ch, log_time=t_ns, data=build(row, t_ns, static), publish_time=t_ns, sequence=n)
 
     @cached_property

@@ -261,7 +261,7 @@ class Vehicle:
         self.recorder.estimate(self.estimate, sigma3)
         self.logw.control(t, self._setpoint, self._setpoint_schema, self._commands, dict(self.controller.debug))
         if self.power is not None:
-            self.logw.energy(t, self.power.record.as_dict())
+            self.logw.energy(t, self.power.record)
         m = self.mission
         status = (m.next_index, m.complete)
         if status != self._mission_logged:

@@ -39,6 +39,7 @@ from sim.core.threats import (
     SphereThreat,
     StormSnapshot,
 )
+from sim.energy.power_system import EnergyRecord
 from sim.estimation.sensor_estimator import SensorEstimator
 from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.log_proto import scan_record
@@ -258,6 +259,8 @@ def write_static_frames(log: McapLog) -> None:
 
 
 _STATE_META = {"frame": "local-level NED from the scenario origin", "units": "SI, rad"}
+_RECORDED_SIGMA = {"pos": slice(0, 3), "vel": slice(3, 6)}  # the bounds the run metrics use
+_ENERGY_SCALARS = tuple(name for name, width in log_rows.ENERGY if width != log_rows.MAP)
 _SENSORS_META = {"units": "SI, rad"}
 _SIGMA_META = {"frame": "NED; attitude error in body axes", "units": "SI, rad"}
 
@@ -299,13 +302,13 @@ class VehicleLogWriter:
         self.t_lidar = f"{p}/threats/lidar"
         self._rows: dict[tuple, RowBuffer] = {}
 
-    def _row(self, layout: str, topics: tuple[str, ...], t: float, row: list[float], static: tuple = (), meta=None):
+    def _row(self, layout: str, topics: tuple[str, ...], row: list[float], static: tuple = (), meta=None) -> None:
         """Append ``row`` to the buffer of ``(layout, topics, static)`` (made at the first row)."""
         key = (layout, topics, static)
         buf = self._rows.get(key)
         if buf is None:
             buf = self._rows[key] = self.log.rows(layout, topics, static, meta)
-        buf.add(t, row)
+        buf.add(row)
 
     def truth(self, s: VehicleState) -> None:
         """Log the true state (``cosim.VehicleState``, ``foxglove.LocationFix`` and the
@@ -313,7 +316,7 @@ class VehicleLogWriter:
         log, t = self.log, s.t
         if log.compact:
             meta = (_STATE_META, {}, {})
-            self._row("truth", (self.t_state, self.t_loc, "/tf"), t, state_row(s), (("frame", self.name),), meta)
+            self._row("truth", (self.t_state, self.t_loc, "/tf"), state_row(s), (("frame", self.name),), meta)
             return
         ns = log.epoch_ns + round(t * 1e9)
         log.write_json(self.t_state, t, state_dict(s), S.VEHICLE_STATE, _STATE_META)
@@ -332,14 +335,14 @@ class VehicleLogWriter:
     def tracking(self, t: float, cross_track_m: float, leg: int) -> None:
         """True cross-track error to the leg being followed (what the metrics judge)."""
         if self.log.compact:
-            self._row("tracking", (self.t_tracking,), t, [t, cross_track_m, leg])
+            self._row("tracking", (self.t_tracking,), [t, cross_track_m, leg])
             return
         self.log.write_json(self.t_tracking, t, {"t": t, "cross_track_m": cross_track_m, "leg": leg}, S.TRACKING)
 
     def estimate(self, s: VehicleState) -> None:
         """Log what controllers and planners saw (same schema as the truth)."""
         if self.log.compact:
-            self._row("estimate", (self.t_est,), s.t, state_row(s), (), (_STATE_META,))
+            self._row("estimate", (self.t_est,), state_row(s), (), (_STATE_META,))
             return
         self.log.write_json(self.t_est, s.t, state_dict(s), S.VEHICLE_STATE, _STATE_META)
 
@@ -350,10 +353,10 @@ class VehicleLogWriter:
         log = self.log
         if log.compact:
             counts, values = est.measurement_row()
-            self._row("sensors", (self.t_sensors,), t, [t, *values], (("counts", counts),), (_SENSORS_META,))
-            sigma = [t, *est.sigma_row()]
-            self._row("sigma", (self.t_sigma,), t, sigma, (), (_SIGMA_META,))
-            return {"pos": sigma[1:4], "vel": sigma[4:7]}
+            self._row("sensors", (self.t_sensors,), [t, *values], (("counts", counts),), (_SENSORS_META,))
+            cov = est.covariance_row()
+            self._row("sigma", (self.t_sigma,), [t, *cov], (), (_SIGMA_META,))
+            return {k: [log_rows.three_sd(v) for v in cov[sl]] for k, sl in _RECORDED_SIGMA.items()}
         sigma3 = est.three_sigma()
         log.write_json(self.t_sensors, t, {"t": t, **est.measurements()}, S.SENSORS, _SENSORS_META)
         log.write_json(self.t_sigma, t, {"t": t, **sigma3, "bias": est.biases()}, S.ESTIMATE_SIGMA, _SIGMA_META)
@@ -362,22 +365,28 @@ class VehicleLogWriter:
     def control(
         self, t: float, setpoint: dict, schema: dict, commands: dict[str, float], debug: dict[str, float]
     ) -> None:
-        sp, cmd = {"t": t, **setpoint}, {"t": t, "properties": commands, "debug": debug}
+        """The setpoint record (:func:`setpoint_record`) and the commands sent to the plant
+        (JSBSim property -> value) with the controller's debug values."""
+        sp = {"t": t, **setpoint}
         if self.log.compact:
             layout = log_rows.SETPOINT_LAYOUTS[schema["title"]]
-            self._row(layout, (self.t_sp,), t, flatten(log_rows.LAYOUTS[layout].columns, sp)[0])
-            self._row("commands", (self.t_cmd,), t, *flatten(log_rows.COMMANDS, cmd))
+            self._row(layout, (self.t_sp,), flatten(log_rows.LAYOUTS[layout].columns, sp)[0])
+            keys = (("properties", tuple(commands)), ("debug", tuple(debug)))
+            self._row("commands", (self.t_cmd,), [t, *commands.values(), *debug.values()], keys)
             return
         self.log.write_json(self.t_sp, t, sp, schema)
-        self.log.write_json(self.t_cmd, t, cmd, S.COMMANDS)
+        self.log.write_json(self.t_cmd, t, {"t": t, "properties": commands, "debug": debug}, S.COMMANDS)
 
-    def energy(self, t: float, record: dict) -> None:
-        """The electrical bus (sim.energy.power_system.EnergyRecord)."""
+    def energy(self, t: float, record: EnergyRecord) -> None:
+        """The electrical bus at the log tick ``t`` [s] (its record's own ``t`` ends the
+        control step)."""
         meta = {"units": "W, Wh, state of charge 0..1"}
         if self.log.compact:
-            self._row("energy", (self.t_energy,), t, *flatten(log_rows.ENERGY, record), (meta,))
+            cum = record.cumulative_wh
+            row = [t, *(getattr(record, f) for f in _ENERGY_SCALARS), *cum.values()]
+            self._row("energy", (self.t_energy,), row, (("cumulative_wh", tuple(cum)),), (meta,))
             return
-        self.log.write_json(self.t_energy, t, record, S.ENERGY, meta)
+        self.log.write_json(self.t_energy, t, record.as_dict(), S.ENERGY, meta)
 
     def mission(self, t: float, next_waypoint: int, waypoints: int, complete: bool) -> None:
         self.log.write_json(

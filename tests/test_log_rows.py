@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.log_rows import COMMANDS, ENERGY, SIGMA, flatten, row_dict
+from sim.log_rows import COMMANDS, ENERGY, SIGMA_INPUTS, flatten, row_dict
 from sim.mcap_log import ROWS
 from sim.mcap_read import read_info
 from tests.test_log_proto import _float32
@@ -62,17 +62,13 @@ def test_row_topics_read_back_what_the_json_log_holds(fly, scenario_data, scenar
 def test_flatten_and_row_dict_invert_each_other():
     sigma = {
         "t": 1.5,
-        "pos": [1.0, 2.0, 3.0],
-        "vel": [0.1, 0.2, 0.3],
-        "att": [0.01, 0.02, 0.03],
-        "heading": [0.04],
-        "accel": [0.5, 0.6, 0.7],
-        "gyro": [1e-4, 2e-4, 3e-4],
-        "baro": [2.5],
+        "var": [0.5 * k for k in range(16)],
+        "q": [0.5, 0.5, -0.5, 0.5],
+        "p_att": [1e-4 * k for k in range(9)],
         "bias": {"accel": [0.0, 0.1, 0.2], "gyro": [1e-5, 0.0, -1e-5], "baro": [-3.0], "gnss_gm": [0.3, -0.2, 1.1]},
     }
     cmd = {"t": 2.0, "properties": {"fcs/throttle-cmd-norm": 0.7, "fcs/aileron-cmd-norm": -0.1}, "debug": {"x": 1.0}}
-    for columns, d in ((SIGMA, sigma), (COMMANDS, cmd)):
+    for columns, d in ((SIGMA_INPUTS, sigma), (COMMANDS, cmd)):
         row, static = flatten(columns, d)
         assert row_dict(columns, row, static, {}) == d
     energy = {k: float(i) for i, (k, w) in enumerate(ENERGY) if w == 0}

@@ -81,6 +81,16 @@ def quat_to_dcm(q: tuple[float, float, float, float]) -> np.ndarray:
     )
 
 
+def yaw_error_variance(q: tuple[float, float, float, float], p_att: list[float]) -> float:
+    """Variance [rad^2] of the NED-frame yaw error of attitude ``q`` (w, x, y, z; body FRD ->
+    NED) with body-frame attitude-error covariance ``p_att`` (3 x 3 row-major, 9 floats [rad^2]):
+    ``(C P C^T)[2, 2]``, C the body -> NED DCM. Plain float arithmetic in a fixed order, so the
+    same inputs give the same bits in any process."""
+    w, x, y, z = q
+    c = (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
+    return sum(c[i] * p_att[3 * i + j] * c[j] for i in range(3) for j in range(3))
+
+
 def quat_mul(a, b) -> tuple[float, float, float, float]:
     """Hamilton product ``a (x) b``."""
     aw, ax, ay, az = a

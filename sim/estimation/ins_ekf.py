@@ -44,7 +44,15 @@ from numpy.typing import ArrayLike
 from pydantic import Field
 
 from sim.core.constants import STANDARD_GRAVITY
-from sim.core.frames import dcm_to_euler, euler_to_quat, quat_exp, quat_mul, quat_normalize, quat_to_dcm
+from sim.core.frames import (
+    dcm_to_euler,
+    euler_to_quat,
+    quat_exp,
+    quat_mul,
+    quat_normalize,
+    quat_to_dcm,
+    yaw_error_variance,
+)
 from sim.core.state import VehicleState
 from sim.estimation import ins_model as m
 from sim.estimation.geodetic import LocalGeodetic
@@ -418,8 +426,7 @@ class InsEkf:
         ``baro`` [m]."""
         P = self.kf.P
         sd = 3.0 * np.sqrt(np.diag(P))
-        r = quat_to_dcm(self.nav.q)
-        yaw_var = (r @ P[6:9, 6:9] @ r.T)[2, 2]
+        yaw_var = yaw_error_variance(self.nav.q, P[6:9, 6:9].ravel().tolist())
         return {
             "pos": sd[0:3],
             "vel": sd[3:6],

@@ -348,11 +348,23 @@ class SensorEstimator:
         self._log = {}
         return tuple(counts), row
 
-    def sigma_row(self) -> list[float]:
-        """:meth:`three_sigma` then :meth:`biases` as one flat row in their keys' order."""
-        s, nav = self.ekf.three_sigma(), self.ekf.nav
-        parts = [s["pos"], s["vel"], s["att"], s["heading"], s["accel"], s["gyro"], s["baro"], nav.ba, nav.bg]
-        return [*np.concatenate(parts).tolist(), float(nav.bb), *nav.gm.tolist()]
+    def covariance_row(self) -> list[float]:
+        """What :meth:`three_sigma` and :meth:`biases` are made of, as one flat row: the
+        covariance diagonal up to the baro bias (16 variances in
+        :data:`sim.estimation.ins_model.IDX` order), the
+        attitude quaternion (w, x, y, z), the attitude-error covariance block (9, row-major),
+        then the biases in :meth:`biases`' order (:data:`sim.log_rows.SIGMA_INPUTS`)."""
+        ekf = self.ekf
+        P, nav = ekf.kf.P, ekf.nav
+        return [
+            *P.diagonal()[:16].tolist(),
+            *nav.q,
+            *P[6:9, 6:9].ravel().tolist(),
+            *nav.ba.tolist(),
+            *nav.bg.tolist(),
+            float(nav.bb),
+            *nav.gm.tolist(),
+        ]
 
     def three_sigma(self) -> dict[str, list[float]]:
         """3-sigma bounds of the estimate (see :meth:`InsEkf.three_sigma`), plain floats."""
