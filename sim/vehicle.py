@@ -247,7 +247,9 @@ class Vehicle:
 
     def _log(self, t: float) -> None:
         truth = self.plant.truth()
-        if not math.isfinite(float(truth.pos_ned.sum() + truth.vel_ned.sum() + truth.euler.sum())):  # NaN/inf propagate
+        if not math.isfinite(
+            sum(truth.pos_ned.tolist() + truth.vel_ned.tolist() + truth.euler.tolist())
+        ):  # NaN/inf propagate
             self.log.event(t, f"{self.name}: state is not finite", level="error", name=self.name)
             raise SimulationDiverged(f"{self.name}: state went non-finite at t={t:.2f} s")
         track = self.follower.track_error(truth.pos_ned)

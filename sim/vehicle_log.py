@@ -259,7 +259,6 @@ def write_static_frames(log: McapLog) -> None:
 
 
 _STATE_META = {"frame": "local-level NED from the scenario origin", "units": "SI, rad"}
-_RECORDED_SIGMA = {"pos": slice(0, 3), "vel": slice(3, 6)}  # the bounds the run metrics use
 _ENERGY_SCALARS = tuple(name for name, width in log_rows.ENERGY if width != log_rows.MAP)
 _SENSORS_META = {"units": "SI, rad"}
 _SIGMA_META = {"frame": "NED; attitude error in body axes", "units": "SI, rad"}
@@ -303,11 +302,10 @@ class VehicleLogWriter:
         self._rows: dict[tuple, RowBuffer] = {}
 
     def _row(self, layout: str, topics: tuple[str, ...], row: list[float], static: tuple = (), meta=None) -> None:
-        """Append ``row`` to the buffer of ``(layout, topics, static)`` (made at the first row)."""
-        key = (layout, topics, static)
-        buf = self._rows.get(key)
+        """Append ``row`` to the buffer of ``(layout, static)`` (made at the first row)."""
+        buf = self._rows.get((layout, static))
         if buf is None:
-            buf = self._rows[key] = self.log.rows(layout, topics, static, meta)
+            buf = self._rows[layout, static] = self.log.rows(layout, topics, static, meta)
         buf.add(row)
 
     def truth(self, s: VehicleState) -> None:
@@ -356,7 +354,8 @@ class VehicleLogWriter:
             self._row("sensors", (self.t_sensors,), [t, *values], (("counts", counts),), (_SENSORS_META,))
             cov = est.covariance_row()
             self._row("sigma", (self.t_sigma,), [t, *cov], (), (_SIGMA_META,))
-            return {k: [log_rows.three_sd(v) for v in cov[sl]] for k, sl in _RECORDED_SIGMA.items()}
+            pos_vel = [log_rows.three_sd(v) for v in cov[0:6]]
+            return {"pos": pos_vel[0:3], "vel": pos_vel[3:6]}
         sigma3 = est.three_sigma()
         log.write_json(self.t_sensors, t, {"t": t, **est.measurements()}, S.SENSORS, _SENSORS_META)
         log.write_json(self.t_sigma, t, {"t": t, **sigma3, "bias": est.biases()}, S.ESTIMATE_SIGMA, _SIGMA_META)
