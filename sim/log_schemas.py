@@ -159,6 +159,12 @@ PLAN_INPUT = _obj(
             "mission progress: reached = [[waypoint index, sim time [s]], ...], landed_t, completed_t [s] or null",
         ),
         "new_plan": ({"type": "boolean"}, "the call made a new plan (false: the planner kept its plan)"),
+        "mission_setup": (
+            {"type": "object"},
+            "only when the planner was built since the previous call: the mission it was built for "
+            "(waypoints NED [m], cruise_speed [m/s], acceptance_radius [m], start NED [m] or null, "
+            "hold_s = [[waypoint index, s], ...], land)",
+        ),
     },
 )
 

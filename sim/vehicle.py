@@ -68,6 +68,7 @@ class Vehicle:
             self._inner_nodes = self.plant.property_nodes(ESTIMATE_PROPERTIES)
         self.controller = af.make_controller(cfg.gains)
         self.planner: Planner = self.make_mission_planner()
+        self._planner_logged: Planner | None = None  # the planner of the last logged call
         self.mode = "AUTO"  # AUTO: the mission; HOLD: hover in place; GUIDED: ground-station targets
         self.estimate = self.estimator.update(0.0)
         self.follower = make_follower(cfg, af, self.controller, self.mission, origin)
@@ -173,7 +174,8 @@ class Vehicle:
         plan: Plan = self.planner.plan(self.estimate, self.threats, t)
         latency = time.perf_counter() - t0
         new_plan = plan.t == t
-        self.logw.plan_input(t, self.planner.name, self.estimate, self.mission, new_plan)
+        fresh, self._planner_logged = self.planner is not self._planner_logged, self.planner
+        self.logw.plan_input(t, self.planner.name, self.estimate, self.mission, new_plan, fresh)
         self.follower.set_plan(plan)
         if new_plan:
             self.logw.plan(plan)

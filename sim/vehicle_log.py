@@ -229,6 +229,32 @@ def mission_progress(m: Mission) -> dict:
     return {"reached": [[k, t] for k, t in m.reached], "landed_t": m.landed_t, "completed_t": m.completed_t}
 
 
+def mission_setup(m: Mission) -> dict:
+    """What a mission is made of (waypoints NED [m], cruise speed [m/s], acceptance radius [m],
+    first leg's start NED [m] or None, hover times [s] by waypoint index, landing);
+    ``mission_from_setup`` builds it again."""
+    return {
+        "waypoints": np.asarray(m.waypoints, float).tolist(),
+        "cruise_speed": m.cruise_speed,
+        "acceptance_radius": m.acceptance_radius,
+        "start": None if m.start is None else np.asarray(m.start, float).tolist(),
+        "hold_s": [[k, s] for k, s in m.hold_s.items()],
+        "land": m.land,
+    }
+
+
+def mission_from_setup(d: dict) -> Mission:
+    """A logged :func:`mission_setup` as a new Mission (no progress)."""
+    return Mission(
+        np.asarray(d["waypoints"], float).reshape(-1, 3),
+        float(d["cruise_speed"]),
+        float(d["acceptance_radius"]),
+        start=None if d["start"] is None else np.asarray(d["start"], float),
+        hold_s={int(k): float(s) for k, s in d["hold_s"]},
+        land=bool(d["land"]),
+    )
+
+
 def restore_progress(m: Mission, d: dict) -> None:
     m.reached = [(int(k), float(t)) for k, t in d["reached"]]
     m.landed_t, m.completed_t = d["landed_t"], d["completed_t"]
@@ -404,19 +430,27 @@ class VehicleLogWriter:
         if compact and threats.lidar is not None:
             self.log.write_record(self.t_lidar, t, scan_record(threats.lidar), S.LIDAR_SCAN, frame)
 
-    def plan_input(self, t: float, planner: str, estimate: VehicleState, mission: Mission, new_plan: bool) -> None:
+    def plan_input(
+        self, t: float, planner: str, estimate: VehicleState, mission: Mission, new_plan: bool, fresh: bool
+    ) -> None:
         """Per planner call: the planner's name, the estimate and mission progress it saw (the
-        threats go to ``/<v>/threats``, one message per call too) and whether it made a new plan."""
+        threats go to ``/<v>/threats``, one message per call too) and whether it made a new plan;
+        ``fresh``: the planner was built since the previous call (at the start, a ground-station
+        mode change or mission upload, a repeated mission): the record then holds the mission it
+        was built for (``mission_setup``)."""
+        rec = {
+            "t": t,
+            "planner": planner,
+            "estimate": state_dict(estimate),
+            "mission": mission_progress(mission),
+            "new_plan": new_plan,
+        }
+        if fresh:
+            rec["mission_setup"] = mission_setup(mission)
         self.log.write_json(
             self.t_input,
             t,
-            {
-                "t": t,
-                "planner": planner,
-                "estimate": state_dict(estimate),
-                "mission": mission_progress(mission),
-                "new_plan": new_plan,
-            },
+            rec,
             S.PLAN_INPUT,
             {"frame": "local-level NED from the scenario origin"},
         )

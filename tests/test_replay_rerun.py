@@ -104,3 +104,53 @@ def test_threats_round_trip_through_the_log_record_field_by_field():
     s0, s1 = th.storms[0], back.storms[0]
     assert s1.t == s0.t and s1.cells[0].equals_exact(s0.cells[0], 0.0)
     assert np.array_equal(s1.velocities_ne, s0.velocities_ne)
+
+
+def _fly_commanded(tmp_path: Path, scenario: str, duration: float, commands: dict[float, object], monkeypatch) -> Path:
+    """Fly ``scenario`` with ground-station ``commands`` ({sim time [s]: command}) applied to its
+    first vehicle at the log ticks they are due, as the MAVLink session applies them."""
+    from sim import world as world_mod
+
+    worlds = []
+    schedule = world_mod.World.schedule
+    monkeypatch.setattr(world_mod.World, "schedule", lambda self, sched: (worlds.append(self), schedule(self, sched)))
+    due = sorted(commands.items(), key=lambda kv: kv[0])
+
+    def hook(t: float) -> None:
+        while due and due[0][0] <= t + 1e-9:
+            worlds[0].vehicles[0].apply_command(due.pop(0)[1], t)
+
+    sc, text = load_scenario(SCENARIOS / scenario)
+    path = tmp_path / "run.mcap"
+    run_scenario(sc, path, scenario_text=text, duration=duration, tick_hook=hook)
+    assert not due
+    return path
+
+
+def test_rerun_reproduces_every_plan_across_ground_station_mode_changes(tmp_path, monkeypatch):
+    """HOLD, back to AUTO (a fresh mission planner), a new mission uploaded, GUIDED with a
+    position target and AUTO again: the scenario's planner re-run on the log makes every plan
+    the run made, including those of the planners built by the mode changes."""
+    from sim.geodesy import GeoPoint, ned_to_geodetic
+    from sim.mavlink.commands import MissionUpload, PositionTarget, SetMode
+
+    lat, lon, alt = ned_to_geodetic(np.array([[90.0, -15.0, -25.0]]), GeoPoint(47.0, 8.0, 400.0))
+    upload = MissionUpload(tuple(zip(lat.tolist(), lon.tolist(), alt.tolist(), strict=True)))
+    target = PositionTarget(0, np.array([40.0, -10.0, -25.0]), None, None, None)
+    commands = {4.0: SetMode("HOLD"), 7.0: SetMode("AUTO"), 11.0: upload, 15.0: SetMode("GUIDED"), 16.0: target}
+    commands[19.0] = SetMode("AUTO")
+    path = _fly_commanded(tmp_path, "geometric/s3b_moving_main.toml", 25.0, commands, monkeypatch)
+    log = RunLog(path)
+    events = [text for _, text in log.events()]
+    assert {"quad: mode HOLD", "quad: mode AUTO", "quad: mode GUIDED"} <= set(events)
+    assert any(text.startswith("quad: mission uploaded") for text in events)
+    inputs = log.topic("/quad/plan/input").messages
+    assert len({m["planner"] for m in inputs}) == 3  # the scenario's, HOLD's and GUIDED's
+    own = [m for m in inputs if m["planner"] == "geometric"]
+    built = [m["t"] for m in own if "mission_setup" in m]
+    assert built == [0.0, 7.0, 11.0, 19.0]  # the start, AUTO, the upload, AUTO
+    made = [m["t"] for m in own if m["new_plan"]]
+    assert any(t > 19.0 for t in made)
+    rep = rerun_planner(path, "quad")
+    assert rep.differences == []
+    assert rep.plans == rep.same == len(made)  # every plan of the scenario's planner

@@ -5,7 +5,9 @@ estimate, the mission progress, whether the call made a new plan) and ``/<v>/thr
 sensed threat field, one message per call); map obstacles and geofences and the planner's
 options come from the attached scenario. The planner (the scenario's own, or another kind or
 parameter set) is called at every logged call with those inputs, in order, so its internal
-state (replan timers, committed plans, nowcast caches) evolves as in the run. Plans compare
+state (replan timers, committed plans, nowcast caches) evolves as in the run; where the run
+built its planner anew for a new mission (ground-station mode change, mission upload, repeated
+mission), so does the re-run, from the mission logged with that call. Plans compare
 vertex by vertex (positions [m], due times [s], labels and status), and a call that made a new
 plan in one run but kept the previous plan in the other is a difference. Under a UTM authority
 a rules planner joins it again and gets every directive (``/utm/directive``) at the time it
@@ -31,7 +33,13 @@ from sim.environment import geofence, obstacle_prism
 from sim.mcap_read import LogReadError, read_attached_scenario
 from sim.replay.runlog import RunLog
 from sim.scenario import Utm
-from sim.vehicle_log import restore_progress, state_from_dict, storms_from_dicts, threats_from_dict
+from sim.vehicle_log import (
+    mission_from_setup,
+    restore_progress,
+    state_from_dict,
+    storms_from_dicts,
+    threats_from_dict,
+)
 
 PlannerFactory = Callable[[Mission], Planner]
 
@@ -51,7 +59,9 @@ class RerunReport:
 def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> RerunReport:
     """Re-run ``vehicle``'s planner (``factory(mission)``; default: the scenario's own, built as
     the run built it) on the log at ``path``. Calls made by a ground-station mode planner (HOLD,
-    GUIDED) are not re-run."""
+    GUIDED) are not re-run; where the run built its planner anew (back to AUTO, a mission
+    upload, a repeated mission: the call's logged ``mission_setup``), the re-run builds a new
+    one for the logged mission too, so its state restarts as in the run."""
     from sim.vehicle_setup import mission_from_config, scenario_planner  # the runner's own construction
 
     log = RunLog(path)
@@ -63,15 +73,16 @@ def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> 
         raise LogReadError(f"{path}: no vehicle {vehicle!r} in the attached scenario")
     if not log.has(f"/{vehicle}/plan/input"):
         raise LogReadError(f"{path}: no /{vehicle}/plan/input (a log older than the planner-input records)")
-    mission = mission_from_config(cfg, scenario.origin_point)
     af = get_airframe(cfg.aircraft)
-    planner = (
-        factory(mission)
-        if factory
-        else scenario_planner(
-            cfg, mission, af, af.make_controller(cfg.gains).gains, scenario.wind, scenario.origin_point.alt_m
-        )
-    )
+    gains = af.make_controller(cfg.gains).gains
+
+    def build(mission: Mission) -> Planner:
+        if factory:
+            return factory(mission)
+        return scenario_planner(cfg, mission, af, gains, scenario.wind, scenario.origin_point.alt_m)
+
+    mission = mission_from_config(cfg, scenario.origin_point)
+    planner = build(mission)
     alt0 = scenario.origin_point.alt_m
     obstacles = [obstacle_prism(c, alt0) for c in scenario.obstacle]
     fences = [geofence(c, alt0) for c in scenario.geofence]
@@ -84,10 +95,15 @@ def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> 
     logged_storms: list[dict] | None = None
     storms: list[StormSnapshot] = []
     directives = _directives(log, vehicle, planner, scenario.utm)
+    called = False  # the scenario's planner has been called: a logged mission_setup rebuilds it
     for rec_in, rec_th in zip(inputs.messages, threats.messages, strict=True):
         recorded = next(plans) if rec_in["new_plan"] else None
         if rec_in["planner"] != scenario_planner_name:  # a ground-station mode planner flew this call
             continue
+        if "mission_setup" in rec_in and called:  # the run built its planner anew before this call
+            mission = mission_from_setup(rec_in["mission_setup"])
+            planner = build(mission)
+        called = True
         if rec_th["storms"] != logged_storms:  # a new nowcast: new snapshot objects, as in the run
             logged_storms, storms = rec_th["storms"], storms_from_dicts(rec_th["storms"])
         restore_progress(mission, rec_in["mission"])
