@@ -1,6 +1,11 @@
 """Log size and logging cost, JSON (the logs before issue #19's compact encoding) against protobuf
 (``[logging] encoding``), both flown in the same run on the shipped scenarios (EKF, default rates).
 
+The JSON encoding is the baseline ("before"): it keeps the per-tick path the logs had before
+issue #19 (a message dict per topic per tick, encoded with orjson in the simulation process and
+handed to the writer process). The protobuf encoding is the compact path: per-tick topics go as
+one row of floats per vehicle and tick (:mod:`sim.log_rows`), encoded by the writer process.
+
 Cases (``--case``): ``haps`` (``haps_box_mission``), ``quad`` (``quad_square_mission``) and
 ``building_lidar`` (``reachset/building_lidar``: the reach-set planner with a LiDAR, its scan
 logged at each planner call). Reported per encoding:
@@ -11,6 +16,8 @@ logged at each planner call). Reported per encoding:
   every vehicle (building its messages, incl. the EKF's 3-sigma bounds), the planner-call
   records (threats, LiDAR scan, planner inputs, plans, planner diagnostics), the world's object
   log and the log's close (the writer process finishing the file); nested calls counted once;
+- ``logging_us_per_tick``: that logging CPU time per log tick of a vehicle [us] (the share's
+  numerator without its denominator, which the machine's load moves between runs);
 - ``writer_cpu_s``: CPU time of the writer process (a child: zstd chunks, indexes), off the
   simulation's core.
 ``ratio``: protobuf / JSON of each figure. Timings depend on the machine's load: compare the two
@@ -113,6 +120,9 @@ def fly(case: str, encoding: str, sim_seconds: float) -> dict[str, float]:
         "sim_seconds": round(r.sim_time_s, 3),
         "mb_per_vehicle_minute": round(size / 1e6 / minutes, 3),
         "logging_share": round(clock.seconds / cpu, 3),
+        "logging_us_per_tick": round(
+            clock.seconds / (r.sim_time_s * scenario.logging.rate_hz * len(scenario.vehicle)) * 1e6, 1
+        ),
         "writer_cpu_s": round((cpu1.ru_utime + cpu1.ru_stime) - (cpu0.ru_utime + cpu0.ru_stime), 3),
         "wall_s": round(wall, 3),
     }
@@ -130,7 +140,7 @@ def measure(case: str, repeat: int, sim_seconds: float | None) -> dict[str, Any]
     out: dict[str, Any] = {"case": case, "scenario": CASES[case][0], **best}
     out["ratio"] = {
         k: round(best["protobuf"][k] / best["json"][k], 3)
-        for k in ("mb_per_vehicle_minute", "logging_share", "writer_cpu_s")
+        for k in ("mb_per_vehicle_minute", "logging_share", "logging_us_per_tick", "writer_cpu_s")
         if best["json"][k]
     }
     out["meets_size_target"] = best["protobuf"]["mb_per_vehicle_minute"] <= 1.0

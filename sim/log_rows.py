@@ -311,3 +311,12 @@ def _layouts() -> dict[str, RowLayout]:
 
 LAYOUTS: dict[str, RowLayout] = _layouts()
 SETPOINT_LAYOUTS = {"cosim.FixedWingSetpoint": "fixed_wing_setpoint", "cosim.MultirotorSetpoint": "multirotor_setpoint"}
+
+
+def row_width(layout: str, static: Any) -> int:
+    """Columns of a row of ``layout`` with constant part ``static`` (maps: their keys; sensors:
+    their record counts)."""
+    st = dict(static)
+    if layout == "sensors":
+        return 1 + sum(n * _RECORD_WIDTH[name] for name, n in st["counts"])
+    return sum(len(st[name]) if width == MAP else max(width, 1) for name, width in LAYOUTS[layout].columns)

@@ -108,29 +108,35 @@ class _WriterProcess:
         return out or (f"the writer process stopped (exit code {code})" if code else "")
 
 
-class RowBuffer:
-    """The rows of one layout (:mod:`sim.log_rows`) on its channels, one row per log tick,
-    handed to the writer ``ROWS`` at a time (and at the log's close) as one record; the writer
-    encodes each row's messages, logged at the row's first column (sim time [s]), and numbers
-    them per channel. Get one from :meth:`McapLog.rows`."""
+RowPart = tuple[str, tuple[str, ...], tuple, tuple[dict[str, str], ...]]  # layout, topics, static, metadata
 
-    def __init__(self, log: McapLog, layout: str, cids: tuple[int, ...], static: tuple):
-        self._log, self._layout, self._cids, self._static = log, layout, cids, static
+
+class RowBuffer:
+    """Rows made of parts, each part a row of a :mod:`sim.log_rows` layout written on its
+    channels (one vehicle's per-tick topics: one row per log tick), handed to the writer
+    ``ROWS`` rows at a time (and at the log's close) as one record. The writer encodes each
+    part's messages, logged at the part's first column (sim time [s]), and numbers them per
+    channel. Get one from :meth:`McapLog.rows`."""
+
+    def __init__(self, log: McapLog, parts: tuple[tuple[str, tuple], ...], cids: tuple[tuple[int, ...], ...]):
+        self._log, self._parts, self._cids = log, parts, cids
         self._rows: list[list[float]] = []
 
     def add(self, row: list[float]) -> None:
-        """One row: the layout's columns in order, sim time [s] first (integers and booleans
-        as they are); the list is the caller's no more."""
+        """One row: its parts' columns one part after the other (integers and booleans as they
+        are); the list is the caller's no more."""
         rows = self._rows
         rows.append(row)
         if len(rows) >= ROWS:
             self.flush()
 
     def flush(self) -> None:
-        """Hand the buffered rows to the writer (lists of floats pickle faster than arrays)."""
+        """Hand the buffered rows to the writer now, with the records pending before them (lists
+        of floats pickle faster than arrays)."""
         if self._rows:
             rows, self._rows = self._rows, []
-            self._log._record(("rows", self._layout, self._cids, self._static, self._log.epoch_ns, rows))
+            self._log._record(("rows", self._parts, self._cids, self._log.epoch_ns, rows))
+            self._log._flush()
 
 
 class McapLog:
@@ -261,28 +267,25 @@ class McapLog:
             cid = self._channel(topic, "protobuf", sid, metadata or {})
         self._add(cid, t, message.SerializeToString(deterministic=True))
 
-    def rows(
-        self,
-        layout: str,
-        topics: tuple[str, ...],
-        static: tuple = (),
-        metadata: tuple[dict[str, str], ...] | None = None,
-    ) -> RowBuffer:
-        """A row buffer for ``layout`` writing its messages on ``topics`` (one per output of the
-        layout, a new channel registered with its ``metadata`` entry); ``static``: the rows'
-        constant part (map keys, frame name). A JSON log writes :meth:`write_json` records
-        instead (it has no row buffers)."""
-        outputs = log_rows.LAYOUTS[layout].outputs
-        if len(topics) != len(outputs):
-            raise ValueError(f"row layout {layout!r} writes {len(outputs)} topics, got {len(topics)}")
+    def rows(self, parts: tuple[RowPart, ...]) -> RowBuffer:
+        """A row buffer for rows made of ``parts``: (layout, topics, static, metadata), the
+        topics one per output of the layout (a new channel registered with its metadata entry),
+        ``static`` the part's constant values (map keys, frame name, sensor counts). A JSON
+        log writes :meth:`write_json` records instead (it has no row buffers)."""
         cids = []
-        for k, (topic, out) in enumerate(zip(topics, outputs, strict=True)):
-            cid = self._channels.get(topic)
-            if cid is None:
-                sid = self._schema(out.schema, "protobuf", out.schema_data)
-                cid = self._channel(topic, "protobuf", sid, metadata[k] if metadata else {})
-            cids.append(cid)
-        buf = RowBuffer(self, layout, tuple(cids), static)
+        for layout, topics, _, metadata in parts:
+            outputs = log_rows.LAYOUTS[layout].outputs
+            if len(topics) != len(outputs):
+                raise ValueError(f"row layout {layout!r} writes {len(outputs)} topics, got {len(topics)}")
+            ids = []
+            for topic, out, meta in zip(topics, outputs, metadata or ({},) * len(topics), strict=True):
+                cid = self._channels.get(topic)
+                if cid is None:
+                    sid = self._schema(out.schema, "protobuf", out.schema_data)
+                    cid = self._channel(topic, "protobuf", sid, meta)
+                ids.append(cid)
+            cids.append(tuple(ids))
+        buf = RowBuffer(self, tuple((p[0], p[2]) for p in parts), tuple(cids))
         self._row_buffers.append(buf)
         return buf
 

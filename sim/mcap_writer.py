@@ -24,8 +24,8 @@ class RecordWriter:
     encoding, data)``, ``("channel", id, topic, encoding, schema_id, metadata)``, ``("message",
     channel_id, time_ns, data, sequence)``, ``("proto", channel_id, time_ns, title, pickled dict,
     sequence)`` (a message to encode with :func:`sim.log_proto.encode`, imported at the first),
-    ``("rows", layout, channel_ids, static, epoch_ns, rows)`` (a block of rows of a
-    :mod:`sim.log_rows` layout, imported at the first),
+    ``("rows", parts, channel_ids, epoch_ns, rows)`` (a block of rows made of
+    :mod:`sim.log_rows` parts, imported at the first),
     ``("metadata", name, data)``, ``("attachment", time_ns, name, media_type, data)``. Ids are the
     log's own; mcap's are looked up."""
 
@@ -59,18 +59,29 @@ class RecordWriter:
             else:
                 raise ValueError(f"unknown log record {kind!r}")
 
-    def _rows(self, layout: str, cids: tuple[int, ...], static: tuple, epoch_ns: int, rows: list[list[float]]) -> None:
-        """A block of rows of a :mod:`sim.log_rows` layout: each row's messages, one per channel,
-        logged at the epoch plus the row's sim time (its first column) and numbered per channel
-        (row channels carry only rows)."""
-        add, channels = self.writer.add_message, [self.channels[c] for c in cids]
-        builds = [o.build for o in self._layouts[layout].outputs]
-        seq = self.row_seq
+    def _rows(
+        self, parts: tuple[tuple[str, tuple], ...], cids: tuple[tuple[int, ...], ...], epoch_ns: int, rows: list
+    ) -> None:
+        """A block of rows made of :mod:`sim.log_rows` parts ``(layout, static)``: each part's
+        messages, one per channel, logged at the epoch plus the part's sim time (its first
+        column) and numbered per channel (row channels carry only rows)."""
+        from sim.log_rows import row_width
+
+        add, seq = self.writer.add_message, self.row_seq
+        plan = [
+            (row_width(layout, static), static, [(self.channels[c], o.build) for c, o in zip(ids, outs, strict=True)])
+            for (layout, static), ids in zip(parts, cids, strict=True)
+            for outs in [self._layouts[layout].outputs]
+        ]
         for row in rows:
-            t_ns = epoch_ns + round(row[0] * 1e9)
-            for ch, build in zip(channels, builds, strict=True):
-                seq[ch] = n = seq.get(ch, 0) + 1
-                add(ch, log_time=t_ns, data=build(row, t_ns, static), publish_time=t_ns, sequence=n)
+            k = 0
+            for width, static, outputs in plan:
+                part = row[k : k + width]
+                k += width
+                t_ns = epoch_ns + round(part[0] * 1e9)
+                for ch, build in outputs:
+                    seq[ch] = n = seq.get(ch, 0) + 1
+                    add(ch, log_time=t_ns, data=build(part, t_ns, static), publish_time=t_ns, sequence=n)
 
     @cached_property
     def _layouts(self):

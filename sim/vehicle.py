@@ -249,9 +249,8 @@ class Vehicle:
 
     def _log(self, t: float) -> None:
         truth = self.plant.truth()
-        if not math.isfinite(
-            sum(truth.pos_ned.tolist() + truth.vel_ned.tolist() + truth.euler.tolist())
-        ):  # NaN/inf propagate
+        motion = truth.pos_ned.tolist() + truth.vel_ned.tolist() + truth.euler.tolist()
+        if not math.isfinite(sum(motion)):  # NaN and infinities propagate to the sum
             self.log.event(t, f"{self.name}: state is not finite", level="error", name=self.name)
             raise SimulationDiverged(f"{self.name}: state went non-finite at t={t:.2f} s")
         track = self.follower.track_error(truth.pos_ned)
@@ -271,3 +270,4 @@ class Vehicle:
         if status != self._mission_logged:
             self._mission_logged = status
             self.logw.mission(t, m.next_index, len(m.waypoints), m.complete)
+        self.logw.end_tick()

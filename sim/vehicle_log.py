@@ -286,6 +286,7 @@ def write_static_frames(log: McapLog) -> None:
 
 _STATE_META = {"frame": "local-level NED from the scenario origin", "units": "SI, rad"}
 _ENERGY_SCALARS = tuple(name for name, width in log_rows.ENERGY if width != log_rows.MAP)
+_ENERGY_META = {"units": "W, Wh, state of charge 0..1"}
 _SENSORS_META = {"units": "SI, rad"}
 _SIGMA_META = {"frame": "NED; attitude error in body axes", "units": "SI, rad"}
 
@@ -325,22 +326,49 @@ class VehicleLogWriter:
         self.t_tracking = f"{p}/truth/tracking"
         self.t_energy = f"{p}/energy"
         self.t_lidar = f"{p}/threats/lidar"
-        self._rows: dict[tuple, RowBuffer] = {}
+        self._buffers: dict[tuple, RowBuffer] = {}
+        self._tick_row: list[float] = []
+        self._tick_parts: list[tuple[str, tuple]] = []
+        sp = ((self.t_sp,), ({},))
+        self._part_topics: dict[str, tuple[tuple[str, ...], tuple[dict[str, str], ...]]] = {  # per layout
+            "truth": ((self.t_state, self.t_loc, "/tf"), (_STATE_META, {}, {})),
+            "tracking": ((self.t_tracking,), ({},)),
+            "estimate": ((self.t_est,), (_STATE_META,)),
+            "sensors": ((self.t_sensors,), (_SENSORS_META,)),
+            "sigma": ((self.t_sigma,), (_SIGMA_META,)),
+            "fixed_wing_setpoint": sp,
+            "multirotor_setpoint": sp,
+            "commands": ((self.t_cmd,), ({},)),
+            "energy": ((self.t_energy,), (_ENERGY_META,)),
+        }
 
-    def _row(self, layout: str, topics: tuple[str, ...], row: list[float], static: tuple = (), meta=None) -> None:
-        """Append ``row`` to the buffer of ``(layout, static)`` (made at the first row)."""
-        buf = self._rows.get((layout, static))
+    def _part(self, layout: str, row: list[float], static: tuple = ()) -> None:
+        """A part of this tick's row (compact logs; :meth:`end_tick` hands the row over)."""
+        self._tick_parts.append((layout, static))
+        self._tick_row += row
+
+    def end_tick(self) -> None:
+        """Hand this log tick's row to its buffer: the buffer of its parts (made at the first
+        row of those parts)."""
+        if not self._tick_row:
+            return
+        key = tuple(self._tick_parts)
+        buf = self._buffers.get(key)
         if buf is None:
-            buf = self._rows[layout, static] = self.log.rows(layout, topics, static, meta)
-        buf.add(row)
+            parts = []
+            for layout, static in key:
+                topics, meta = self._part_topics[layout]
+                parts.append((layout, topics, static, meta))
+            buf = self._buffers[key] = self.log.rows(tuple(parts))
+        buf.add(self._tick_row)
+        self._tick_row, self._tick_parts = [], []
 
     def truth(self, s: VehicleState) -> None:
         """Log the true state (``cosim.VehicleState``, ``foxglove.LocationFix`` and the
         ``ned`` -> vehicle transform on ``/tf``)."""
         log, t = self.log, s.t
         if log.compact:
-            meta = (_STATE_META, {}, {})
-            self._row("truth", (self.t_state, self.t_loc, "/tf"), state_row(s), (("frame", self.name),), meta)
+            self._part("truth", state_row(s), (("frame", self.name),))
             return
         ns = log.epoch_ns + round(t * 1e9)
         log.write_json(self.t_state, t, state_dict(s), S.VEHICLE_STATE, _STATE_META)
@@ -359,14 +387,14 @@ class VehicleLogWriter:
     def tracking(self, t: float, cross_track_m: float, leg: int) -> None:
         """True cross-track error to the leg being followed (what the metrics judge)."""
         if self.log.compact:
-            self._row("tracking", (self.t_tracking,), [t, cross_track_m, leg])
+            self._part("tracking", [t, cross_track_m, leg])
             return
         self.log.write_json(self.t_tracking, t, {"t": t, "cross_track_m": cross_track_m, "leg": leg}, S.TRACKING)
 
     def estimate(self, s: VehicleState) -> None:
         """Log what controllers and planners saw (same schema as the truth)."""
         if self.log.compact:
-            self._row("estimate", (self.t_est,), state_row(s), (), (_STATE_META,))
+            self._part("estimate", state_row(s))
             return
         self.log.write_json(self.t_est, s.t, state_dict(s), S.VEHICLE_STATE, _STATE_META)
 
@@ -377,9 +405,9 @@ class VehicleLogWriter:
         log = self.log
         if log.compact:
             counts, values = est.measurement_row()
-            self._row("sensors", (self.t_sensors,), [t, *values], (("counts", counts),), (_SENSORS_META,))
+            self._part("sensors", [t, *values], (("counts", counts),))
             cov = est.covariance_row()
-            self._row("sigma", (self.t_sigma,), [t, *cov], (), (_SIGMA_META,))
+            self._part("sigma", [t, *cov])
             pos_vel = [log_rows.three_sd(v) for v in cov[0:6]]
             return {"pos": pos_vel[0:3], "vel": pos_vel[3:6]}
         sigma3 = est.three_sigma()
@@ -392,26 +420,24 @@ class VehicleLogWriter:
     ) -> None:
         """The setpoint record (:func:`setpoint_record`) and the commands sent to the plant
         (JSBSim property -> value) with the controller's debug values."""
-        sp = {"t": t, **setpoint}
         if self.log.compact:
             layout = log_rows.SETPOINT_LAYOUTS[schema["title"]]
-            self._row(layout, (self.t_sp,), flatten(log_rows.LAYOUTS[layout].columns, sp)[0])
+            self._part(layout, [t, *flatten(log_rows.LAYOUTS[layout].columns[1:], setpoint)[0]])
             keys = (("properties", tuple(commands)), ("debug", tuple(debug)))
-            self._row("commands", (self.t_cmd,), [t, *commands.values(), *debug.values()], keys)
+            self._part("commands", [t, *commands.values(), *debug.values()], keys)
             return
-        self.log.write_json(self.t_sp, t, sp, schema)
+        self.log.write_json(self.t_sp, t, {"t": t, **setpoint}, schema)
         self.log.write_json(self.t_cmd, t, {"t": t, "properties": commands, "debug": debug}, S.COMMANDS)
 
     def energy(self, t: float, record: EnergyRecord) -> None:
         """The electrical bus at the log tick ``t`` [s] (its record's own ``t`` ends the
         control step)."""
-        meta = {"units": "W, Wh, state of charge 0..1"}
         if self.log.compact:
             cum = record.cumulative_wh
             row = [t, *(getattr(record, f) for f in _ENERGY_SCALARS), *cum.values()]
-            self._row("energy", (self.t_energy,), row, (("cumulative_wh", tuple(cum)),), (meta,))
+            self._part("energy", row, (("cumulative_wh", tuple(cum)),))
             return
-        self.log.write_json(self.t_energy, t, record.as_dict(), S.ENERGY, meta)
+        self.log.write_json(self.t_energy, t, record.as_dict(), S.ENERGY, _ENERGY_META)
 
     def mission(self, t: float, next_waypoint: int, waypoints: int, complete: bool) -> None:
         self.log.write_json(
