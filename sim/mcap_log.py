@@ -30,6 +30,7 @@ import os
 import pickle
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
@@ -120,13 +121,16 @@ class RowBuffer:
 
     def __init__(self, log: McapLog, parts: tuple[tuple[str, tuple], ...], cids: tuple[tuple[int, ...], ...]):
         self._log, self._parts, self._cids = log, parts, cids
-        self._rows: list[list[float]] = []
+        self._rows: list[list[Piece]] = []
 
-    def add(self, row: list[float]) -> None:
-        """One row: its parts' columns one part after the other (integers and booleans as they
-        are); the list is the caller's no more."""
+    def add(self, pieces: list[Piece]) -> None:
+        """One row as its pieces, one after the other: a list of columns (integers and booleans
+        as they are), or ``(fn, arg)`` whose ``fn(arg)`` gives them when the block is handed
+        over (for an ``arg`` nobody changes: the rows of a block are made in one go, which
+        costs less than one at a time between simulation steps). The list is the caller's no
+        more."""
         rows = self._rows
-        rows.append(row)
+        rows.append(pieces)
         if len(rows) >= ROWS:
             self.flush()
 
@@ -134,9 +138,24 @@ class RowBuffer:
         """Hand the buffered rows to the writer now, with the records pending before them (lists
         of floats pickle faster than arrays)."""
         if self._rows:
-            rows, self._rows = self._rows, []
+            rows = [_joined(pieces) for pieces in self._rows]
+            self._rows = []
             self._log._record(("rows", self._parts, self._cids, self._log.epoch_ns, rows))
             self._log._flush()
+
+
+Piece = list[float] | tuple[Callable[[Any], list[float]], Any]
+
+
+def _joined(pieces: list[Piece]) -> list[float]:
+    row: list[float] = []
+    for p in pieces:
+        if type(p) is list:
+            row += p
+        else:
+            fn, arg = p
+            row += fn(arg)
+    return row
 
 
 class McapLog:

@@ -44,7 +44,7 @@ from sim.estimation.sensor_estimator import SensorEstimator
 from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.log_proto import scan_record
 from sim.log_rows import flatten
-from sim.mcap_log import McapLog, RowBuffer
+from sim.mcap_log import McapLog, Piece, RowBuffer
 from sim.planner_records import wallclock_metadata
 
 NED_FRAME = "ned"
@@ -327,7 +327,7 @@ class VehicleLogWriter:
         self.t_energy = f"{p}/energy"
         self.t_lidar = f"{p}/threats/lidar"
         self._buffers: dict[tuple, RowBuffer] = {}
-        self._tick_row: list[float] = []
+        self._tick_row: list[Piece] = []
         self._tick_parts: list[tuple[str, tuple]] = []
         sp = ((self.t_sp,), ({},))
         self._part_topics: dict[str, tuple[tuple[str, ...], tuple[dict[str, str], ...]]] = {  # per layout
@@ -342,10 +342,10 @@ class VehicleLogWriter:
             "energy": ((self.t_energy,), (_ENERGY_META,)),
         }
 
-    def _part(self, layout: str, row: list[float], static: tuple = ()) -> None:
+    def _part(self, layout: str, piece: Piece, static: tuple = ()) -> None:
         """A part of this tick's row (compact logs; :meth:`end_tick` hands the row over)."""
         self._tick_parts.append((layout, static))
-        self._tick_row += row
+        self._tick_row.append(piece)
 
     def end_tick(self) -> None:
         """Hand this log tick's row to its buffer: the buffer of its parts (made at the first
@@ -368,7 +368,7 @@ class VehicleLogWriter:
         ``ned`` -> vehicle transform on ``/tf``)."""
         log, t = self.log, s.t
         if log.compact:
-            self._part("truth", state_row(s), (("frame", self.name),))
+            self._part("truth", (state_row, s), (("frame", self.name),))  # a state is not changed
             return
         ns = log.epoch_ns + round(t * 1e9)
         log.write_json(self.t_state, t, state_dict(s), S.VEHICLE_STATE, _STATE_META)
@@ -394,7 +394,7 @@ class VehicleLogWriter:
     def estimate(self, s: VehicleState) -> None:
         """Log what controllers and planners saw (same schema as the truth)."""
         if self.log.compact:
-            self._part("estimate", state_row(s))
+            self._part("estimate", (state_row, s))
             return
         self.log.write_json(self.t_est, s.t, state_dict(s), S.VEHICLE_STATE, _STATE_META)
 

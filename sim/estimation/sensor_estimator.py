@@ -38,6 +38,7 @@ from pydantic import Field, model_validator
 from sim.core.state import VehicleState
 from sim.estimation.gyro_attitude import GyroAttitude
 from sim.estimation.ins_ekf import InsEkf, InsEkfConfig
+from sim.estimation.ins_model import N
 from sim.geodesy import GeoPoint
 from sim.jsbsim_plant import JSBSimPlant
 from sim.sensors.airspeed import AirspeedConfig
@@ -355,16 +356,9 @@ class SensorEstimator:
         attitude quaternion (w, x, y, z), the attitude-error covariance block (9, row-major),
         then the biases in :meth:`biases`' order (:data:`sim.log_rows.SIGMA_INPUTS`)."""
         ekf = self.ekf
-        P, nav = ekf.kf.P, ekf.nav
-        return [
-            *P.diagonal()[:16].tolist(),
-            *nav.q,
-            *P[6:9, 6:9].ravel().tolist(),
-            *nav.ba.tolist(),
-            *nav.bg.tolist(),
-            float(nav.bb),
-            *nav.gm.tolist(),
-        ]
+        nav = ekf.nav
+        cov = ekf.kf.P.take(_COVARIANCE_ROW).tolist()  # the diagonal's 16, then the attitude block
+        return [*cov[:16], *nav.q, *cov[16:], *nav.ba.tolist(), *nav.bg.tolist(), float(nav.bb), *nav.gm.tolist()]
 
     def three_sigma(self) -> dict[str, list[float]]:
         """3-sigma bounds of the estimate (see :meth:`InsEkf.three_sigma`), plain floats."""
@@ -375,6 +369,10 @@ class SensorEstimator:
         ``gnss_gm`` GNSS position error NED [m]."""
         nav = self.ekf.nav
         return {"accel": _floats(nav.ba), "gyro": _floats(nav.bg), "baro": [float(nav.bb)], "gnss_gm": _floats(nav.gm)}
+
+
+# flat indices into the N x N covariance: its diagonal up to the baro bias, the attitude block
+_COVARIANCE_ROW = np.array([k * (N + 1) for k in range(16)] + [r * N + c for r in range(6, 9) for c in range(6, 9)])
 
 
 def _values(z: Measurement) -> list[float]:
