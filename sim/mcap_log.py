@@ -150,7 +150,7 @@ Piece = list[float] | tuple[Callable[[Any], list[float]], Any]
 def _joined(pieces: list[Piece]) -> list[float]:
     row: list[float] = []
     for p in pieces:
-        if type(p) is list:
+        if isinstance(p, list):
             row += p
         else:
             fn, arg = p

@@ -329,7 +329,7 @@ class VehicleLogWriter:
         self._buffers: dict[tuple, RowBuffer] = {}
         self._tick_row: list[Piece] = []
         self._tick_parts: list[tuple[str, tuple]] = []
-        sp = ((self.t_sp,), ({},))
+        sp: tuple[tuple[str, ...], tuple[dict[str, str], ...]] = ((self.t_sp,), ({},))
         self._part_topics: dict[str, tuple[tuple[str, ...], tuple[dict[str, str], ...]]] = {  # per layout
             "truth": ((self.t_state, self.t_loc, "/tf"), (_STATE_META, {}, {})),
             "tracking": ((self.t_tracking,), ({},)),
