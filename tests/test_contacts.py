@@ -134,3 +134,25 @@ def test_quadrotor_dropped_on_its_back_rests_on_its_hull_with_finite_states():
         ups.append(s.alt_msl_m - ground.alt_m)
     top = min(h for h, g in zip(HULL.heights(0.0, math.pi, 0.0), HULL.gear, strict=True) if not g)  # top plate
     assert min(ups) > 0.0 and ups[-1] == pytest.approx(-top, abs=0.02)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_direct_pair_search_finds_the_k_d_trees_pairs(monkeypatch, seed):
+    """Crashes among 12 vehicles and 30 objects crowded into a 30 m cube, swept over one check:
+    the direct distances (small worlds) and the k-d tree (large ones) find the same crashes."""
+    rng = np.random.default_rng(seed)
+    n, m = 12, 30
+    p0, p1 = rng.uniform(0.0, 30.0, (2, n + m, 3))
+    vel = rng.normal(0.0, 5.0, (n + m, 3))
+    radii = rng.uniform(0.2, 1.5, m)
+
+    def crashes(direct_pairs: int) -> list:
+        monkeypatch.setattr("sim.contacts._DIRECT_PAIRS", direct_pairs)
+        mon = monitor(n)
+        ids = [f"o{k}" for k in range(m)]
+        check(mon, 0.0, p0[:n], vel[:n], Bodies(ids, p0[n:], vel[n:], radii))
+        return check(mon, 0.1, p1[:n], vel[:n], Bodies(ids, p1[n:], vel[n:], radii))
+
+    direct = crashes(1 << 20)
+    assert direct, "the crowd must produce crashes for the comparison to mean anything"
+    assert direct == crashes(0)
