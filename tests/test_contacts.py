@@ -138,16 +138,16 @@ def test_quadrotor_dropped_on_its_back_rests_on_its_hull_with_finite_states():
 
 @pytest.mark.parametrize("seed", range(5))
 def test_direct_pair_search_finds_the_k_d_trees_pairs(monkeypatch, seed):
-    """Candidate pairs among 12 vehicles and 30 objects in a 15 m cube, and the crashes over
+    """Candidate pairs among 12 vehicles and 30 objects in a 10 m cube, and the crashes over
     one 0.1 s check: the direct distances (small worlds), the k-d tree (large ones) and a plain
     double loop agree."""
     rng = np.random.default_rng(seed)
     n, m = 12, 30
-    p0 = rng.uniform(0.0, 15.0, (n + m, 3))
+    p0 = rng.uniform(0.0, 10.0, (n + m, 3))
     vel = rng.normal(0.0, 5.0, (n + m, 3))
     p1 = p0 + 0.1 * vel
     radii = rng.uniform(0.2, 1.5, m)
-    reach = 5.0
+    reach = 4.0
     loop = [(a, b) for a in range(n) for b in range(a + 1, n + m) if np.linalg.norm(p1[a] - p1[b]) <= reach]
     assert 0 < len(loop) < n * (n + m) // 2
 
