@@ -257,6 +257,15 @@ class JSBSimPlant:
     def time(self) -> float:
         return self.fdm.get_sim_time()
 
+    def kinematics(self) -> tuple[np.ndarray, np.ndarray]:
+        """True position and velocity NED now [m, m/s], the values of :meth:`truth`: from
+        the truth already read at this sim time, else from its six property reads alone."""
+        tr = self._truth
+        if tr is not None and tr.t == self.time:
+            return tr.pos_ned, tr.vel_ned
+        lat, lon, h_ft, vn, ve, vd = (n.get_double_value() for n in self._truth_nodes[:6])
+        return np.array(self._frame.ned(lat, lon, h_ft * FT)), np.array([vn * FT, ve * FT, vd * FT])
+
     def truth(self) -> VehicleState:
         """True state in the scenario frame (SI); read once per sim time (estimator, sensing and
         logging of one tick share it; callers must not modify it)."""
