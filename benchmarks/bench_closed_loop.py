@@ -28,16 +28,19 @@ process's CPU time (``*_cpu_*``: steadier on a loaded machine; it leaves out the
 which runs in its own process).
 ``--paths baseline,current`` flies the reach-set cases as before issue #16 as well, in the same
 run: the previous intruder rating (``bench_reachset.LatticeIntruderModel``) and no broad phase
-(every vehicle senses every other body).
+(every vehicle senses every other body). ``--before TREE`` also flies the ``ekf`` variant with
+another code tree (e.g. ``git archive <commit> | tar -x -C TREE``), in a child process importing
+that tree's ``sim``, alternating with this tree's runs (``before_ekf_*``).
 
     python benchmarks/bench_closed_loop.py [--case haps|multirotor|mixed_reachset|fleet8_reachset|all]
-        [--repeat 3] [--paths current|baseline,current] [--sim-seconds S]
+        [--repeat 3] [--paths current|baseline,current] [--sim-seconds S] [--before TREE]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import subprocess
 import sys
 import tempfile
 import time
@@ -119,6 +122,39 @@ def closed_loop_rtf(scenario_name: str, sim_seconds: float, variant: str) -> tup
     return r.sim_time_s / r.wall_time_s, r.sim_time_s / cpu
 
 
+FLY_EKF = """
+import sys, time, tomllib, tempfile
+from pathlib import Path
+sys.path.insert(0, ".")
+from sim.runner import run_scenario
+from sim.scenario import parse_scenario
+name, seconds = sys.argv[1], float(sys.argv[2])
+data = tomllib.loads(Path("scenarios", name + ".toml").read_text())
+for v in data["vehicle"]:
+    v["estimator"] = "ekf"
+with tempfile.TemporaryDirectory() as d:
+    c0 = time.process_time()
+    r = run_scenario(parse_scenario(data, name), Path(d) / "bench.mcap", duration=seconds)
+    cpu = time.process_time() - c0
+print(r.sim_time_s / r.wall_time_s, r.sim_time_s / cpu)
+"""
+
+
+def tree_rtf(tree: Path, scenario_name: str, sim_seconds: float) -> tuple[float, float]:
+    """:func:`closed_loop_rtf` of the ``ekf`` variant flown by the code tree ``tree``."""
+    cmd = [sys.executable, "-c", FLY_EKF, scenario_name, str(sim_seconds)]
+    out = subprocess.run(cmd, cwd=tree.resolve(), capture_output=True, text=True, check=True).stdout.split()
+    return float(out[-2]), float(out[-1])
+
+
+def _factors(out: dict, tag: str, runs: list[tuple[float, float]], bare_rtf: float, bare_cpu_rtf: float) -> None:
+    rtf, cpu_rtf = max(w for w, _ in runs), max(c for _, c in runs)
+    out[f"{tag}_real_time_factor"] = round(rtf, 2)
+    out[f"{tag}_ratio_to_bare"] = round(rtf / bare_rtf, 3)
+    out[f"{tag}_cpu_real_time_factor"] = round(cpu_rtf, 2)
+    out[f"{tag}_cpu_ratio_to_bare"] = round(cpu_rtf / bare_cpu_rtf, 3)
+
+
 @contextmanager
 def broad_phase(path: str) -> Iterator[None]:
     """``baseline``: ``World.sense`` without the broad phase (every other body to every vehicle)."""
@@ -135,10 +171,13 @@ def broad_phase(path: str) -> Iterator[None]:
         world.relevant = saved
 
 
-def measure(case: str, repeat: int, paths: list[str], sim_seconds: float | None = None) -> dict:
+def measure(
+    case: str, repeat: int, paths: list[str], sim_seconds: float | None = None, before: Path | None = None
+) -> dict:
     """Real-time factors of the closed loop and of bare stepping of the same plants: the bare
     wall time of one sim second is the sum over the plants of count x rate / steps per second.
-    ``sim_seconds`` overrides the case's flight time."""
+    ``sim_seconds`` overrides the case's flight time; ``before``: a code tree to fly the ``ekf``
+    variant with as well, alternating with this tree's runs."""
     scenario, sim_s, plants, target, variants = CASES[case]
     sim_s = sim_seconds or sim_s
     rates = {m: [bare_rates(m, a, r, int(sim_s * r)) for _ in range(repeat)] for m, a, r, _ in plants}
@@ -161,12 +200,14 @@ def measure(case: str, repeat: int, paths: list[str], sim_seconds: float | None 
         tag = "" if path == "current" else f"{path}_"
         with code_path(path), broad_phase(path):
             for variant in variants:
-                runs = [closed_loop_rtf(scenario, sim_s, variant) for _ in range(repeat)]
-                rtf, cpu_rtf = max(w for w, _ in runs), max(c for _, c in runs)
-                out[f"{tag}{variant}_real_time_factor"] = round(rtf, 2)
-                out[f"{tag}{variant}_ratio_to_bare"] = round(rtf / bare_rtf, 3)
-                out[f"{tag}{variant}_cpu_real_time_factor"] = round(cpu_rtf, 2)
-                out[f"{tag}{variant}_cpu_ratio_to_bare"] = round(cpu_rtf / bare_cpu_rtf, 3)
+                runs, before_runs = [], []
+                for _ in range(repeat):
+                    runs.append(closed_loop_rtf(scenario, sim_s, variant))
+                    if before is not None and variant == "ekf" and path == "current":
+                        before_runs.append(tree_rtf(before, scenario, sim_s))
+                _factors(out, f"{tag}{variant}", runs, bare_rtf, bare_cpu_rtf)
+                if before_runs:
+                    _factors(out, "before_ekf", before_runs, bare_rtf, bare_cpu_rtf)
     out["meets_target"] = out["ekf_real_time_factor"] >= target
     return out
 
@@ -177,11 +218,12 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--sim-seconds", type=float, default=None, help="override the cases' flight time [s]")
     ap.add_argument("--paths", default="current", help="comma-separated: baseline (before issue #16), current")
+    ap.add_argument("--before", type=Path, default=None, help="a code tree to fly the ekf variant with as well")
     args = ap.parse_args()
     out = ROOT / "benchmarks" / "results"
     out.mkdir(exist_ok=True)
     for case in CASES if args.case == "all" else [args.case]:
-        res = measure(case, args.repeat, args.paths.split(","), args.sim_seconds)
+        res = measure(case, args.repeat, args.paths.split(","), args.sim_seconds, args.before)
         (out / f"closed_loop_{case}.json").write_text(json.dumps(res, indent=2))
         print(f"[{case}]")
         for k, v in res.items():
