@@ -113,34 +113,35 @@ RowPart = tuple[str, tuple[str, ...], tuple, tuple[dict[str, str], ...]]  # layo
 
 
 class RowBuffer:
-    """Rows made of parts, each part a row of a :mod:`sim.log_rows` layout written on its
-    channels (one vehicle's per-tick topics: one row per log tick), handed to the writer
-    ``ROWS`` rows at a time (and at the log's close) as one record. The writer encodes each
-    part's messages, logged at the part's first column (sim time [s]), and numbers them per
-    channel. Get one from :meth:`McapLog.rows`."""
+    """One vehicle's rows, one per log tick, in tick order, each made of parts (a row of a
+    :mod:`sim.log_rows` layout written on its channels; which parts, its ``spec`` from
+    :meth:`McapLog.row_spec`), handed to the writer ``ROWS`` rows at a time (and at the log's
+    close) as one record. The writer encodes each part's messages, logged at the part's first
+    column (sim time [s]), and numbers them per channel."""
 
-    def __init__(self, log: McapLog, parts: tuple[tuple[str, tuple], ...], cids: tuple[tuple[int, ...], ...]):
-        self._log, self._parts, self._cids = log, parts, cids
-        self._rows: list[list[Piece]] = []
+    def __init__(self, log: McapLog):
+        self._log = log
+        self._rows: list[tuple[tuple, list[Piece]]] = []
+        log._row_buffers.append(self)
 
-    def add(self, pieces: list[Piece]) -> None:
+    def add(self, spec: tuple, pieces: list[Piece]) -> None:
         """One row as its pieces, one after the other: a list of columns (integers and booleans
         as they are), or ``(fn, arg)`` whose ``fn(arg)`` gives them when the block is handed
         over (for an ``arg`` nobody changes: the rows of a block are made in one go, which
         costs less than one at a time between simulation steps). The list is the caller's no
         more."""
         rows = self._rows
-        rows.append(pieces)
+        rows.append((spec, pieces))
         if len(rows) >= ROWS:
             self.flush()
 
     def flush(self) -> None:
         """Hand the buffered rows to the writer now, with the records pending before them (lists
-        of floats pickle faster than arrays)."""
+        of floats pickle faster than arrays; a spec repeated in a block is pickled once)."""
         if self._rows:
-            rows = [_joined(pieces) for pieces in self._rows]
+            rows = [(spec, _joined(pieces)) for spec, pieces in self._rows]
             self._rows = []
-            self._log._record(("rows", self._parts, self._cids, self._log.epoch_ns, rows))
+            self._log._record(("rows", self._log.epoch_ns, rows))
             self._log._flush()
 
 
@@ -286,11 +287,11 @@ class McapLog:
             cid = self._channel(topic, "protobuf", sid, metadata or {})
         self._add(cid, t, message.SerializeToString(deterministic=True))
 
-    def rows(self, parts: tuple[RowPart, ...]) -> RowBuffer:
-        """A row buffer for rows made of ``parts``: (layout, topics, static, metadata), the
-        topics one per output of the layout (a new channel registered with its metadata entry),
+    def row_spec(self, parts: tuple[RowPart, ...]) -> tuple:
+        """The spec of rows made of ``parts``: (layout, topics, static, metadata), the topics one
+        per output of the layout (a new channel registered with its metadata entry),
         ``static`` the part's constant values (map keys, frame name, sensor counts). A JSON
-        log writes :meth:`write_json` records instead (it has no row buffers)."""
+        log writes :meth:`write_json` records instead (it has no rows)."""
         cids = []
         for layout, topics, _, metadata in parts:
             outputs = log_rows.LAYOUTS[layout].outputs
@@ -304,9 +305,7 @@ class McapLog:
                     cid = self._channel(topic, "protobuf", sid, meta)
                 ids.append(cid)
             cids.append(tuple(ids))
-        buf = RowBuffer(self, tuple((p[0], p[2]) for p in parts), tuple(cids))
-        self._row_buffers.append(buf)
-        return buf
+        return (tuple((p[0], p[2]) for p in parts), tuple(cids))
 
     def event(self, t: float, text: str, level: str = "info", name: str = "cosim") -> None:
         """A ``foxglove.Log`` on ``/log`` (mission events, mode changes, errors)."""

@@ -24,8 +24,8 @@ class RecordWriter:
     encoding, data)``, ``("channel", id, topic, encoding, schema_id, metadata)``, ``("message",
     channel_id, time_ns, data, sequence)``, ``("proto", channel_id, time_ns, title, pickled dict,
     sequence)`` (a message to encode with :func:`sim.log_proto.encode`, imported at the first),
-    ``("rows", parts, channel_ids, epoch_ns, rows)`` (a block of rows made of
-    :mod:`sim.log_rows` parts, imported at the first),
+    ``("rows", epoch_ns, [(spec, row), ...])`` (a block of rows made of :mod:`sim.log_rows`
+    parts, imported at the first),
     ``("metadata", name, data)``, ``("attachment", time_ns, name, media_type, data)``. Ids are the
     log's own; mcap's are looked up."""
 
@@ -59,21 +59,28 @@ class RecordWriter:
             else:
                 raise ValueError(f"unknown log record {kind!r}")
 
-    def _rows(
-        self, parts: tuple[tuple[str, tuple], ...], cids: tuple[tuple[int, ...], ...], epoch_ns: int, rows: list
-    ) -> None:
-        """A block of rows made of :mod:`sim.log_rows` parts ``(layout, static)``: each part's
-        messages, one per channel, logged at the epoch plus the part's sim time (its first
-        column) and numbered per channel (row channels carry only rows)."""
+    def _rows(self, epoch_ns: int, rows: list[tuple[tuple, list[float]]]) -> None:
+        """A block of rows, each ``(spec, row)``: spec = (parts ``(layout, static)`` of
+        :mod:`sim.log_rows`, their channel ids); each part's messages, one per channel, logged at
+        the epoch plus the part's sim time (its first column) and numbered per channel (row
+        channels carry only rows)."""
         from sim.log_rows import row_width
 
         add, seq = self.writer.add_message, self.row_seq
-        plan = [
-            (row_width(layout, static), static, [(self.channels[c], o.build) for c, o in zip(ids, outs, strict=True)])
-            for (layout, static), ids in zip(parts, cids, strict=True)
-            for outs in [self._layouts[layout].outputs]
-        ]
-        for row in rows:
+        plans: dict[int, list] = {}  # per spec object of this block (unpickled once)
+        for spec, row in rows:
+            plan = plans.get(id(spec))
+            if plan is None:
+                parts, cids = spec
+                plan = plans[id(spec)] = [
+                    (
+                        row_width(layout, static),
+                        static,
+                        [(self.channels[c], o.build) for c, o in zip(ids, outs, strict=True)],
+                    )
+                    for (layout, static), ids in zip(parts, cids, strict=True)
+                    for outs in [self._layouts[layout].outputs]
+                ]
             k = 0
             for width, static, outputs in plan:
                 part = row[k : k + width]

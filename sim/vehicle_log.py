@@ -326,7 +326,8 @@ class VehicleLogWriter:
         self.t_tracking = f"{p}/truth/tracking"
         self.t_energy = f"{p}/energy"
         self.t_lidar = f"{p}/threats/lidar"
-        self._buffers: dict[tuple, RowBuffer] = {}
+        self._specs: dict[tuple, tuple] = {}  # row specs by their parts (layout, static)
+        self._buffer: RowBuffer | None = None
         self._tick_row: list[Piece] = []
         self._tick_parts: list[tuple[str, tuple]] = []
         sp: tuple[tuple[str, ...], tuple[dict[str, str], ...]] = ((self.t_sp,), ({},))
@@ -348,19 +349,21 @@ class VehicleLogWriter:
         self._tick_row.append(piece)
 
     def end_tick(self) -> None:
-        """Hand this log tick's row to its buffer: the buffer of its parts (made at the first
-        row of those parts)."""
+        """Hand this log tick's row to the vehicle's row buffer (rows stay in tick order), with
+        the spec of its parts (registered at their first row)."""
         if not self._tick_row:
             return
         key = tuple(self._tick_parts)
-        buf = self._buffers.get(key)
-        if buf is None:
+        spec = self._specs.get(key)
+        if spec is None:
             parts = []
             for layout, static in key:
                 topics, meta = self._part_topics[layout]
                 parts.append((layout, topics, static, meta))
-            buf = self._buffers[key] = self.log.rows(tuple(parts))
-        buf.add(self._tick_row)
+            spec = self._specs[key] = self.log.row_spec(tuple(parts))
+        if self._buffer is None:
+            self._buffer = RowBuffer(self.log)
+        self._buffer.add(spec, self._tick_row)
         self._tick_row, self._tick_parts = [], []
 
     def truth(self, s: VehicleState) -> None:

@@ -105,26 +105,29 @@ class VehicleTrace:
         est = log.topic(f"/{name}/est/state")
         sig_topic = f"/{name}/est/sigma3"
         sig = log.topic(sig_topic) if log.has(sig_topic) else None
+        track = log.topic(f"/{name}/truth/tracking")
+        # the ticks every per-tick topic has (an unfinished log may end inside a tick)
+        n = min(len(x) for x in (st, sp, cmd, est, track, *([sig] if sig is not None else [])))
         return cls(
             name,
             kind,
-            st["t"],
-            st["pos_ned"],
-            st["alt_msl_m"],
-            st["tas_mps"],
-            st["euler"],
-            {k: sp[k] for k in keys},
+            st["t"][:n],
+            st["pos_ned"][:n],
+            st["alt_msl_m"][:n],
+            st["tas_mps"][:n],
+            st["euler"][:n],
+            {k: sp[k][:n] for k in keys},
             latency,
             total,
             reached,
             complete,
-            {p: np.array([m["properties"].get(p, np.nan) for m in cmd.messages]) for p in props},
-            est["pos_ned"],
-            est["vel_ned"],
-            None if sig is None else sig["pos"],
-            None if sig is None else sig["vel"],
-            st["vel_ned"],
-            log.topic(f"/{name}/truth/tracking")["cross_track_m"],
+            {p: np.array([m["properties"].get(p, np.nan) for m in cmd.messages[:n]]) for p in props},
+            est["pos_ned"][:n],
+            est["vel_ned"][:n],
+            None if sig is None else sig["pos"][:n],
+            None if sig is None else sig["vel"][:n],
+            st["vel_ned"][:n],
+            track["cross_track_m"][:n],
             plan_cache_hits=sum(not m["new_plan"] for m in log.topic(inp_topic).messages) if log.has(inp_topic) else 0,
         )
 
