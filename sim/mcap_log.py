@@ -7,7 +7,8 @@ time (planner latency, planner runtimes) carry the channel metadata ``wallclock=
 ``wallclock_fields`` (the dotted paths of those fields) and are the only exception.
 
 Writing: the simulation process only serialises messages (JSON with orjson, Foxglove protobuf;
-this project's protobuf messages as pickled dicts, encoded by the writer) and hands them in
+this project's protobuf messages as pickled dicts, encoded by the writer; a vehicle's per-tick
+topics as one row of floats per tick, :class:`RowBuffer`, whose messages the writer makes) and hands them in
 batches to a writer process that owns the file and the ``mcap`` writer (record framing, indexes,
 zstd chunks, the compact messages' encoding: taken off the simulation's core). The file
 is finished in ``close()``, which the runner calls in a ``finally``; if the simulation process dies
