@@ -59,7 +59,7 @@ def _flown(runs, out) -> list[str]:
 
 def test_interrupted_run_is_flown_again_on_resume(tmp_path):
     out = tmp_path / "out"
-    _, runs = load_batch(_batch(tmp_path, "3, 4", duration="90 s", hover=True), out)
+    _, runs = load_batch(_batch(tmp_path, "3, 4", duration="240 s", hover=True), out)
     first_log = Path(runs[0].log_path)
 
     def interrupt_the_first_run():
