@@ -25,6 +25,7 @@ def _fly(fly, scenario_data, planner: str, estimator: str = "ekf", duration: flo
     return run.result, run.log
 
 
+@pytest.mark.slow  # in CI: the matched-scale thesis flights below (MPTP on synthetic storm fields)
 def test_mptp_avoids_the_storms_and_reaches_the_goal(fly, scenario_data):
     result, log = _fly(fly, scenario_data, "mptp")
     assert result.status == "completed"
