@@ -50,6 +50,7 @@ def test_without_mptp_the_same_flight_enters_a_storm(fly, scenario_data):
     assert log_metrics(log)["vehicles"]["haps"]["storms"]["time_inside_s"] > 0.0
 
 
+@pytest.mark.slow  # in CI: tests/test_mptp_scenarios.py flies the same corridor open loop, replanning
 def test_an_opening_corridor_is_waited_for_in_closed_loop(fly):
     """Resolution completeness in closed loop: the gap between two storm walls is plugged by a
     cell drifting out of it; the HAPS reaches the goal through the gap after it opened (it
