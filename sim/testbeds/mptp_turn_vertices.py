@@ -12,19 +12,28 @@ planner options otherwise unchanged; ``--acceptance`` overrides the MPTP vehicle
 radius, ``--duration`` the sim time), keeps the logs in DIR and prints a Markdown table per
 scenario and model: corners, median |xte|, 95th percentile of the cut, largest cut, largest
 outside pass [m], and the missions completed.
+
+Controlled factors (the experiment that isolates why turns are flown wide, docs/mptp.md):
+``--estimator perfect`` (ideal sensors instead of the EKF), ``--wind N,E`` (the steady wind [m/s]
+in place of the scenario's), ``--l1-period S`` (the L1 period [s] instead of the airframe's).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import copy
 import math
 import tomllib
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 import tomli_w
 
+from guidance.l1 import L1Guidance
 from sim import scenario as sc
 from sim.mcap_read import read_info, read_topic
 from sim.runner import run_scenario
@@ -68,12 +77,33 @@ def corner_cross_track(plans: list[tuple[float, np.ndarray, np.ndarray]], tt: np
     return np.array(out)
 
 
-def _variant(data: dict, seed: int, model: str, accept: float | None, duration: float | None) -> dict:
+@dataclass(frozen=True, slots=True)
+class Factors:
+    """The experiment's controlled factors (None: as the scenario and airframe have them):
+    ``estimator`` ("ekf" or "perfect"), a steady ``wind_ne`` (north, east) [m/s] in place of the
+    scenario's steady components, the L1 period ``l1_period_s`` [s]."""
+
+    estimator: str | None = None
+    wind_ne: tuple[float, float] | None = None
+    l1_period_s: float | None = None
+
+    def tag(self) -> str:
+        """File-name suffix naming the factors set."""
+        out = "" if self.estimator is None else f"_{self.estimator}"
+        out += "" if self.wind_ne is None else f"_w{self.wind_ne[0]:g},{self.wind_ne[1]:g}"
+        return out + ("" if self.l1_period_s is None else f"_l1p{self.l1_period_s:g}")
+
+
+def _variant(data: dict, seed: int, model: str, accept: float | None, duration: float | None, factors: Factors) -> dict:
     out = copy.deepcopy(data)
     out["seed"] = seed
     if duration is not None:
         out["duration"] = duration
+    if factors.wind_ne is not None:
+        out.setdefault("wind", {}).update(north=factors.wind_ne[0], east=factors.wind_ne[1])
     for v in out["vehicle"]:
+        if factors.estimator is not None:
+            v["estimator"] = factors.estimator
         if v.get("planner", {}).get("type") == "mptp":
             v["planner"].setdefault("options", {})["turn_model"] = model
             if accept is not None:
@@ -81,17 +111,40 @@ def _variant(data: dict, seed: int, model: str, accept: float | None, duration: 
     return out
 
 
+@contextlib.contextmanager
+def _l1_period(period_s: float | None) -> Iterator[None]:
+    """Every L1 follower built inside the block runs at ``period_s`` [s] (None: the airframe's)."""
+    if period_s is None:
+        yield
+        return
+    built = L1Guidance.for_airframe.__func__  # type: ignore[attr-defined]
+
+    def with_period(cls: type[L1Guidance], controller: object) -> L1Guidance:
+        l1 = built(cls, controller)
+        return cls(period_s, l1.damping, l1.roll_limit_rad)
+
+    with mock.patch.object(L1Guidance, "for_airframe", classmethod(with_period)):
+        yield
+
+
 def fly(
-    scenario: Path, seed: int, model: str, out_dir: Path, accept: float | None = None, duration: float | None = None
+    scenario: Path,
+    seed: int,
+    model: str,
+    out_dir: Path,
+    accept: float | None = None,
+    duration: float | None = None,
+    factors: Factors = Factors(),
 ) -> tuple[Path, bool]:
     """Fly ``scenario`` with ``seed``, ``turn_model`` = ``model``, the MPTP vehicles' acceptance
-    radius ``accept`` [m] and ``duration`` [s] (None: the scenario's); the log and whether every
-    mission completed."""
-    data = _variant(tomllib.loads(scenario.read_text()), seed, model, accept, duration)
-    tag = "" if accept is None else f"_a{accept:g}"
+    radius ``accept`` [m], ``duration`` [s] (None: the scenario's) and the experiment's
+    ``factors``; the log and whether every mission completed."""
+    data = _variant(tomllib.loads(scenario.read_text()), seed, model, accept, duration, factors)
+    tag = ("" if accept is None else f"_a{accept:g}") + factors.tag()
     path = out_dir / f"{scenario.stem}_{model}{tag}_s{seed}.mcap"
     if not path.exists():
-        run_scenario(sc.parse_scenario(data, str(scenario)), path, scenario_text=tomli_w.dumps(data))
+        with _l1_period(factors.l1_period_s):
+            run_scenario(sc.parse_scenario(data, str(scenario)), path, scenario_text=tomli_w.dumps(data))
     result = read_info(path).metadata.get("result", {})
     return path, all(v == "True" for k, v in result.items() if k.endswith(".mission_complete"))
 
@@ -112,8 +165,15 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--models", nargs="+", default=["simple", "simulated"])
     ap.add_argument("--acceptance", type=float, default=None, help="acceptance radius [m] (default: the scenario's)")
     ap.add_argument("--duration", type=float, default=None, help="sim time [s] (default: the scenario's)")
+    ap.add_argument("--estimator", choices=["ekf", "perfect"], default=None, help="default: the scenario's")
+    ap.add_argument("--wind", default=None, help="steady wind N,E [m/s] (replaces the scenario's)")
+    ap.add_argument("--l1-period", type=float, default=None, help="L1 period [s] (default: the airframe's)")
     ap.add_argument("--out", type=Path, default=Path("logs/mptp_turn_vertices"))
     args = ap.parse_args(argv)
+    wind = None if args.wind is None else tuple(float(v) for v in args.wind.split(","))
+    if wind is not None and len(wind) != 2:
+        ap.error(f"--wind: expected N,E in m/s, got {args.wind!r}")
+    factors = Factors(args.estimator, wind, args.l1_period)
     args.out.mkdir(parents=True, exist_ok=True)
     cols = ["scenario", "acceptance [m]", "turn model", "runs completed", "corners", "median abs [m]", "cut p95 [m]"]
     cols += ["largest cut [m]", "largest outside [m]"]
@@ -122,7 +182,7 @@ def main(argv: list[str] | None = None) -> None:
         for model in args.models:
             xte, done, seeds = [], 0, _seeds(args.seeds)
             for seed in seeds:
-                path, ok = fly(scenario, seed, model, args.out, args.acceptance, args.duration)
+                path, ok = fly(scenario, seed, model, args.out, args.acceptance, args.duration, factors)
                 done += ok
                 xte.append(vertex_cross_track(path, "haps"))
             x = np.concatenate(xte)
