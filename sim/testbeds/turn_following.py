@@ -13,7 +13,8 @@ Factors: the turn model (``approximate``, ``simulated``), the follower's turn-ra
 east) [m/s]. L1 on the chords of an arc of radius R without feed-forward rides outside it by d
 with 4 damping^2 d / L1^2 = 1 / (R + d) (guidance/l1.py); ``predicted_offset_m`` gives d.
 
-``python -m sim.testbeds.turn_following`` prints the Markdown table of every combination.
+``python -m sim.testbeds.turn_following`` prints the Markdown table of CASES and the HAPS's lag of
+the course rate behind its bank command (course_rate_lag_s), the follower's ``l1_turn_lead_s``.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from guidance.l1 import L1Guidance
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.turnmodel import turn_points, written_out
 from guidance.mptp.wind import to_ground
+from sim.core.constants import STANDARD_GRAVITY
 from sim.core.plan import Plan
 from sim.geodesy import GeoPoint
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
@@ -49,13 +51,29 @@ ACCEPTANCE_M = 10.0  # below the written-out vertices' spacing of both models
 @dataclass(frozen=True, slots=True)
 class Case:
     """One flight: ``model`` ("approximate" or "simulated"), ``feed_forward`` (the follower gets
-    the plan's turn rates), ``l1_period_s`` [s] (None: the airframe's), steady ``wind_ne``
-    (north, east) [m/s]."""
+    the plan's turn rates), ``l1_period_s`` and ``turn_lead_s`` [s] (None: the airframe's),
+    steady ``wind_ne`` (north, east) [m/s]."""
 
     model: str = "simulated"
     feed_forward: bool = True
     l1_period_s: float | None = None
     wind_ne: tuple[float, float] = (0.0, 0.0)
+    turn_lead_s: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Flight:
+    """A flown case at the control rate: times ``t`` (K,) [s], true horizontal positions ``xy``
+    (K, 2) [m], slewed bank command ``bank_cmd`` (K,) [rad], true course (K,) [rad] and true
+    airspeed ``tas`` (K,) [m/s]; ``xte`` the signed cross-track [m] at each written-out vertex
+    (+ inside the turn, - outside)."""
+
+    t: np.ndarray
+    xy: np.ndarray
+    bank_cmd: np.ndarray
+    course: np.ndarray
+    tas: np.ndarray
+    xte: np.ndarray
 
 
 def _states(cfg: MptpConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -85,9 +103,8 @@ def planned(case: Case) -> Plan:
     return Plan(0.0, pos, tt, np.full(len(ne), -1), turn_rates=rates if case.feed_forward else None)
 
 
-def fly(case: Case) -> np.ndarray:
-    """Fly ``case`` on JSBSim with truth as the estimate; the signed cross-track [m] at each
-    written-out vertex (+ inside the turn, - outside)."""
+def fly(case: Case) -> Flight:
+    """Fly ``case`` on JSBSim with truth as the estimate."""
     plant = JSBSimPlant("haps", 1.0 / PLANT_HZ, ORIGIN, airframe_dir("haps"))
     plant.initialise(InitialConditions(GeoPoint(ORIGIN.lat_deg, ORIGIN.lon_deg, ALT_M), tas_mps=TAS_MPS))
     plant.trim()
@@ -97,20 +114,36 @@ def fly(case: Case) -> np.ndarray:
     gains = HapsGains.load()
     if case.l1_period_s is not None:
         gains = replace(gains, l1_period_s=case.l1_period_s)
+    if case.turn_lead_s is not None:
+        gains = replace(gains, l1_turn_lead_s=case.turn_lead_s)
     ap = HapsAutopilot(gains)
     ap.reset(plant.truth(), throttle=plant["fcs/throttle-cmd-norm[0]"])
     follower = FixedWingPlanFollower(L1Guidance.for_airframe(ap), TAS_MPS, ACCEPTANCE_M, ORIGIN.alt_m)
     plan = planned(case)
     follower.set_plan(plan)
-    dt, track = 1.0 / CONTROL_HZ, []
+    dt, rec = 1.0 / CONTROL_HZ, []
     while plant.time < plan.times[-1]:
         s = plant.truth()
         sp, _ = follower.update(s, s.t, dt)
-        plant.set_many(ap.update(s, sp, dt))
+        cmd = ap.update(s, sp, dt)
+        plant.set_many(cmd)
         plant.step(PLANT_HZ // CONTROL_HZ)
-        track.append((s.t, *s.pos_ned[:2]))
-    tr = np.array(track)
-    return corner_cross_track([(0.0, plan.positions[:, :2], plan.times)], tr[:, 0], tr[:, 1:])
+        rec.append((s.t, s.pos_ned[0], s.pos_ned[1], cmd["ap/roll-cmd-rad"], s.course_rad, s.tas_mps))
+    r = np.array(rec)
+    xte = corner_cross_track([(0.0, plan.positions[:, :2], plan.times)], r[:, 0], r[:, 1:3])
+    return Flight(r[:, 0], r[:, 1:3], r[:, 3], np.unwrap(r[:, 4]), r[:, 5], xte)
+
+
+def course_rate_lag_s(flight: Flight, longest_s: float = 3.0) -> float:
+    """The lag [s] of the true course rate behind the coordinated-turn rate g tan(bank) / V of the
+    slewed bank command: the shift (in control steps, up to ``longest_s``) with the least rms
+    difference over the flight."""
+    rate = np.gradient(flight.course, flight.t)
+    demand = STANDARD_GRAVITY * np.tan(flight.bank_cmd) / flight.tas
+    shifts = np.arange(round(longest_s * CONTROL_HZ) + 1)
+    n = len(rate) - shifts[-1]
+    rms = [np.sqrt(np.mean((rate[k : k + n] - demand[:n]) ** 2)) for k in shifts]
+    return float(shifts[int(np.argmin(rms))]) / CONTROL_HZ
 
 
 def predicted_offset_m(l1_period_s: float, damping: float, radius_m: float, speed_mps: float) -> float:
@@ -120,32 +153,42 @@ def predicted_offset_m(l1_period_s: float, damping: float, radius_m: float, spee
     return 0.5 * (-radius_m + math.sqrt(radius_m**2 + l1 * l1 / (damping * damping)))
 
 
+CASES = (
+    Case(feed_forward=False),
+    Case(feed_forward=False, l1_period_s=20.0),
+    Case(feed_forward=False, l1_period_s=12.5),
+    Case(turn_lead_s=0.0),
+    Case(),
+    Case(feed_forward=False, wind_ne=(8.0, 0.0)),
+    Case(wind_ne=(8.0, 0.0)),
+    Case(wind_ne=(0.0, 8.0)),
+    Case("approximate", feed_forward=False),
+    Case("approximate"),
+)
+
+
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--wind", default="0,0", help="steady wind N,E [m/s] of the wind rows")
-    args = ap.parse_args(argv)
-    wind = tuple(float(v) for v in args.wind.split(","))
-    if len(wind) != 2:
-        ap.error(f"--wind: expected N,E in m/s, got {args.wind!r}")
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args(argv)
     g = HapsGains.load()
     radius = MptpConfig(tas_mps=TAS_MPS).fly_over_radius_m
-    cases = [
-        Case(m, ff, p, w)
-        for m in ("simulated", "approximate")
-        for w in ((0.0, 0.0), wind)
-        for p in (None, 12.5)
-        for ff in (False, True)
-    ]
-    cols = ["turn model", "wind N,E [m/s]", "L1 period [s]", "feed-forward", "largest cut [m]"]
+    cols = ["turn model", "wind N,E [m/s]", "L1 period [s]", "feed-forward, lead [s]", "largest cut [m]"]
     cols += ["largest outside [m]", "steady offset predicted [m]"]
     print("| " + " | ".join(cols) + " |\n|" + "---|" * len(cols))
-    for c in dict.fromkeys(cases):
-        x = fly(c)
+    for c in CASES:
+        x = fly(c).xte
         period = c.l1_period_s or g.l1_period_s
+        lead = g.l1_turn_lead_s if c.turn_lead_s is None else c.turn_lead_s
         pred = 0.0 if c.feed_forward else predicted_offset_m(period, g.l1_damping, radius, TAS_MPS)
-        row = [c.model, f"{c.wind_ne[0]:g}, {c.wind_ne[1]:g}", f"{period:g}", "yes" if c.feed_forward else "no"]
+        row = [
+            c.model,
+            f"{c.wind_ne[0]:g}, {c.wind_ne[1]:g}",
+            f"{period:g}",
+            f"yes, {lead:g}" if c.feed_forward else "no",
+        ]
         row += [f"{max(x.max(), 0.0):.1f}", f"{max(-x.min(), 0.0):.1f}", f"{pred:.1f}"]
         print("| " + " | ".join(row) + " |", flush=True)
+    lag = course_rate_lag_s(fly(Case()))
+    print(f"\ncourse-rate lag behind the bank command: {lag:.1f} s (l1_turn_lead_s = {g.l1_turn_lead_s:g} s)")
 
 
 if __name__ == "__main__":
