@@ -2,7 +2,9 @@
 
 Legs are the plan's consecutive vertices (local-level NED [m]). A leg is done when the aircraft
 is within the acceptance radius of its end or has passed the line through its end perpendicular
-to it. Altitude demand follows the straight line between the leg's end altitudes (MSL [m]);
+to it; a leg of a planned turn (``turn_rates``, below), or leading into one, only at that line:
+switched early, the aircraft would track the next chord before reaching it, and L1 would steer
+it to the inside of the turn. Altitude demand follows the straight line between the leg's end altitudes (MSL [m]);
 airspeed demand is the cruise true airspeed [m/s]. A plan with ``turn_rates`` has L1 feed the
 planned turn rate forward as bank (guidance/l1.py), taken ``l1.turn_lead_s`` of flight at the
 ground speed ahead along the plan so that the lagging bank is the planned one when the aircraft
@@ -60,6 +62,12 @@ class FixedWingPlanFollower:
         k = int(np.searchsorted(self._leg_start_m, s, side="right")) - 1
         return float(plan.turn_rates[min(max(k, self.leg), len(plan.turn_rates) - 2)])
 
+    @staticmethod
+    def _in_turn(plan: Plan, leg: int) -> bool:
+        """Whether ``leg`` is a piece of a planned turn or leads into one (nonzero turn rate on it
+        or the next leg)."""
+        return plan.turn_rates is not None and bool(np.any(plan.turn_rates[leg : leg + 2] != 0.0))
+
     def update(self, est: VehicleState, t: float, dt: float) -> tuple[FixedWingSetpoint, list[int]]:
         """Setpoint for now and the labels of the vertices passed since the last call
         (``t``, ``dt`` [s] are unused: the legs are geometric)."""
@@ -70,7 +78,8 @@ class FixedWingPlanFollower:
         passed: list[int] = []
         while self.leg < len(P) - 1:
             prog = leg_progress(est.pos_ned, P[self.leg], P[self.leg + 1])
-            if prog.to_end_m <= self.acceptance_radius or prog.along_m >= prog.length_m:
+            early = prog.to_end_m <= self.acceptance_radius and not self._in_turn(plan, self.leg)
+            if early or prog.along_m >= prog.length_m:
                 self.leg += 1
                 passed.append(int(plan.labels[self.leg]))
             else:
