@@ -60,6 +60,27 @@ def test_the_follower_feeds_the_rate_of_the_leg_lead_seconds_ahead(lead_s, leg):
     assert follower.update(_northbound(5.0), 0.0, 0.1)[0].roll_rad == pytest.approx(0.0, abs=1e-9)
 
 
+def test_legs_of_a_planned_turn_switch_only_at_their_end():
+    """Legs of 30 m north, the acceptance radius 20 m: 15 m before vertex 1 the follower moves on
+    when the legs are straight (no turn rates, or rates 0 on leg 0 and 1) and stays on leg 0 when
+    leg 0 is a turn segment or leads into one; past the perpendicular through vertex 1 it moves
+    on in every case."""
+    pos = np.column_stack([np.arange(4) * 30.0, np.zeros(4), np.full(4, -18_000.0)])
+    for rates, early in (
+        (None, True),
+        ([0.0, 0.0, 0.1, 0.0], True),
+        ([0.1, 0.0, 0.0, 0.0], False),
+        ([0.0, 0.1, 0.0, 0.0], False),
+    ):
+        plan = Plan(0.0, pos, np.arange(4.0), np.full(4, -1), turn_rates=None if rates is None else np.array(rates))
+        follower = FixedWingPlanFollower(L1Guidance(25.0, 0.75, math.radians(20.0)), 26.0, 20.0, 0.0)
+        follower.set_plan(plan)
+        follower.update(_northbound(15.0), 0.0, 0.1)
+        assert follower.leg == (1 if early else 0)
+        follower.update(_northbound(30.5), 0.0, 0.1)
+        assert follower.leg == 1
+
+
 def test_the_predicted_l1_offset_is_the_hand_number():
     radius = MptpConfig(tas_mps=TAS_MPS).fly_over_radius_m
     assert radius == pytest.approx(257.3, abs=0.1)
@@ -84,10 +105,12 @@ def test_without_feed_forward_the_turns_are_flown_wide_by_the_l1_offset():
 
 @pytest.mark.closed_loop
 def test_with_the_planned_turn_rates_the_simulated_turns_are_flown_on_the_arc(fed_forward):
-    """The simulated (5.3) turns, their rates fed forward 1.3 s ahead: every written-out vertex is
-    passed within 3 m, inside or outside (1.6 m / 1.7 m measured)."""
+    """The simulated (5.3) turns, their rates fed forward 1.3 s ahead: no written-out vertex is
+    cut by 1 m (none measured) and none is passed more than 5 m outside (3.8 m measured: the
+    lead is the measured lag, not tuned to this number; 1.6 s would give 1.1 m in, 2.1 m out)."""
     assert len(fed_forward.xte) >= 14
-    assert np.abs(fed_forward.xte).max() < 3.0
+    assert fed_forward.xte.max() < 1.0
+    assert -fed_forward.xte.min() < 5.0
 
 
 @pytest.mark.closed_loop
@@ -102,15 +125,18 @@ def test_the_turn_lead_is_the_hapss_course_rate_lag(fed_forward):
 @pytest.mark.parametrize(
     ("case", "outside_above", "within"),
     [
-        (Case(wind_ne=(8.0, 0.0)), None, 3.0),  # cross wind: the planned (drifted) turns are flown
-        (Case(wind_ne=(0.0, 8.0)), None, 3.0),  # along wind
+        (Case(wind_ne=(8.0, 0.0)), None, 5.0),  # cross wind: the planned (drifted) turns are flown
+        (Case(wind_ne=(0.0, 8.0)), None, 5.0),  # along wind
         (Case(turn_lead_s=0.0), 8.0, None),  # the lead acts: without it the lag flies wide
         (Case("approximate"), 8.0, None),  # the bank cannot step to phi_T: the 5.2 turns are flown wide
     ],
 )
 def test_turn_following_factors(case, outside_above, within):
+    """Cross and along wind 8 m/s: no cut, within 5 m outside (4.1 / 3.8 m measured); without the
+    lead 18.1 m outside, the approximate (5.2) turns 11.7 m: wide, never cut."""
     x = fly(case).xte
+    assert x.max() < 1.0
     if within is not None:
-        assert np.abs(x).max() < within
+        assert -x.min() < within
     if outside_above is not None:
-        assert -x.min() > outside_above and x.max() < 3.0
+        assert -x.min() > outside_above
