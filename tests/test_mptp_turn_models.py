@@ -300,6 +300,8 @@ def test_corner_cross_track_signs_a_cut_corner():
         xy = np.array([[0.0, 0.0], [500.0, 0.0], corner, [1000.0, 500.0], [1000.0, 1000.0]])
         assert corner_cross_track([(0.0, pts, due)], tt, xy) == pytest.approx([want], abs=0.01)
     assert not len(corner_cross_track([(0.0, pts, due), (40.0 + SETTLE_S - 1.0, pts, due)], tt, xy))
+    assert corner_cross_track([(0.0, pts, due)], tt, xy, [1]) == pytest.approx([-14.14], abs=0.01)
+    assert not len(corner_cross_track([(0.0, pts, due)], tt, xy, [2]))  # up to the corner: left out
 
 
 @pytest.mark.slow

@@ -11,7 +11,8 @@ simulated --out DIR`` flies every scenario with each seed and ``turn_model`` (th
 planner options otherwise unchanged; ``--acceptance`` overrides the MPTP vehicles' acceptance
 radius, ``--duration`` the sim time), keeps the logs in DIR and prints a Markdown table per
 scenario and model: corners, median |xte|, 95th percentile of the cut, largest cut, largest
-outside pass [m], and the missions completed.
+outside pass [m], the same two without each plan's start turn (vertex_cross_track), and the
+missions completed.
 
 Controlled factors (the experiment that isolates why turns are flown wide, docs/mptp.md):
 ``--estimator perfect`` (ideal sensors instead of the EKF), ``--wind N,E`` (the steady wind [m/s]
@@ -42,28 +43,35 @@ MIN_TURN_DEG = 1.0  # a vertex turning less is not a corner
 SETTLE_S = 60.0  # corners due later than this before the next plan are left out [s]
 
 
-def vertex_cross_track(log: str | Path, vehicle: str) -> np.ndarray:
-    """Signed closest approach [m] of the true track to each flown corner (see module doc)."""
-    plans = [
-        (t, np.asarray(m["positions"], float)[:, :2], np.asarray(m["times"], float))
-        for t, m in read_topic(log, f"/{vehicle}/plan")
-    ]
+def vertex_cross_track(log: str | Path, vehicle: str, start_turns: bool = True) -> np.ndarray:
+    """Signed closest approach [m] of the true track to each flown corner (see module doc);
+    without ``start_turns`` the written-out turn each plan begins with (its leading legs with a
+    nonzero turn rate) is left out: it starts at the plan's time, so the follower cannot lead it."""
+    plans, skip = [], []
+    for t, m in read_topic(log, f"/{vehicle}/plan"):
+        plans.append((t, np.asarray(m["positions"], float)[:, :2], np.asarray(m["times"], float)))
+        rates = np.asarray(m.get("turn_rates") or [0.0]) != 0.0
+        skip.append(0 if start_turns else int(np.argmin(np.r_[rates, False])))
     track = read_topic(log, f"/{vehicle}/truth/state")
-    return corner_cross_track(plans, np.array([t for t, _ in track]), np.array([m["pos_ned"][:2] for _, m in track]))
+    tt, xy = np.array([t for t, _ in track]), np.array([m["pos_ned"][:2] for _, m in track])
+    return corner_cross_track(plans, tt, xy, skip)
 
 
-def corner_cross_track(plans: list[tuple[float, np.ndarray, np.ndarray]], tt: np.ndarray, xy: np.ndarray) -> np.ndarray:
+def corner_cross_track(
+    plans: list[tuple[float, np.ndarray, np.ndarray]], tt: np.ndarray, xy: np.ndarray, skip: list[int] | None = None
+) -> np.ndarray:
     """Signed closest approach [m] of the track ``xy`` (K, 2) [m] at times ``tt`` (K,) [s] to the
     corners of ``plans`` (issue time [s], vertices (N, 2) [m], due times (N,) [s]), in time
-    order; + inside the corner, - outside (see module doc)."""
+    order; + inside the corner, - outside (see module doc). ``skip``: per plan, the corners up to
+    this vertex index are left out (default none)."""
     out: list[float] = []
     ends = [t for t, _, _ in plans[1:]] + [math.inf]
-    for (t0, pts, due), t1 in zip(plans, ends, strict=True):
+    for (t0, pts, due), t1, first in zip(plans, ends, skip or [0] * len(plans), strict=True):
         window = (tt >= t0) & (tt < t1)
         if len(pts) < 3 or not window.any():
             continue
         seg = xy[window]
-        for k in range(1, len(pts) - 1):
+        for k in range(max(1, first + 1), len(pts) - 1):
             a, b = pts[k] - pts[k - 1], pts[k + 1] - pts[k]
             na, nb = np.linalg.norm(a), np.linalg.norm(b)
             if na < 1e-6 or nb < 1e-6 or due[k] > t1 - SETTLE_S:
@@ -176,19 +184,21 @@ def main(argv: list[str] | None = None) -> None:
     factors = Factors(args.estimator, wind, args.l1_period)
     args.out.mkdir(parents=True, exist_ok=True)
     cols = ["scenario", "acceptance [m]", "turn model", "runs completed", "corners", "median abs [m]", "cut p95 [m]"]
-    cols += ["largest cut [m]", "largest outside [m]"]
+    cols += ["largest cut [m]", "largest outside [m]", "later turns: largest cut [m]", "largest outside [m]"]
     print("| " + " | ".join(cols) + " |\n|" + "---|" * len(cols))
     for scenario in args.scenarios:
         for model in args.models:
-            xte, done, seeds = [], 0, _seeds(args.seeds)
+            xte, later, done, seeds = [], [], 0, _seeds(args.seeds)
             for seed in seeds:
                 path, ok = fly(scenario, seed, model, args.out, args.acceptance, args.duration, factors)
                 done += ok
                 xte.append(vertex_cross_track(path, "haps"))
-            x = np.concatenate(xte)
+                later.append(vertex_cross_track(path, "haps", start_turns=False))
+            x, y = np.concatenate(xte), np.concatenate(later)
             cut = np.maximum(x, 0.0)
             row = [scenario.stem, args.acceptance or "shipped", model, f"{done}/{len(seeds)}", len(x)]
             row += [f"{v:.1f}" for v in (np.median(np.abs(x)), np.percentile(cut, 95), cut.max(), max(-x.min(), 0))]
+            row += [f"{v:.1f}" for v in (max(y.max(initial=0.0), 0.0), max(-y.min(initial=0.0), 0.0))]
             print("| " + " | ".join(map(str, row)) + " |", flush=True)
 
 
