@@ -33,7 +33,7 @@ from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
 
 from guidance.mptp.config import MptpConfig
-from guidance.mptp.margins import margin_hulls, merge, turn_cut_m
+from guidance.mptp.margins import convex_hulls, margin_hulls, merge, turn_cut_m
 from sim.core.threats import StormSnapshot
 
 
@@ -210,7 +210,7 @@ class _PairSet:
         if not len(self.owner):
             return np.empty(0, object)
         pts = np.stack([self.coords(ta), self.coords(tb)], axis=1).reshape(-1, 2)
-        return shapely.convex_hull(shapely.multipoints(pts, indices=np.repeat(self.owner, 2)))
+        return convex_hulls(pts, np.repeat(self.owner, 2))
 
 
 def _velocities(s: StormSnapshot) -> np.ndarray:
