@@ -46,7 +46,6 @@ from guidance.mptp.waitbound import WaitBound
 
 START, VERTEX, AUX, GOAL, HOLD = "start", "vertex", "aux", "goal", "hold"
 HOLD_LAPS = (1, 2, 4, 8, 16, 32)  # wait choices per expansion [laps]
-WAIT_SUBSTEPS = 3  # time steps of the wait bound per planning interval
 TOUCH_M2 = 1.0  # a holding footprint may touch an envelope by this area [m^2]
 
 
@@ -214,7 +213,9 @@ class _Expander:
     def _wait_bound(self) -> WaitBound:
         """The wait bound of this search (built at the first call, from the start state's time)."""
         if self.wait is None:
-            self.wait = WaitBound(self.tl, self.goal, self.w, self.t_start, self.t_end, self.cfg.tas_mps, WAIT_SUBSTEPS)
+            self.wait = WaitBound(
+                self.tl, self.goal, self.w, self.t_start, self.t_end, self.cfg.tas_mps, self.cfg.wait_substeps
+            )
         return self.wait
 
     def _static_bound(self, fs: FreeSpace, t_goal: float) -> StaticBound:
