@@ -268,6 +268,12 @@ def test_a_twenty_trial_study_on_the_process_pool_resumes(tmp_path):
     again = mc.run_study(20, 10, 3, tmp_path, workers=1)
     assert any(r["status"] == "from disk" for r in again)
     assert [r["success"] for r in again] == [r["success"] for r in rows]
+    # a field stored by another study configuration is run again
+    stored["study"] = "another study"
+    path.write_text(json.dumps(stored))
+    third = mc.run_study(20, 10, 3, tmp_path, workers=1)
+    assert not any(r["status"] == "from disk" for r in third)
+    assert json.loads(path.read_text())["study"] == mc.study_fingerprint()
 
 
 def test_the_trapped_trial_whose_obstacle_was_a_collection_is_planned():
