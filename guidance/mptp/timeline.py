@@ -171,7 +171,9 @@ class ObstacleTimeline:
         t0, t1 = self.level_time(j), self.level_time(j + k)
         cuts = np.concatenate([[t0], self.times[(self.times > t0) & (self.times < t1)], [t1]])
         hulls = [self._pairset(0.5 * (a + b)).swept_hulls(a, b) for a, b in itertools.pairwise(cuts)]
-        return merge(np.concatenate(hulls), self.cfg)
+        env = merge(np.concatenate(hulls), self.cfg)
+        shapely.prepare(env)  # cached and tested against many rings and footprints
+        return env
 
     def _pairset(self, t: float) -> _PairSet:
         k = int(np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self._pairs) - 1))
