@@ -101,6 +101,39 @@ def test_each_replan_plans_at_the_current_airspeed_and_its_turn_radius():
     assert fixed.plan(vehicle_state(0.0, np.zeros(2), math.pi / 2, 10.3), Threats(), 0.0).diagnostics["tas_mps"] == 26.0
 
 
+def test_a_partial_plan_climbs_towards_the_goal_at_the_climb_rate_within_the_band():
+    """At the expansion cap the plan does not reach the goal: its heights go from the current
+    one towards the goal's at climb_rate_mps over the plan's time (not held level), stop at the
+    horizon's reach, and descend the same way towards a lower goal."""
+    cfg = MptpConfig(max_expansions=3, climb_rate_mps=0.5, horizon_s=1800.0)
+    for up, goal_up in ((2000.0, 18_000.0), (6000.0, 1000.0)):
+        planner = MptpPlanner(Mission(np.array([[0.0, 40_000.0, -goal_up]]), cfg.tas_mps, 500.0), cfg)
+        est = vehicle_state(0.0, np.zeros(2), math.pi / 2, 26.0)
+        est.pos_ned[2] = -up
+        storm = StormSnapshot(0.0, (CELL,), np.zeros((1, 2)), np.array([[-np.inf, 14_000.0]]))
+        plan = planner.plan(est, Threats(storms=[storm]), 0.0)
+        assert plan.status == PlanStatus.DEGRADED and "partial plan" in plan.diagnostics["reason"]
+        heights = -plan.positions[:, 2]
+        expected = up + np.sign(goal_up - up) * 0.5 * np.minimum(plan.times, 1800.0)
+        np.testing.assert_allclose(heights, expected, atol=1e-6)
+        assert plan.times[-1] > 60.0 and abs(heights[-1] - up) > 25.0
+        lo, hi = altitude_band(up, goal_up, 0.5, 1800.0)
+        assert lo - 1e-6 <= heights.min() and heights.max() <= hi + 1e-6
+
+
+@pytest.mark.closed_loop
+def test_the_launch_climb_does_not_stall_under_partial_plans(fly):
+    """The shipped launch through the storm line: the first replans stop at the expansion cap
+    (the goal ~57 km away around the line at ~11 m/s), and the HAPS climbs on their heights at
+    about TECS's 1 m/s (it held ~100 m for ~1,000 s while partial plans were level)."""
+    run = fly("haps_climb_through_storms", duration=300.0)
+    plans = run.log.topic("/haps/plan").messages
+    assert plans and all("partial plan" in p["diagnostics"].get("reason", "") for p in plans)
+    truth = run.log.topic("/haps/truth/state")
+    alt, t = truth["alt_msl_m"], truth.t
+    assert alt[-1] - alt[0] > 0.85 * (t[-1] - t[0])  # ~1 m/s less the first seconds' transient
+
+
 def test_storm_distance_is_to_the_prism():
     s = StormSnapshot(0.0, (box(0, 0, 1000, 1000),), None, np.array([[500.0, 3000.0]]))
     assert storm_distance(s, np.array([500.0, 500.0, -2000.0])) == 0.0  # inside
