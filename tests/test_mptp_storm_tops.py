@@ -261,3 +261,67 @@ def test_launch_to_18_km_through_a_line_of_storms(fly):
     assert ignored.any() and up0[ignored > 0].min() > 15_000.0 - 50.0  # EKF altitude error
     tas = np.array([p["diagnostics"].get("tas_mps", np.nan) for p in plans])
     assert np.nanmax(tas[up0 > 15_000.0]) > 1.8 * np.nanmin(tas[up0 < 2000.0])
+
+
+DESCENT = "haps_descent_through_storms"
+LOW_CELL = box(-16_500.0, -1500.0, -13_500.0, 1500.0)  # (north, east): the 6 km cell across the south leg
+LOW_CELL_APPLIES_M = 6000.0 + 1000.0 + 3600.0  # top + vertical margin + the band's reach (1 m/s x 1 h)
+
+
+def _check_low_cell_rule(plans: list[dict]) -> None:
+    """The 6 km cell (the only one that can be left out: the 14 km one is within 1 km of every
+    band of the descent) is left out of the plans made above LOW_CELL_APPLIES_M and kept in those
+    made below it (50 m of slack each way for the EKF's altitude error)."""
+    up0 = np.array([-p["positions"][0][2] for p in plans])
+    ignored = np.array([p["diagnostics"].get("cells_ignored", 0) for p in plans])
+    high, low = up0 > LOW_CELL_APPLIES_M + 50.0, up0 < LOW_CELL_APPLIES_M - 50.0
+    assert high.any() and low.any() and ignored.max() <= 1
+    assert (ignored[high] == 1).all() and (ignored[low] == 0).all()
+    for p in (p for p, lo in zip(plans, low, strict=True) if lo):
+        assert not shapely.LineString(np.array(p["positions"])[:, :2]).intersects(LOW_CELL)
+
+
+@pytest.mark.closed_loop
+def test_descent_through_the_weather_layer_goes_around_the_cells_it_can_reach(fly, scenario_data):
+    """CI's short version of the descent: from 10.85 km on the shipped square's south leg 15 km
+    west of the 6 km cell, descending at the polar's glide sink (~0.58 m/s there). The plans fly
+    straight over the cell while the HAPS can not come within 1 km of its top in the horizon,
+    and go around it once it can (the replan at 600 s, at ~10.5 km); the HAPS descends all along
+    and is never inside a storm prism."""
+    data = scenario_data(DESCENT)
+    data["duration"] = 660.0
+    vehicle = data["vehicle"][0]
+    vehicle["initial"] |= {"north": -15_000.0, "east": -30_000.0, "altitude": 10_850.0, "airspeed": 16.4, "heading": 90}
+    wps = vehicle["mission"]["waypoints"]
+    vehicle["mission"]["waypoints"] = wps[2:] + wps[:2]  # the south-east corner first: along the south leg
+    run = fly(data)
+    assert run.result.status == "duration_elapsed"
+    plans = run.log.topic("/haps/plan").messages
+    _check_low_cell_rule(plans)
+    straight = [p for p in plans if p["diagnostics"].get("cells_ignored") == 1]
+    assert all(np.abs(np.array(p["positions"])[:, 0] + 15_000.0).max() < 100.0 for p in straight)
+    assert np.abs(np.array(plans[-1]["positions"])[:, 0] + 15_000.0).max() > 3000.0  # around the cell
+    truth = run.log.topic("/haps/truth/state")
+    alt, t = truth["alt_msl_m"], truth.t
+    assert np.all(np.diff(alt[::30]) < 0.0) and (alt[0] - alt[-1]) / (t[-1] - t[0]) > 0.45  # m/s
+    assert abs(truth["pos_ned"][-1, 0] + 15_000.0) > 300.0  # turned off the leg
+    storms = log_metrics(run.log)["vehicles"]["haps"]["storms"]
+    assert storms["time_inside_s"] == 0.0
+
+
+@pytest.mark.slow
+@pytest.mark.closed_loop
+def test_descent_from_18_km_to_1_km_through_the_weather_layer(fly):
+    """The shipped descent whole: 18 km -> 1 km on the square past the 14 km and the 6 km cell
+    under the MPTP. Never inside a storm prism; the 6 km cell left out of the plans only above
+    10.6 km; the descent reaches 1 km and holds it."""
+    run = fly(DESCENT)
+    assert run.result.status == "duration_elapsed"
+    storms = log_metrics(run.log)["vehicles"]["haps"]["storms"]
+    assert storms["time_inside_s"] == 0.0
+    _check_low_cell_rule(run.log.topic("/haps/plan").messages)
+    truth = run.log.topic("/haps/truth/state")
+    alt, t = truth["alt_msl_m"], truth.t
+    reached = t[alt < 1005.0]
+    assert reached.size and reached[0] < t[-1] - 600.0
+    assert np.abs(alt[t > reached[0] + 300.0] - 1000.0).max() < 10.0
