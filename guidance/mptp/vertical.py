@@ -25,7 +25,9 @@ import numpy as np
 from sim.core.threats import StormSnapshot
 
 
-def height_towards(up_now_m: float, up_goal_m: float, climb_rate_mps: float, elapsed_s: np.ndarray) -> np.ndarray:
+def height_towards(
+    up_now_m: float, up_goal_m: float, climb_rate_mps: float, elapsed_s: float | np.ndarray
+) -> np.ndarray:
     """Heights [m] after ``elapsed_s`` [s] (any shape) from ``up_now_m`` towards ``up_goal_m`` at
     ``climb_rate_mps`` [m/s], stopping at the goal's height."""
     reach = climb_rate_mps * np.asarray(elapsed_s, float)
