@@ -87,6 +87,7 @@ class HapsGains:
     # [l1]
     l1_period_s: float = _in("l1")
     l1_damping: float = _in("l1")
+    l1_turn_lead_s: float = _in("l1")
     l1_distance_min_m: float = _in("l1")
 
     @classmethod
