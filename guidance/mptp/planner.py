@@ -36,7 +36,11 @@ near over the horizon (vertical.py).
 
 The plan's vertices are the trajectory states, with the modelled turns written out between them
 for the fly-over turn models (turnmodel.written_out); labels are -1 except the goal (its waypoint
-index); the altitude goes linearly (constant climb angle) from the estimate's to the goal's.
+index). In a plan that reaches the goal the altitude goes linearly (constant climb angle) from
+the estimate's to the goal's; in one that does not (partial, holding, safe-area flight) it goes
+from the estimate's towards the goal's at ``climb_rate_mps`` over the plan's time, within the
+height band the plan's cells were chosen for (vertical.py), so a partial plan does not stall a
+climb or a descent.
 """
 
 from __future__ import annotations
@@ -56,7 +60,7 @@ from guidance.mptp.search import HOLD, Trajectory, default_workspace, plan_traje
 from guidance.mptp.statespace import free_space
 from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.turnmodel import vertex_spacing_m, written_out
-from guidance.mptp.vertical import altitude_band, cells_in_band
+from guidance.mptp.vertical import altitude_band, cells_in_band, height_towards
 from guidance.mptp.wind import WindForecast, air_goal, to_air, to_ground
 from sim.core.mission import Mission
 from sim.core.plan import Plan, PlanStatus, Threats
@@ -328,7 +332,11 @@ class MptpPlanner:
         if (labels >= 0).any():
             diag["path_length_m"] = float(seg.sum())
         frac = np.concatenate([[0.0], np.cumsum(seg)]) / max(seg.sum(), 1e-9)
-        down = d0 + (d1 - d0) * frac if (labels >= 0).any() else np.full(len(ne), d0)
+        if (labels >= 0).any():
+            down = d0 + (d1 - d0) * frac
+        else:
+            elapsed = np.clip(np.asarray(times, float) - t, 0.0, self.cfg.horizon_s)
+            down = -height_towards(-d0, -d1, self.cfg.climb_rate_mps, elapsed)
         pos = np.column_stack([ne, down])
         vel = np.diff(pos, axis=0) / np.maximum(np.diff(times), 1e-9)[:, None]
         vel = np.vstack([vel, vel[-1:]]) if len(vel) else np.zeros((1, 3))
