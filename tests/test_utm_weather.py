@@ -60,31 +60,47 @@ def test_utm_weather_needs_the_weather_service(scenario_data):
         parse_scenario(data, "x")
 
 
-@pytest.mark.closed_loop
-def test_storm_cell_crossing_two_routes_is_a_weather_case_sent_by_the_authority(fly):
-    """The vehicles get no nowcast of their own; the authority sends both, from their first
-    notifications until their routes no longer cross it, the scripted cell as weather case
-    ``cell0`` (its body, the 25 m band of their registration); both obey it
-    (``rule:utm_weather:cell0``) and pass it like a roundabout: never inside, the band kept within
-    2.5 m, quad1 east of it, quad2 south of it, both complete
-    (:func:`tests.test_rules_parts.check_weather_case`). The re-run planner reproduces every plan
-    from the logged directives (weather cases included)."""
-    flight = fly("rules/weather_two_routes_utm")
+def check_directed_weather(flight) -> dict[str, float]:
+    """The vehicles get no nowcast of their own; the authority sends both, in at least 20
+    frames, the scripted cell as weather case ``cell0`` (its body, the 25 m band of their
+    registration); both obey it (``rule:utm_weather:cell0``) and pass it like a roundabout:
+    never inside, the band kept within 2.5 m, quad1 east of it, quad2 south of it, both complete
+    (:func:`tests.test_rules_parts.check_weather_case`). Returns each one's closest distance to
+    the body [m]."""
     log = flight.log
     for d in log.topic("/utm/directive").messages:
         jsonschema.validate(d, S.UTM_DIRECTIVE)
-    closest = []
+    closest = {}
     for v in QUADS:
         assert all(not th["storms"] for th in log.topic(f"/{v}/threats").messages), v  # no own nowcast
         sent = directed_weather(log, v)
-        with_cell = [f for f, w in sent if w]
-        assert len(with_cell) >= 20, (v, len(with_cell))
+        assert len([f for f, w in sent if w]) >= 20, v
         for _, ws in sent:
             for w in ws:
                 assert w["id"] == "cell0" and w["margin_m"] == WEATHER_BAND_M and not w["moving"]
                 assert shapely.equals_exact(Polygon(w["body_enu"]), Polygon(CELL_ENU), tolerance=1e-6)
         events = {e for m in log.topic(f"/{v}/plan/decision").messages for e in m["events"]}
         assert "rule:utm_weather:cell0" in events
-        closest.append(check_weather_case(flight, v, "static"))
+        closest[v] = check_weather_case(flight, v, "static")
+    return closest
+
+
+@pytest.mark.closed_loop
+def test_storm_cell_crossing_two_routes_is_a_weather_case_sent_by_the_authority(fly):
+    """:func:`check_directed_weather` on the file's seed, and the re-run planner reproduces
+    every plan from the logged directives (weather cases included)."""
+    flight = fly("rules/weather_two_routes_utm")
+    check_directed_weather(flight)
+    for v in QUADS:
         assert rerun_planner(flight.path, v).differences == []
-    assert min(closest) >= WEATHER_BAND_M - 2.5
+
+
+@pytest.mark.slow
+@pytest.mark.closed_loop
+@pytest.mark.parametrize("seed", range(20))
+def test_directed_weather_case_on_20_seeds(seed, fly, scenario_data, record_property):
+    """:func:`check_directed_weather` on seeds 0-19; JUnit properties ``<vehicle>_m``: the
+    closest distance to the body [m]."""
+    out = check_directed_weather(fly({**scenario_data("rules/weather_two_routes_utm"), "seed": seed}))
+    for v, x in out.items():
+        record_property(f"{v}_m", round(x, 2))
