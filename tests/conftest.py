@@ -9,8 +9,8 @@ Fixtures:
 - ``fly(scenario, name=None, **run_options)``: fly a shipped scenario (by name) or an edited
   mapping, logging to ``tmp_path/<name>.mcap``; returns a :class:`Flight` (result, log path, log);
 - ``fly_in``: the same with the output folder first (for module-scoped runs);
-- ``cosim(*args, timeout=60)``: the ``cosim`` command line in a subprocess from the repository
-  root (its exit code is for the test to check).
+- ``cosim(*args, timeout=SUBPROCESS_TIMEOUT_S)``: the ``cosim`` command line in a subprocess from
+  the repository root (its exit code is for the test to check).
 """
 
 from __future__ import annotations
@@ -38,6 +38,9 @@ settings.load_profile("ci")
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
+# A subprocess's upper bound [s], against a hang only: on a loaded 2-core machine the CLI's imports
+# alone have taken 25 s of wall time for 2.4 s of CPU.
+SUBPROCESS_TIMEOUT_S = 600.0
 
 
 @dataclass(frozen=True)
@@ -94,7 +97,7 @@ def fly(tmp_path: Path) -> Callable[..., Flight]:
 
 @pytest.fixture(scope="session")
 def cosim() -> Callable[..., subprocess.CompletedProcess[str]]:
-    def run(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
+    def run(*args: str, timeout: float = SUBPROCESS_TIMEOUT_S) -> subprocess.CompletedProcess[str]:
         return subprocess.run(
             [sys.executable, "-m", "sim.cli", *map(str, args)],
             capture_output=True,

@@ -31,7 +31,7 @@ def _cell(message: dict, column: str):
 
 @pytest.mark.parametrize("topic", ["/haps/truth/state", "/haps/energy", "/quad/ctrl/commands", "/tf", "/log"])
 def test_parquet_export_equals_the_logged_messages(mixed, tmp_path, cosim, topic):
-    proc = cosim("export", mixed, "--format", "parquet", "--topics", topic, "-o", tmp_path, "-q", timeout=120)
+    proc = cosim("export", mixed, "--format", "parquet", "--topics", topic, "-o", tmp_path, "-q")
     assert proc.returncode == 0, proc.stderr
     files = list(tmp_path.iterdir())
     assert [f.name for f in files] == [topic.strip("/").replace("/", ".") + ".parquet"]
@@ -72,7 +72,7 @@ def test_csv_export_and_its_errors(mixed, tmp_path, cosim):
     assert not (tmp_path / "x").exists()
     fmt = cosim("export", mixed, "--format", "xlsx")
     assert fmt.returncode == 2 and "invalid choice: 'xlsx'" in fmt.stderr
-    every = cosim("export", mixed, "--format", "parquet", "-o", tmp_path / "all", "-q", timeout=120)
+    every = cosim("export", mixed, "--format", "parquet", "-o", tmp_path / "all", "-q")
     assert every.returncode == 0, every.stderr
     assert len(list((tmp_path / "all").iterdir())) == len(RunLog(mixed).topics)
 

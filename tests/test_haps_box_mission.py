@@ -114,7 +114,7 @@ def test_run_killed_midway_leaves_log_to_last_tick(tmp_path, exc, status):
 
 def test_cli_run_and_info(tmp_path, cosim):
     log = tmp_path / "cli.mcap"
-    run = cosim("run", SCENARIO, "-o", log, "--duration", "20", timeout=120)
+    run = cosim("run", SCENARIO, "-o", log, "--duration", "20")
     assert run.returncode == 0, run.stderr
     for word in ("duration_elapsed", "real-time factor", "mission haps", "0/4 waypoints", str(log)):
         assert word in run.stdout

@@ -27,6 +27,9 @@ ROOT = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.closed_loop
 ORIGIN = GeoPoint(47.0, 8.0, 400.0)
 TARGETS = np.array([[20.0, 0.0, -15.0], [20.0, 20.0, -15.0], [0.0, 20.0, -15.0]])  # NED [m]
+# A wait's upper bound [s] (wall time), against a hang only: every wait ends as soon as its
+# message arrives or the run is over; on a loaded machine a run can take tens of seconds to start.
+WAIT_S = 300.0
 
 
 def _free_port() -> int:
@@ -38,7 +41,8 @@ def _free_port() -> int:
 class Gcs(threading.Thread):
     """Waits for the vehicle, checks telemetry, uploads 3 waypoints, throws garbage at it.
     ``source_system``: the id it sends as (255 is the scenario's ground station); ``upload``
-    False: it only introduces itself and listens."""
+    False: it only introduces itself and listens. :meth:`join` tells it that the run is over: it
+    reads what the vehicle sent until then and stops."""
 
     def __init__(self, port: int, source_system: int = 255, upload: bool = True, key: bytes | None = None):
         super().__init__(daemon=True)
@@ -54,12 +58,17 @@ class Gcs(threading.Thread):
         self.ack = None
         self.error = None
         self.hold_off_s = 0.0
+        self.run_over = threading.Event()
 
-    def recv(self, kinds, timeout=10.0):
+    def recv(self, kinds, timeout=WAIT_S):
+        """The next message of a type in ``kinds``; None after ``timeout`` [s] or, once the run
+        is over, when nothing more is queued."""
         end = time.monotonic() + timeout
         while time.monotonic() < end:
             m = self.conn.recv_match(blocking=True, timeout=0.05)
             if m is None:
+                if self.run_over.is_set():
+                    return None
                 continue
             if m.get_type() == "GLOBAL_POSITION_INT":
                 self.positions.append(m)
@@ -107,18 +116,21 @@ class Gcs(threading.Thread):
                     float(alt[k]),
                     mav.MAV_MISSION_TYPE_MISSION,
                 )
-            end = time.monotonic() + 30
-            while time.monotonic() < end and self.recv({"GLOBAL_POSITION_INT"}, 1.0) is not None:
+            while self.recv({"GLOBAL_POSITION_INT"}) is not None:  # to the end of the run
                 pass
         except Exception as exc:  # noqa: BLE001 - reported by the test
             self.error = exc
+
+    def join(self, timeout=WAIT_S):
+        self.run_over.set()
+        super().join(timeout)
 
 
 def test_gcs_uploads_a_mission_that_the_vehicle_flies(fly, scenario_data):
     port = _free_port()
     data = scenario_data("quad_square_mission")
     data.update(
-        duration=60.0,
+        duration=120.0,  # room for a late upload (wall time); the run stops when the mission completes
         stop_when_complete=True,
         mavlink={"enabled": True, "base_port": port, "rate_hz": 5.0, "pace": 4.0},
     )
@@ -130,7 +142,8 @@ def test_gcs_uploads_a_mission_that_the_vehicle_flies(fly, scenario_data):
     gcs.start()
     run = fly(data, "mav")
     result, log = run.result, run.log
-    gcs.join(timeout=5)
+    gcs.join()
+    assert not gcs.is_alive()
     assert gcs.error is None
     assert gcs.heartbeat is not None and gcs.heartbeat.get_srcSystem() == 1 and gcs.heartbeat.get_srcComponent() == 1
     assert gcs.heartbeat.type == mav.MAV_TYPE_QUADROTOR
@@ -168,7 +181,8 @@ def _fly(tmp_path, name: str, peer: threading.Thread) -> RunLog:
     peer.start()
     path = tmp_path / f"{name}.mcap"
     run_scenario(parse_scenario(_hover_scenario(port), name), path)
-    peer.join(timeout=5)
+    peer.join()
+    assert not peer.is_alive()
     return RunLog(path)
 
 
@@ -246,7 +260,7 @@ class _Fuzzer(threading.Thread):
                 s.sendto(self._frame(), vehicle)
                 self.sent += 1
 
-    def join(self, timeout=None):
+    def join(self, timeout=WAIT_S):
         self.stop.set()
         super().join(timeout)
         self.gcs.join(timeout)
@@ -254,11 +268,15 @@ class _Fuzzer(threading.Thread):
 
 def test_fuzz_from_foreign_ids_does_not_change_the_flight(tmp_path, undisturbed):
     fuzzer = _Fuzzer(_free_port(), seed=3)
+    start = time.monotonic()
     log = _fly(tmp_path, "fuzz", fuzzer)
+    wall_s = time.monotonic() - start
     assert fuzzer.sent > 200
     assert _truth(log) == undisturbed
     mav_events = [text for _, text in log.events() if "mavlink" in text]
-    assert len(mav_events) < 60  # summarised at most once per second (5 s of wall time here)
+    # anomalies summarised at most once per second of wall time, plus one line per peer seen
+    peers = len(fuzzer.senders) * 3 + 1  # the fuzzer's (system, component) pairs and the ground station
+    assert len(mav_events) <= math.ceil(wall_s) + 1 + peers + 1, (wall_s, mav_events)
 
 
 def test_with_signing_the_signed_gcs_is_obeyed_and_unsigned_commands_refused(tmp_path):
@@ -271,7 +289,8 @@ def test_with_signing_the_signed_gcs_is_obeyed_and_unsigned_commands_refused(tmp
     gcs = Gcs(port, key=hashlib.sha256(b"a passphrase").digest())
     gcs.start()
     result = run_scenario(parse_scenario(data, "signed"), tmp_path / "signed.mcap")
-    gcs.join(timeout=5)
+    gcs.join()
+    assert not gcs.is_alive()
     assert gcs.error is None and gcs.heartbeat is not None and gcs.heartbeat.get_signed()
     assert gcs.ack is not None and gcs.ack.type == mav.MAV_MISSION_ACCEPTED
     events = [text for _, text in RunLog(tmp_path / "signed.mcap").events()]

@@ -1,5 +1,5 @@
 """The Monte-Carlo study of seed 002 6.2: storm-field generator, trial draws, one hand-built trial,
-statistics, and a 20-trial study through the process pool (benchmarks/bench_mptp_montecarlo.py
+statistics, and a four-trial study through the process pool (benchmarks/bench_mptp_montecarlo.py
 runs the full one)."""
 
 from __future__ import annotations
@@ -249,9 +249,10 @@ def test_summary_counts_successes_fast_successes_and_paired_lengths():
     assert mcs.summarise(same)["same_search"] == 1
 
 
-def test_a_twenty_trial_study_on_the_process_pool_resumes(tmp_path):
-    rows = mc.run_study(20, 10, 3, tmp_path, workers=2)
-    assert len(rows) == 40 and {r["heuristic"] for r in rows} == set(mc.HEURISTICS)
+def test_a_four_trial_study_on_the_process_pool_resumes(tmp_path):
+    """Two fields of two trials: one field per pool worker."""
+    rows = mc.run_study(4, 2, 3, tmp_path, workers=2)
+    assert len(rows) == 8 and {r["heuristic"] for r in rows} == set(mc.HEURISTICS)
     for r in rows:
         if r["success"]:
             assert r["trst"] >= 1 and r["length_m"] >= math.dist(r["start"], r["goal"]) - 1e-6
@@ -259,13 +260,14 @@ def test_a_twenty_trial_study_on_the_process_pool_resumes(tmp_path):
     by_trial = {}
     for r in rows:  # both heuristics plan the same draw
         by_trial.setdefault((r["field"], r["index"]), set()).add((tuple(r["start"]), tuple(r["goal"]), r["course_deg"]))
-    assert len(by_trial) == 20 and all(len(v) == 1 for v in by_trial.values())
+    assert any(r["success"] for r in rows)
+    assert len(by_trial) == 4 and all(len(v) == 1 for v in by_trial.values())
     # a stored field is not run again: mark it and read it back
     path = mc.field_path(tmp_path, 1)
     stored = json.loads(path.read_text())
     stored["rows"][0]["status"] = "from disk"
     path.write_text(json.dumps(stored))
-    again = mc.run_study(20, 10, 3, tmp_path, workers=1)
+    again = mc.run_study(4, 2, 3, tmp_path, workers=1)
     assert any(r["status"] == "from disk" for r in again)
     assert [r["success"] for r in again] == [r["success"] for r in rows]
 

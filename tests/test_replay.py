@@ -44,7 +44,7 @@ def test_report_and_compare_cli(short_run, tmp_path, cosim):
     for png in ("map.png", "haps_timeseries.png"):
         assert (tmp_path / "rep" / png).stat().st_size > 10_000
     assert json.loads((tmp_path / "rep" / "metrics.json").read_text()) == json.loads(json.dumps(metrics))
-    proc = cosim("compare", path, path, "--changed", timeout=120)
+    proc = cosim("compare", path, path, "--changed")
     assert proc.returncode == 0, proc.stderr
     assert "tracking" not in proc.stdout  # the same log twice: nothing changed
 
