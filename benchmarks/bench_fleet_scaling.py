@@ -3,7 +3,8 @@
 Flies the first N vehicles (N = 2, 4, 8: whole head-on pairs) of the shipped
 ``scenarios/reachset_fleet8.toml`` (eight quadrotors on the reach-set planner, four head-on pairs
 500 m apart, EKF, logging) and reports the wall time per vehicle per simulated second, beside
-bare JSBSim stepping of one F450 at 240 Hz measured in the same run (``vehicle_cost_to_bare``:
+bare JSBSim stepping of one of this project's quadrotors (the same model, 240 Hz) measured
+in the same run (``vehicle_cost_to_bare``:
 closed-loop wall per vehicle-second over bare wall per vehicle-second). Linear fleet cost means
 that ratio stays flat as N grows. ``--paths baseline,current`` also flies the world without the
 broad phase of issue #16 (every vehicle senses every other body), where each vehicle's sensing,
@@ -26,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from bench_closed_loop import F450, bare_steps_per_s, broad_phase  # noqa: E402
+from bench_closed_loop import QUAD, bare_steps_per_s, broad_phase  # noqa: E402
 
 from sim.runner import run_scenario  # noqa: E402
 from sim.scenario import parse_scenario  # noqa: E402
@@ -54,7 +55,7 @@ def main() -> None:
     ap.add_argument("--paths", default="current", help="comma-separated: baseline (no broad phase), current")
     args = ap.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
-    model, airframe, rate = F450
+    model, airframe, rate = QUAD
     bare = 1.0 / max(bare_steps_per_s(model, airframe, rate, int(args.sim_seconds * rate)) for _ in range(3))
     bare_vehicle_second = bare * rate
     out: dict = {

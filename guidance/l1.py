@@ -12,6 +12,12 @@ the ground velocity to the L1 point, and the bank command of a coordinated turn 
 to the track is limited to 45 deg (``|sin nu1| <= 1/sqrt 2``); behind A (more than L1 away and
 outside a +-135 deg arc around the track) the aircraft flies to A, and more than 3 s past B it
 flies back to B. Near ``|nu| = 180 deg`` the turn direction is held to stop it flipping.
+
+A segment that is a piece of a planned turn (a written-out arc) carries its turn rate omega
+[rad/s] (+ = right): its coordinated-turn lateral acceleration ``V_tas omega`` is added to the
+demand (curvature feed-forward), so on the arc L1 only corrects errors. Without it L1 on the
+chords of an arc of radius R rides outside it by d with ``4 damping^2 V^2 d / L1^2 = V^2 /
+(R + d)`` (about 36 m for the HAPS's L1 = 155 m and R = 257 m).
 """
 
 from __future__ import annotations
@@ -35,14 +41,18 @@ class L1Output(NamedTuple):
 
 class L1Guidance:
     """L1 path follower: ``period_s`` [s] (NAVL1_PERIOD), ``damping`` (NAVL1_DAMPING),
-    ``roll_limit_rad`` [rad] bank command limit."""
+    ``roll_limit_rad`` [rad] bank command limit, ``turn_lead_s`` [s] how early a follower feeds
+    a planned turn rate forward (the airframe's bank lag behind its command)."""
 
-    def __init__(self, period_s: float, damping: float, roll_limit_rad: float):
+    def __init__(self, period_s: float, damping: float, roll_limit_rad: float, turn_lead_s: float = 0.0):
         if period_s <= 0.0 or damping <= 0.0 or roll_limit_rad <= 0.0:
             raise ValueError("L1 period, damping and roll limit must be positive")
+        if turn_lead_s < 0.0:
+            raise ValueError(f"L1 turn lead must be >= 0 s, got {turn_lead_s}")
         self.period_s = period_s
         self.damping = damping
         self.roll_limit_rad = roll_limit_rad
+        self.turn_lead_s = turn_lead_s
         self._l1_per_speed = damping * period_s / math.pi  # L1 distance per ground speed [s]
         self._k_l1 = 4.0 * damping * damping
         self._last_nu = 0.0
@@ -50,12 +60,13 @@ class L1Guidance:
     @classmethod
     def for_airframe(cls, controller) -> L1Guidance:
         """L1 tuned for an airframe, from its controller's ``gains`` (``l1_period_s``,
-        ``l1_damping``, ``roll_limit_rad``)."""
+        ``l1_damping``, ``roll_limit_rad``, ``l1_turn_lead_s``)."""
         g = controller.gains
-        return cls(g.l1_period_s, g.l1_damping, g.roll_limit_rad)
+        return cls(g.l1_period_s, g.l1_damping, g.roll_limit_rad, g.l1_turn_lead_s)
 
-    def update(self, state: VehicleState, a_ned, b_ned) -> L1Output:
-        """Bank command to follow the segment from ``a_ned`` to ``b_ned`` (NED [m])."""
+    def update(self, state: VehicleState, a_ned, b_ned, turn_rate: float = 0.0) -> L1Output:
+        """Bank command to follow the segment from ``a_ned`` to ``b_ned`` (NED [m]) that the path
+        flies turning at ``turn_rate`` [rad/s] (+ = right; 0: a straight leg)."""
         vn, ve = float(state.vel_ned[0]), float(state.vel_ned[1])
         gs = math.hypot(vn, ve)
         if gs < 0.1:  # hovering in a head wind: use the heading
@@ -90,7 +101,8 @@ class L1Guidance:
         self._last_nu = nu
         nu = max(-0.5 * math.pi, min(0.5 * math.pi, nu))
 
-        lat_acc = self._k_l1 * gs * gs / l1 * math.sin(nu)
+        tas = state.tas_mps if state.tas_mps > 0.1 else gs
+        lat_acc = self._k_l1 * gs * gs / l1 * math.sin(nu) + tas * turn_rate
         roll = math.atan(lat_acc / STANDARD_GRAVITY)
         roll = max(-self.roll_limit_rad, min(self.roll_limit_rad, roll))
         return L1Output(roll, cross)

@@ -17,7 +17,9 @@ missed (swept tests):
   ``STRtree``) within the prism's height band (the band of the swept segment, widened by the
   radius).
 - **vehicles and objects**: two spheres whose closest approach over the interval, with both
-  moving linearly, is below the sum of their radii (candidate pairs from a k-d tree).
+  moving linearly, is below the sum of their radii (candidate pairs: every vehicle pair and
+  vehicle-object pair within reach, found by direct distances when there are at most
+  ``_DIRECT_PAIRS`` of them, else from a k-d tree).
 
 Frames and units: local-level NED from the scenario origin [m, m/s]; heights up = -D [m].
 Impact speed [m/s]: the vehicle's speed relative to what it hit (for the ground, the speed just
@@ -27,6 +29,7 @@ before first contact, before the gear's springs act).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import shapely
@@ -37,6 +40,7 @@ from sim.core.threats import PrismObstacle
 from sim.hull import Hull
 from sim.jsbsim_plant import JSBSimPlant
 
+_DIRECT_PAIRS = 4096  # vehicle-body pairs up to which all distances are computed (no k-d tree)
 NEAR_GROUND_M = 1.0  # [m] beyond the hull's reach: closer, the hull is placed every step
 _WATCH_PROPS = (
     "position/h-agl-ft",
@@ -208,11 +212,9 @@ class ContactMonitor:
         v = np.vstack([vel, others.vel])
         r = np.concatenate([self.radius, others.radius])
         reach = 2.0 * r.max() + 2.0 * np.linalg.norm(p1 - p0, axis=1).max()
-        pairs = cKDTree(p1).query_pairs(reach, output_type="ndarray")
-        pairs = pairs[pairs[:, 0] < n]  # at least one vehicle (i < j)
-        if not len(pairs):
+        i, j = _pairs_within(p1, n, reach)
+        if not len(i):
             return []
-        i, j = pairs.T
         d0, d1 = p0[i] - p0[j], p1[i] - p1[j]
         dd = d1 - d0
         s = np.clip(-np.einsum("ij,ij->i", d0, dd) / np.maximum(np.einsum("ij,ij->i", dd, dd), 1e-12), 0.0, 1.0)
@@ -228,3 +230,26 @@ class ContactMonitor:
     def _crash(self, t: float, i: int, kind: str, hit: str, speed: float, p: np.ndarray) -> Crash:
         """Vehicle ``i``'s crash at position ``p`` NED [m]."""
         return Crash(t, self.names[i], kind, hit, float(speed), (float(p[0]), float(p[1]), float(p[2])))
+
+
+def _pairs_within(pos: np.ndarray, n: int, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs ``i < j`` with ``i < n`` (at least one vehicle) of the positions ``pos``
+    (M, 3) [m] at most ``reach`` [m] apart, ordered by ``(i, j)``."""
+    m = len(pos)
+    if n * m <= _DIRECT_PAIRS:
+        i, j = _vehicle_pairs(m, n)
+        d = pos[i] - pos[j]
+        near = np.einsum("ij,ij->i", d, d) <= reach * reach
+        return i[near], j[near]
+    pairs = cKDTree(pos).query_pairs(reach, output_type="ndarray")
+    pairs = pairs[pairs[:, 0] < n]
+    pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+    return pairs[:, 0], pairs[:, 1]
+
+
+@lru_cache(maxsize=64)
+def _vehicle_pairs(m: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """All index pairs ``i < j < m`` with ``i < n``, ordered by ``(i, j)``."""
+    i, j = np.triu_indices(m, 1)
+    keep = i < n
+    return i[keep], j[keep]

@@ -131,6 +131,7 @@ class JSBSimPlant:
             raise PlantError(self._with_log(f"JSBSim could not load model {model!r}"))
         self._truth_nodes = self.property_nodes(_TRUTH_PROPS)
         self._truth: VehicleState | None = None  # the last truth read, valid while sim time stands
+        self._setters: dict[str, Callable[[float], bool]] = {}  # set_many's property setters by name
         self.after_step: Callable[[], None] | None = None  # called after every integration step
 
     def property_nodes(self, names: Sequence[str]) -> list[jsbsim.FGPropertyNode]:
@@ -166,8 +167,17 @@ class JSBSimPlant:
         self.fdm.set_property_value(name, float(value))
 
     def set_many(self, values: dict[str, float]) -> None:
+        """Set properties by name (created if missing, as ``fdm[name] = value`` does); each
+        name's node is looked up once, as controllers write the same commands every tick."""
+        setters = self._setters
         for k, v in values.items():
-            self.fdm.set_property_value(k, float(v))
+            put = setters.get(k)
+            if put is None:
+                node = self.fdm.get_property_manager().get_node(k, True)
+                if node is None:
+                    raise PlantError(f"JSBSim could not create property {k!r}")
+                put = setters[k] = node.set_double_value
+            put(float(v))
 
     # -- life cycle ------------------------------------------------------------------------
     def initialise(self, ic: InitialConditions) -> None:
@@ -256,6 +266,15 @@ class JSBSimPlant:
     @property
     def time(self) -> float:
         return self.fdm.get_sim_time()
+
+    def kinematics(self) -> tuple[np.ndarray, np.ndarray]:
+        """True position and velocity NED now [m, m/s], the values of :meth:`truth`: from
+        the truth already read at this sim time, else from its six property reads alone."""
+        tr = self._truth
+        if tr is not None and tr.t == self.time:
+            return tr.pos_ned, tr.vel_ned
+        lat, lon, h_ft, vn, ve, vd = (n.get_double_value() for n in self._truth_nodes[:6])
+        return np.array(self._frame.ned(lat, lon, h_ft * FT)), np.array([vn * FT, ve * FT, vd * FT])
 
     def truth(self) -> VehicleState:
         """True state in the scenario frame (SI); read once per sim time (estimator, sensing and

@@ -109,6 +109,10 @@ PLAN = _obj(
         "times": ({"type": "array", "items": _NUM}, "sim time each vertex is due [s]"),
         "labels": ({"type": "array", "items": {"type": "integer"}}, "mission waypoint index or -1"),
         "diagnostics": ({"type": "object"}, "planner-specific values"),
+        "turn_rates": (
+            {"type": "array", "items": _NUM},
+            "planned air-relative course rate on the leg from each vertex [rad/s], + right (turn-model plans only)",
+        ),
     },
 )
 

@@ -10,7 +10,8 @@ import numpy as np
 
 from sim import scenario as sc
 from sim.core.state import VehicleState
-from sim.geodesy import GeoPoint, ned_to_geodetic
+from sim.estimation.geodetic import LocalGeodetic
+from sim.geodesy import GeoPoint
 
 
 class TrafficObject:
@@ -21,7 +22,7 @@ class TrafficObject:
         self.appear = cfg.appear
         self.p0 = np.array([cfg.north, cfg.east, origin.alt_m - cfg.altitude])
         self.v = np.array([cfg.velocity.north, cfg.velocity.east, cfg.velocity.down])
-        self._origin = origin
+        self._geo = LocalGeodetic(origin)
 
     def exists(self, t: float) -> bool:
         return t >= self.appear
@@ -34,7 +35,7 @@ class TrafficObject:
     def state(self, t: float) -> VehicleState:
         """The object's true state, as sensors see it (heading along its velocity)."""
         p = self.position(t)
-        lat, lon, alt = ned_to_geodetic(p, self._origin)
+        lat, lon, alt = self._geo.ned_to_geodetic(*p.tolist())
         yaw = float(np.arctan2(self.v[1], self.v[0])) if np.any(self.v[:2]) else 0.0
         return VehicleState(
             t=t,

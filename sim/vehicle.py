@@ -62,10 +62,10 @@ class Vehicle:
         self.wind_spec = wind  # the planners' forecast
         self.mission = mission_from_config(cfg, origin)
         self.estimator = make_estimator(cfg.estimator, self.plant, af, seed, origin, cfg.sensors)
-        self._inner_nodes = []  # the inner loops' estimate inputs (aircraft.nav_inputs)
+        self._inner_set = []  # setters of the inner loops' estimate inputs (aircraft.nav_inputs)
         if isinstance(self.estimator, SensorEstimator) and self.inner_loops_on_estimate:
             self.plant[ATTITUDE_SOURCE] = 1.0
-            self._inner_nodes = self.plant.property_nodes(ESTIMATE_PROPERTIES)
+            self._inner_set = [n.set_double_value for n in self.plant.property_nodes(ESTIMATE_PROPERTIES)]
         self.controller = af.make_controller(cfg.gains)
         self.planner: Planner = self.make_mission_planner()
         self.mode = "AUTO"  # AUTO: the mission; HOLD: hover in place; GUIDED: ground-station targets
@@ -157,9 +157,9 @@ class Vehicle:
         assert isinstance(est, SensorEstimator)
         est.sense(t)
         sample = est.attitude.sample
-        if self._inner_nodes and sample is not None and sample.t == t:
-            for node, value in zip(self._inner_nodes, estimate_values(sample), strict=True):
-                node.set_double_value(value)
+        if self._inner_set and sample is not None and sample.t == t:
+            for put, value in zip(self._inner_set, estimate_values(sample), strict=True):
+                put(value)
 
     def _estimate(self, t: float) -> None:
         self.estimate = self.estimator.update(t)

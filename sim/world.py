@@ -149,7 +149,7 @@ class World:
     def check_contacts(self, t: float) -> None:
         """Crashes from the true states (``sim.contacts``), each logged as a ``crash`` event and
         on ``/world/crash``."""
-        truth = [v.plant.truth() for v in self.vehicles]
+        pos, vel = zip(*[v.plant.kinematics() for v in self.vehicles], strict=True)
         live = [o for o in self.objects if o.exists(t)]
         others = Bodies(
             [o.id for o in live],
@@ -157,9 +157,7 @@ class World:
             np.array([o.v for o in live]).reshape(-1, 3),
             np.array([o.radius_m for o in live]),
         )
-        found = self.contacts.check(
-            t, np.array([s.pos_ned for s in truth]), np.array([s.vel_ned for s in truth]), others
-        )
+        found = self.contacts.check(t, np.array(pos), np.array(vel), others)
         for c in found:
             self.log.event(t, f"{c.vehicle}: crash: {c.describe()}", "error", c.vehicle)
             self.log.write_json(

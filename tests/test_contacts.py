@@ -9,7 +9,7 @@ import pytest
 from shapely.geometry import Polygon
 
 from aircraft.registry import get_airframe
-from sim.contacts import Bodies, ContactMonitor, GroundWatch
+from sim.contacts import Bodies, ContactMonitor, GroundWatch, _pairs_within
 from sim.core.threats import PrismObstacle
 from sim.hull import load_hull
 
@@ -134,3 +134,32 @@ def test_quadrotor_dropped_on_its_back_rests_on_its_hull_with_finite_states():
         ups.append(s.alt_msl_m - ground.alt_m)
     top = min(h for h, g in zip(HULL.heights(0.0, math.pi, 0.0), HULL.gear, strict=True) if not g)  # top plate
     assert min(ups) > 0.0 and ups[-1] == pytest.approx(-top, abs=0.02)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_direct_pair_search_finds_the_k_d_trees_pairs(monkeypatch, seed):
+    """Candidate pairs among 12 vehicles and 30 objects in a 10 m cube, and the crashes over
+    one 0.1 s check: the direct distances (small worlds), the k-d tree (large ones) and a plain
+    double loop agree."""
+    rng = np.random.default_rng(seed)
+    n, m = 12, 30
+    p0 = rng.uniform(0.0, 10.0, (n + m, 3))
+    vel = rng.normal(0.0, 5.0, (n + m, 3))
+    p1 = p0 + 0.1 * vel
+    radii = rng.uniform(0.2, 1.5, m)
+    reach = 4.0
+    loop = [(a, b) for a in range(n) for b in range(a + 1, n + m) if np.linalg.norm(p1[a] - p1[b]) <= reach]
+    assert 0 < len(loop) < n * (n + m) // 2
+
+    def found(direct_pairs: int) -> tuple[list, list]:
+        monkeypatch.setattr("sim.contacts._DIRECT_PAIRS", direct_pairs)
+        mon = monitor(n)
+        ids = [f"o{k}" for k in range(m)]
+        check(mon, 0.0, p0[:n], vel[:n], Bodies(ids, p0[n:], vel[n:], radii))
+        crashes = check(mon, 0.1, p1[:n], vel[:n], Bodies(ids, p1[n:], vel[n:], radii))
+        return list(zip(*(a.tolist() for a in _pairs_within(p1, n, reach)), strict=True)), crashes
+
+    (direct, crashes), (tree, tree_crashes) = found(1 << 20), found(0)
+    assert direct == tree == loop
+    assert crashes, "the crowd must produce crashes for the comparison to mean anything"
+    assert crashes == tree_crashes

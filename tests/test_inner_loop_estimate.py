@@ -4,7 +4,6 @@ bias-corrected gyro, and the bias-corrected gyro rates), and on the truth with
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Callable
 from typing import Any
@@ -77,7 +76,7 @@ class _RollOffsetAttitude(GyroAttitude):
     def _add_offset(self) -> None:
         s = self.sample
         assert s is not None
-        self.sample = dataclasses.replace(s, euler=(s.euler[0] + OFFSET, s.euler[1], s.euler[2]))
+        self.sample = s._replace(euler=(s.euler[0] + OFFSET, s.euler[1], s.euler[2]))
 
 
 @pytest.mark.parametrize("name", CASES)

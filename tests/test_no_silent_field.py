@@ -513,6 +513,10 @@ SHOWN_ELSEWHERE = {
         "acts when the goal is covered over the whole horizon (a holding orbit): "
         "tests/test_mptp_holding_speed.py::test_a_predefined_holding_location_is_used_when_it_is_free"
     ),
+    "vehicle.planner<MptpPlanner>.options.wait_step_min_s": (
+        "acts on the wait bound's time step and cells (at most 3 steps per dt no shorter than it): "
+        "tests/test_mptp_optimality.py::test_the_wait_step_sets_the_wait_bound_and_changes_the_search"
+    ),
     "vehicle.planner<MptpPlanner>.options.dominance_s": (
         "acts once the capped search meets a place again at another time (waiting): "
         "tests/test_mptp_optimality.py::test_the_dominance_window_changes_the_search"

@@ -1,5 +1,7 @@
 """Lockstep multi-rate scheduler: rates, ordering, bulk plant stepping."""
 
+import math
+
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -73,3 +75,33 @@ def test_plant_steps_equal_ticks_over_divisor(base, div, n):
         s.add_task("t", base / div, Stage.LOG, lambda t: None)
     s.run(n)
     assert total[0] == n
+
+
+@given(
+    divisors=st.lists(st.sampled_from([1, 2, 3, 4, 6, 8, 12, 24, 48, 240]), min_size=1, max_size=6),
+    plants=st.sets(st.sampled_from([1, 2, 3]), min_size=1),
+    stops=st.lists(st.integers(0, 700), min_size=1, max_size=3),
+)
+def test_the_cycle_table_fires_and_steps_as_the_per_tick_test(divisors, plants, stops):
+    """Tasks and plant steps, in order, with the cycle table and with the per-tick divisor test
+    (a cycle longer than the table's limit), over runs that end between events."""
+
+    def trace(max_cycle: int) -> list[tuple]:
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr("sim.scheduler._MAX_CYCLE", max_cycle)
+            return flown()
+
+    def flown() -> list[tuple]:
+        s = LockstepScheduler(240)
+        out: list[tuple] = []
+        for d in sorted(plants):
+            s.add_plant(f"p{d}", 240 / d, lambda n, d=d: out.append(("step", d, s.tick, n)))
+        common = math.lcm(*plants)
+        for i, d in enumerate(divisors):
+            div = d * common
+            s.add_task(f"t{i}", 240 / div, Stage(i % 6), lambda t, i=i: out.append(("task", i, t)))
+        for until in sorted(stops):
+            s.run(until)
+        return out
+
+    assert trace(1 << 20) == trace(0)

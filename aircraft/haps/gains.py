@@ -86,6 +86,7 @@ class HapsGains:
     # [l1]
     l1_period_s: float = _in("l1")
     l1_damping: float = _in("l1")
+    l1_turn_lead_s: float = _in("l1")
 
     @classmethod
     def load(cls, path: str | Path | None = None) -> HapsGains:

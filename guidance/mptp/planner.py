@@ -240,19 +240,20 @@ class MptpPlanner:
         )
         if traj.start_space is not None:
             diag["vertices"] = len(traj.start_space.boundary.verts)
-        pts, times = traj.positions, traj.times
+        pts, times, rates = traj.positions, traj.times, None
         if cfg.turn_model != "simple" and len(pts) >= 2:
-            pts, times = written_out(pts, times, traj.courses, traj.kinds[1:] == HOLD, cfg)
+            pts, times, rates = written_out(pts, times, traj.courses, traj.kinds[1:] == HOLD, cfg)
         if traj.status == "ok":
             holding = traj.holding_turn >= 2 * math.pi - 1e-6
             labels = np.full(len(pts), -1)
             labels[-1] = k
             diag.update(eta_s=float(traj.times[-1] - t), holding_turns=traj.holding_turn / (2 * math.pi))
             status = PlanStatus.DEGRADED if holding else PlanStatus.OK
-            return self._to_plan(t, est, pts, times, labels, status, diag), traj
+            return self._to_plan(t, est, pts, times, labels, status, diag, rates), traj
         if len(pts) >= 2:  # the search's best progress towards the goal
             diag.update(reason="search " + traj.status + ": partial plan", eta_s=float(traj.times[-1] - t))
-            return self._to_plan(t, est, pts, times, np.full(len(pts), -1), PlanStatus.DEGRADED, diag), traj
+            plan = self._to_plan(t, est, pts, times, np.full(len(pts), -1), PlanStatus.DEGRADED, diag, rates)
+            return plan, traj
         fs = traj.start_space or free_space(tl, p0, t, workspace, cfg.tas_mps, cfg.ring_segments)
         end, _ = safe_area_leg(fs, course, cfg, cfg.tas_mps * cfg.replan_period_s * 2)
         pts = np.vstack([p0, end])
@@ -316,8 +317,10 @@ class MptpPlanner:
         labels: np.ndarray,
         status: PlanStatus,
         diag: dict,
+        turn_rates: np.ndarray | None = None,
     ) -> Plan:
-        """A plan from states (air-mass frame ``ne`` (N, 2) [m] at ``times`` [s]) on the ground."""
+        """A plan from states (air-mass frame ``ne`` (N, 2) [m] at ``times`` [s]) on the ground;
+        ``turn_rates`` (N,) [rad/s]: the model's course rate on each leg (None: straight legs)."""
         ne = to_ground(ne, times, self.wind_ne, self.timeline.t_issue if self.timeline else t)
         d0 = float(est.pos_ned[2])
         d1 = float(self.mission.waypoints[self._goal_index_for(labels), 2])
@@ -329,7 +332,9 @@ class MptpPlanner:
         pos = np.column_stack([ne, down])
         vel = np.diff(pos, axis=0) / np.maximum(np.diff(times), 1e-9)[:, None]
         vel = np.vstack([vel, vel[-1:]]) if len(vel) else np.zeros((1, 3))
-        return Plan(t, pos, np.asarray(times, float), np.asarray(labels), status, vel, self.name, diag)
+        return Plan(
+            t, pos, np.asarray(times, float), np.asarray(labels), status, vel, self.name, diag, turn_rates=turn_rates
+        )
 
     def _goal_index_for(self, labels: np.ndarray) -> int:
         return int(labels.max()) if (labels >= 0).any() else self.mission.next_index

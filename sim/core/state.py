@@ -14,6 +14,7 @@ Frames and units (SI throughout):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -58,10 +59,10 @@ class VehicleState:
         return float(np.arctan2(self.vel_ned[1], self.vel_ned[0]))
 
 
-@dataclass(frozen=True, slots=True)
-class AttitudeSample:
+class AttitudeSample(NamedTuple):
     """Inner-loop inputs at sim time ``t`` [s]: attitude ``euler`` (roll, pitch, yaw; 3-2-1 Euler,
-    body FRD to NED) [rad] and body rates ``rates_body`` (p, q, r about body FRD) [rad/s]."""
+    body FRD to NED) [rad] and body rates ``rates_body`` (p, q, r about body FRD) [rad/s].
+    Immutable; a named tuple because one is made at every gyro sample."""
 
     t: float
     euler: tuple[float, float, float]

@@ -39,7 +39,6 @@ from collections.abc import Iterable
 from typing import Literal
 
 import numpy as np
-from filterpy.kalman import ExtendedKalmanFilter
 from numpy.typing import ArrayLike
 from pydantic import Field
 
@@ -149,6 +148,10 @@ class InsEkf:
             0.0,
             np.zeros(3),
         )
+        # filterpy (and the scipy.stats it loads, ~0.8 s) is imported by the filter, not by the
+        # module: scenario validation imports this module's configuration only.
+        from filterpy.kalman import ExtendedKalmanFilter
+
         kf = self.kf = ExtendedKalmanFilter(dim_x=m.N, dim_z=1)
         kf.x = np.zeros(m.N)
         kf.P = np.diag(

@@ -203,7 +203,7 @@ class SensorEstimator:
                 euler=initial.euler + r_init.normal(0.0, 1.0, 3) * [tilt, tilt, yaw],
             )
         self.ekf = InsEkf(ecfg, init, origin)
-        self._imu_nodes = plant.property_nodes(_IMU_PROPS)
+        self._imu_get = [n.get_double_value for n in plant.property_nodes(_IMU_PROPS)]
         self._truth = TruthSampler(plant)
         self._imu_period = 1.0 / config.sense_hz
         self._fuse_period = 1.0 / config.fusion_hz
@@ -242,7 +242,7 @@ class SensorEstimator:
         self._t_sensed = t
         gyro = None
         if t + _EPS >= self._imu_next:
-            fx, fy, fz, mass, p, q, r = [n.get_double_value() for n in self._imu_nodes]
+            fx, fy, fz, mass, p, q, r = [get() for get in self._imu_get]
             k = _LBF / (mass * _SLUG)
             row = self.imu.measure_one(t, (fx * k, fy * k, fz * k, p, q, r), self._imu_period)
             if row is not None:  # a sample a fault dropped leaves the inner loops on the previous one
