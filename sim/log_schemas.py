@@ -338,6 +338,11 @@ UTM_DIRECTIVE = _obj(
             "sim time the recipient gets it (the first authority tick at or after its arrival) [s]; null: lost",
         ),
         "cases": (_CASES, "the recipient's active cases (roundabout members re-targeted): " + _CASE_FIELDS),
+        "weather": (
+            _CASES,
+            "weather cases of the cells its filed route crosses (utm.weather): id, t, centre_enu [m], margin_m, "
+            "velocity_enu [m/s], moving, body_enu [m]",
+        ),
     },
 )
 

@@ -402,8 +402,16 @@ def _utm(d: dict) -> None:
     _quad(d)["utm_link"] = copy.deepcopy(_UTM_LINK)
 
 
+def _utm_weather(d: dict) -> None:
+    """:func:`_utm` with a weather service (the quadrotor gets its nowcasts unless the
+    authority takes the feed)."""
+    _utm(d)
+    _set("weather", dict(_WEATHER))(d)
+
+
 EFFECTS |= {
     "utm.frame": (_QUAD, _utm, _set("utm.frame", 0.5)),
+    "utm.weather": (_QUAD, _utm_weather, _set("utm.weather", True)),
     "utm.lost_after": (_QUAD, _utm, _set("utm.lost_after", 1.0)),  # the outage then loses the link
     "utm.spoof.peer": (_QUAD, _utm, _set("utm.spoof.0.peer", "phantom")),
     "utm.spoof.at": (_QUAD, _utm, _set("utm.spoof.0.at", 2.0)),
