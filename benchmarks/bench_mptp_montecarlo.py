@@ -5,9 +5,10 @@
     python benchmarks/bench_mptp_montecarlo.py table [--out benchmarks/results/mptp_mc] [--write]
 
 ``run`` plans every trial once per heuristic (sim/testbeds/mptp_montecarlo.py) on a process pool
-(or a Dask cluster's executor), storing each field's rows as it finishes (an interrupted run
-resumes), then writes ``trials.csv`` (one row per trial and heuristic) and ``summary.json`` and
-prints the Markdown table; ``table`` does the last two from the stored fields; ``--write``
+(or a Dask cluster's executor), storing each field's rows in ``--out``/fields as it finishes (an
+interrupted run resumes, from any checkout whose study configuration is the same), then
+writes ``trials.csv`` (one row per trial and heuristic) and ``summary.json`` and prints the
+Markdown table; ``table`` does the last two from the stored fields; ``--write``
 puts the table into docs/mptp.md (between its ``montecarlo`` markers). Success counts
 are deterministic for a seed; runtimes are the worker's CPU time per search on this (shared)
 machine, so the table also gives them as ratios to EDH measured on the same trials in the same run.
@@ -56,7 +57,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1, help="master seed of the trial draws")
     ap.add_argument("--dask", metavar="ADDRESS", help="run on this Dask scheduler instead of a process pool")
-    ap.add_argument("--out", type=Path, default=OUT)
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=OUT,
+        help="directory of the resume data (fields/) and the results; for a long run put it outside the "
+        "checkout, e.g. /work/mptp_mc, so that it survives the worktree's removal",
+    )
     ap.add_argument("--write", action="store_true", help=f"put the table into {DOC}")
     a = ap.parse_args(argv)
     if a.trials < 1 or a.per_field < 1 or a.workers < 1:

@@ -109,6 +109,10 @@ PLAN = _obj(
         "times": ({"type": "array", "items": _NUM}, "sim time each vertex is due [s]"),
         "labels": ({"type": "array", "items": {"type": "integer"}}, "mission waypoint index or -1"),
         "diagnostics": ({"type": "object"}, "planner-specific values"),
+        "turn_rates": (
+            {"type": "array", "items": _NUM},
+            "planned air-relative course rate on the leg from each vertex [rad/s], + right (turn-model plans only)",
+        ),
     },
 )
 
@@ -340,6 +344,11 @@ UTM_DIRECTIVE = _obj(
             "sim time the recipient gets it (the first authority tick at or after its arrival) [s]; null: lost",
         ),
         "cases": (_CASES, "the recipient's active cases (roundabout members re-targeted): " + _CASE_FIELDS),
+        "weather": (
+            _CASES,
+            "weather cases of the cells its filed route crosses (utm.weather): id, t, centre_enu [m], margin_m, "
+            "velocity_enu [m/s], moving, body_enu [m]",
+        ),
     },
 )
 

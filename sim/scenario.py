@@ -665,11 +665,14 @@ class Utm(_Strict):
     """The central UTM authority (``sim/utm_authority.py``): decision ``frame`` period; a link is
     lost after ``lost_after`` without a message (the authority drops a silent vehicle from its
     cases; a vehicle without directives flies blind, the rules of the air on its own tracks);
-    ``spoof``: forged cases (:class:`UtmSpoof`)."""
+    ``spoof``: forged cases (:class:`UtmSpoof`); ``weather``: the weather service's nowcasts go
+    to the authority instead of the vehicles, and it sends each vehicle the weather cases of the
+    cells its filed route crosses in its directives (§7.5; needs ``[weather]``)."""
 
     frame: Annotated[float, quantity("time", 0.0, 60.0, lo_open=True)] = 1.0
     lost_after: Annotated[float, quantity("time", 0.0, 600.0, lo_open=True)] = 3.0
     spoof: list[UtmSpoof] = []
+    weather: bool = False
 
     @model_validator(mode="after")
     def _lost_after_frames(self) -> Utm:
@@ -754,6 +757,8 @@ class Scenario(_Strict):
         for k, sp in enumerate(self.utm.spoof if self.utm is not None else []):
             if sp.vehicle not in names:
                 raise ValueError(f"utm.spoof[{k}].vehicle: no vehicle {sp.vehicle!r} (vehicles: {', '.join(names)})")
+        if self.utm is not None and self.utm.weather and self.weather is None:
+            raise ValueError("utm.weather needs the [weather] section (the weather service)")
         if self.utm is not None and self.utm.frame < 1.0 / self.logging.rate_hz - 1e-9:
             raise ValueError(
                 f"utm.frame: {self.utm.frame:g} s is shorter than a log tick ({1.0 / self.logging.rate_hz:g} s), "

@@ -15,6 +15,11 @@ remaining mission waypoints from the estimate at cruise speed sampled every fram
 vehicles (rules planners, :meth:`avoidance.rules.planner.RulesAvoider.join_utm`) obey and
 acknowledge every directive they receive; the others only notify (their directives go unheard).
 
+With ``utm.weather`` the weather service's nowcasts come to the authority (not to the vehicles):
+each directive also carries the weather cases (§7.5) of the cells the recipient's filed route
+(from its notified position through its remaining mission waypoints) crosses at its notified
+height, with the weather band of its registration.
+
 Topics: ``/utm/notification``, ``/utm/frame``, ``/utm/directive``, ``/utm/ack``, ``/utm/link``
 (the authority's view of a vehicle's link: lost / up), ``/utm/breach`` (an active case whose
 notified separation is below its margin, once per case chain), ``/utm/spoof`` (forged cases
@@ -34,8 +39,10 @@ from avoidance.utm.cases import CaseBook, as_roundabout
 from avoidance.utm.collision_case import CollisionCase, Encounter, Role, UtmConfig
 from avoidance.utm.directives import Directive
 from avoidance.utm.notification import PositionNotification, Registration, along_path
+from avoidance.utm.weather_case import WeatherCase, crossing, weather_cases
 from sim import log_schemas as S
 from sim.core.frames import ned_to_enu
+from sim.core.threats import StormSnapshot
 from sim.mcap_log import McapLog
 from sim.scenario import Utm, UtmSpoof
 from sim.utm_link import Link, Queue
@@ -92,6 +99,7 @@ class UtmAuthority:
         self.book = CaseBook(book_cfg or UtmConfig())
         self.up = Queue()
         self.frame_no = 0
+        self.storms: list[StormSnapshot] = []  # the newest nowcast, with ``utm.weather``
         self._breached: set[tuple[tuple[str, str], float | None]] = set()
 
     def tick(self, t: float) -> None:
@@ -150,7 +158,7 @@ class UtmAuthority:
         )
         for name, m in self.members.items():
             cases = [as_roundabout(c, rbs[name]) if name in rbs else c for c in active if name in c.ids]
-            d = Directive(self.frame_no, t, name, tuple(cases) + self._spoofed(t, name))
+            d = Directive(self.frame_no, t, name, tuple(cases) + self._spoofed(t, name), self._weather(m, t))
             self._send_down(t, m, d)
         for name, m in self.members.items():
             self._send_up(t, name, ("note", name, self._notification(m, t)))
@@ -168,6 +176,19 @@ class UtmAuthority:
                 note.t >= m.first_t + rules.settle and note.speed >= rules.established_speed * m.registration.max_cruise
             )
         return m.established or m.planner is None
+
+    def _weather(self, m: Member, t: float) -> tuple[WeatherCase, ...]:
+        """The weather cases of the cells ``m``'s filed route crosses at frame time ``t`` [s]
+        (none while its link is lost); a moving cell swept over the time the route takes at
+        cruise speed."""
+        note = m.last_note
+        if not self.storms or note is None or m.lost:
+            return ()
+        cases = weather_cases(self.storms, t, m.registration.margins.weather, up_m=float(note.pos[2]))
+        mission = m.vehicle.mission
+        route = np.vstack([note.pos, ned_to_enu(mission.waypoints[mission.next_index :])])
+        length = float(np.linalg.norm(np.diff(route, axis=0), axis=1).sum())
+        return tuple(crossing(cases, route, length / mission.cruise_speed))
 
     def _unacknowledged(self) -> list[str]:
         """Directed vehicles whose newest acknowledgement is more than ``lost_after`` old."""
@@ -201,6 +222,7 @@ class UtmAuthority:
                 "to": d.to,
                 "received_t": self._handed(due),
                 "cases": [c.record() for c in d.cases],
+                "weather": [w.record() for w in d.weather],
             },
             S.UTM_DIRECTIVE,
             _META,

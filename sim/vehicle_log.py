@@ -498,6 +498,7 @@ class VehicleLogWriter:
                 "times": plan.times.tolist(),
                 "labels": plan.labels.tolist(),
                 "diagnostics": plan.diagnostics,
+                **({} if plan.turn_rates is None else {"turn_rates": plan.turn_rates.tolist()}),
             },
             S.PLAN,
             {"frame": "local-level NED from the scenario origin", **wallclock_metadata(plan.planner, "")},

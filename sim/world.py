@@ -181,8 +181,11 @@ class World:
     def sense(self, t: float) -> None:
         """Weather nowcasts and traffic tracks into every vehicle's threats."""
         if self.weather is not None and self.weather.update(t):
-            for v in self.vehicles:
-                v.threats.storms = self.weather.nowcast
+            if self.utm is not None and self.scenario.utm is not None and self.scenario.utm.weather:
+                self.utm.storms = self.weather.nowcast  # the authority's feed: weather cases in its directives
+            else:
+                for v in self.vehicles:
+                    v.threats.storms = self.weather.nowcast
             truth = self.weather.truth(t)
             self.log.write_proto("/world/weather/storms", t, _geojson(storms_geojson(truth, self._lonlat)))
         if not self.perception:

@@ -202,6 +202,7 @@ def test_summary_counts_induced_nmacs_and_ratios():
     assert s["risk_ratio_ci95"][0] < 1 / 6 < s["risk_ratio_ci95"][1]
 
 
+CI_ENCOUNTERS = 8  # encounters of CAMPAIGN flown, each in both modes, by the CI campaign test
 CAMPAIGN = """
 name = "ci"
 seed = 5
@@ -229,33 +230,32 @@ surveillance_dropout = 0.0
 
 
 def test_ci_campaign_outcomes_match_hand_computed_geometry(tmp_path):
-    """20 encounters, head-on/crossing with a zero or 500 m miss against a scripted 0.5 m sphere:
+    """8 encounters, head-on/crossing with a zero or 500 m miss against a scripted 0.5 m sphere:
     unmitigated, a zero miss is an NMAC (5 m / 2.5 m cylinder) and 500 m is not, both lose well
     clear (2000 ft / 250 ft); counts, outputs, kept logs and resume."""
-    path = tmp_path / "ci.toml"
-    path.write_text(textwrap.dedent(CAMPAIGN))
+    path = _campaign_file(tmp_path, **{"encounters = 20": f"encounters = {CI_ENCOUNTERS}"})
     out = tmp_path / "out"
     c = load_campaign(path, out)
-    assert len(c.runs) == 40 and c.planner == "geometric"
+    assert len(c.runs) == 2 * CI_ENCOUNTERS and c.planner == "geometric"
     summary = run_campaign(c, out, workers=2)["geometric"]
     with open(out / "encounters.csv") as f:
         rows = list(csv.DictReader(f))
-    assert len(rows) == 40 and {r["mode"] for r in rows} == {"mitigated", "unmitigated"}
+    assert len(rows) == 2 * CI_ENCOUNTERS and {r["mode"] for r in rows} == {"mitigated", "unmitigated"}
     unm = [r for r in rows if r["mode"] == "unmitigated"]
     zero = [r for r in unm if float(r["hmd"]) == 0.0]
-    assert zero and len(zero) < 20
+    assert zero and len(zero) < CI_ENCOUNTERS
     for r in unm:
         assert (r["nmac"] == "True") == (float(r["hmd"]) == 0.0), r
         assert r["lowc"] == "True", r  # 500 m is inside the 2000 ft (609.6 m) well-clear radius
     mit = [r for r in rows if r["mode"] == "mitigated"]
-    assert summary["n"] == 20 and summary["nmac_unmitigated"] == len(zero)
+    assert summary["n"] == CI_ENCOUNTERS and summary["nmac_unmitigated"] == len(zero)
     assert summary["nmac_mitigated"] == sum(r["nmac"] == "True" for r in mit)
     assert summary["risk_ratio"] == pytest.approx(summary["nmac_mitigated"] / len(zero))
     # a mitigated run that touches the sphere crashes (sim/contacts.py) and so does not complete
     crashed = [r for r in mit if r["status"] == "crashed"]
     assert all(r["nmac"] == "True" for r in crashed)
-    assert summary["induced_nmac"] == 0 and summary["completion_rate"] == 1.0 - len(crashed) / 20
-    assert json.loads((out / "summary.json").read_text())["geometric"]["n"] == 20
+    assert summary["induced_nmac"] == 0 and summary["completion_rate"] == 1.0 - len(crashed) / CI_ENCOUNTERS
+    assert json.loads((out / "summary.json").read_text())["geometric"]["n"] == CI_ENCOUNTERS
     assert "risk_ratio" in (out / "report.md").read_text() and (out / "separation.png").is_file()
     kept = {r["mcap"] for r in rows if r["mcap"]}
     assert all((out / k).is_file() for k in kept) and len(list((out / "runs").glob("*.mcap"))) == len(kept)
@@ -321,7 +321,7 @@ def test_bad_campaign_files_are_one_line_errors(tmp_path, replace, message):
 @pytest.mark.closed_loop
 def test_campaign_same_outputs_on_process_pool_and_dask(tmp_path):
     distributed = pytest.importorskip("distributed")
-    path = _campaign_file(tmp_path, **{"encounters = 20": "encounters = 3"})
+    path = _campaign_file(tmp_path, **{"encounters = 20": "encounters = 2"})
     pool = run_campaign(load_campaign(path, tmp_path / "pool"), tmp_path / "pool", workers=2)
     with (
         distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster,
@@ -334,7 +334,7 @@ def test_campaign_same_outputs_on_process_pool_and_dask(tmp_path):
         with open(tmp_path / folder / "encounters.csv") as f:
             return [{k: v for k, v in r.items() if k != "latency_p95_ms"} for r in csv.DictReader(f)]  # wall clock
 
-    assert table("pool") == table("dask") and len(table("pool")) == 6
+    assert table("pool") == table("dask") and len(table("pool")) == 4
 
 
 def test_every_parameter_and_setup_field_reaches_the_scenario():

@@ -1,6 +1,7 @@
 """HAPS autopilot: gains file, L1 guidance geometry, TECS logic, and closed loops on the JSBSim
 model (truth as the estimate; JSBSim at 120 Hz, outer loops and L1 at 10 Hz)."""
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -168,6 +169,34 @@ def test_roll_command_is_limited_and_slewed():
     rolls = [ap.update(s, FixedWingSetpoint(1.0, ALT, TAS), DT)["ap/roll-cmd-rad"] for _ in range(100)]
     assert np.diff(rolls).max() <= g.roll_rate_limit_rad_s * DT + 1e-12
     assert rolls[-1] == pytest.approx(g.roll_limit_rad)
+
+
+def test_bank_is_limited_to_the_minimum_turn_radius_at_low_airspeed():
+    """At TAS 8.5 m/s (EAS 8.1 m/s at 1 km) the bank command stops at atan(V^2 / (g R_min)),
+    ~5 deg; halving R_min raises it; at 30 m/s the 20 deg limit binds."""
+    g = HapsGains.load()
+    for gains, speed in ((g, 8.5), (dataclasses.replace(g, turn_radius_min_m=g.turn_radius_min_m / 2), 8.5), (g, 30.0)):
+        ap = HapsAutopilot(gains)
+        s = _state(0.0, 0.0, 0.0, speed)
+        ap.reset(s)
+        roll = [ap.update(s, FixedWingSetpoint(1.0, ALT, speed), DT)["ap/roll-cmd-rad"] for _ in range(100)][-1]
+        expected = min(g.roll_limit_rad, math.atan(speed * speed / (9.80665 * gains.turn_radius_min_m)))
+        assert roll == pytest.approx(expected, rel=1e-9) and ap.debug["bank_max_rad"] == pytest.approx(expected)
+    assert math.degrees(math.atan(8.5**2 / (9.80665 * g.turn_radius_min_m))) == pytest.approx(4.95, abs=0.05)
+
+
+def test_l1_distance_floor_softens_the_demand_at_low_speed():
+    """At 8.5 m/s the L1 distance 0.75 x 25 x V / pi = 51 m is below the 85 m floor: the same
+    cross-track error asks for a lateral acceleration smaller by 51/85 (small angles)."""
+    a, b = np.zeros(3), np.array([10_000.0, 0.0, 0.0])
+    s = _state(1000.0, 2.0, 0.0, 8.5)
+    free = L1Guidance(25.0, 0.75, math.radians(20.0)).update(s, a, b).roll_rad
+    floored = L1Guidance(25.0, 0.75, math.radians(20.0), distance_min_m=85.0).update(s, a, b).roll_rad
+    l1 = 0.75 * 25.0 * 8.5 / math.pi
+    assert math.tan(floored) / math.tan(free) == pytest.approx((l1 / 85.0) ** 2, rel=1e-3)
+    assert L1Guidance.for_airframe(HapsAutopilot(HapsGains.load())).distance_min_m == 85.0
+    with pytest.raises(ValueError, match="minimum distance"):
+        L1Guidance(25.0, 0.75, 0.3, distance_min_m=0.0)
 
 
 # -- closed loop on the JSBSim model ---------------------------------------------------------------

@@ -25,6 +25,10 @@ def box_run(fly_in, tmp_path_factory):
     return run.scenario, run.result, run.path
 
 
+# 75 min of flight: in CI the HAPS's box tracking to completion is checked on the 4 km box in wind
+# and turbulence (test_closed_loop_estimates.py), the waypoint events on quadrotor missions
+# (test_mavlink_live.py, test_geometric_closed_loop.py)
+@pytest.mark.slow
 def test_box_mission_completes_with_tight_tracking(box_run):
     scenario, result, path = box_run
     assert result.status == "completed", result
@@ -80,10 +84,10 @@ def _payloads(path: Path) -> dict[str, list[tuple[int, bytes]]]:
 
 
 def test_same_seed_same_payloads(fly):
-    a = fly("haps_box_mission", "a", duration=240.0)
-    b = fly("haps_box_mission", "b", duration=240.0)
+    a = fly("haps_box_mission", "a", duration=60.0)
+    b = fly("haps_box_mission", "b", duration=60.0)
     pa, pb = _payloads(a.path), _payloads(b.path)
-    assert len(pa["/haps/truth/state"]) == 2401
+    assert len(pa["/haps/truth/state"]) == 601
     assert pa == pb
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 
 import numpy as np
@@ -270,6 +271,29 @@ def test_a_four_trial_study_on_the_process_pool_resumes(tmp_path):
     again = mc.run_study(4, 2, 3, tmp_path, workers=1)
     assert any(r["status"] == "from disk" for r in again)
     assert [r["success"] for r in again] == [r["success"] for r in rows]
+
+
+def test_a_field_stored_under_another_study_configuration_is_run_again(tmp_path, monkeypatch):
+    """Resume data may sit anywhere (here a temporary directory) and is reused only when the
+    seed, the field size and the study fingerprint (configs + field spec) match."""
+    ran: list[int] = []
+
+    def fake_field(field: int, n: int, seed: int) -> list[dict]:
+        ran.append(field)
+        return [{"heuristic": "edh", "status": f"run {field}"}]
+
+    monkeypatch.setattr(mc, "run_field", fake_field)
+    with ThreadPoolExecutor(1) as ex:
+        mc.run_study(20, 10, 3, tmp_path, ex)
+        assert sorted(ran) == [0, 1]
+        path = mc.field_path(tmp_path, 1)
+        stored = json.loads(path.read_text())
+        assert stored["study"] == mc.study_fingerprint()
+        stored["study"] = "another study"
+        path.write_text(json.dumps(stored))
+        ran.clear()
+        rows = mc.run_study(20, 10, 3, tmp_path, ex)
+    assert ran == [1] and [r["status"] for r in rows] == ["run 0", "run 1"]
 
 
 def test_the_trapped_trial_whose_obstacle_was_a_collection_is_planned():

@@ -83,9 +83,13 @@ class _Oracle:
 FAST_SEEDS = (3, 5, 10)  # the oracle takes seconds on these, up to ~20 s on the others
 
 
+@pytest.mark.parametrize("wait_step", [20.0, 60.0])
 @pytest.mark.parametrize("seed", [s if s in FAST_SEEDS else pytest.param(s, marks=pytest.mark.slow) for s in range(12)])
-def test_planner_arrival_within_two_percent_of_the_exhaustive_optimum(seed):
+def test_planner_arrival_within_two_percent_of_the_exhaustive_optimum(seed, wait_step):
+    """Also with the wait bound on one time step per planning interval (``wait_step_min_s`` =
+    dt, the coarse bound that small dt get): still admissible and within 2 %."""
     tl, p0, goal, cfg = _instance(seed)
+    cfg = cfg.with_(wait_step_min_s=wait_step)
     traj = plan_trajectory(tl, p0, 0.0, 0.0, goal, cfg)
     assert traj.status == "ok"
     arrival = float(traj.times[-1])
@@ -115,4 +119,25 @@ def test_the_dominance_window_changes_the_search():
         tl, p0, goal, cfg = _instance(seed)
         plans = [plan_trajectory(tl, p0, 0.0, 0.0, goal, cfg.with_(dominance_s=d)) for d in (cfg.dominance_s, 1e-3)]
         changed.append(plans[0].status != plans[1].status or not np.array_equal(plans[0].times, plans[1].times))
+    assert any(changed)
+
+
+def test_the_wait_step_sets_the_wait_bound_and_changes_the_search():
+    """``wait_step_min_s``: dt split into at most 3 wait-bound steps no shorter than it; at dt
+    60 s, 20 s gives 3 steps of 20 s and 60 s one step of 60 s (cells 3x as wide), and some
+    instance's search changes."""
+    assert [MptpConfig(dt_s=dt).wait_substeps for dt in (30.0, 50.0, 60.0, 100.0)] == [1, 2, 3, 3]
+    changed = []
+    for seed in range(12):
+        tl, p0, goal, cfg = _instance(seed)
+        runs = []
+        for step in (20.0, 60.0):
+            c = cfg.with_(wait_step_min_s=step)
+            w = default_workspace(np.vstack([p0, goal.at(0.0)]), c, c.mission_area)
+            exp = _Expander(tl, goal, c, w, c.turning)
+            exp.t_start, exp.t_end = 0.0, c.horizon_s
+            assert exp._wait_bound().tau == pytest.approx(step)
+            assert exp._wait_bound().cell == pytest.approx(c.tas_mps * step)
+            runs.append(plan_trajectory(tl, p0, 0.0, 0.0, goal, c))
+        changed.append(runs[0].expanded != runs[1].expanded or not np.array_equal(runs[0].times, runs[1].times))
     assert any(changed)

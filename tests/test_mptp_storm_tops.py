@@ -101,6 +101,39 @@ def test_each_replan_plans_at_the_current_airspeed_and_its_turn_radius():
     assert fixed.plan(vehicle_state(0.0, np.zeros(2), math.pi / 2, 10.3), Threats(), 0.0).diagnostics["tas_mps"] == 26.0
 
 
+def test_a_partial_plan_climbs_towards_the_goal_at_the_climb_rate_within_the_band():
+    """At the expansion cap the plan does not reach the goal: its heights go from the current
+    one towards the goal's at climb_rate_mps over the plan's time (not held level), stop at the
+    horizon's reach, and descend the same way towards a lower goal."""
+    cfg = MptpConfig(max_expansions=3, climb_rate_mps=0.5, horizon_s=1800.0)
+    for up, goal_up in ((2000.0, 18_000.0), (6000.0, 1000.0)):
+        planner = MptpPlanner(Mission(np.array([[0.0, 40_000.0, -goal_up]]), cfg.tas_mps, 500.0), cfg)
+        est = vehicle_state(0.0, np.zeros(2), math.pi / 2, 26.0)
+        est.pos_ned[2] = -up
+        storm = StormSnapshot(0.0, (CELL,), np.zeros((1, 2)), np.array([[-np.inf, 14_000.0]]))
+        plan = planner.plan(est, Threats(storms=[storm]), 0.0)
+        assert plan.status == PlanStatus.DEGRADED and "partial plan" in plan.diagnostics["reason"]
+        heights = -plan.positions[:, 2]
+        expected = up + np.sign(goal_up - up) * 0.5 * np.minimum(plan.times, 1800.0)
+        np.testing.assert_allclose(heights, expected, atol=1e-6)
+        assert plan.times[-1] > 60.0 and abs(heights[-1] - up) > 25.0
+        lo, hi = altitude_band(up, goal_up, 0.5, 1800.0)
+        assert lo - 1e-6 <= heights.min() and heights.max() <= hi + 1e-6
+
+
+@pytest.mark.closed_loop
+def test_the_launch_climb_does_not_stall_under_partial_plans(fly):
+    """The shipped launch through the storm line: the first replans stop at the expansion cap
+    (the goal ~57 km away around the line at ~11 m/s), and the HAPS climbs on their heights at
+    about TECS's 1 m/s (it held ~100 m for ~1,000 s while partial plans were level)."""
+    run = fly("haps_climb_through_storms", duration=300.0)
+    plans = run.log.topic("/haps/plan").messages
+    assert plans and all("partial plan" in p["diagnostics"].get("reason", "") for p in plans)
+    truth = run.log.topic("/haps/truth/state")
+    alt, t = truth["alt_msl_m"], truth.t
+    assert alt[-1] - alt[0] > 0.85 * (t[-1] - t[0])  # ~1 m/s less the first seconds' transient
+
+
 def test_storm_distance_is_to_the_prism():
     s = StormSnapshot(0.0, (box(0, 0, 1000, 1000),), None, np.array([[500.0, 3000.0]]))
     assert storm_distance(s, np.array([500.0, 500.0, -2000.0])) == 0.0  # inside
@@ -243,3 +276,67 @@ def test_launch_to_18_km_through_a_line_of_storms(fly):
     assert ignored.any() and up0[ignored > 0].min() > 15_000.0 - 50.0  # EKF altitude error
     tas = np.array([p["diagnostics"].get("tas_mps", np.nan) for p in plans])
     assert np.nanmax(tas[up0 > 15_000.0]) > 1.8 * np.nanmin(tas[up0 < 2000.0])
+
+
+DESCENT = "haps_descent_through_storms"
+LOW_CELL = box(-16_500.0, -1500.0, -13_500.0, 1500.0)  # (north, east): the 6 km cell across the south leg
+LOW_CELL_APPLIES_M = 6000.0 + 1000.0 + 3600.0  # top + vertical margin + the band's reach (1 m/s x 1 h)
+
+
+def _check_low_cell_rule(plans: list[dict]) -> None:
+    """The 6 km cell (the only one that can be left out: the 14 km one is within 1 km of every
+    band of the descent) is left out of the plans made above LOW_CELL_APPLIES_M and kept in those
+    made below it (50 m of slack each way for the EKF's altitude error)."""
+    up0 = np.array([-p["positions"][0][2] for p in plans])
+    ignored = np.array([p["diagnostics"].get("cells_ignored", 0) for p in plans])
+    high, low = up0 > LOW_CELL_APPLIES_M + 50.0, up0 < LOW_CELL_APPLIES_M - 50.0
+    assert high.any() and low.any() and ignored.max() <= 1
+    assert (ignored[high] == 1).all() and (ignored[low] == 0).all()
+    for p in (p for p, lo in zip(plans, low, strict=True) if lo):
+        assert not shapely.LineString(np.array(p["positions"])[:, :2]).intersects(LOW_CELL)
+
+
+@pytest.mark.closed_loop
+def test_descent_through_the_weather_layer_goes_around_the_cells_it_can_reach(fly, scenario_data):
+    """CI's short version of the descent: from 10.85 km on the shipped square's south leg 15 km
+    west of the 6 km cell, descending at the polar's glide sink (~0.58 m/s there). The plans fly
+    straight over the cell while the HAPS can not come within 1 km of its top in the horizon,
+    and go around it once it can (the replan at 600 s, at ~10.5 km); the HAPS descends all along
+    and is never inside a storm prism."""
+    data = scenario_data(DESCENT)
+    data["duration"] = 660.0
+    vehicle = data["vehicle"][0]
+    vehicle["initial"] |= {"north": -15_000.0, "east": -30_000.0, "altitude": 10_850.0, "airspeed": 16.4, "heading": 90}
+    wps = vehicle["mission"]["waypoints"]
+    vehicle["mission"]["waypoints"] = wps[2:] + wps[:2]  # the south-east corner first: along the south leg
+    run = fly(data)
+    assert run.result.status == "duration_elapsed"
+    plans = run.log.topic("/haps/plan").messages
+    _check_low_cell_rule(plans)
+    straight = [p for p in plans if p["diagnostics"].get("cells_ignored") == 1]
+    assert all(np.abs(np.array(p["positions"])[:, 0] + 15_000.0).max() < 100.0 for p in straight)
+    assert np.abs(np.array(plans[-1]["positions"])[:, 0] + 15_000.0).max() > 3000.0  # around the cell
+    truth = run.log.topic("/haps/truth/state")
+    alt, t = truth["alt_msl_m"], truth.t
+    assert np.all(np.diff(alt[::30]) < 0.0) and (alt[0] - alt[-1]) / (t[-1] - t[0]) > 0.45  # m/s
+    assert abs(truth["pos_ned"][-1, 0] + 15_000.0) > 300.0  # turned off the leg
+    storms = log_metrics(run.log)["vehicles"]["haps"]["storms"]
+    assert storms["time_inside_s"] == 0.0
+
+
+@pytest.mark.slow
+@pytest.mark.closed_loop
+def test_descent_from_18_km_to_1_km_through_the_weather_layer(fly):
+    """The shipped descent whole: 18 km -> 1 km on the square past the 14 km and the 6 km cell
+    under the MPTP. Never inside a storm prism; the 6 km cell left out of the plans only above
+    10.6 km; the descent reaches 1 km and holds it."""
+    run = fly(DESCENT)
+    assert run.result.status == "duration_elapsed"
+    storms = log_metrics(run.log)["vehicles"]["haps"]["storms"]
+    assert storms["time_inside_s"] == 0.0
+    _check_low_cell_rule(run.log.topic("/haps/plan").messages)
+    truth = run.log.topic("/haps/truth/state")
+    alt, t = truth["alt_msl_m"], truth.t
+    reached = t[alt < 1005.0]
+    assert reached.size and reached[0] < t[-1] - 600.0
+    assert np.abs(alt[t > reached[0] + 300.0] - 1000.0).max() < 10.0

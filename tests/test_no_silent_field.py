@@ -402,8 +402,16 @@ def _utm(d: dict) -> None:
     _quad(d)["utm_link"] = copy.deepcopy(_UTM_LINK)
 
 
+def _utm_weather(d: dict) -> None:
+    """:func:`_utm` with a weather service (the quadrotor gets its nowcasts unless the
+    authority takes the feed)."""
+    _utm(d)
+    _set("weather", dict(_WEATHER))(d)
+
+
 EFFECTS |= {
     "utm.frame": (_QUAD, _utm, _set("utm.frame", 0.5)),
+    "utm.weather": (_QUAD, _utm_weather, _set("utm.weather", True)),
     "utm.lost_after": (_QUAD, _utm, _set("utm.lost_after", 1.0)),  # the outage then loses the link
     "utm.spoof.peer": (_QUAD, _utm, _set("utm.spoof.0.peer", "phantom")),
     "utm.spoof.at": (_QUAD, _utm, _set("utm.spoof.0.at", 2.0)),
@@ -504,6 +512,10 @@ SHOWN_ELSEWHERE = {
     "vehicle.planner<MptpPlanner>.options.holding_points": (
         "acts when the goal is covered over the whole horizon (a holding orbit): "
         "tests/test_mptp_holding_speed.py::test_a_predefined_holding_location_is_used_when_it_is_free"
+    ),
+    "vehicle.planner<MptpPlanner>.options.wait_step_min_s": (
+        "acts on the wait bound's time step and cells (at most 3 steps per dt no shorter than it): "
+        "tests/test_mptp_optimality.py::test_the_wait_step_sets_the_wait_bound_and_changes_the_search"
     ),
     "vehicle.planner<MptpPlanner>.options.dominance_s": (
         "acts once the capped search meets a place again at another time (waiting): "

@@ -84,6 +84,7 @@ def test_storm_s4_moving_constraint_keeps_its_margin_and_completes(fly, scenario
     assert m["storms"]["min_distance_m"] >= (5.0 - 0.5) * SCALE
 
 
+@pytest.mark.slow  # a non-strict xfail cannot fail CI; the 10-seed batch is the measure
 @pytest.mark.xfail(
     strict=False,
     reason="S8 is not met on every seed (docs/reachset.md, S8 batch table: the pairs under the "

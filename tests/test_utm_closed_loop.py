@@ -15,7 +15,7 @@ import pytest
 
 from sim import log_schemas as S
 from sim.replay import rerun
-from sim.replay.report import log_metrics
+from sim.replay.report import log_metrics, write_report
 from sim.replay.rerun import rerun_planner
 from sim.replay.runlog import RunLog
 
@@ -150,6 +150,42 @@ def test_forged_case_about_a_vehicle_that_does_not_exist_is_not_obeyed(s9_degrad
     p = log.topic("/uas2/truth/state")["pos_ned"]
     ghost = np.array([GHOST["north"], GHOST["east"], -(GHOST["altitude"] - 400.0)])
     assert np.linalg.norm(p - ghost, axis=1).min() < 5.0
+
+
+def trail(log: RunLog, out: Path) -> list[tuple[float, float | None, str, str]]:
+    """The rows of the Markdown replay report's decision trail: from, until (None: an instant)
+    [s], who, decision."""
+    report, _ = write_report(log.path, out)
+    section = report.read_text().split("## Decision trail\n\n", 1)[1].split("\n\n", 1)[0]
+    rows = []
+    for line in section.splitlines()[2:]:
+        start, end, who, what = (x.strip() for x in line.strip("|").split("|"))
+        rows.append((float(start), float(end) if end else None, who, what))
+    return rows
+
+
+def test_replay_report_tables_the_decision_trail(s9_degraded, tmp_path):
+    """``cosim replay``'s report: the authority's case with its roles, uas1 obeying it, the
+    authority losing uas1's link and uas1 going blind in the outage (obeying nothing), directed
+    again after it, the forged case sent to uas2 and uas2 ignoring it, in time order."""
+    rows = trail(s9_degraded, tmp_path)
+    assert rows == sorted(rows, key=lambda r: (r[0], r[2], r[3]))
+
+    def find(who: str, what: str) -> list[tuple[float, float | None, str, str]]:
+        return [r for r in rows if r[2] == who and r[3] == what]
+
+    (case,) = find("utm", "case uas1-uas2 converging: uas1 converging, uas2 right_of_way, margin 40 m")
+    obey = find("uas1", "rule:utm_case:self-uas2:converging:converging")
+    assert obey and obey[0][0] >= case[0]
+    (lost,) = find("utm", "link to uas1 lost")
+    (blind,) = find("uas1", "rule:utm_blind")
+    assert lost[1] is None and all(OUTAGE[0] + 3.0 <= r[0] <= OUTAGE[0] + 5.0 for r in (lost, blind))
+    assert any(r[1] is not None and r[1] < blind[0] for r in obey)
+    assert not any(blind[0] <= r[0] < OUTAGE[1] for r in obey)
+    assert any(OUTAGE[1] <= r[0] <= OUTAGE[1] + 2.0 for r in find("uas1", "rule:utm_cooperative"))
+    (forged,) = find("utm", "forged case ghost to uas2")
+    assert forged[0] == 5.0
+    assert find("uas2", "rule:utm_unconfirmed:self-ghost:head_on:roundabout")
 
 
 SEEDS = range(20)

@@ -19,7 +19,9 @@ demand is the climb or descent EAS (converted to TAS at the current density rati
 Sink limit: ``sink_rate_max``, but never more than the drag polar's glide sink at the descent EAS
 (TAS x CD/CL in level 1-g flight at the current density): lower down the airframe cannot lose
 height faster at that airspeed with the motors at idle, so a larger sink demand would be flown
-by diving faster than the schedule (EAS 11 instead of 9 m/s below 3 km). Demands are
+by diving faster than the schedule (EAS 11 instead of 9 m/s below 3 km). Bank: the setpoint's, limited to
+``roll_limit_rad`` and to the bank of a ``turn_radius_min_m`` turn at the current TAS (slower, the
+turn's yaw rate overbanks the long wing beyond full aileron), then slewed. Demands are
 shaped first: the altitude and airspeed references move toward the setpoint no
 faster than the climb/sink and acceleration limits and stay within the linear range of the
 P loops, so integrators do not wind up on large steps. Integrators are clamped and frozen while
@@ -170,8 +172,9 @@ class HapsAutopilot:
         if pitch == pitch_raw or (pitch_raw > pitch) == (i_pitch < self._i_pitch):
             self._i_pitch = i_pitch
 
-        # bank: limited and slew-rate limited
-        roll_dem = _clamp(sp.roll_rad, -g.roll_limit_rad, g.roll_limit_rad)
+        # bank: limited (and to the minimum turn radius at this airspeed), slew-rate limited
+        bank_max = min(g.roll_limit_rad, math.atan(v * v / (STANDARD_GRAVITY * g.turn_radius_min_m)))
+        roll_dem = _clamp(sp.roll_rad, -bank_max, bank_max)
         step = g.roll_rate_limit_rad_s * dt
         self._roll_cmd = _clamp(roll_dem, self._roll_cmd - step, self._roll_cmd + step)
 
@@ -191,6 +194,7 @@ class HapsAutopilot:
             "i_thr": self._i_thr,
             "i_pitch_rad": self._i_pitch,
             "underspeed": float(underspeed),
+            "bank_max_rad": bank_max,
         }
         cmds = {"ap/roll-cmd-rad": self._roll_cmd, "ap/pitch-cmd-rad": pitch, _THROTTLES[0]: thr, _THROTTLES[1]: thr}
         if self._send_fcs:

@@ -37,6 +37,7 @@ class HapsGains:
     # [limits]
     roll_limit_rad: float = _in("limits")
     roll_rate_limit_rad_s: float = _in("limits")
+    turn_radius_min_m: float = _in("limits")
     pitch_min_rad: float = _in("limits")
     pitch_max_rad: float = _in("limits")
     throttle_min: float = _in("limits")
@@ -86,6 +87,8 @@ class HapsGains:
     # [l1]
     l1_period_s: float = _in("l1")
     l1_damping: float = _in("l1")
+    l1_turn_lead_s: float = _in("l1")
+    l1_distance_min_m: float = _in("l1")
 
     @classmethod
     def load(cls, path: str | Path | None = None) -> HapsGains:

@@ -158,7 +158,9 @@ class RulesConfig:
             uas,
             Category[category.upper()],
             Maneuverability[maneuverability.upper()],
-            Margins(self.universal, self.head_on, self.converging, self.overtake).scaled(self.unit),
+            Margins(self.universal, self.head_on, self.converging, self.overtake, self.weather_margin).scaled(
+                self.unit
+            ),
             min_cruise=0.5 * cruise,
             max_cruise=cruise,
         )

@@ -137,7 +137,10 @@ class RulesAvoider(ReachSetAvoider):
         weather = self.engine.enabled("weather")
         if weather:  # storm cells become weather cases, handled by the rules instead of the run's constraints
             margin = self.rules.weather_margin * self.rules.unit
-            ctx.weather = weather_cases(threats.storms, t, margin, up_m=-float(estimate.pos_ned[2]))
+            own = weather_cases(threats.storms, t, margin, up_m=-float(estimate.pos_ned[2]))
+            directed = self.utm.weather() if self.utm is not None else []  # the UTM's replace own ones of a cell
+            ctx.events.extend(f"rule:utm_weather:{w.id}" for w in directed)
+            ctx.weather = [w for w in own if w.id not in {d.id for d in directed}] + directed
         ctl = self.control
         ctx.goal = ctl.waypoints[min(max(ctl.goal, self.mission.next_index), len(ctl.waypoints) - 1)]
         self.engine.invoke(DecisionPoint.BEFORE_AVOIDANCE_RUN, ctx)

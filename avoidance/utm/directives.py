@@ -2,7 +2,9 @@
 UAS receives over its C2/UTM link, its link state, and the merge of the UTM's cases with its own.
 
 A directive of UTM frame ``frame`` (frame time ``t`` [s]) lists the recipient's active collision
-cases as the authority computed them (ids with the recipient renamed to the UAS' own id). The
+cases as the authority computed them (ids with the recipient renamed to the UAS' own id) and,
+when the authority owns the weather feed, the weather cases of the cells its route crosses
+(§7.5); the newest weather cases are kept across a lost link (the last weather picture). The
 UAS acknowledges every directive it receives. When no directive has arrived for ``lost_after``
 [s] the link is lost and the UAS flies *blind* (spec §7.1): the rules of the air on its own cases
 only (its virtual UTM) until a directive arrives again.
@@ -25,6 +27,7 @@ from enum import Enum
 import numpy as np
 
 from avoidance.utm.collision_case import CollisionCase
+from avoidance.utm.weather_case import WeatherCase
 
 
 class LinkMode(str, Enum):
@@ -34,12 +37,14 @@ class LinkMode(str, Enum):
 
 @dataclass(frozen=True, slots=True)
 class Directive:
-    """The UTM's commands of one frame for one UAS: its active cases (GCF)."""
+    """The UTM's commands of one frame for one UAS: its active collision cases and its weather
+    cases (GCF)."""
 
     frame: int
     t: float  # frame time [s]
     to: str  # the recipient's registration id
     cases: tuple[CollisionCase, ...] = ()
+    weather: tuple[WeatherCase, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -123,6 +128,11 @@ class UtmInbox:
         if self.mode == LinkMode.BLIND or self.latest is None:
             return []
         return list(self.latest.cases)
+
+    def weather(self) -> list[WeatherCase]:
+        """The newest directive's weather cases, in blind mode too (cells move slowly and the
+        cases carry their velocity: the last weather picture beats none)."""
+        return [] if self.latest is None else list(self.latest.weather)
 
 
 def _renamed(c: CollisionCase, name: str, own: str) -> CollisionCase:

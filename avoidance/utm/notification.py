@@ -49,16 +49,24 @@ class Maneuverability(IntEnum):
 @dataclass(frozen=True, slots=True)
 class Margins:
     """Safety margins of one UAS [m] (tab. 6.6); defaults = [R] (universal 5, head-on 5,
-    converging 8, overtake 5) for the thesis' 1 m movements, see :meth:`scaled`."""
+    converging 8, overtake 5) for the thesis' 1 m movements, see :meth:`scaled`; ``weather``:
+    the soft band around a weather case's body it files (§7.5; the rules' ``weather_margin``)."""
 
     universal: float = 5.0
     head_on: float = 5.0
     converging: float = 8.0
     overtake: float = 5.0
+    weather: float = 5.0
 
     def scaled(self, unit: float) -> Margins:
         """These margins with the thesis' metre scaled to ``unit`` [m]."""
-        return Margins(self.universal * unit, self.head_on * unit, self.converging * unit, self.overtake * unit)
+        return Margins(
+            self.universal * unit,
+            self.head_on * unit,
+            self.converging * unit,
+            self.overtake * unit,
+            self.weather * unit,
+        )
 
 
 @dataclass(frozen=True, slots=True)

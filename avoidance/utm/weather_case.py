@@ -5,6 +5,9 @@ A cell with zero velocity is *static* and handled like a roundabout (passed on t
 centre); a moving one like an intruder (its body and band move with it). Frames and units: z-up
 GCF (ENU) [m], horizontal velocity [m/s], sim seconds [s]; the nowcast has no vertical extent,
 so a cell covers every altitude.
+
+With a central UTM authority that owns the weather feed (scenario ``utm.weather``) the weather
+cases come in its directives: :func:`crossing` picks the cells a UAS's filed route crosses.
 """
 
 from __future__ import annotations
@@ -61,7 +64,26 @@ class WeatherCase:
             "margin_m": self.margin,
             "velocity_enu": self.velocity.tolist(),
             "moving": self.moving,
+            "body_enu": shapely.get_coordinates(self.body).tolist(),
         }
+
+    @classmethod
+    def from_record(cls, r: dict) -> WeatherCase:
+        """The case of a :meth:`record` (a logged directive's)."""
+        return cls(r["id"], r["t"], Polygon(r["body_enu"]), r["margin_m"], np.asarray(r["velocity_enu"], float))
+
+
+def crossing(cases: list[WeatherCase], route: np.ndarray, horizon: float) -> list[WeatherCase]:
+    """The ``cases`` whose body grown by its band the ``route`` (GCF polyline (K, 2+) [m], K >= 1)
+    touches; a moving body is swept over the next ``horizon`` [s] (its hull from ``t`` to
+    ``t + horizon``)."""
+    path = shapely.LineString(route[:, :2]) if len(route) > 1 else shapely.Point(route[0, :2])
+    out = []
+    for w in cases:
+        body = shapely.convex_hull(shapely.union(w.body, w.moved(w.t + horizon))) if w.moving else w.body
+        if body.buffer(w.margin).intersects(path):
+            out.append(w)
+    return out
 
 
 def weather_cases(storms: list[StormSnapshot], t: float, margin: float, up_m: float = 0.0) -> list[WeatherCase]:

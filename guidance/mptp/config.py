@@ -51,7 +51,9 @@ class MptpConfig:
     orders the open list by G + w H (weighted A*: at most w times the optimum with a consistent
     admissible H; w > 1 leaves the plateaus that waiting creates early); ``dominance_s`` [s]:
     a place and course is expanded once per window of this length, at its earliest arrival
-    (search.py).
+    (search.py); ``wait_step_min_s`` [s]: the wait bound's time step (waitbound.py) is dt split
+    into at most 3 substeps no shorter than this (``wait_substeps``): its cost grows with the
+    cube of the substeps per second, so a small dt (30 s) gets one (tau = dt) instead of three.
 
     Margins (seed 002 3.1): probabilistic radius r = sqrt(-2 ln(1-P)) * sigma(theta) * lead_time,
     sigma from ``sigma_back_mps`` (against the motion) to ``sigma_front_mps`` (along it), capped
@@ -104,6 +106,7 @@ class MptpConfig:
     max_expansions: int = 120
     search_weight: float = 1.1
     dominance_s: float = 240.0
+    wait_step_min_s: float = 20.0
     probability: float = 0.9
     probabilities: tuple[float, ...] = ()
     sigma_front_mps: float = 1.5
@@ -133,8 +136,8 @@ class MptpConfig:
             raise ValueError("need tas_mps > 0, dt_s > 0 and horizon_s >= dt_s")
         if not 0 < self.bank_max < math.pi / 2 or not 0 < self.course_change_max <= math.pi / 2:
             raise ValueError("bank_max must be in (0, 90) deg and course_change_max in (0, 90] deg")
-        if not self.search_weight >= 1.0 or not self.dominance_s > 0:
-            raise ValueError("need search_weight >= 1 and dominance_s > 0")
+        if not self.search_weight >= 1.0 or not self.dominance_s > 0 or not self.wait_step_min_s > 0:
+            raise ValueError("need search_weight >= 1, dominance_s > 0 and wait_step_min_s > 0")
         if not self.vertical_margin_m >= 0 or not self.climb_rate_mps >= 0:
             raise ValueError("need vertical_margin_m >= 0 and climb_rate_mps >= 0")
         if not 0 <= self.probability < 1:
@@ -198,6 +201,11 @@ class MptpConfig:
     def leg_m(self) -> float:
         """Leg distance of an auxiliary state LD = V * dt [m]."""
         return self.tas_mps * self.dt_s
+
+    @property
+    def wait_substeps(self) -> int:
+        """Time steps of the wait bound per planning interval: dt / wait_step_min_s, 1 to 3."""
+        return int(min(3, max(1, math.floor(self.dt_s / self.wait_step_min_s))))
 
     def with_(self, **changes) -> MptpConfig:
         return replace(self, **changes)

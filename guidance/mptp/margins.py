@@ -120,8 +120,15 @@ def margin_hulls(
         pts = (v[:, None, :] + r[:, None, None] * unit[None] + grow[None, :, None] * unit[None]).reshape(-1, 2)
         coords.append(pts)
         owner.append(np.full(len(pts), i))
-    mp = shapely.multipoints(np.vstack(coords), indices=np.concatenate(owner))
-    return shapely.convex_hull(mp)
+    return convex_hulls(np.vstack(coords), np.concatenate(owner))
+
+
+def convex_hulls(points: np.ndarray, groups: np.ndarray) -> np.ndarray:
+    """Convex hull of each group of ``points`` (K, 2) labelled by ``groups`` (K,) (sorted group
+    indices 0..G-1, at least 2 points each). The groups go to GEOS as linestrings: the hull of
+    the same coordinates in the same order as a multipoint's, without one point geometry per
+    coordinate (~4x faster)."""
+    return shapely.convex_hull(shapely.linestrings(points, indices=groups))
 
 
 def merge(shapes: np.ndarray | list[BaseGeometry], cfg: MptpConfig) -> BaseGeometry:

@@ -36,7 +36,11 @@ near over the horizon (vertical.py).
 
 The plan's vertices are the trajectory states, with the modelled turns written out between them
 for the fly-over turn models (turnmodel.written_out); labels are -1 except the goal (its waypoint
-index); the altitude goes linearly (constant climb angle) from the estimate's to the goal's.
+index). In a plan that reaches the goal the altitude goes linearly (constant climb angle) from
+the estimate's to the goal's; in one that does not (partial, holding, safe-area flight) it goes
+from the estimate's towards the goal's at ``climb_rate_mps`` over the plan's time, within the
+height band the plan's cells were chosen for (vertical.py), so a partial plan does not stall a
+climb or a descent.
 """
 
 from __future__ import annotations
@@ -56,7 +60,7 @@ from guidance.mptp.search import HOLD, Trajectory, default_workspace, plan_traje
 from guidance.mptp.statespace import free_space
 from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.turnmodel import vertex_spacing_m, written_out
-from guidance.mptp.vertical import altitude_band, cells_in_band
+from guidance.mptp.vertical import altitude_band, cells_in_band, height_towards
 from guidance.mptp.wind import WindForecast, air_goal, to_air, to_ground
 from sim.core.mission import Mission
 from sim.core.plan import Plan, PlanStatus, Threats
@@ -240,19 +244,20 @@ class MptpPlanner:
         )
         if traj.start_space is not None:
             diag["vertices"] = len(traj.start_space.boundary.verts)
-        pts, times = traj.positions, traj.times
+        pts, times, rates = traj.positions, traj.times, None
         if cfg.turn_model != "simple" and len(pts) >= 2:
-            pts, times = written_out(pts, times, traj.courses, traj.kinds[1:] == HOLD, cfg)
+            pts, times, rates = written_out(pts, times, traj.courses, traj.kinds[1:] == HOLD, cfg)
         if traj.status == "ok":
             holding = traj.holding_turn >= 2 * math.pi - 1e-6
             labels = np.full(len(pts), -1)
             labels[-1] = k
             diag.update(eta_s=float(traj.times[-1] - t), holding_turns=traj.holding_turn / (2 * math.pi))
             status = PlanStatus.DEGRADED if holding else PlanStatus.OK
-            return self._to_plan(t, est, pts, times, labels, status, diag), traj
+            return self._to_plan(t, est, pts, times, labels, status, diag, rates), traj
         if len(pts) >= 2:  # the search's best progress towards the goal
             diag.update(reason="search " + traj.status + ": partial plan", eta_s=float(traj.times[-1] - t))
-            return self._to_plan(t, est, pts, times, np.full(len(pts), -1), PlanStatus.DEGRADED, diag), traj
+            plan = self._to_plan(t, est, pts, times, np.full(len(pts), -1), PlanStatus.DEGRADED, diag, rates)
+            return plan, traj
         fs = traj.start_space or free_space(tl, p0, t, workspace, cfg.tas_mps, cfg.ring_segments)
         end, _ = safe_area_leg(fs, course, cfg, cfg.tas_mps * cfg.replan_period_s * 2)
         pts = np.vstack([p0, end])
@@ -316,8 +321,10 @@ class MptpPlanner:
         labels: np.ndarray,
         status: PlanStatus,
         diag: dict,
+        turn_rates: np.ndarray | None = None,
     ) -> Plan:
-        """A plan from states (air-mass frame ``ne`` (N, 2) [m] at ``times`` [s]) on the ground."""
+        """A plan from states (air-mass frame ``ne`` (N, 2) [m] at ``times`` [s]) on the ground;
+        ``turn_rates`` (N,) [rad/s]: the model's course rate on each leg (None: straight legs)."""
         ne = to_ground(ne, times, self.wind_ne, self.timeline.t_issue if self.timeline else t)
         d0 = float(est.pos_ned[2])
         d1 = float(self.mission.waypoints[self._goal_index_for(labels), 2])
@@ -325,11 +332,17 @@ class MptpPlanner:
         if (labels >= 0).any():
             diag["path_length_m"] = float(seg.sum())
         frac = np.concatenate([[0.0], np.cumsum(seg)]) / max(seg.sum(), 1e-9)
-        down = d0 + (d1 - d0) * frac if (labels >= 0).any() else np.full(len(ne), d0)
+        if (labels >= 0).any():
+            down = d0 + (d1 - d0) * frac
+        else:
+            elapsed = np.clip(np.asarray(times, float) - t, 0.0, self.cfg.horizon_s)
+            down = -height_towards(-d0, -d1, self.cfg.climb_rate_mps, elapsed)
         pos = np.column_stack([ne, down])
         vel = np.diff(pos, axis=0) / np.maximum(np.diff(times), 1e-9)[:, None]
         vel = np.vstack([vel, vel[-1:]]) if len(vel) else np.zeros((1, 3))
-        return Plan(t, pos, np.asarray(times, float), np.asarray(labels), status, vel, self.name, diag)
+        return Plan(
+            t, pos, np.asarray(times, float), np.asarray(labels), status, vel, self.name, diag, turn_rates=turn_rates
+        )
 
     def _goal_index_for(self, labels: np.ndarray) -> int:
         return int(labels.max()) if (labels >= 0).any() else self.mission.next_index

@@ -46,7 +46,6 @@ from guidance.mptp.waitbound import WaitBound
 
 START, VERTEX, AUX, GOAL, HOLD = "start", "vertex", "aux", "goal", "hold"
 HOLD_LAPS = (1, 2, 4, 8, 16, 32)  # wait choices per expansion [laps]
-WAIT_SUBSTEPS = 3  # time steps of the wait bound per planning interval
 TOUCH_M2 = 1.0  # a holding footprint may touch an envelope by this area [m^2]
 
 
@@ -194,7 +193,8 @@ class _Expander:
         for side in self.hold_senses:
             lap = hold_orbit(np.array(s.p), s.course, 1, self.cfg, side)
             footprint = shapely.convex_hull(shapely.multipoints(lap))
-            hit = shapely.area(shapely.intersection(footprint, envs)) > TOUCH_M2
+            hit = shapely.intersects(footprint, envs)  # only those touched can overlap by area
+            hit[hit] = shapely.area(shapely.intersection(footprint, envs[hit])) > TOUCH_M2
             free_until = int(np.argmax(hit)) - 1 if hit.any() else len(envs) - 1
             sides[(sides == 0) & (last <= free_until)] = side
         return durations[sides != 0], sides[sides != 0]
@@ -214,7 +214,9 @@ class _Expander:
     def _wait_bound(self) -> WaitBound:
         """The wait bound of this search (built at the first call, from the start state's time)."""
         if self.wait is None:
-            self.wait = WaitBound(self.tl, self.goal, self.w, self.t_start, self.t_end, self.cfg.tas_mps, WAIT_SUBSTEPS)
+            self.wait = WaitBound(
+                self.tl, self.goal, self.w, self.t_start, self.t_end, self.cfg.tas_mps, self.cfg.wait_substeps
+            )
         return self.wait
 
     def _static_bound(self, fs: FreeSpace, t_goal: float) -> StaticBound:

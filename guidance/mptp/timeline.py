@@ -33,20 +33,38 @@ from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
 
 from guidance.mptp.config import MptpConfig
-from guidance.mptp.margins import margin_hulls, merge, turn_cut_m
+from guidance.mptp.margins import convex_hulls, margin_hulls, merge, turn_cut_m
 from sim.core.threats import StormSnapshot
 
 
 def minkowski_sequences(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Vertex sequences (CA, CB) of equal length such that (1-s) CA + s CB are the vertices of
     the Minkowski combination (1-s) A + s B of convex polygons A, B ((n, 2) open rings)."""
-    seqs = [_from_lowest(_ccw(a)), _from_lowest(_ccw(b))]
-    edges = [np.diff(np.vstack([p, p[:1]]), axis=0) for p in seqs]
-    ang = np.concatenate([np.mod(np.arctan2(e[:, 1], e[:, 0]), 2 * math.pi) for e in edges])
-    order = np.argsort(ang, kind="stable")
-    from_a = order < len(edges[0])
+    return _merged(_Edges.of(a), _Edges.of(b))
+
+
+class _Edges:
+    """A convex ring counter-clockwise from its lowest vertex (``seq`` (n, 2)), its edges and
+    their angles [rad] in [0, 2 pi): what the Minkowski merge needs of one polygon."""
+
+    __slots__ = ("ang", "edges", "seq")
+
+    def __init__(self, seq: np.ndarray):
+        self.seq = seq
+        self.edges = np.diff(np.vstack([seq, seq[:1]]), axis=0)
+        self.ang = np.mod(np.arctan2(self.edges[:, 1], self.edges[:, 0]), 2 * math.pi)
+
+    @classmethod
+    def of(cls, ring: np.ndarray) -> _Edges:
+        return cls(_from_lowest(_ccw(ring)))
+
+
+def _merged(a: _Edges, b: _Edges) -> tuple[np.ndarray, np.ndarray]:
+    """minkowski_sequences of two prepared rings."""
+    order = np.argsort(np.concatenate([a.ang, b.ang]), kind="stable")
+    from_a = order < len(a.edges)
     out = []
-    for p, e, mine in ((seqs[0], edges[0], from_a), (seqs[1], edges[1], ~from_a)):
+    for p, e, mine in ((a.seq, a.edges, from_a), (b.seq, b.edges, ~from_a)):
         step = np.zeros((len(order), 2))
         step[mine] = e
         out.append(p[0] + np.vstack([np.zeros((1, 2)), np.cumsum(step, axis=0)[:-1]]))
@@ -96,14 +114,15 @@ class ObstacleTimeline:
         hulls = [
             margin_hulls(s.cells, s.velocities_ne, s.t - self.t_issue, cfg, self.extra_m, self.drift) for s in snaps
         ]
+        rings = [[_Edges.of(_ring(h)) for h in hs] for hs in hulls]  # each hull prepared once for all its pairs
         self._pairs = [
-            self._interval_pairs(snaps[k], snaps[k + 1], hulls[k], hulls[k + 1]) for k in range(len(snaps) - 1)
-        ] or [self._held_pairs(hulls[0])]
+            self._interval_pairs(snaps[k], snaps[k + 1], rings[k], rings[k + 1]) for k in range(len(snaps) - 1)
+        ] or [self._held_pairs(rings[0])]
         self.n_levels = math.ceil((max(t_end, self.times[-1]) - self.t_issue) / self.dt) + 1
         self.envelope_span = lru_cache(maxsize=None)(self._envelope_span)
 
     # --- construction -----------------------------------------------------------------------
-    def _interval_pairs(self, a: StormSnapshot, b: StormSnapshot, ha: np.ndarray, hb: np.ndarray):
+    def _interval_pairs(self, a: StormSnapshot, b: StormSnapshot, ha: list[_Edges], hb: list[_Edges]):
         step = b.t - a.t
         va = _velocities(a)
         moved = np.array([affinity.translate(c, *(va[i] * step)) for i, c in enumerate(a.cells)], object)
@@ -115,12 +134,12 @@ class ObstacleTimeline:
         lost = np.setdiff1d(np.arange(len(a.cells)), ia)
         if len(lost):
             ext = margin_hulls(list(moved[lost]), va[lost], b.t - self.t_issue, self.cfg, self.extra_m, self.drift)
-            pairs += list(zip(ha[lost], ext, strict=False))
+            pairs += [(ha[i], _Edges.of(_ring(q))) for i, q in zip(lost, ext, strict=False)]
         pairs += [(hb[j], hb[j]) for j in np.setdiff1d(np.arange(len(b.cells)), jb)]
-        return self._pairset_of(a.t, b.t, [minkowski_sequences(_ring(p), _ring(q)) for p, q in pairs])
+        return self._pairset_of(a.t, b.t, [_merged(p, q) for p, q in pairs])
 
-    def _held_pairs(self, h: np.ndarray):
-        return self._pairset_of(self.t_issue, self.t_issue, [minkowski_sequences(_ring(p), _ring(p)) for p in h])
+    def _held_pairs(self, h: list[_Edges]):
+        return self._pairset_of(self.t_issue, self.t_issue, [_merged(p, p) for p in h])
 
     def _pairset_of(self, ta: float, tb: float, seqs: list[tuple[np.ndarray, np.ndarray]]) -> _PairSet:
         return _PairSet(ta, tb, seqs, self.drift, self.t_issue)
@@ -152,7 +171,9 @@ class ObstacleTimeline:
         t0, t1 = self.level_time(j), self.level_time(j + k)
         cuts = np.concatenate([[t0], self.times[(self.times > t0) & (self.times < t1)], [t1]])
         hulls = [self._pairset(0.5 * (a + b)).swept_hulls(a, b) for a, b in itertools.pairwise(cuts)]
-        return merge(np.concatenate(hulls), self.cfg)
+        env = merge(np.concatenate(hulls), self.cfg)
+        shapely.prepare(env)  # cached and tested against many rings and footprints
+        return env
 
     def _pairset(self, t: float) -> _PairSet:
         k = int(np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self._pairs) - 1))
@@ -210,7 +231,7 @@ class _PairSet:
         if not len(self.owner):
             return np.empty(0, object)
         pts = np.stack([self.coords(ta), self.coords(tb)], axis=1).reshape(-1, 2)
-        return shapely.convex_hull(shapely.multipoints(pts, indices=np.repeat(self.owner, 2)))
+        return convex_hulls(pts, np.repeat(self.owner, 2))
 
 
 def _velocities(s: StormSnapshot) -> np.ndarray:

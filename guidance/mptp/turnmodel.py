@@ -195,15 +195,27 @@ def turn_points(p: np.ndarray, course: float, turn: float, cfg: MptpConfig) -> t
     return out, length[0] * np.arange(1, m + 1) / m
 
 
+def segment_rates(turn: float, cfg: MptpConfig) -> np.ndarray:
+    """Mean course rate [rad/s] (+ = right) on each of the segments turn_points splits the turn
+    ``turn`` [rad] into (equal times of flight): the segment's course change over its time, the
+    rate g tan(mu) / V of the bank mu the model flies there (M,)."""
+    m = max(1, math.ceil(abs(turn) / SAMPLE_RAD - 1e-9))
+    t_total, chi = _course_profile(np.array([abs(turn)]), cfg, np.linspace(0.0, 1.0, m + 1))
+    return math.copysign(1.0, turn) * np.diff(chi[0]) / (float(t_total[0]) / m)
+
+
 def written_out(
     positions: np.ndarray, times: np.ndarray, courses: np.ndarray, into_hold: np.ndarray, cfg: MptpConfig
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The states (N, 2) [m] at ``times`` (N,) [s], arriving on ``courses`` (N,) [rad], with every
     fly-over turn written out as vertices (turn_points) at their times of flight at V, so the
     path a follower tracks is the modelled one. Legs into a holding vertex (``into_hold`` (N-1,)
-    True) are fly-by orbit legs and stay straight. Returns positions (M, 2) and times (M,)."""
-    pos, tim = [positions[:1]], [times[:1]]
+    True) are fly-by orbit legs and stay straight. Returns positions (M, 2), times (M,) and the
+    course rate [rad/s] (+ = right) the model flies on the leg from each vertex to the next
+    (M,): segment_rates on a turn's segments, 0 on the straights (and the last vertex)."""
+    pos, tim, rate = [positions[:1]], [times[:1]], []
     for i in range(len(positions) - 1):
+        leg_rates = np.zeros(1)
         if not into_hold[i]:
             ok, turn, _, flown = turn_to(positions[i], float(courses[i]), positions[i + 1 : i + 2], cfg)
             if ok[0] and abs(turn[0]) > 1e-6:
@@ -211,6 +223,9 @@ def written_out(
                 keep = dist < flown[0] - MIN_STRAIGHT_M  # no zero-length leg into the state
                 pos.append(pts[keep])
                 tim.append(times[i] + dist[keep] / cfg.tas_mps)
+                leg_rates = np.r_[segment_rates(float(turn[0]), cfg), 0.0][: int(keep.sum()) + 1]
+        rate.append(leg_rates)
         pos.append(positions[i + 1 : i + 2])
         tim.append(times[i + 1 : i + 2])
-    return np.vstack(pos), np.concatenate(tim)
+    rate.append(np.zeros(1))
+    return np.vstack(pos), np.concatenate(tim), np.concatenate(rate)

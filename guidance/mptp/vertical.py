@@ -11,6 +11,11 @@ base - margin < hi and lo < top + margin. A climbing aircraft (lo = its current 
 therefore avoids a cell until it is ``vertical_margin_m`` above the cell's top, and from then on
 plans straight over it; a cell whose base is more than the margin above everything the aircraft
 can reach in the horizon is ignored too. Cells without a vertical extent always apply.
+
+The same rule gives the heights of a plan that does not reach the goal (a partial search, a
+holding orbit, straight flight in the safe area): from the current height towards the goal's at
+``climb_rate_mps`` over the plan's time, never beyond the horizon's reach (``height_towards``),
+so such a plan keeps climbing or descending inside the band its cells were chosen for.
 """
 
 from __future__ import annotations
@@ -20,11 +25,19 @@ import numpy as np
 from sim.core.threats import StormSnapshot
 
 
+def height_towards(
+    up_now_m: float, up_goal_m: float, climb_rate_mps: float, elapsed_s: float | np.ndarray
+) -> np.ndarray:
+    """Heights [m] after ``elapsed_s`` [s] (any shape) from ``up_now_m`` towards ``up_goal_m`` at
+    ``climb_rate_mps`` [m/s], stopping at the goal's height."""
+    reach = climb_rate_mps * np.asarray(elapsed_s, float)
+    return up_now_m + np.clip(up_goal_m - up_now_m, -reach, reach)
+
+
 def altitude_band(up_now_m: float, up_goal_m: float, climb_rate_mps: float, horizon_s: float) -> tuple[float, float]:
     """Heights [m] the vehicle may be at over the horizon: from ``up_now_m`` towards ``up_goal_m``
     at most ``climb_rate_mps`` [m/s] for ``horizon_s`` [s]."""
-    reach = climb_rate_mps * horizon_s
-    end = up_now_m + float(np.clip(up_goal_m - up_now_m, -reach, reach))
+    end = float(height_towards(up_now_m, up_goal_m, climb_rate_mps, horizon_s))
     return min(up_now_m, end), max(up_now_m, end)
 
 

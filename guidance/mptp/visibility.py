@@ -82,7 +82,10 @@ def blocked(p: np.ndarray, q: np.ndarray, b: Boundary) -> np.ndarray:
     its midpoint is outside the free space (by more than END_TOL_M: the midpoint of a segment
     along a boundary edge is a rounding error off it)."""
     mid = 0.5 * (p + q)
-    return (first_hit(p, q, b) < np.inf) | ~shapely.dwithin(b.free, shapely.points(mid), END_TOL_M)
+    out = first_hit(p, q, b) < np.inf
+    near = ~out & ~shapely.contains_xy(b.free, mid[:, 0], mid[:, 1])  # inside: distance 0
+    out[near] = ~shapely.dwithin(b.free, shapely.points(mid[near]), END_TOL_M)
+    return out
 
 
 def first_hit(p: np.ndarray, q: np.ndarray, b: Boundary) -> np.ndarray:

@@ -32,6 +32,7 @@ import numpy as np
 import shapely
 from scipy.ndimage import minimum_filter
 from shapely.geometry import Polygon
+from shapely.geometry.base import BaseGeometry
 
 from guidance.mptp.goal import GoalTrack
 from guidance.mptp.timeline import ObstacleTimeline
@@ -59,12 +60,12 @@ class WaitBound:
         x0, y0, x1, y1 = workspace.bounds
         self.origin, self.cell, self.tau, self.substeps = np.array([x0, y0]), cell, tau, substeps
         nx, ny = max(1, math.ceil((x1 - x0) / cell)), max(1, math.ceil((y1 - y0) / cell))
-        cx, cy = np.meshgrid(x0 + (np.arange(nx) + 0.5) * cell, y0 + (np.arange(ny) + 0.5) * cell, indexing="ij")
+        xs, ys = x0 + (np.arange(nx) + 0.5) * cell, y0 + (np.arange(ny) + 0.5) * cell
         r = cell / math.sqrt(2.0)
         self.j0 = int(tl.interval(t0))
         levels = np.arange(self.j0, max(self.j0, int(tl.interval(t_end))) + 1)
         eroded = shapely.buffer(tl.envelopes(levels, levels + 1), -(r * ERODE_SLACK + 1.0), quad_segs=4)
-        blocked = np.stack([shapely.contains_xy(e, cx, cy) for e in eroded])
+        blocked = np.stack([_inside(e, xs, ys) for e in eroded])
         t_k = tl.level_time(self.j0) + tau * np.arange(len(levels) * substeps)
         knots = goal.times[(goal.times > t_k[0]) & (goal.times < t_k[-1])]
         ktimes = np.concatenate([[t_k[0]], knots, [t_k[-1]]])
@@ -77,7 +78,8 @@ class WaitBound:
         b = np.empty((len(t_k), nx, ny))
         for i in range(len(t_k) - 1, -1, -1):
             g = goal.at(t_k[i])
-            direct = t_k[i] + np.maximum(np.hypot(cx - g[0], cy - g[1]) - r, 0.0) / (speed + v_goal)
+            dist = np.hypot((xs - g[0])[:, None], (ys - g[1])[None, :])
+            direct = t_k[i] + np.maximum(dist - r, 0.0) / (speed + v_goal)
             if i == len(t_k) - 1:
                 best = direct
             else:
@@ -96,3 +98,17 @@ class WaitBound:
         kk = np.minimum(k[inside], len(self.b) - 1)
         out[inside] = self.b[kk, ij[inside, 0], ij[inside, 1]]
         return out
+
+
+def _inside(geom: BaseGeometry, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """(len(xs), len(ys)) bool: grid point (xs[i], ys[j]) strictly inside ``geom``, tested only
+    within the geometry's bounding box (outside it nothing is inside)."""
+    out = np.zeros((len(xs), len(ys)), bool)
+    if geom.is_empty:
+        return out
+    x0, y0, x1, y1 = geom.bounds
+    i = slice(*np.searchsorted(xs, [x0, x1], side="left"))
+    j = slice(*np.searchsorted(ys, [y0, y1], side="left"))
+    gx, gy = np.meshgrid(xs[i], ys[j], indexing="ij")
+    out[i, j] = shapely.contains_xy(geom, gx, gy)
+    return out

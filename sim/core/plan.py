@@ -30,7 +30,10 @@ class Plan:
     each vertex is due, optional ``velocities`` (N, 3) NED [m/s], and per-vertex ``labels``
     (mission waypoint index, or -1 for a vertex the planner added). ``speed`` [m/s]: a speed the
     planner commands along the plan below the mission's cruise speed (the rules' overtake speed
-    change, 6.202), honoured by the multirotor follower; None = the cruise speed."""
+    change, 6.202), honoured by the multirotor follower; None = the cruise speed.
+    ``turn_rates`` (N,) [rad/s]: the rate of the air-relative course (+ = right) the planner's
+    aircraft model flies on the leg from each vertex to the next (the last entry unused), fed
+    forward as bank by the fixed-wing follower; None = straight legs between corners."""
 
     t: float
     positions: np.ndarray
@@ -41,11 +44,14 @@ class Plan:
     planner: str = ""
     diagnostics: dict[str, float | int | str] = field(default_factory=dict)
     speed: float | None = None
+    turn_rates: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = len(self.positions)
         if self.positions.shape != (n, 3) or self.times.shape != (n,) or self.labels.shape != (n,):
             raise ValueError("plan arrays must be positions (N,3), times (N,), labels (N,)")
+        if self.turn_rates is not None and self.turn_rates.shape != (n,):
+            raise ValueError(f"plan turn_rates must be (N,) = ({n},), got {self.turn_rates.shape}")
 
 
 @dataclass(slots=True)

@@ -1,4 +1,6 @@
-"""A run report: Markdown with plots (map, altitude, airspeed, bank, separation) and JSON metrics.
+"""A run report: Markdown with plots (map, altitude, airspeed, bank, separation), the decision
+trail of the rules of the air and the UTM authority (:mod:`sim.replay.decision_trail`), and JSON
+metrics.
 
 Plots use matplotlib's Agg backend (files only, no screen needed).
 """
@@ -16,6 +18,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from sim.mcap_read import log_content, read_attached_scenario
+from sim.replay.decision_trail import trail_markdown
 from sim.replay.metrics import MetricsWorld, flatten, run_metrics
 from sim.replay.pair_metrics import common_times
 from sim.replay.runlog import RunLog
@@ -153,6 +156,7 @@ def _write_report(log: RunLog, out: Path) -> tuple[Path, dict]:
         lines += [f"## {tr.name}", "", f"![{tr.name}]({tr.name}_timeseries.png)", ""]
     if has_sep:
         lines += ["## Separation", "", "![separation](separation.png)", ""]
+    lines += trail_markdown(log)
     if events:
         lines += ["## Events", "", "| sim time [s] | event |", "|---|---|"]
         lines += [f"| {t:.1f} | {text} |" for t, text in events]

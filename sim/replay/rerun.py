@@ -26,6 +26,7 @@ from aircraft.registry import get_airframe
 from avoidance.rules.planner import RulesAvoider
 from avoidance.utm.collision_case import CollisionCase
 from avoidance.utm.directives import Directive
+from avoidance.utm.weather_case import WeatherCase
 from sim.core.mission import Mission
 from sim.core.plan import Plan, Planner
 from sim.core.threats import StormSnapshot
@@ -126,7 +127,13 @@ def _directives(log: RunLog, vehicle: str, planner: object, utm: Utm | None) -> 
     return [
         (
             float(m["received_t"]),
-            Directive(m["frame"], m["t"], vehicle, tuple(CollisionCase.from_record(c) for c in m["cases"])),
+            Directive(
+                m["frame"],
+                m["t"],
+                vehicle,
+                tuple(CollisionCase.from_record(c) for c in m["cases"]),
+                tuple(WeatherCase.from_record(w) for w in m.get("weather", [])),
+            ),
         )
         for m in sorted(recs, key=lambda m: (m["received_t"], m["frame"]))
     ]

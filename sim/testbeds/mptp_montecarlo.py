@@ -21,6 +21,7 @@ envelope cache are shared, as the thesis ran all its trials on one nowcast.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -209,6 +210,14 @@ def run_field(field: int, n_trials: int, seed: int, heuristics: tuple[str, ...] 
     return rows
 
 
+def study_fingerprint() -> str:
+    """Digest of the study's planner configurations and field distribution: a stored field is
+    resumed only under the same ones (a change of either, e.g. the wait bound's time step,
+    re-runs it)."""
+    text = repr((study_field_spec(), *(study_config(h) for h in HEURISTICS)))
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
 def field_path(out_dir: Path, field: int) -> Path:
     return out_dir / "fields" / f"field_{field:05d}.json"
 
@@ -225,16 +234,18 @@ def run_study(
     """Run ``n_trials`` trials in fields of ``per_field`` (fields 0, 1, ...) on ``executor``
     (default: a process pool of ``workers`` that dies with this process, as sim.batch's).
     Each finished field is stored as ``<out_dir>/fields/field_NNNNN.json`` (atomically) and a
-    stored field of the same seed and size is not run again (resume). Returns all rows."""
+    stored field of the same seed, size and study_fingerprint is not run again (resume; the
+    directory may be anywhere, e.g. outside the checkout). Returns all rows."""
     out = Path(out_dir)
     (out / "fields").mkdir(parents=True, exist_ok=True)
     sizes = [min(per_field, n_trials - f * per_field) for f in range(math.ceil(n_trials / per_field))]
     rows: dict[int, list[dict]] = {}
     todo = []
+    study = study_fingerprint()
     for f, n in enumerate(sizes):
         path = field_path(out, f)
         stored = json.loads(path.read_text()) if path.exists() else None
-        if stored and stored["seed"] == seed and stored["n_trials"] == n:
+        if stored and (stored["seed"], stored["n_trials"], stored.get("study")) == (seed, n, study):
             rows[f] = stored["rows"]
         else:
             todo.append(f)
@@ -247,7 +258,9 @@ def run_study(
             rows[f] = fut.result()
             path = field_path(out, f)
             tmp = path.with_suffix(".tmp")
-            tmp.write_text(json.dumps({"seed": seed, "field": f, "n_trials": sizes[f], "rows": rows[f]}))
+            tmp.write_text(
+                json.dumps({"seed": seed, "field": f, "n_trials": sizes[f], "study": study, "rows": rows[f]})
+            )
             os.replace(tmp, path)
             if progress:
                 progress(k, len(todo), f, rows[f])

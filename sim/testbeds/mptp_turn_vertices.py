@@ -11,20 +11,30 @@ simulated --out DIR`` flies every scenario with each seed and ``turn_model`` (th
 planner options otherwise unchanged; ``--acceptance`` overrides the MPTP vehicles' acceptance
 radius, ``--duration`` the sim time), keeps the logs in DIR and prints a Markdown table per
 scenario and model: corners, median |xte|, 95th percentile of the cut, largest cut, largest
-outside pass [m], and the missions completed.
+outside pass [m], the same two without each plan's start turn (vertex_cross_track), and the
+missions completed.
+
+Controlled factors (the experiment that isolates why turns are flown wide, docs/mptp.md):
+``--estimator perfect`` (ideal sensors instead of the EKF), ``--wind N,E`` (the steady wind [m/s]
+in place of the scenario's), ``--l1-period S`` (the L1 period [s] instead of the airframe's).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import copy
 import math
 import tomllib
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 import tomli_w
 
+from guidance.l1 import L1Guidance
 from sim import scenario as sc
 from sim.mcap_read import read_info, read_topic
 from sim.runner import run_scenario
@@ -33,28 +43,35 @@ MIN_TURN_DEG = 1.0  # a vertex turning less is not a corner
 SETTLE_S = 60.0  # corners due later than this before the next plan are left out [s]
 
 
-def vertex_cross_track(log: str | Path, vehicle: str) -> np.ndarray:
-    """Signed closest approach [m] of the true track to each flown corner (see module doc)."""
-    plans = [
-        (t, np.asarray(m["positions"], float)[:, :2], np.asarray(m["times"], float))
-        for t, m in read_topic(log, f"/{vehicle}/plan")
-    ]
+def vertex_cross_track(log: str | Path, vehicle: str, start_turns: bool = True) -> np.ndarray:
+    """Signed closest approach [m] of the true track to each flown corner (see module doc);
+    without ``start_turns`` the written-out turn each plan begins with (its leading legs with a
+    nonzero turn rate) is left out: it starts at the plan's time, so the follower cannot lead it."""
+    plans, skip = [], []
+    for t, m in read_topic(log, f"/{vehicle}/plan"):
+        plans.append((t, np.asarray(m["positions"], float)[:, :2], np.asarray(m["times"], float)))
+        rates = np.asarray(m.get("turn_rates") or [0.0]) != 0.0
+        skip.append(0 if start_turns else int(np.argmin(np.r_[rates, False])))
     track = read_topic(log, f"/{vehicle}/truth/state")
-    return corner_cross_track(plans, np.array([t for t, _ in track]), np.array([m["pos_ned"][:2] for _, m in track]))
+    tt, xy = np.array([t for t, _ in track]), np.array([m["pos_ned"][:2] for _, m in track])
+    return corner_cross_track(plans, tt, xy, skip)
 
 
-def corner_cross_track(plans: list[tuple[float, np.ndarray, np.ndarray]], tt: np.ndarray, xy: np.ndarray) -> np.ndarray:
+def corner_cross_track(
+    plans: list[tuple[float, np.ndarray, np.ndarray]], tt: np.ndarray, xy: np.ndarray, skip: list[int] | None = None
+) -> np.ndarray:
     """Signed closest approach [m] of the track ``xy`` (K, 2) [m] at times ``tt`` (K,) [s] to the
     corners of ``plans`` (issue time [s], vertices (N, 2) [m], due times (N,) [s]), in time
-    order; + inside the corner, - outside (see module doc)."""
+    order; + inside the corner, - outside (see module doc). ``skip``: per plan, the corners up to
+    this vertex index are left out (default none)."""
     out: list[float] = []
     ends = [t for t, _, _ in plans[1:]] + [math.inf]
-    for (t0, pts, due), t1 in zip(plans, ends, strict=True):
+    for (t0, pts, due), t1, first in zip(plans, ends, skip or [0] * len(plans), strict=True):
         window = (tt >= t0) & (tt < t1)
         if len(pts) < 3 or not window.any():
             continue
         seg = xy[window]
-        for k in range(1, len(pts) - 1):
+        for k in range(max(1, first + 1), len(pts) - 1):
             a, b = pts[k] - pts[k - 1], pts[k + 1] - pts[k]
             na, nb = np.linalg.norm(a), np.linalg.norm(b)
             if na < 1e-6 or nb < 1e-6 or due[k] > t1 - SETTLE_S:
@@ -68,12 +85,33 @@ def corner_cross_track(plans: list[tuple[float, np.ndarray, np.ndarray]], tt: np
     return np.array(out)
 
 
-def _variant(data: dict, seed: int, model: str, accept: float | None, duration: float | None) -> dict:
+@dataclass(frozen=True, slots=True)
+class Factors:
+    """The experiment's controlled factors (None: as the scenario and airframe have them):
+    ``estimator`` ("ekf" or "perfect"), a steady ``wind_ne`` (north, east) [m/s] in place of the
+    scenario's steady components, the L1 period ``l1_period_s`` [s]."""
+
+    estimator: str | None = None
+    wind_ne: tuple[float, float] | None = None
+    l1_period_s: float | None = None
+
+    def tag(self) -> str:
+        """File-name suffix naming the factors set."""
+        out = "" if self.estimator is None else f"_{self.estimator}"
+        out += "" if self.wind_ne is None else f"_w{self.wind_ne[0]:g},{self.wind_ne[1]:g}"
+        return out + ("" if self.l1_period_s is None else f"_l1p{self.l1_period_s:g}")
+
+
+def _variant(data: dict, seed: int, model: str, accept: float | None, duration: float | None, factors: Factors) -> dict:
     out = copy.deepcopy(data)
     out["seed"] = seed
     if duration is not None:
         out["duration"] = duration
+    if factors.wind_ne is not None:
+        out.setdefault("wind", {}).update(north=factors.wind_ne[0], east=factors.wind_ne[1])
     for v in out["vehicle"]:
+        if factors.estimator is not None:
+            v["estimator"] = factors.estimator
         if v.get("planner", {}).get("type") == "mptp":
             v["planner"].setdefault("options", {})["turn_model"] = model
             if accept is not None:
@@ -81,17 +119,40 @@ def _variant(data: dict, seed: int, model: str, accept: float | None, duration: 
     return out
 
 
+@contextlib.contextmanager
+def _l1_period(period_s: float | None) -> Iterator[None]:
+    """Every L1 follower built inside the block runs at ``period_s`` [s] (None: the airframe's)."""
+    if period_s is None:
+        yield
+        return
+    built = L1Guidance.for_airframe.__func__  # type: ignore[attr-defined]
+
+    def with_period(cls: type[L1Guidance], controller: object) -> L1Guidance:
+        l1 = built(cls, controller)
+        return cls(period_s, l1.damping, l1.roll_limit_rad)
+
+    with mock.patch.object(L1Guidance, "for_airframe", classmethod(with_period)):
+        yield
+
+
 def fly(
-    scenario: Path, seed: int, model: str, out_dir: Path, accept: float | None = None, duration: float | None = None
+    scenario: Path,
+    seed: int,
+    model: str,
+    out_dir: Path,
+    accept: float | None = None,
+    duration: float | None = None,
+    factors: Factors = Factors(),
 ) -> tuple[Path, bool]:
     """Fly ``scenario`` with ``seed``, ``turn_model`` = ``model``, the MPTP vehicles' acceptance
-    radius ``accept`` [m] and ``duration`` [s] (None: the scenario's); the log and whether every
-    mission completed."""
-    data = _variant(tomllib.loads(scenario.read_text()), seed, model, accept, duration)
-    tag = "" if accept is None else f"_a{accept:g}"
+    radius ``accept`` [m], ``duration`` [s] (None: the scenario's) and the experiment's
+    ``factors``; the log and whether every mission completed."""
+    data = _variant(tomllib.loads(scenario.read_text()), seed, model, accept, duration, factors)
+    tag = ("" if accept is None else f"_a{accept:g}") + factors.tag()
     path = out_dir / f"{scenario.stem}_{model}{tag}_s{seed}.mcap"
     if not path.exists():
-        run_scenario(sc.parse_scenario(data, str(scenario)), path, scenario_text=tomli_w.dumps(data))
+        with _l1_period(factors.l1_period_s):
+            run_scenario(sc.parse_scenario(data, str(scenario)), path, scenario_text=tomli_w.dumps(data))
     result = read_info(path).metadata.get("result", {})
     return path, all(v == "True" for k, v in result.items() if k.endswith(".mission_complete"))
 
@@ -112,23 +173,32 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--models", nargs="+", default=["simple", "simulated"])
     ap.add_argument("--acceptance", type=float, default=None, help="acceptance radius [m] (default: the scenario's)")
     ap.add_argument("--duration", type=float, default=None, help="sim time [s] (default: the scenario's)")
+    ap.add_argument("--estimator", choices=["ekf", "perfect"], default=None, help="default: the scenario's")
+    ap.add_argument("--wind", default=None, help="steady wind N,E [m/s] (replaces the scenario's)")
+    ap.add_argument("--l1-period", type=float, default=None, help="L1 period [s] (default: the airframe's)")
     ap.add_argument("--out", type=Path, default=Path("logs/mptp_turn_vertices"))
     args = ap.parse_args(argv)
+    wind = None if args.wind is None else tuple(float(v) for v in args.wind.split(","))
+    if wind is not None and len(wind) != 2:
+        ap.error(f"--wind: expected N,E in m/s, got {args.wind!r}")
+    factors = Factors(args.estimator, wind, args.l1_period)
     args.out.mkdir(parents=True, exist_ok=True)
     cols = ["scenario", "acceptance [m]", "turn model", "runs completed", "corners", "median abs [m]", "cut p95 [m]"]
-    cols += ["largest cut [m]", "largest outside [m]"]
+    cols += ["largest cut [m]", "largest outside [m]", "later turns: largest cut [m]", "largest outside [m]"]
     print("| " + " | ".join(cols) + " |\n|" + "---|" * len(cols))
     for scenario in args.scenarios:
         for model in args.models:
-            xte, done, seeds = [], 0, _seeds(args.seeds)
+            xte, later, done, seeds = [], [], 0, _seeds(args.seeds)
             for seed in seeds:
-                path, ok = fly(scenario, seed, model, args.out, args.acceptance, args.duration)
+                path, ok = fly(scenario, seed, model, args.out, args.acceptance, args.duration, factors)
                 done += ok
                 xte.append(vertex_cross_track(path, "haps"))
-            x = np.concatenate(xte)
+                later.append(vertex_cross_track(path, "haps", start_turns=False))
+            x, y = np.concatenate(xte), np.concatenate(later)
             cut = np.maximum(x, 0.0)
             row = [scenario.stem, args.acceptance or "shipped", model, f"{done}/{len(seeds)}", len(x)]
             row += [f"{v:.1f}" for v in (np.median(np.abs(x)), np.percentile(cut, 95), cut.max(), max(-x.min(), 0))]
+            row += [f"{v:.1f}" for v in (max(y.max(initial=0.0), 0.0), max(-y.min(initial=0.0), 0.0))]
             print("| " + " | ".join(map(str, row)) + " |", flush=True)
 
 
