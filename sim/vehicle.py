@@ -176,7 +176,8 @@ class Vehicle:
         new_plan = plan.t == t
         fresh, self._planner_logged = self.planner is not self._planner_logged, self.planner
         self.logw.plan_input(t, self.planner.name, self.estimate, self.mission, new_plan, fresh)
-        self.follower.set_plan(plan)
+        if plan is not self.follower.plan:  # a kept plan keeps the follower's progress along it
+            self.follower.set_plan(plan)
         if new_plan:
             self.logw.plan(plan)
             self.logw.latency(t, latency)

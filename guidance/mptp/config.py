@@ -87,6 +87,12 @@ class MptpConfig:
     "scenario" = the planner is given the scenario's steady wind plus ``wind_error_ne_mps``
     (north, east) [m/s] as its forecast; "none" = still air (wind-blind planning).
 
+    Plan keeping (keeping.py): a replan flies on the current plan while it reaches the goal, the
+    aircraft is within ``keep_within_m`` [m] of where the plan has it now, the rest of the plan is
+    clear of the new nowcast, and the new plan would not arrive earlier by more than
+    ``keep_slack`` (a fraction) of the remaining flight time; ``keep_within_m`` = 0 replaces the
+    plan at every replan.
+
     Storm tops (vertical.py): a cell is avoided while the heights the aircraft can reach over the
     horizon, climbing or descending towards the goal at up to ``climb_rate_mps`` [m/s], come
     within ``vertical_margin_m`` [m] of the cell's base-to-top extent.
@@ -130,6 +136,8 @@ class MptpConfig:
     vertical_margin_m: float = 1000.0
     climb_rate_mps: float = 1.0
     speed_source: SpeedSource = "estimate"
+    keep_within_m: float = 500.0
+    keep_slack: float = 0.02
 
     def __post_init__(self) -> None:
         if self.tas_mps <= 0 or self.dt_s <= 0 or self.horizon_s < self.dt_s:
@@ -138,6 +146,8 @@ class MptpConfig:
             raise ValueError("bank_max must be in (0, 90) deg and course_change_max in (0, 90] deg")
         if not self.search_weight >= 1.0 or not self.dominance_s > 0 or not self.wait_step_min_s > 0:
             raise ValueError("need search_weight >= 1, dominance_s > 0 and wait_step_min_s > 0")
+        if not self.keep_within_m >= 0 or not 0 <= self.keep_slack < 1:
+            raise ValueError("need keep_within_m >= 0 and keep_slack in [0, 1)")
         if not self.vertical_margin_m >= 0 or not self.climb_rate_mps >= 0:
             raise ValueError("need vertical_margin_m >= 0 and climb_rate_mps >= 0")
         if not 0 <= self.probability < 1:

@@ -56,6 +56,7 @@ from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
 from guidance.mptp.heuristics import GoalAvailability
 from guidance.mptp.holding import holding_orbit, safe_area_leg
+from guidance.mptp.keeping import position_at, remaining_clear
 from guidance.mptp.search import HOLD, Trajectory, default_workspace, plan_trajectory
 from guidance.mptp.statespace import free_space
 from guidance.mptp.timeline import ObstacleTimeline
@@ -131,6 +132,25 @@ class MptpPlanner:
             self._t_plan, self._goal_index = t, k
         return self.plan_
 
+    def _keeps(self, est: VehicleState, new: Plan, t: float, k: int, now: MptpConfig, near, key) -> bool:
+        """Whether to fly on the current plan instead of ``new`` (keeping.py): it reaches goal
+        ``k``, the aircraft is within ``keep_within_m`` of where it has it now, the rest of it is
+        clear of this nowcast's obstacle at its probability, and ``new`` does not arrive earlier
+        by more than ``keep_slack`` of its remaining time."""
+        old = self.plan_
+        if old is None or self.cfg.keep_within_m <= 0 or k != self._goal_index or old.times[-1] <= t:
+            return False
+        if not (old.labels >= 0).any():
+            return False
+        if np.linalg.norm(np.asarray(est.pos_ned[:2], float) - position_at(old, t)) > self.cfg.keep_within_m:
+            return False
+        if (new.labels >= 0).any() and new.times[-1] - t < (1.0 - self.cfg.keep_slack) * (old.times[-1] - t):
+            return False
+        p = float(old.diagnostics.get("probability", now.probability))
+        cfg = now if p == now.probability else now.with_(probability=p)
+        tl, _ = self._timeline_for(near, t, self.wind_ne, cfg, key)
+        return remaining_clear(old, tl, t, self.wind_ne)
+
     def margins_at(self, t: float):
         """The margin region of the last replan's timeline at time ``t`` [s], on the ground
         (north, east) [m] (None before the first replan)."""
@@ -182,18 +202,24 @@ class MptpPlanner:
         near, key, ignored = self._storms_near(est, storms, k, now)
         levels = self.cfg.probability_levels
         fallback: tuple[Plan, ObstacleTimeline, Trajectory | None] | None = None
+        chosen: tuple[Plan, ObstacleTimeline, Trajectory | None] | None = None
         for p in levels:
             cfg = now if p == now.probability else now.with_(probability=p)
             plan, traj = self._replan_at(cfg, est, near, key, t, k)
             plan.diagnostics.update(probability=p, levels_tried=levels.index(p) + 1, cells_ignored=ignored)
             assert self.timeline is not None
             if traj is not None and traj.status == "ok":
-                self.trajectory = traj
-                return plan
+                chosen = (plan, self.timeline, traj)
+                break
             fallback = fallback or (plan, self.timeline, traj)
-        assert fallback is not None
-        plan, self.timeline, self.trajectory = fallback
-        plan.diagnostics["levels_tried"] = len(levels)
+        if chosen is None:
+            assert fallback is not None
+            chosen = fallback
+            chosen[0].diagnostics["levels_tried"] = len(levels)
+        if self.plan_ is not None and self._keeps(est, chosen[0], t, k, now, near, key):
+            self.timeline = chosen[1]
+            return self.plan_
+        plan, self.timeline, self.trajectory = chosen
         return plan
 
     def _replan_at(

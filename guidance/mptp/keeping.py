@@ -1,0 +1,59 @@
+"""Plan keeping between replans: is the plan being flown still clear, and is it being flown?
+
+Frames/units: (north, east) [m] on the ground, times in sim seconds [s]; the timeline's shapes
+are in its air-mass frame (wind.py), so plan positions are moved into it at their times.
+
+A replan keeps the current plan instead of a new one when the current plan reaches the goal,
+the aircraft is within ``tolerance_m`` of where the plan has it now (so the plan's times still
+hold), the rest of the plan is clear of the new nowcast's obstacle, and the new plan does not
+arrive earlier by more than ``keep_slack`` of the remaining flight time (planner.py). Without
+this every replan flies the first of many near-equal plans the search meets: with waiting they
+differ in where and how the aircraft waits, and each change of plan wastes flight.
+
+Clear = every piece of the plan's polyline inside planning interval j stays out of the envelope
+E_j of that interval (timeline.py: E_j holds the obstacle at every time of the interval), the
+test the search's legs pass by construction (statespace.py); a piece may touch E_j (the search
+flies to its tangent vertices) by ``TOUCH_M``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+
+from guidance.mptp.timeline import ObstacleTimeline
+from guidance.mptp.wind import to_air
+from sim.core.plan import Plan
+
+TOUCH_M = 1.0  # a plan piece may run along an envelope's boundary for this length [m]
+
+
+def position_at(plan: Plan, t: float) -> np.ndarray:
+    """Where ``plan`` has the aircraft at time ``t`` [s]: (north, east) [m], linear in time
+    between its vertices (held at its ends)."""
+    return np.array([np.interp(t, plan.times, plan.positions[:, k]) for k in range(2)])
+
+
+def remaining_clear(plan: Plan, tl: ObstacleTimeline, t: float, wind_ne: np.ndarray) -> bool:
+    """Whether the plan from time ``t`` [s] to its end stays out of ``tl``'s envelopes, each
+    piece in the planning interval it is flown in (``wind_ne``: the timeline frame's drift
+    [m/s])."""
+    times = np.asarray(plan.times, float)
+    if times[-1] <= t:
+        return True
+    later = times > t
+    j0, j1 = int(tl.interval(t)), int(tl.interval(times[-1]))
+    cuts = tl.level_time(np.arange(j0 + 1, j1 + 1))
+    knots = np.unique(np.concatenate([[t], times[later], cuts]))
+    ne = np.column_stack([np.interp(knots, times, plan.positions[:, k]) for k in range(2)])
+    ne = to_air(ne, knots, wind_ne, tl.t_issue) if np.any(wind_ne) else ne
+    for j in range(j0, j1 + 1):
+        lo, hi = tl.level_time(j), tl.level_time(j + 1)
+        m = (knots >= lo - 1e-9) & (knots <= hi + 1e-9)
+        if m.sum() < 2:
+            continue
+        piece = shapely.linestrings(ne[m])
+        env = tl.envelope(j)
+        if shapely.intersects(piece, env) and shapely.length(shapely.intersection(piece, env)) > TOUCH_M:
+            return False
+    return True
