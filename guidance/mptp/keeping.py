@@ -10,10 +10,10 @@ arrive earlier by more than ``keep_slack`` of the remaining flight time (planner
 this every replan flies the first of many near-equal plans the search meets: with waiting they
 differ in where and how the aircraft waits, and each change of plan wastes flight.
 
-Clear = every piece of the plan's polyline inside planning interval j stays out of the envelope
-E_j of that interval (timeline.py: E_j holds the obstacle at every time of the interval), the
-test the search's legs pass by construction (statespace.py); a piece may touch E_j (the search
-flies to its tangent vertices) by ``TOUCH_M``.
+Clear = the plan's positions in planning interval j stay out of the envelope E_j of that interval
+(timeline.py: E_j holds the obstacle at every time of the interval), the test the search's legs
+pass by construction (statespace.py); legs run along E_j's edges between its tangent vertices, so
+a position counts as inside only deeper than ``TOUCH_M``.
 """
 
 from __future__ import annotations
@@ -25,7 +25,8 @@ from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.wind import to_air
 from sim.core.plan import Plan
 
-TOUCH_M = 1.0  # a plan piece may run along an envelope's boundary for this length [m]
+TOUCH_M = 1.0  # a position closer than this to an envelope's boundary is outside it [m]
+SAMPLE_S = 2.0  # the plan is tested at its vertices and every this many seconds [s]
 
 
 def position_at(plan: Plan, t: float) -> np.ndarray:
@@ -35,25 +36,20 @@ def position_at(plan: Plan, t: float) -> np.ndarray:
 
 
 def remaining_clear(plan: Plan, tl: ObstacleTimeline, t: float, wind_ne: np.ndarray) -> bool:
-    """Whether the plan from time ``t`` [s] to its end stays out of ``tl``'s envelopes, each
-    piece in the planning interval it is flown in (``wind_ne``: the timeline frame's drift
-    [m/s])."""
+    """Whether the plan from time ``t`` [s] to its end stays out of ``tl``'s envelopes: its
+    positions every ``SAMPLE_S`` (and at its vertices), each tested against the envelope of the
+    planning interval it is flown in (``wind_ne``: the timeline frame's drift [m/s])."""
     times = np.asarray(plan.times, float)
     if times[-1] <= t:
         return True
-    later = times > t
-    j0, j1 = int(tl.interval(t)), int(tl.interval(times[-1]))
-    cuts = tl.level_time(np.arange(j0 + 1, j1 + 1))
-    knots = np.unique(np.concatenate([[t], times[later], cuts]))
+    knots = np.unique(np.concatenate([np.arange(t, times[-1], SAMPLE_S), times[times > t]]))
     ne = np.column_stack([np.interp(knots, times, plan.positions[:, k]) for k in range(2)])
     ne = to_air(ne, knots, wind_ne, tl.t_issue) if np.any(wind_ne) else ne
-    for j in range(j0, j1 + 1):
-        lo, hi = tl.level_time(j), tl.level_time(j + 1)
-        m = (knots >= lo - 1e-9) & (knots <= hi + 1e-9)
-        if m.sum() < 2:
-            continue
-        piece = shapely.linestrings(ne[m])
-        env = tl.envelope(j)
-        if shapely.intersects(piece, env) and shapely.length(shapely.intersection(piece, env)) > TOUCH_M:
+    j = tl.interval(knots)
+    for level in np.unique(j):
+        env = tl.envelope(int(level))
+        pts = ne[j == level]
+        inside = shapely.contains_xy(env, pts[:, 0], pts[:, 1])
+        if inside.any() and np.any(shapely.distance(shapely.points(pts[inside]), env.boundary) > TOUCH_M):
             return False
     return True
