@@ -73,17 +73,21 @@ def test_an_opening_corridor_is_waited_for_in_closed_loop(fly):
 
 
 @pytest.mark.slow
-def test_a_corridor_opening_after_20_min_is_held_for_and_taken(fly):
-    """scenarios/mptp/corridor_opens.toml: the corridor opens at 1182 s, so no arrival is earlier
-    than 1797 s (the file's header). The HAPS holds south of the walls (every plan complete,
-    none without a solution), crosses through the gap after it opened, is never inside a true
-    cell and arrives within 25 % of that bound (measured: 2166 s, +21 %; the issue asks for 5 %)."""
-    run = fly("mptp/corridor_opens")
+@pytest.mark.parametrize("seed", range(1, 21))
+def test_a_corridor_opening_after_20_min_is_held_for_and_taken(fly, scenario_data, seed):
+    """scenarios/mptp/corridor_opens.toml (default search options) on seeds 1-20: the corridor
+    opens at 1182 s, so no arrival is earlier than 1797 s (the file's header). The HAPS holds
+    south of the walls (never without a solution), crosses through the gap after it opened, is
+    never inside a true cell and arrives within 5 % of that bound (issue 20). Before plan keeping
+    (and the follower keeping its place on a kept plan) seed 7 had not arrived after 2400 s."""
+    data = scenario_data("mptp/corridor_opens")
+    data["seed"] = seed
+    run = fly(data, f"corridor_opens_{seed}")
     assert run.result.status == "completed"
     scenario, log = run.scenario, run.log
     assert log_metrics(log)["vehicles"]["haps"]["storms"]["time_inside_s"] == 0.0
     plans = log.topic("/haps/plan").messages
-    assert all(m["status"] == "ok" for m in plans)
+    assert all(m["status"] != "no_solution" for m in plans)
     wall, plug = np.array(scenario.weather.storm[0].points), scenario.weather.storm[2]
     margin = scenario.vehicle[0].planner.options.safety_line_m[0]
     opens_s = (np.max(np.array(plug.points)[:, 0]) + margin - (wall[:, 0].min() - margin)) / abs(plug.drift_north)
@@ -95,7 +99,7 @@ def test_a_corridor_opening_after_20_min_is_held_for_and_taken(fly):
     assert abs(truth["pos_ned"][k, 1]) < np.min(np.abs(np.array(scenario.weather.storm[1].points)[:, 1]))
     assert truth.t[k] > opens_s
     arrived = float(truth.t[np.argmax(np.linalg.norm(truth["pos_ned"][:, :2] - [goal_n, 0.0], axis=1) < 100.0)])
-    assert earliest <= arrived <= 1.25 * earliest
+    assert earliest <= arrived <= 1.05 * earliest
 
 
 @pytest.mark.parametrize(

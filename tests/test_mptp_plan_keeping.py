@@ -4,6 +4,7 @@ south out of it at 5.5 m/s (open at 1182 s). The first plan holds south of the w
 the gap; a replan two minutes later, with the aircraft where that plan has it, may find another
 of the many near-equal ways to wait. Without keeping each replan flies the new one."""
 
+import copy
 import math
 
 import numpy as np
@@ -66,36 +67,46 @@ def _on_plan(plan: Plan, t: float, offset_m: float = 0.0):
     return vehicle_state(t, ne, course, CFG.tas_mps)
 
 
-def _first(cfg: MptpConfig) -> tuple[MptpPlanner, Plan]:
-    planner = MptpPlanner(Mission(np.array([[*GOAL, 0.0]]), CFG.tas_mps, 100.0), cfg)
+@pytest.fixture(scope="module")
+def flying() -> MptpPlanner:
+    """The planner after its first plan (from the origin, heading north, at t = 0)."""
+    planner = MptpPlanner(Mission(np.array([[*GOAL, 0.0]]), CFG.tas_mps, 100.0), CFG)
     plan = planner.plan(vehicle_state(0.0, np.zeros(2), 0.0, CFG.tas_mps), Threats(storms=_nowcast(0.0)), 0.0)
     assert (plan.labels >= 0).any(), "the first search must reach the goal"
-    return planner, plan
+    return planner
 
 
-def test_a_plan_flown_on_schedule_is_kept_through_replans_and_replaced_without_keeping():
-    planner, first = _first(CFG)
+def _first(flying: MptpPlanner, **options) -> tuple[MptpPlanner, Plan]:
+    """A copy of the planner that has made its first plan, with ``options`` changed."""
+    planner = copy.deepcopy(flying)
+    planner.cfg = planner.cfg.with_(**options)
+    assert planner.plan_ is not None
+    return planner, planner.plan_
+
+
+def test_a_plan_flown_on_schedule_is_kept_through_replans_and_replaced_without_keeping(flying):
+    planner, first = _first(flying)
     tl = ObstacleTimeline(_nowcast(0.0), CFG, 2 * CFG.horizon_s)
     assert remaining_clear(first, tl, 0.0, np.zeros(2))  # the search's own plan passes the test
     for t in (120.0, 240.0):
         assert planner.plan(_on_plan(first, t), Threats(storms=_nowcast(t)), t) is first
-    planner, first = _first(CFG.with_(keep_within_m=0.0))
+    planner, first = _first(flying, keep_within_m=0.0)
     replans = [planner.plan(_on_plan(first, t), Threats(storms=_nowcast(t)), t) for t in (120.0, 240.0)]
     assert [p.t for p in replans] == [120.0, 240.0]
     assert any(not np.allclose(p.times[-1], first.times[-1]) for p in replans)
 
 
 @pytest.mark.parametrize("within_m, kept", [(500.0, False), (2000.0, True)])
-def test_an_aircraft_off_the_plan_gets_a_new_one(within_m, kept):
+def test_an_aircraft_off_the_plan_gets_a_new_one(flying, within_m, kept):
     """1 km to the right of where the plan has it: off the plan at keep_within_m 500 m."""
-    planner, first = _first(CFG.with_(keep_within_m=within_m))
+    planner, first = _first(flying, keep_within_m=within_m)
     plan = planner.plan(_on_plan(first, 120.0, offset_m=1000.0), Threats(storms=_nowcast(120.0)), 120.0)
     assert (plan is first) == kept
 
 
-def test_a_plan_that_the_new_nowcast_blocks_is_replaced():
+def test_a_plan_that_the_new_nowcast_blocks_is_replaced(flying):
     """A static cell appears on the kept plan's path north of the walls: the new plan avoids it."""
-    planner, first = _first(CFG)
+    planner, first = _first(flying)
     ahead = position_at(first, first.times[-1] - 200.0)
     cell = box(ahead[0] - 300.0, ahead[1] - 300.0, ahead[0] + 300.0, ahead[1] + 300.0)
     storms = _nowcast(120.0, extra=(cell,))
@@ -107,10 +118,10 @@ def test_a_plan_that_the_new_nowcast_blocks_is_replaced():
 
 
 @pytest.mark.parametrize("slack, kept", [(0.02, False), (0.6, True)])
-def test_a_new_plan_much_earlier_than_the_kept_one_replaces_it(slack, kept):
+def test_a_new_plan_much_earlier_than_the_kept_one_replaces_it(flying, slack, kept):
     """The plug is gone in the next nowcast: straight through the gap arrives ~45 % of the
     remaining time earlier, more than the slack of 2 %, less than 60 %."""
-    planner, first = _first(CFG.with_(keep_slack=slack))
+    planner, first = _first(flying, keep_slack=slack)
     plan = planner.plan(_on_plan(first, 120.0), Threats(storms=_nowcast(120.0, plug=False)), 120.0)
     assert (plan is first) == kept
     if not kept:

@@ -517,6 +517,14 @@ SHOWN_ELSEWHERE = {
         "acts on the wait bound's time step and cells (at most 3 steps per dt no shorter than it): "
         "tests/test_mptp_optimality.py::test_the_wait_step_sets_the_wait_bound_and_changes_the_search"
     ),
+    "vehicle.planner<MptpPlanner>.options.keep_within_m": (
+        "acts at a replan while the plan being flown reaches the goal (kept or not by the aircraft's "
+        "distance from it): tests/test_mptp_plan_keeping.py::test_an_aircraft_off_the_plan_gets_a_new_one"
+    ),
+    "vehicle.planner<MptpPlanner>.options.keep_slack": (
+        "acts at a replan while the plan being flown reaches the goal (replaced by a much earlier one): "
+        "tests/test_mptp_plan_keeping.py::test_a_new_plan_much_earlier_than_the_kept_one_replaces_it"
+    ),
     "vehicle.planner<MptpPlanner>.options.dominance_s": (
         "acts once the capped search meets a place again at another time (waiting): "
         "tests/test_mptp_optimality.py::test_the_dominance_window_changes_the_search"
