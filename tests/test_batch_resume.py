@@ -139,3 +139,38 @@ def test_pool_workers_die_with_the_batch_process(tmp_path, sig):
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
+
+
+def test_batch_started_with_sigint_ignored_keeps_ignoring_it_and_stops_on_sigterm(tmp_path):
+    """A background job of a script is started with SIGINT ignored, as its shell asks: Ctrl-C
+    leaves it flying; SIGTERM (``kill PID``) interrupts it like Ctrl-C (exit 130, the run
+    interrupted, flown again on resume)."""
+    batch = _batch(tmp_path, "3", duration="600 s", hover=True)
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "sim.cli", "batch", str(batch), "-o", str(out), "--workers", "1", "-q"]
+    proc = subprocess.Popen(
+        ["sh", "-c", 'trap "" INT; exec "$@"', "sh", *cmd],  # SIGINT ignored across the exec
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        log = out / "runs" / "resume_0000.mcap"
+        end = time.monotonic() + 120
+        while time.monotonic() < end and not log.exists():
+            time.sleep(0.1)
+        assert log.exists()
+        time.sleep(1.0)  # flying
+        os.kill(proc.pid, signal.SIGINT)
+        time.sleep(2.0)
+        assert proc.poll() is None, "a batch that ignores SIGINT stopped on one"
+        os.kill(proc.pid, signal.SIGTERM)
+        _, stderr = proc.communicate(timeout=60)
+        assert proc.returncode == 130, stderr
+        assert stderr.strip().endswith("interrupted")
+        assert not (out / "runs" / "resume_0000.json").exists()
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
