@@ -119,9 +119,9 @@ def identify_rotor_axis(
     n_fit = int(seconds / plant.dt)
     n = max(n_fit, int(DAMPING_WINDOW_S[1] / plant.dt)) if axis in DAMPED_AXES else n_fit
     trace = np.empty((n, 2))
-    for k in range(n):
+    for i in range(n):
         plant.step()
-        trace[k] = plant[acc], plant[speed]
+        trace[i] = plant[acc], plant[speed]
     dt = plant.dt
     t = dt * np.arange(1, n_fit + 1)
     y = trace[:n_fit, 0] * to_si / amplitude
@@ -129,9 +129,11 @@ def identify_rotor_axis(
     def model(tt, k, tau, d, a=0.0):
         return k * (1 - (1 - a) * np.exp(-np.clip(tt - d, 0, None) / tau))
 
-    p0, lo, hi = [y[-1], 0.05, 0.0], [0, 1e-3, -dt], [np.inf, 1.0, 5 * dt]
+    p0: list[float] = [float(y[-1]), 0.05, 0.0]
+    lo: list[float] = [0.0, 1e-3, -dt]
+    hi: list[float] = [math.inf, 1.0, 5 * dt]
     if axis in LEADING_AXES:
-        p0, lo, hi = [*p0, y[0] / y[-1]], [*lo, 0.0], [*hi, np.inf]
+        p0, lo, hi = [*p0, float(y[0] / y[-1])], [*lo, 0.0], [*hi, math.inf]
     fit, _ = curve_fit(model, t, y, p0=p0, bounds=(lo, hi))
     k, tau, d, *lead = (float(v) for v in fit)
     damping = 0.0
