@@ -20,8 +20,8 @@ below the loops). Vertical (up): the demand becomes the collective thrust hover 
 (level), and the collective the acceleration identified like the axes (``collective``:
 K e^{-d p} / (tau p + 1) per unit thrust fraction, less D v: the propeller's thrust falls off as
 the climb speed v grows, D identified in the climb), so v = K hover / g G_coll e^{-p dt_fcs/2}
-a_sp / (p + D). Velocity PID with D on the low-passed measured acceleration (first-order filter of the
-controller's discrete low-pass), opened at the acceleration demand::
+a_sp / (p + D). Velocity PID with D on the low-passed measured acceleration (first-order filter
+of the controller's discrete low-pass), opened at the acceleration demand::
 
     L_vel = (kp + ki/p + kd p wf / (p + wf)) plant e^{-p dt/2}
 
