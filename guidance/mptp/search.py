@@ -214,9 +214,7 @@ class _Expander:
     def _wait_bound(self) -> WaitBound:
         """The wait bound of this search (built at the first call, from the start state's time)."""
         if self.wait is None:
-            self.wait = WaitBound(
-                self.tl, self.goal, self.w, self.t_start, self.t_end, self.cfg.tas_mps, self.cfg.wait_substeps
-            )
+            self.wait = wait_bound(self.tl, self.goal, self.cfg, self.w, self.t_start)
         return self.wait
 
     def _static_bound(self, fs: FreeSpace, t_goal: float) -> StaticBound:
@@ -231,6 +229,13 @@ class _Expander:
         return self.static
 
 
+def wait_bound(tl: ObstacleTimeline, goal: GoalTrack, cfg: MptpConfig, workspace: Polygon, t0: float) -> WaitBound:
+    """The wait bound of a search from time ``t0`` [s] over ``workspace`` (what
+    :func:`plan_trajectory` builds; it depends on neither the heuristic nor the start state's
+    position and course)."""
+    return WaitBound(tl, goal, workspace, t0, t0 + cfg.horizon_s, cfg.tas_mps, cfg.wait_substeps)
+
+
 def plan_trajectory(
     tl: ObstacleTimeline,
     p0: np.ndarray,
@@ -241,15 +246,18 @@ def plan_trajectory(
     workspace: Polygon | None = None,
     turning: str | None = None,
     min_partial_s: float = math.inf,
+    wait: WaitBound | None = None,
 ) -> Trajectory:
     """Near-time-optimal, time-monotone, flyable trajectory from (p0, t0, course0) to the goal
-    (or a partial one, see Trajectory, lasting at least ``min_partial_s`` [s])."""
+    (or a partial one, see Trajectory, lasting at least ``min_partial_s`` [s]). ``wait``: the
+    wait bound of this search if already built (:func:`wait_bound`; searches that differ only
+    in the heuristic share it), else it is built at the first heuristic evaluation."""
     wall = time.perf_counter()
     p0 = np.asarray(p0, float)
     ends = goal.at(np.array([t0, t0 + cfg.horizon_s]))
     w = workspace if workspace is not None else default_workspace(np.vstack([p0, ends]), cfg, cfg.mission_area)
     exp = _Expander(tl, goal, cfg, w, turning or cfg.turning)
-    exp.t_start, exp.t_end = t0, t0 + cfg.horizon_s
+    exp.t_start, exp.t_end, exp.wait = t0, t0 + cfg.horizon_s, wait
     q_p, q_t, q_c = 0.01 * cfg.leg_m, 0.01 * cfg.dt_s, math.radians(1.0)
 
     def key(s: State):
