@@ -38,12 +38,11 @@ from shapely.geometry import Polygon
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
 from guidance.mptp.heuristics import StaticPaths
-from guidance.mptp.search import default_workspace, plan_trajectory, wait_bound
+from guidance.mptp.search import SharedWork, default_workspace, plan_trajectory
 from guidance.mptp.statespace import FreeSpace
 from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.turning import bearing
 from guidance.mptp.visibility import boundary_of
-from guidance.mptp.waitbound import WaitBound
 from sim.batch import _die_with_parent
 from sim.geodesy import geodetic_to_ned
 from sim.testbeds.mptp_mc_fields import FieldSpec, coverage, draw_cells, nowcast
@@ -143,42 +142,27 @@ def draw_trials(tl: ObstacleTimeline, cfg: MptpConfig, field: int, n: int, seed:
     return out
 
 
-@dataclass(frozen=True, slots=True)
-class SharedWait:
-    """A trial's wait bound, built once for all its heuristics (it depends on none of them),
-    and the CPU and wall time [s] its build took."""
-
-    bound: WaitBound
-    cpu_s: float
-    wall_s: float
-
-
 def trial_workspace(trial: Trial, cfg: MptpConfig) -> Polygon:
     """The search workspace of ``trial``: start and goal padded, within the mission area."""
     return default_workspace(np.vstack([trial.start, trial.goal]), cfg, cfg.mission_area)
 
 
-def shared_wait(tl: ObstacleTimeline, trial: Trial, cfg: MptpConfig) -> SharedWait | None:
-    """The wait bound of ``trial``'s searches (None when building it raises: each search then
-    builds its own and the error goes into its row)."""
-    wall, cpu = time.perf_counter(), time.process_time()
-    try:
-        bound = wait_bound(tl, GoalTrack.fixed(np.array(trial.goal)), cfg, trial_workspace(trial, cfg), 0.0)
-    except Exception:  # noqa: BLE001 - reported by the searches, which build it again
-        return None
-    return SharedWait(bound, time.process_time() - cpu, time.perf_counter() - wall)
+def trial_share(tl: ObstacleTimeline, trial: Trial, cfg: MptpConfig) -> SharedWork:
+    """What the searches of ``trial`` with the study's heuristics share (search.SharedWork)."""
+    return SharedWork(tl, GoalTrack.fixed(np.array(trial.goal)), cfg, trial_workspace(trial, cfg), 0.0)
 
 
-def run_trial(tl: ObstacleTimeline, trial: Trial, cfg: MptpConfig, wait: SharedWait | None = None) -> dict:
+def run_trial(tl: ObstacleTimeline, trial: Trial, cfg: MptpConfig, shared: SharedWork | None = None) -> dict:
     """Plan once from the trial's start; the row: success, EXST, TRST, length [m], arrival [s],
     ``runtime_s`` the CPU time of this process for the search [s] (less disturbed by other jobs
-    on a loaded machine than ``wall_s``, the wall clock). With ``wait`` (the trial's shared wait
-    bound) both times include its build, as when the search builds it itself. A search that
-    raises is a failure with status "error: <exception>" and EXST 0."""
+    on a loaded machine than ``wall_s``, the wall clock). With ``shared`` (trial_share, used by
+    the trial's other heuristics too) both times include what the search reused from it, as
+    when it builds everything itself. A search that raises is a failure with status
+    "error: <exception>" and EXST 0."""
     p0, goal = np.array(trial.start), np.array(trial.goal)
     work = trial_workspace(trial, cfg)
-    extra_cpu, extra_wall = (wait.cpu_s, wait.wall_s) if wait else (0.0, 0.0)
-    wall, cpu = time.perf_counter() - extra_wall, time.process_time() - extra_cpu
+    reused = (shared.reused_cpu_s, shared.reused_wall_s) if shared is not None else (0.0, 0.0)
+    wall, cpu = time.perf_counter(), time.process_time()
     try:
         tr = plan_trajectory(
             tl,
@@ -188,12 +172,16 @@ def run_trial(tl: ObstacleTimeline, trial: Trial, cfg: MptpConfig, wait: SharedW
             GoalTrack.fixed(goal),
             cfg,
             work,
-            wait=None if wait is None else wait.bound,
+            shared=shared,
         )
+        failure = None
     except Exception as exc:  # noqa: BLE001 - a planner crash is this trial's outcome (a failure), kept in the row
-        cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
-        return {**_failed(cfg.heuristic, cpu, wall), "status": f"error: {type(exc).__name__}: {exc}"}
+        failure = f"error: {type(exc).__name__}: {exc}"
     cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
+    if shared is not None:
+        cpu, wall = cpu + shared.reused_cpu_s - reused[0], wall + shared.reused_wall_s - reused[1]
+    if failure is not None:
+        return {**_failed(cfg.heuristic, cpu, wall), "status": failure}
     ok = tr.status == "ok"
     return {
         "heuristic": cfg.heuristic,
@@ -239,13 +227,13 @@ def run_field(field: int, n_trials: int, seed: int, heuristics: tuple[str, ...] 
         "coverage_horizon": coverage(cells, area, MARGIN_HORIZON_M, HORIZON_S),
     }
     if any(c.with_(heuristic=base.heuristic) != base for c in cfgs.values()):
-        raise ValueError("the study's configurations must differ only in the heuristic (they share wait bounds)")
+        raise ValueError("the study's configurations must differ only in the heuristic (their searches share work)")
     rows = []
     for tr in trials:
         order = heuristics if tr.index % 2 == 0 else heuristics[::-1]
-        wait = shared_wait(tl, tr, base)
+        shared = trial_share(tl, tr, base)
         for h in order:
-            row = {**asdict(tr), **cov, **run_trial(tl, tr, cfgs[h], wait)}
+            row = {**asdict(tr), **cov, **run_trial(tl, tr, cfgs[h], shared)}
             row["start"], row["goal"] = list(tr.start), list(tr.goal)
             rows.append(row)
     return rows
