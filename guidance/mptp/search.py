@@ -253,7 +253,7 @@ class _Expander:
         for side in self.hold_senses:
             lap = hold_orbit(np.array(s.p), s.course, 1, self.cfg, side)
             footprint = shapely.convex_hull(shapely.multipoints(lap))
-            hit = shapely.intersects(footprint, envs)  # only those touched can overlap by area
+            hit = shapely.intersects(envs, footprint)  # only those touched can overlap by area (envs prepared)
             hit[hit] = shapely.area(shapely.intersection(footprint, envs[hit])) > TOUCH_M2
             free_until = int(np.argmax(hit)) - 1 if hit.any() else len(envs) - 1
             sides[(sides == 0) & (last <= free_until)] = side
