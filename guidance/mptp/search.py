@@ -114,10 +114,10 @@ def default_workspace(points: np.ndarray, cfg: MptpConfig, area: Polygon | None 
 class SharedWork:
     """What searches from one start time ``t0`` [s] to ``goal`` over ``workspace`` on ``tl``
     share when their configurations differ only in the heuristic: the wait bound (built at its
-    first use) and the free space of every expanded state, by position, time and kind (such
-    searches expand many of the same states). ``reused_cpu_s`` / ``reused_wall_s``: the CPU and
-    wall time [s] that the reused items took when first built (what the searches that reused
-    them would have spent without sharing)."""
+    first use) and the free space of every expanded state, by its position and time (a free
+    space depends on nothing else; such searches expand many of the same states).
+    ``reused_cpu_s`` / ``reused_wall_s``: the CPU and wall time [s] that the reused items took
+    when first built (what the searches that reused them would have spent without sharing)."""
 
     def __init__(self, tl: ObstacleTimeline, goal: GoalTrack, cfg: MptpConfig, workspace: Polygon, t0: float):
         self.tl, self.goal, self.cfg, self.w, self.t0 = tl, goal, cfg, workspace, t0
@@ -147,8 +147,8 @@ class SharedWork:
         return self._reused(self._wait)
 
     def free_space(self, p: np.ndarray, t: float, permanent: bool = False) -> FreeSpace:
-        """EX_free of state (p, t) (statespace.free_space, with the escape disc of one flyable
-        leg pair, or ``permanent`` for the SSPH without one)."""
+        """EX_free of state (p, t) (statespace.free_space with an escape disc reaching two
+        minimum legs, or ``permanent``, the SSPH's view, without one)."""
         key = (float(p[0]), float(p[1]), float(t), permanent)
         if key not in self._spaces:
             cfg, wall, cpu = self.cfg, time.perf_counter(), time.process_time()
