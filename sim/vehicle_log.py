@@ -12,6 +12,8 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import operator
+from array import array
 from typing import Any
 
 import numpy as np
@@ -44,7 +46,7 @@ from sim.estimation.sensor_estimator import SensorEstimator
 from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.log_proto import scan_record
 from sim.log_rows import flatten
-from sim.mcap_log import McapLog, Piece, RowBuffer
+from sim.mcap_log import McapLog, RowBuffer
 from sim.planner_records import wallclock_metadata
 
 NED_FRAME = "ned"
@@ -285,7 +287,7 @@ def write_static_frames(log: McapLog) -> None:
 
 
 _STATE_META = {"frame": "local-level NED from the scenario origin", "units": "SI, rad"}
-_ENERGY_SCALARS = tuple(name for name, width in log_rows.ENERGY if width != log_rows.MAP)
+_ENERGY_SCALARS = operator.attrgetter(*(name for name, width in log_rows.ENERGY if width != log_rows.MAP))
 _ENERGY_META = {"units": "W, Wh, state of charge 0..1"}
 _SENSORS_META = {"units": "SI, rad"}
 _SIGMA_META = {"frame": "NED; attitude error in body axes", "units": "SI, rad"}
@@ -327,8 +329,7 @@ class VehicleLogWriter:
         self.t_energy = f"{p}/energy"
         self.t_lidar = f"{p}/threats/lidar"
         self._specs: dict[tuple, tuple] = {}  # row specs by their parts (layout, static)
-        self._buffer: RowBuffer | None = None
-        self._tick_row: list[Piece] = []
+        self._buffer = RowBuffer(log) if log.compact else None
         self._tick_parts: list[tuple[str, tuple]] = []
         sp: tuple[tuple[str, ...], tuple[dict[str, str], ...]] = ((self.t_sp,), ({},))
         self._part_topics: dict[str, tuple[tuple[str, ...], tuple[dict[str, str], ...]]] = {  # per layout
@@ -343,15 +344,17 @@ class VehicleLogWriter:
             "energy": ((self.t_energy,), (_ENERGY_META,)),
         }
 
-    def _part(self, layout: str, piece: Piece, static: tuple = ()) -> None:
-        """A part of this tick's row (compact logs; :meth:`end_tick` hands the row over)."""
+    def _part(self, layout: str, static: tuple = ()) -> array:
+        """Start a part of this tick's row (compact logs): its values are to be appended to the
+        array returned; :meth:`end_tick` closes the row."""
+        assert self._buffer is not None, "rows are written to compact logs only"
         self._tick_parts.append((layout, static))
-        self._tick_row.append(piece)
+        return self._buffer.values
 
     def end_tick(self) -> None:
-        """Hand this log tick's row to the vehicle's row buffer (rows stay in tick order), with
+        """Close this log tick's row in the vehicle's row buffer (rows stay in tick order), with
         the spec of its parts (registered at their first row)."""
-        if not self._tick_row:
+        if not self._tick_parts:
             return
         key = tuple(self._tick_parts)
         spec = self._specs.get(key)
@@ -361,17 +364,16 @@ class VehicleLogWriter:
                 topics, meta = self._part_topics[layout]
                 parts.append((layout, topics, static, meta))
             spec = self._specs[key] = self.log.row_spec(tuple(parts))
-        if self._buffer is None:
-            self._buffer = RowBuffer(self.log)
-        self._buffer.add(spec, self._tick_row)
-        self._tick_row, self._tick_parts = [], []
+        assert self._buffer is not None
+        self._buffer.end_row(spec)
+        self._tick_parts.clear()
 
     def truth(self, s: VehicleState) -> None:
         """Log the true state (``cosim.VehicleState``, ``foxglove.LocationFix`` and the
         ``ned`` -> vehicle transform on ``/tf``)."""
         log, t = self.log, s.t
         if log.compact:
-            self._part("truth", (state_row, s), (("frame", self.name),))  # a state is not changed
+            self._part("truth", (("frame", self.name),)).fromlist(state_row(s))
             return
         ns = log.epoch_ns + round(t * 1e9)
         log.write_json(self.t_state, t, state_dict(s), S.VEHICLE_STATE, _STATE_META)
@@ -390,14 +392,14 @@ class VehicleLogWriter:
     def tracking(self, t: float, cross_track_m: float, leg: int) -> None:
         """True cross-track error to the leg being followed (what the metrics judge)."""
         if self.log.compact:
-            self._part("tracking", [t, cross_track_m, leg])
+            self._part("tracking").fromlist([t, cross_track_m, leg])
             return
         self.log.write_json(self.t_tracking, t, {"t": t, "cross_track_m": cross_track_m, "leg": leg}, S.TRACKING)
 
     def estimate(self, s: VehicleState) -> None:
         """Log what controllers and planners saw (same schema as the truth)."""
         if self.log.compact:
-            self._part("estimate", (state_row, s))
+            self._part("estimate").fromlist(state_row(s))
             return
         self.log.write_json(self.t_est, s.t, state_dict(s), S.VEHICLE_STATE, _STATE_META)
 
@@ -408,9 +410,13 @@ class VehicleLogWriter:
         log = self.log
         if log.compact:
             counts, values = est.measurement_row()
-            self._part("sensors", [t, *values], (("counts", counts),))
+            row = self._part("sensors", (("counts", counts),))
+            row.append(t)
+            row.fromlist(values)
             cov = est.covariance_row()
-            self._part("sigma", [t, *cov])
+            row = self._part("sigma")
+            row.append(t)
+            row.fromlist(cov)
             pos_vel = [log_rows.three_sd(v) for v in cov[0:6]]
             return {"pos": pos_vel[0:3], "vel": pos_vel[3:6]}
         sigma3 = est.three_sigma()
@@ -425,9 +431,13 @@ class VehicleLogWriter:
         (JSBSim property -> value) with the controller's debug values."""
         if self.log.compact:
             layout = log_rows.SETPOINT_LAYOUTS[schema["title"]]
-            self._part(layout, [t, *flatten(log_rows.LAYOUTS[layout].columns[1:], setpoint)[0]])
-            keys = (("properties", tuple(commands)), ("debug", tuple(debug)))
-            self._part("commands", [t, *commands.values(), *debug.values()], keys)
+            row = self._part(layout)
+            row.append(t)
+            row.fromlist(flatten(log_rows.LAYOUTS[layout].columns[1:], setpoint)[0])
+            row = self._part("commands", (("properties", tuple(commands)), ("debug", tuple(debug))))
+            row.append(t)
+            row.extend(commands.values())
+            row.extend(debug.values())
             return
         self.log.write_json(self.t_sp, t, {"t": t, **setpoint}, schema)
         self.log.write_json(self.t_cmd, t, {"t": t, "properties": commands, "debug": debug}, S.COMMANDS)
@@ -437,8 +447,10 @@ class VehicleLogWriter:
         control step)."""
         if self.log.compact:
             cum = record.cumulative_wh
-            row = [t, *(getattr(record, f) for f in _ENERGY_SCALARS), *cum.values()]
-            self._part("energy", row, (("cumulative_wh", tuple(cum)),))
+            row = self._part("energy", (("cumulative_wh", tuple(cum)),))
+            row.append(t)
+            row.extend(_ENERGY_SCALARS(record))
+            row.extend(cum.values())
             return
         self.log.write_json(self.t_energy, t, record.as_dict(), S.ENERGY, _ENERGY_META)
 
