@@ -118,36 +118,42 @@ class RowBuffer:
     """One vehicle's rows, one per log tick, in tick order, each made of parts (a row of a
     :mod:`sim.log_rows` layout written on its channels; which parts, its ``spec`` from
     :meth:`McapLog.row_spec`), handed to the writer ``ROWS`` rows at a time (and at the log's
-    close) as one record. A row's values (float64; integers and booleans as floats) are
-    appended to :attr:`values` as the tick goes and closed by :meth:`end_row`; the writer encodes
-    each part's messages, logged at the part's first column (sim time [s]), and numbers them per
-    channel."""
+    close) as one record."""
 
     def __init__(self, log: McapLog):
         self._log = log
-        self.values = array("d")  # the rows of this block, one after the other
-        self._specs: list[tuple] = []  # per complete row
-        self._end = 0  # values of the complete rows
+        self._rows: list[tuple[tuple, list[Piece]]] = []
         log._row_buffers.append(self)
 
-    def end_row(self, spec: tuple) -> None:
-        """The values appended since the last row make a row of ``spec``."""
-        self._specs.append(spec)
-        self._end = len(self.values)
-        if len(self._specs) >= ROWS:
+    def add(self, spec: tuple, pieces: list[Piece]) -> None:
+        """One row as its pieces, one after the other: a list of columns, or ``(fn, arg)`` whose
+        ``fn(arg)`` gives them when the block is handed over (for an ``arg`` nobody changes: the
+        rows of a block are made in one go, which costs less than one at a time between
+        simulation steps, whose work leaves the logging code and data out of the caches).
+        The list is the caller's no more."""
+        rows = self._rows
+        rows.append((spec, pieces))
+        if len(rows) >= ROWS:
             self.flush()
 
     def flush(self) -> None:
-        """Hand the complete rows to the writer now, with the records pending before them, as
+        """Hand the buffered rows to the writer now, with the records pending before them, as
         ``("rows", epoch_ns, specs, values)``: one spec per row (a spec repeated in a block is
-        pickled once) and the rows' values as the bytes of a float64 array (one copy, no
-        per-float pickling); a row left incomplete by an error is not handed over."""
-        if self._specs:
-            values, end = self.values, self._end
-            self._log._record(("rows", self._log.epoch_ns, self._specs, values[:end].tobytes()))
-            del values[:end]
-            self._specs, self._end = [], 0
+        pickled once) and the rows' values, one row after the other, as the bytes of a float64
+        array (integers and booleans as floats; one copy instead of pickling each float)."""
+        if self._rows:
+            values = array("d")
+            put = values.fromlist
+            for _, pieces in self._rows:
+                for p in pieces:
+                    put(p if type(p) is list else p[0](p[1]))
+            specs = [spec for spec, _ in self._rows]
+            self._rows = []
+            self._log._record(("rows", self._log.epoch_ns, specs, values.tobytes()))
             self._log._flush()
+
+
+Piece = list[float] | tuple[Callable[[Any], list[float]], Any]
 
 
 class McapLog:

@@ -13,7 +13,6 @@ import itertools
 import json
 import math
 import operator
-from array import array
 from typing import Any
 
 import numpy as np
@@ -42,11 +41,11 @@ from sim.core.threats import (
     StormSnapshot,
 )
 from sim.energy.power_system import EnergyRecord
-from sim.estimation.sensor_estimator import SensorEstimator
+from sim.estimation.sensor_estimator import MeasurementLog, SensorEstimator, measurement_row
 from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.log_proto import scan_record
 from sim.log_rows import flatten
-from sim.mcap_log import McapLog, RowBuffer
+from sim.mcap_log import McapLog, Piece, RowBuffer
 from sim.planner_records import wallclock_metadata
 
 NED_FRAME = "ned"
@@ -311,6 +310,24 @@ def state_row(s: VehicleState) -> list[float]:
     ]
 
 
+def _sensors_row(tick: tuple[float, MeasurementLog]) -> list[float]:
+    """A ``sensors`` row: the log tick's time [s] and its measurements."""
+    t, measurements = tick
+    return [t, *measurement_row(measurements)]
+
+
+def _setpoint_row(tick: tuple[float, log_rows.Columns, dict]) -> list[float]:
+    """A setpoint row: the log tick's time [s] and the setpoint record's columns."""
+    t, columns, setpoint = tick
+    return [t, *flatten(columns, setpoint)[0]]
+
+
+def _commands_row(tick: tuple[float, dict[str, float], dict[str, float]]) -> list[float]:
+    """A ``commands`` row: the log tick's time [s], the commands' and the debug values."""
+    t, commands, debug = tick
+    return [t, *commands.values(), *debug.values()]
+
+
 class VehicleLogWriter:
     """Formats and writes one vehicle's messages; topic names are built once. In a compact log
     the per-tick topics are rows (:mod:`sim.log_rows`) that the writer process encodes; a JSON
@@ -330,6 +347,7 @@ class VehicleLogWriter:
         self.t_lidar = f"{p}/threats/lidar"
         self._specs: dict[tuple, tuple] = {}  # row specs by their parts (layout, static)
         self._buffer = RowBuffer(log) if log.compact else None
+        self._tick_row: list[Piece] = []
         self._tick_parts: list[tuple[str, tuple]] = []
         sp: tuple[tuple[str, ...], tuple[dict[str, str], ...]] = ((self.t_sp,), ({},))
         self._part_topics: dict[str, tuple[tuple[str, ...], tuple[dict[str, str], ...]]] = {  # per layout
@@ -344,17 +362,15 @@ class VehicleLogWriter:
             "energy": ((self.t_energy,), (_ENERGY_META,)),
         }
 
-    def _part(self, layout: str, static: tuple = ()) -> array:
-        """Start a part of this tick's row (compact logs): its values are to be appended to the
-        array returned; :meth:`end_tick` closes the row."""
-        assert self._buffer is not None, "rows are written to compact logs only"
+    def _part(self, layout: str, piece: Piece, static: tuple = ()) -> None:
+        """A part of this tick's row (compact logs; :meth:`end_tick` hands the row over)."""
         self._tick_parts.append((layout, static))
-        return self._buffer.values
+        self._tick_row.append(piece)
 
     def end_tick(self) -> None:
-        """Close this log tick's row in the vehicle's row buffer (rows stay in tick order), with
+        """Hand this log tick's row to the vehicle's row buffer (rows stay in tick order), with
         the spec of its parts (registered at their first row)."""
-        if not self._tick_parts:
+        if not self._tick_row:
             return
         key = tuple(self._tick_parts)
         spec = self._specs.get(key)
@@ -364,16 +380,16 @@ class VehicleLogWriter:
                 topics, meta = self._part_topics[layout]
                 parts.append((layout, topics, static, meta))
             spec = self._specs[key] = self.log.row_spec(tuple(parts))
-        assert self._buffer is not None
-        self._buffer.end_row(spec)
-        self._tick_parts.clear()
+        assert self._buffer is not None, "rows are written to compact logs only"
+        self._buffer.add(spec, self._tick_row)
+        self._tick_row, self._tick_parts = [], []
 
     def truth(self, s: VehicleState) -> None:
         """Log the true state (``cosim.VehicleState``, ``foxglove.LocationFix`` and the
         ``ned`` -> vehicle transform on ``/tf``)."""
         log, t = self.log, s.t
         if log.compact:
-            self._part("truth", (("frame", self.name),)).fromlist(state_row(s))
+            self._part("truth", (state_row, s), (("frame", self.name),))  # a state is not changed
             return
         ns = log.epoch_ns + round(t * 1e9)
         log.write_json(self.t_state, t, state_dict(s), S.VEHICLE_STATE, _STATE_META)
@@ -392,14 +408,14 @@ class VehicleLogWriter:
     def tracking(self, t: float, cross_track_m: float, leg: int) -> None:
         """True cross-track error to the leg being followed (what the metrics judge)."""
         if self.log.compact:
-            self._part("tracking").fromlist([t, cross_track_m, leg])
+            self._part("tracking", [t, cross_track_m, leg])
             return
         self.log.write_json(self.t_tracking, t, {"t": t, "cross_track_m": cross_track_m, "leg": leg}, S.TRACKING)
 
     def estimate(self, s: VehicleState) -> None:
         """Log what controllers and planners saw (same schema as the truth)."""
         if self.log.compact:
-            self._part("estimate").fromlist(state_row(s))
+            self._part("estimate", (state_row, s))
             return
         self.log.write_json(self.t_est, s.t, state_dict(s), S.VEHICLE_STATE, _STATE_META)
 
@@ -409,14 +425,11 @@ class VehicleLogWriter:
         ``vel``, ...: sequences of floats) as logged."""
         log = self.log
         if log.compact:
-            counts, values = est.measurement_row()
-            row = self._part("sensors", (("counts", counts),))
-            row.append(t)
-            row.fromlist(values)
+            sensors = est.take_measurements()
+            counts = tuple((name, len(items)) for name, items in sensors.items())
+            self._part("sensors", (_sensors_row, (t, sensors)), (("counts", counts),))
             cov = est.covariance_row()
-            row = self._part("sigma")
-            row.append(t)
-            row.fromlist(cov)
+            self._part("sigma", [t, *cov])
             pos_vel = [log_rows.three_sd(v) for v in cov[0:6]]
             return {"pos": pos_vel[0:3], "vel": pos_vel[3:6]}
         sigma3 = est.three_sigma()
@@ -428,16 +441,13 @@ class VehicleLogWriter:
         self, t: float, setpoint: dict, schema: dict, commands: dict[str, float], debug: dict[str, float]
     ) -> None:
         """The setpoint record (:func:`setpoint_record`) and the commands sent to the plant
-        (JSBSim property -> value) with the controller's debug values."""
+        (JSBSim property -> value) with the controller's debug values; none of the three dicts
+        may change later (a compact log reads them when its row block is handed over)."""
         if self.log.compact:
             layout = log_rows.SETPOINT_LAYOUTS[schema["title"]]
-            row = self._part(layout)
-            row.append(t)
-            row.fromlist(flatten(log_rows.LAYOUTS[layout].columns[1:], setpoint)[0])
-            row = self._part("commands", (("properties", tuple(commands)), ("debug", tuple(debug))))
-            row.append(t)
-            row.extend(commands.values())
-            row.extend(debug.values())
+            self._part(layout, (_setpoint_row, (t, log_rows.LAYOUTS[layout].columns[1:], setpoint)))
+            keys = (("properties", tuple(commands)), ("debug", tuple(debug)))
+            self._part("commands", (_commands_row, (t, commands, debug)), keys)
             return
         self.log.write_json(self.t_sp, t, {"t": t, **setpoint}, schema)
         self.log.write_json(self.t_cmd, t, {"t": t, "properties": commands, "debug": debug}, S.COMMANDS)
@@ -446,11 +456,8 @@ class VehicleLogWriter:
         """The electrical bus at the log tick ``t`` [s] (its record's own ``t`` ends the
         control step)."""
         if self.log.compact:
-            cum = record.cumulative_wh
-            row = self._part("energy", (("cumulative_wh", tuple(cum)),))
-            row.append(t)
-            row.extend(_ENERGY_SCALARS(record))
-            row.extend(cum.values())
+            cum = record.cumulative_wh  # the record changes in place: its values are taken now
+            self._part("energy", [t, *_ENERGY_SCALARS(record), *cum.values()], (("cumulative_wh", tuple(cum)),))
             return
         self.log.write_json(self.t_energy, t, record.as_dict(), S.ENERGY, _ENERGY_META)
 

@@ -52,6 +52,8 @@ from sim.sensors.measurements import AirspeedSample, BaroSample, GnssFix, MagSam
 from sim.sensors.suite import SensorSuite, SensorSuiteConfig
 from sim.sensors.truth import TruthSampler
 
+MeasurementLog = dict[str, list[Any]]  # per sensor: "imu" (t, dt, mean) tuples, the others measurements
+
 _EPS = 1e-9
 _LBF = 4.4482216152605  # N per lbf
 _SLUG = 14.593902937206364  # kg per slug
@@ -219,7 +221,7 @@ class SensorEstimator:
         self.attitude = GyroAttitude(self.ekf.nav.q, tuple(self.ekf.nav.bg.tolist()))
         self._fused: tuple[float, np.ndarray] | None = None  # last fusion time [s], its newest IMU sample
         self._inbox: list[Measurement] = []
-        self._log: dict[str, list[Any]] = {}  # per sensor: "imu" (t, dt, mean) tuples, the others measurements
+        self._log: MeasurementLog = {}
         self._cache: tuple[float, int, VehicleState] | None = None
         self._n_fusions = 0
 
@@ -331,23 +333,12 @@ class SensorEstimator:
         self._log = {}
         return out
 
-    def measurement_row(self) -> tuple[tuple[tuple[str, int], ...], list[float]]:
-        """Measurements delivered since the last call (as :meth:`measurements`) as one flat row:
-        per sensor with records, ``(name, count)``, and the records' values in that order, each
-        record ``t`` then its fields in :meth:`measurements`' order (IMU: ``t``, ``dt``, accel,
-        gyro)."""
-        counts: list[tuple[str, int]] = []
-        row: list[float] = []
-        for name, items in self._log.items():
-            counts.append((name, len(items)))
-            if name == "imu":
-                for t, dt, mn in items:
-                    row += (t, dt, *mn.tolist())
-            else:
-                for z in items:
-                    row += _values(z)
-        self._log = {}
-        return tuple(counts), row
+    def take_measurements(self) -> MeasurementLog:
+        """Measurements delivered since the last call, as kept (none of them is changed later):
+        per sensor, IMU ``(t, dt, mean)`` fusion intervals, the others their measurements;
+        :func:`measurement_row` turns them into a log row."""
+        out, self._log = self._log, {}
+        return out
 
     def covariance_row(self) -> list[float]:
         """What :meth:`three_sigma` and :meth:`biases` are made of, as one flat row: the
@@ -373,6 +364,21 @@ class SensorEstimator:
 
 # flat indices into the N x N covariance: its diagonal up to the baro bias, the attitude block
 _COVARIANCE_ROW = np.array([k * (N + 1) for k in range(16)] + [r * N + c for r in range(6, 9) for c in range(6, 9)])
+
+
+def measurement_row(log: MeasurementLog) -> list[float]:
+    """Measurements (:meth:`SensorEstimator.take_measurements`) as one flat row, per sensor in
+    ``log``'s order, each record ``t`` then its fields in :meth:`SensorEstimator.measurements`'
+    order (IMU: ``t``, ``dt``, accel, gyro)."""
+    row: list[float] = []
+    for name, items in log.items():
+        if name == "imu":
+            for t, dt, mn in items:
+                row += (t, dt, *mn.tolist())
+        else:
+            for z in items:
+                row += _values(z)
+    return row
 
 
 def _values(z: Measurement) -> list[float]:
