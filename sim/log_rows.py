@@ -173,24 +173,34 @@ def _frame(static: Any) -> str:
     return dict(static)["frame"]
 
 
-def _location(v: list[float], ns: int, static: Any) -> bytes:
+def location_fix(v: Sequence[float], ns: int, frame: str) -> LocationFix:
+    """The ``foxglove.LocationFix`` of a state row (:data:`STATE`) at log time ``ns``."""
     fix = LocationFix(
-        frame_id=_frame(static), latitude=v[_AT["lat_deg"]], longitude=v[_AT["lon_deg"]], altitude=v[_AT["alt_msl_m"]]
+        frame_id=frame, latitude=v[_AT["lat_deg"]], longitude=v[_AT["lon_deg"]], altitude=v[_AT["alt_msl_m"]]
     )
     fix.timestamp.FromNanoseconds(ns)
-    return fix.SerializeToString(deterministic=True)
+    return fix
 
 
-def _transform(v: list[float], ns: int, static: Any) -> bytes:
-    """``ned`` -> vehicle: position NED [m], attitude from the Euler angles [rad]."""
+def ned_transforms(v: Sequence[float], ns: int, frame: str) -> FrameTransforms:
+    """``ned`` -> ``frame`` of a state row (:data:`STATE`) at log time ``ns``: position NED [m],
+    attitude from the Euler angles [rad]."""
     e, p = _AT["euler"], _AT["pos_ned"]
     qw, qx, qy, qz = euler_to_quat(v[e], v[e + 1], v[e + 2])
-    tf = FrameTransform(parent_frame_id=NED_FRAME, child_frame_id=_frame(static))
+    tf = FrameTransform(parent_frame_id=NED_FRAME, child_frame_id=frame)
     tf.timestamp.FromNanoseconds(ns)
     tf.translation.x, tf.translation.y, tf.translation.z = v[p], v[p + 1], v[p + 2]
     r = tf.rotation
     r.x, r.y, r.z, r.w = qx, qy, qz, qw
-    return FrameTransforms(transforms=[tf]).SerializeToString(deterministic=True)
+    return FrameTransforms(transforms=[tf])
+
+
+def _location(v: list[float], ns: int, static: Any) -> bytes:
+    return location_fix(v, ns, _frame(static)).SerializeToString(deterministic=True)
+
+
+def _transform(v: list[float], ns: int, static: Any) -> bytes:
+    return ned_transforms(v, ns, _frame(static)).SerializeToString(deterministic=True)
 
 
 # the row of cosim.EstimateSigma: what the bounds are computed from (SensorEstimator.covariance_row)
