@@ -308,6 +308,7 @@ def state_row(s: VehicleState) -> list[float]:
     ]
 
 
+_SETPOINT_COLUMNS = {name: log_rows.LAYOUTS[name].columns[1:] for name in log_rows.SETPOINT_LAYOUTS.values()}
 # a tick's control: setpoint record, its JSON schema, commands sent to the plant, controller debug
 ControlRecord = tuple[dict[str, Any], dict[str, Any], dict[str, float], dict[str, float]]
 
@@ -348,6 +349,8 @@ class VehicleLogWriter:
         self.t_energy = f"{p}/energy"
         self.t_lidar = f"{p}/threats/lidar"
         self._specs: dict[tuple, tuple] = {}  # row specs by the varying static values of their parts
+        self._last_key: tuple = ()
+        self._last_spec: tuple = ()
         self._buffer = RowBuffer(log) if log.compact else None
         sp: tuple[tuple[str, ...], tuple[dict[str, str], ...]] = ((self.t_sp,), ({},))
         self._part_topics: dict[str, tuple[tuple[str, ...], tuple[dict[str, str], ...]]] = {  # per layout
@@ -406,7 +409,7 @@ class VehicleLogWriter:
             sd = [log_rows.three_sd(v) for v in cov[0:6]]
             sigma3 = {"pos": sd[0:3], "vel": sd[3:6]}
         pieces += (
-            (_setpoint_row, (t, log_rows.LAYOUTS[layout].columns[1:], setpoint)),
+            (_setpoint_row, (t, _SETPOINT_COLUMNS[layout], setpoint)),
             (_commands_row, (t, commands, debug)),
         )
         cum = None
@@ -414,9 +417,13 @@ class VehicleLogWriter:
             cum = energy.cumulative_wh  # the record changes in place: its values are taken now
             pieces.append([t, *_ENERGY_SCALARS(energy), *cum.values()])
         key = (layout, counts, tuple(commands), tuple(debug), None if cum is None else tuple(cum))
-        spec = self._specs.get(key)
-        if spec is None:
-            spec = self._specs[key] = self._row_spec(key)
+        if key == self._last_key:  # mostly: compared by the identity of its strings, not hashed
+            spec = self._last_spec
+        else:
+            spec = self._specs.get(key)
+            if spec is None:
+                spec = self._specs[key] = self._row_spec(key)
+            self._last_key, self._last_spec = key, spec
         assert self._buffer is not None, "rows are written to compact logs only"
         self._buffer.add(spec, pieces)
         return sigma3
