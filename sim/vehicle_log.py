@@ -39,6 +39,7 @@ from sim.core.threats import (
     StormSnapshot,
 )
 from sim.energy.power_system import EnergyRecord
+from sim.estimation.ins_model import three_sd
 from sim.estimation.sensor_estimator import MeasurementLog, SensorEstimator, measurement_row
 from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.log_proto import scan_record
@@ -406,7 +407,7 @@ class VehicleLogWriter:
             counts = tuple([(name, len(items)) for name, items in sensors.items()])
             cov = estimator.covariance_row()
             pieces += ((_sensors_row, (t, sensors)), [t, *cov])
-            sd = [log_rows.three_sd(v) for v in cov[0:6]]
+            sd = [three_sd(v) for v in cov[0:6]]
             sigma3 = {"pos": sd[0:3], "vel": sd[3:6]}
         pieces += (
             (_setpoint_row, (t, _SETPOINT_COLUMNS[layout], setpoint)),
