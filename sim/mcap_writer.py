@@ -71,12 +71,10 @@ class RecordWriter:
         add, seq = self.writer.add_message, self.row_seq
         values = array("d", data).tolist()
         plans: dict[int, list] = {}  # per spec object of this block (unpickled once)
-        k = 0
         for spec in specs:
-            plan = plans.get(id(spec))
-            if plan is None:
+            if id(spec) not in plans:
                 parts, cids = spec
-                plan = plans[id(spec)] = [
+                plans[id(spec)] = [
                     (
                         row_width(layout, static),
                         static,
@@ -85,15 +83,18 @@ class RecordWriter:
                     for (layout, static), ids in zip(parts, cids, strict=True)
                     for outs in [self._layouts[layout].outputs]
                 ]
-            for width, static, outputs in plan:
+        width = sum(w for spec in specs for w, _, _ in plans[id(spec)])
+        if width != len(values):
+            raise ValueError(f"a block of rows has {len(values)} values, its specs take {width}")
+        k = 0
+        for spec in specs:
+            for width, static, outputs in plans[id(spec)]:
                 part = values[k : k + width]
                 k += width
                 t_ns = epoch_ns + round(part[0] * 1e9)
                 for ch, build in outputs:
                     seq[ch] = n = seq.get(ch, 0) + 1
                     add(ch, log_time=t_ns, data=build(part, t_ns, static), publish_time=t_ns, sequence=n)
-        if k != len(values):
-            raise ValueError(f"a block of rows has {len(values)} values, its specs take {k}")
 
     @cached_property
     def _layouts(self):
