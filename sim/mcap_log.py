@@ -146,7 +146,11 @@ class RowBuffer:
             put = values.fromlist
             for _, pieces in self._rows:
                 for p in pieces:
-                    put(p if type(p) is list else p[0](p[1]))
+                    if isinstance(p, list):
+                        put(p)
+                    else:
+                        fn, arg = p
+                        put(fn(arg))
             specs = [spec for spec, _ in self._rows]
             self._rows = []
             self._log._record(("rows", self._log.epoch_ns, specs, values.tobytes()))

@@ -421,9 +421,8 @@ class VehicleLogWriter:
         if key == self._last_key:  # mostly: compared by the identity of its strings, not hashed
             spec = self._last_spec
         else:
-            spec = self._specs.get(key)
-            if spec is None:
-                spec = self._specs[key] = self._row_spec(key)
+            known = self._specs.get(key)
+            spec = self._specs[key] = self._row_spec(key) if known is None else known
             self._last_key, self._last_spec = key, spec
         assert self._buffer is not None, "rows are written to compact logs only"
         self._buffer.add(spec, pieces)
