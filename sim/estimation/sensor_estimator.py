@@ -38,7 +38,7 @@ from pydantic import Field, model_validator
 from sim.core.state import VehicleState
 from sim.estimation.gyro_attitude import GyroAttitude
 from sim.estimation.ins_ekf import InsEkf, InsEkfConfig
-from sim.estimation.ins_model import N
+from sim.estimation.ins_model import N, sigma_bounds
 from sim.geodesy import GeoPoint
 from sim.jsbsim_plant import JSBSimPlant
 from sim.sensors.airspeed import AirspeedConfig
@@ -353,7 +353,8 @@ class SensorEstimator:
 
     def three_sigma(self) -> dict[str, list[float]]:
         """3-sigma bounds of the estimate (see :meth:`InsEkf.three_sigma`), plain floats."""
-        return {k: _floats(v) for k, v in self.ekf.three_sigma().items()}
+        cov = self.covariance_row()
+        return sigma_bounds(cov[:16], cov[16:20], cov[20:29])
 
     def biases(self) -> dict[str, list[float]]:
         """Estimated biases: ``accel`` [m/s^2] and ``gyro`` [rad/s] body, ``baro`` height [m],
