@@ -349,9 +349,11 @@ class VehicleLogWriter:
         self.t_tracking = f"{p}/truth/tracking"
         self.t_energy = f"{p}/energy"
         self.t_lidar = f"{p}/threats/lidar"
-        self._specs: dict[tuple, tuple] = {}  # row specs by the varying static values of their parts
-        self._last_key: tuple = ()
-        self._last_spec: tuple = ()
+        # row specs by the parts' varying static values: the setpoint layout and the map keys,
+        # then the sensors' record counts (these change from tick to tick)
+        self._specs: dict[tuple, dict[tuple | None, tuple]] = {}
+        self._last_keys: tuple = ()
+        self._by_counts: dict[tuple | None, tuple] = {}
         self._buffer = RowBuffer(log) if log.compact else None
         sp: tuple[tuple[str, ...], tuple[dict[str, str], ...]] = ((self.t_sp,), ({},))
         self._part_topics: dict[str, tuple[tuple[str, ...], tuple[dict[str, str], ...]]] = {  # per layout
@@ -417,21 +419,21 @@ class VehicleLogWriter:
         if energy is not None:
             cum = energy.cumulative_wh  # the record changes in place: its values are taken now
             pieces.append([t, *_ENERGY_SCALARS(energy), *cum.values()])
-        key = (layout, counts, tuple(commands), tuple(debug), None if cum is None else tuple(cum))
-        if key == self._last_key:  # mostly: compared by the identity of its strings, not hashed
-            spec = self._last_spec
-        else:
-            known = self._specs.get(key)
-            spec = self._specs[key] = self._row_spec(key) if known is None else known
-            self._last_key, self._last_spec = key, spec
+        keys = (layout, tuple(commands), tuple(debug), None if cum is None else tuple(cum))
+        if keys != self._last_keys:  # mostly equal: compared by the identity of their strings
+            self._last_keys, self._by_counts = keys, self._specs.setdefault(keys, {})
+        spec = self._by_counts.get(counts)
+        if spec is None:
+            spec = self._by_counts[counts] = self._row_spec(keys, counts)
         assert self._buffer is not None, "rows are written to compact logs only"
         self._buffer.add(spec, pieces)
         return sigma3
 
-    def _row_spec(self, key: tuple) -> tuple:
-        """The spec of a row of :meth:`tick`'s ``key`` (its parts' varying static values),
-        registering the parts' channels at the first."""
-        layout, counts, properties, debug, cumulative = key
+    def _row_spec(self, keys: tuple, counts: tuple | None) -> tuple:
+        """The spec of a row of :meth:`tick` with the parts' varying static values (``keys``:
+        setpoint layout, map keys; the sensors' record counts), registering the parts'
+        channels at the first."""
+        layout, properties, debug, cumulative = keys
         parts: list[tuple[str, tuple]] = [("tracking", ()), ("truth", (("frame", self.name),)), ("estimate", ())]
         if counts is not None:
             parts += (("sensors", (("counts", counts),)), ("sigma", ()))
