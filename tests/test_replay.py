@@ -254,3 +254,40 @@ def test_compare_writes_json_and_csv_and_full_names_off_a_terminal(quad_runs, tm
     lines = _compare_cli(a, b, "--changed").splitlines()
     for k, *_ in rows:
         assert any(f"│ {k} " in line for line in lines), k
+
+
+def _peak_bytes(fn) -> int:
+    """Peak Python allocation [bytes] while ``fn`` runs (tracemalloc)."""
+    import gc
+    import tracemalloc
+
+    gc.collect()
+    tracemalloc.start()
+    try:
+        fn()
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def test_replay_and_export_memory_does_not_grow_with_the_log(quad_runs, tmp_path):
+    """The quadrotor's whole flight logs 1.7x the ticks of its 40 s cut (10 Hz log): read
+    whole (RunLog) it peaks megabytes higher; the streamed report (its metrics chunk of 1024
+    ticks holds either log) and the Parquet export of its largest topics in batches of 64 rows
+    peak the same within 0.5 MB. Long logs: ``benchmarks/bench_replay_memory.py``."""
+    from sim.replay.export import export_log
+
+    _, full, cut = quad_runs
+    topics = ["/quad/truth/state", "/quad/sensors", "/quad/ctrl/commands"]
+    export_log(cut, tmp_path / "warm", "parquet", topics[:1])  # imports outside the measurement
+    peaks = {}
+    for name, path in (("cut", cut), ("full", full)):
+        peaks[name] = (
+            _peak_bytes(lambda p=path, n=name: write_report(p, tmp_path / f"report_{n}")),
+            _peak_bytes(lambda p=path, n=name: export_log(p, tmp_path / f"export_{n}", "parquet", topics, batch=64)),
+            _peak_bytes(lambda p=path: RunLog(p, topics)),
+        )
+    (report_cut, export_cut, whole_cut), (report_full, export_full, whole_full) = peaks["cut"], peaks["full"]
+    assert whole_full - whole_cut > 2e6, peaks  # the whole-log reading this replaces
+    assert report_full - report_cut < 0.5e6, peaks
+    assert export_full - export_cut < 0.5e6, peaks

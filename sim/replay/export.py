@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     import pyarrow.parquet as pq
 
 FORMATS = ("parquet", "csv")
-BATCH = 4096  # rows per write (a Parquet row group)
+BATCH = 1024  # rows per write (a Parquet row group)
 
 ProgressFn = Callable[[int, int], None]  # (messages read, messages to read: each topic's twice)
 
