@@ -270,11 +270,14 @@ def _peak_bytes(fn) -> int:
         tracemalloc.stop()
 
 
-def test_replay_and_export_memory_does_not_grow_with_the_log(quad_runs, tmp_path):
-    """The quadrotor's whole flight logs 1.7x the ticks of its 40 s cut (10 Hz log): read
-    whole (RunLog) it peaks megabytes higher; the streamed report (its metrics chunk of 1024
-    ticks holds either log) and the Parquet export of its largest topics in batches of 64 rows
-    peak the same within 0.5 MB. Long logs: ``benchmarks/bench_replay_memory.py``."""
+def test_export_memory_does_not_grow_with_the_log(quad_runs, tmp_path):
+    """The quadrotor's whole flight logs 1.7x the ticks of its 40 s cut (10 Hz log; both longer
+    than an MCAP chunk). Exported in batches of 64 rows (both logs fill several), the peak of
+    the Parquet export of its largest topics grows by less than a quarter of what reading the
+    same topics whole grows by (measured: 0.4 MB, the MCAP reader's chunk, against 2.7 MB; in one
+    batch, as before streaming, the export grew 2.1 MB). At CI log lengths the report's peak is
+    its plotting (about 3.2 MB either way), so its streaming is shown on long logs:
+    ``benchmarks/bench_replay_memory.py`` (docs/analysis.md)."""
     from sim.replay.export import export_log
 
     _, full, cut = quad_runs
@@ -283,11 +286,9 @@ def test_replay_and_export_memory_does_not_grow_with_the_log(quad_runs, tmp_path
     peaks = {}
     for name, path in (("cut", cut), ("full", full)):
         peaks[name] = (
-            _peak_bytes(lambda p=path, n=name: write_report(p, tmp_path / f"report_{n}")),
             _peak_bytes(lambda p=path, n=name: export_log(p, tmp_path / f"export_{n}", "parquet", topics, batch=64)),
             _peak_bytes(lambda p=path: RunLog(p, topics)),
         )
-    (report_cut, export_cut, whole_cut), (report_full, export_full, whole_full) = peaks["cut"], peaks["full"]
-    assert whole_full - whole_cut > 2e6, peaks  # the whole-log reading this replaces
-    assert report_full - report_cut < 0.5e6, peaks
-    assert export_full - export_cut < 0.5e6, peaks
+    (export_cut, whole_cut), (export_full, whole_full) = peaks["cut"], peaks["full"]
+    assert whole_full - whole_cut > 2e6, peaks  # the whole-log reading streaming replaced
+    assert export_full - export_cut < 0.25 * (whole_full - whole_cut), peaks
