@@ -292,3 +292,35 @@ def test_export_memory_does_not_grow_with_the_log(quad_runs, tmp_path):
     (export_cut, whole_cut), (export_full, whole_full) = peaks["cut"], peaks["full"]
     assert whole_full - whole_cut > 2e6, peaks  # the whole-log reading streaming replaced
     assert export_full - export_cut < 0.25 * (whole_full - whole_cut), peaks
+
+
+def test_replay_of_a_log_without_a_per_tick_topic_is_a_log_read_error(short_run, tmp_path):
+    """A vehicle whose log lacks one of the per-tick topics is refused, naming the topic (not
+    folded in as a vehicle without samples)."""
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    from sim.mcap_read import LogReadError
+
+    _, path = short_run
+    edited = tmp_path / "edited.mcap"
+    with open(path, "rb") as src, open(edited, "wb") as dst:
+        reader = make_reader(src)
+        summary = reader.get_summary()
+        assert summary is not None
+        w = Writer(dst)
+        w.start()
+        schemas = {sid: w.register_schema(s.name, s.encoding, s.data) for sid, s in summary.schemas.items()}
+        channels = {
+            cid: w.register_channel(c.topic, c.message_encoding, schemas.get(c.schema_id, 0), c.metadata)
+            for cid, c in summary.channels.items()
+            if c.topic != "/haps/truth/tracking"
+        }
+        for m in reader.iter_metadata():
+            w.add_metadata(m.name, m.metadata)
+        for _, ch, msg in reader.iter_messages():
+            if ch.id in channels:
+                w.add_message(channels[ch.id], msg.log_time, msg.data, msg.publish_time)
+        w.finish()
+    with pytest.raises(LogReadError, match="no topic '/haps/truth/tracking'"):
+        log_metrics(edited)

@@ -16,7 +16,7 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
-from sim.mcap_read import LogInfo, iter_messages
+from sim.mcap_read import LogInfo, LogReadError, iter_messages
 from sim.replay.metrics import MetricsWorld, PairFn, RunMetrics
 from sim.replay.trace import TraceRecorder, VehicleTrace
 
@@ -97,6 +97,9 @@ def stream_metrics(
             on_chunk(chunk)
 
     for name in log_vehicles(info):
+        missing = [f"/{name}/{s}" for s in PER_TICK if f"/{name}/{s}" not in topics]
+        if missing:
+            raise LogReadError(f"{path}: no topic {', '.join(map(repr, missing))} (not a cosim run log, or edited)")
         kind = kinds.get(name, "fixed_wing")
         acc.vehicle(name, kind)
         feeds[name] = _VehicleFeed(TraceRecorder(name, kind, 0, sink), f"/{name}/{SIGMA}" in topics)
