@@ -30,6 +30,7 @@ from sim.geodesy import GeoPoint
 from sim.mcap_log import McapLog
 from sim.planner_records import RecordSink
 from sim.planner_registry import PLANNERS
+from sim.position_planners import GotoPlanner, HoldPositionPlanner
 from sim.replay.trace import TraceRecorder
 from sim.scheduler import LockstepScheduler, Stage
 from sim.sensors.faults import SensorFault
@@ -175,7 +176,8 @@ class Vehicle:
         latency = time.perf_counter() - t0
         new_plan = plan.t == t
         fresh, self._planner_logged = self.planner is not self._planner_logged, self.planner
-        self.logw.plan_input(t, self.planner.name, self.estimate, self.mission, new_plan, fresh)
+        setup = self.planner.setup() if fresh and isinstance(self.planner, HoldPositionPlanner | GotoPlanner) else None
+        self.logw.plan_input(t, self.planner.name, self.estimate, self.mission, new_plan, fresh, setup)
         self.follower.set_plan(plan)
         if new_plan:
             self.logw.plan(plan)

@@ -494,13 +494,21 @@ class VehicleLogWriter:
             self.log.write_record(self.t_lidar, t, scan_record(threats.lidar), S.LIDAR_SCAN, frame)
 
     def plan_input(
-        self, t: float, planner: str, estimate: VehicleState, mission: Mission, new_plan: bool, fresh: bool
+        self,
+        t: float,
+        planner: str,
+        estimate: VehicleState,
+        mission: Mission,
+        new_plan: bool,
+        fresh: bool,
+        mode_setup: dict | None = None,
     ) -> None:
         """Per planner call: the planner's name, the estimate and mission progress it saw (the
         threats go to ``/<v>/threats``, one message per call too) and whether it made a new plan;
         ``fresh``: the planner was built since the previous call (at the start, a ground-station
         mode change or mission upload, a repeated mission): the record then holds the mission it
-        was built for (``mission_setup``)."""
+        was built for (``mission_setup``) and, for a ground-station mode planner, what it was
+        built from (``mode_setup``)."""
         rec = {
             "t": t,
             "planner": planner,
@@ -510,6 +518,8 @@ class VehicleLogWriter:
         }
         if fresh:
             rec["mission_setup"] = mission_setup(mission)
+            if mode_setup is not None:
+                rec["mode_setup"] = mode_setup
         self.log.write_json(
             self.t_input,
             t,
