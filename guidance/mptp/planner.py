@@ -31,9 +31,8 @@ level (the mean of the estimate's and the goal's heights): storms drift at their
 the wind, the goal drifts at minus the wind, the course is that of the air velocity, and the
 planned states map back to the ground at their times.
 
-Each replan plans at the vehicle's current true airspeed (the mean of the estimate's over the
-planner calls since the last replan; the configured ``tas_mps`` only while the estimate has none,
-or always with ``speed_source = "config"``), so
+Each replan plans at the vehicle's current true airspeed (the estimate's; the configured
+``tas_mps`` only while the estimate has none, or always with ``speed_source = "config"``), so
 the turn radius and leg lengths follow the speed as it grows with altitude at a fixed
 equivalent airspeed; and only with the storm cells whose vertical extent the vehicle can be
 near over the horizon (vertical.py).
@@ -113,7 +112,6 @@ class MptpPlanner:
         self._nowcast_key: tuple | None = None
         self._timelines: dict[float, ObstacleTimeline] = {}  # of the last nowcast, per P
         self._issue: tuple = ()  # identity of the last nowcast seen
-        self._tas_samples: list[float] = []  # the estimate's TAS at each call since the last replan [m/s]
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         m = self.mission
@@ -132,12 +130,9 @@ class MptpPlanner:
         issue = tuple((id(s), s.t) for s in threats.storms)
         due = k != self._goal_index or issue != self._issue or t - self._t_plan >= self.cfg.replan_period_s - 1e-9
         self._issue = issue
-        if estimate.tas_mps >= MIN_AIRSPEED:
-            self._tas_samples.append(float(estimate.tas_mps))
         if self.plan_ is None or due:
             self.plan_ = self._replan(estimate, threats.storms or [StormSnapshot(t, ())], t, k)
             self._t_plan, self._goal_index = t, k
-            self._tas_samples.clear()
         return self.plan_
 
     def _keeps(self, est: VehicleState, new: Plan, t: float, k: int, now: MptpConfig, near, key) -> bool:
@@ -183,12 +178,10 @@ class MptpPlanner:
 
     def config_now(self, est: VehicleState) -> MptpConfig:
         """The configuration at the vehicle's current true airspeed [m/s] (``speed_source``
-        "estimate": the mean of the estimate's over the planner calls since the last replan,
-        this one included, so a replan does not plan at one noisy pitot sample; the configured
-        one while the estimate's is below ``MIN_AIRSPEED``)."""
+        "estimate"; the configured one while the estimate's is below ``MIN_AIRSPEED``)."""
         if self.cfg.speed_source == "config" or est.tas_mps < MIN_AIRSPEED:
             return self.cfg
-        return self.cfg.with_(tas_mps=float(np.mean(self._tas_samples or [est.tas_mps])))
+        return self.cfg.with_(tas_mps=float(est.tas_mps))
 
     def _storms_near(self, est: VehicleState, storms: list[StormSnapshot], k: int, cfg: MptpConfig):
         """The cells the vehicle can come near in height over the horizon (vertical.py), the
