@@ -771,6 +771,7 @@ _GEOMETRIC = {
     "log_limits": [[-3.0, 2.5], [-0.1, 0.1], [-3.0, 0.001]],
     "main_threat_extension_s": 3.0,
     "max_cost": 0.01,
+    "min_height_m": 21.0,
     "min_replan_interval_s": 5.0,
     "min_sep_factor": 4.0,
     "n_planes": 1,
