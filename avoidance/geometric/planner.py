@@ -11,9 +11,11 @@ otherwise the conflict monitor (CPA along the reference) looks for a main threat
 the reference. Conflict -> candidates around it from the evading point (the vehicle's
 along-track position moved ahead by its along-track speed × ``start_shift_s``), the chosen path
 then the rest of the reference. No collision-free candidate (or too close) -> NO_SOLUTION with
-a hover plan at the current position. Candidates are generated at most once per
-``min_replan_interval_s``; a conflict inside that interval (including a committed path found
-unsafe) gets the hover plan (``status = rate_limited``). A committed path found unsafe while the
+a hover plan at the current position, unless flying on along the reference is predicted to stay
+clearer of the threats than holding (then the reference plan, ``response = fly_on``).
+Candidates are generated at most once per ``min_replan_interval_s``; a conflict inside that
+interval (including a committed path found unsafe) gets the same fallback (``status =
+rate_limited``). A committed path found unsafe while the
 vehicle is more than ``replan_max_offset_m`` off the reference is not dropped (the candidates
 would start on the reference, out of reach): the vehicle hovers (``status = suspended``) and
 resumes the path once its re-check is clear again, unless holding position is predicted to come
