@@ -320,7 +320,7 @@ def test_too_close_conflict_flies_on_when_holding_is_worse_and_hovers_otherwise(
 
 
 def test_min_height_keeps_candidates_above_the_floor():
-    # finding 9 of docs/encounters.md: a candidate 19 m down from 20 m flew the ownship into the
+    # finding 9 of docs/encounters.md: a candidate 21.9 m down from 20 m flew the ownship into the
     # ground. At 20 m with a 6 m floor no chosen or available candidate goes below 6 m.
     threats = Threats(spheres=[sphere(40.0, r=5.0)])
     free = GeometricAvoider(REF, 5.0, GeometricConfig(start_shift_s=0.0, path_types=("symmetric",)))
