@@ -107,7 +107,7 @@ class GeometricConfig:
       spec's avoider knows no ground).
     - ``conflict_horizon_s`` [s]: look-ahead of the constant-velocity conflict monitor.
     - ``min_replan_interval_s`` [s]: least time between two candidate generations in the closed
-      loop (spec §9.6); a conflict inside it gets the hover plan.
+      loop (spec §9.6); a conflict inside it gets the no-candidate fallback (hover, or fly on).
     - ``replan_max_offset_m`` [m]: a committed path found unsafe is dropped for a re-plan only
       while the vehicle is within this distance of the reference; farther off, it hovers and
       resumes the path when it is clear again.
