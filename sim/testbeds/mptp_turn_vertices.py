@@ -10,10 +10,10 @@ and - on the outside. Frames: local-level NED [m] of the log.
 simulated --out DIR`` flies every scenario with each seed and ``turn_model`` (the scenario's
 planner options otherwise unchanged; ``--acceptance`` overrides the MPTP vehicles' acceptance
 radius, ``--duration`` the sim time), keeps the logs in DIR and prints a Markdown table per
-scenario and model: corners, median |xte|, 95th percentile of the cut, largest cut, largest
-outside pass [m], the same two without each plan's start turn (vertex_cross_track) and along
-the estimated track the follower flew on (the true track's cross-track less the navigation
-error), and the missions completed.
+scenario and model (``--per-seed``: also a row per seed): corners, median |xte|, 95th
+percentile of the cut, largest cut, largest outside pass [m], the same two without each plan's
+start turn (vertex_cross_track) and along the estimated track the follower flew on (the true
+track's cross-track less the navigation error), and the missions completed.
 
 Controlled factors (the experiment that isolates why turns are flown wide, docs/mptp.md):
 ``--estimator perfect`` (ideal sensors instead of the EKF), ``--wind N,E`` (the steady wind [m/s]
@@ -185,31 +185,47 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--wind", default=None, help="steady wind N,E [m/s] (replaces the scenario's)")
     ap.add_argument("--l1-period", type=float, default=None, help="L1 period [s] (default: the airframe's)")
     ap.add_argument("--out", type=Path, default=Path("logs/mptp_turn_vertices"))
+    ap.add_argument("--per-seed", action="store_true", help="also a row per seed")
     args = ap.parse_args(argv)
     wind = None if args.wind is None else tuple(float(v) for v in args.wind.split(","))
     if wind is not None and len(wind) != 2:
         ap.error(f"--wind: expected N,E in m/s, got {args.wind!r}")
     factors = Factors(args.estimator, wind, args.l1_period)
     args.out.mkdir(parents=True, exist_ok=True)
-    cols = ["scenario", "acceptance [m]", "turn model", "runs completed", "corners", "median abs [m]", "cut p95 [m]"]
-    cols += ["largest cut [m]", "largest outside [m]", "later turns: largest cut [m]", "largest outside [m]"]
-    cols += ["estimated track: largest cut [m]", "largest outside [m]"]
+    cols = ["scenario", "seeds", "acceptance [m]", "turn model", "runs completed", "corners", "median abs [m]"]
+    cols += ["cut p95 [m]", "largest cut [m]", "largest outside [m]", "later turns: largest cut [m]"]
+    cols += ["largest outside [m]", "estimated track: largest cut [m]", "largest outside [m]"]
     print("| " + " | ".join(cols) + " |\n|" + "---|" * len(cols))
     for scenario in args.scenarios:
         for model in args.models:
-            xte, later, est, done, seeds = [], [], [], 0, _seeds(args.seeds)
-            for seed in seeds:
+            runs: list[tuple[int, bool, np.ndarray, np.ndarray, np.ndarray]] = []
+            for seed in _seeds(args.seeds):
                 path, ok = fly(scenario, seed, model, args.out, args.acceptance, args.duration, factors)
-                done += ok
-                xte.append(vertex_cross_track(path, "haps"))
-                later.append(vertex_cross_track(path, "haps", start_turns=False))
-                est.append(vertex_cross_track(path, "haps", track_of="est"))
-            x, y, e = np.concatenate(xte), np.concatenate(later), np.concatenate(est)
-            cut = np.maximum(x, 0.0)
-            row = [scenario.stem, args.acceptance or "shipped", model, f"{done}/{len(seeds)}", len(x)]
-            row += [f"{v:.1f}" for v in (np.median(np.abs(x)), np.percentile(cut, 95), cut.max(), max(-x.min(), 0))]
-            row += [f"{v:.1f}" for z in (y, e) for v in _cut_and_outside(z)]
-            print("| " + " | ".join(map(str, row)) + " |", flush=True)
+                measures = [
+                    vertex_cross_track(path, "haps", start_turns=False),
+                    vertex_cross_track(path, "haps", track_of="est"),
+                ]
+                runs.append((seed, ok, vertex_cross_track(path, "haps"), *measures))
+                if args.per_seed:
+                    print(_row(scenario.stem, str(seed), args.acceptance, model, runs[-1:]), flush=True)
+            print(_row(scenario.stem, args.seeds, args.acceptance, model, runs), flush=True)
+
+
+def _row(
+    stem: str,
+    seeds: str,
+    accept: float | None,
+    model: str,
+    runs: list[tuple[int, bool, np.ndarray, np.ndarray, np.ndarray]],
+) -> str:
+    """One Markdown table row over ``runs`` (seed, mission completed, cross-tracks [m] of every
+    corner, of the later turns, of the estimated track)."""
+    x, y, e = (np.concatenate([r[k] for r in runs]) for k in (2, 3, 4))
+    cut = np.maximum(x, 0.0)
+    row = [stem, seeds, accept or "shipped", model, f"{sum(r[1] for r in runs)}/{len(runs)}", len(x)]
+    row += [f"{v:.1f}" for v in (np.median(np.abs(x)), np.percentile(cut, 95), *_cut_and_outside(x))]
+    row += [f"{v:.1f}" for z in (y, e) for v in _cut_and_outside(z)]
+    return "| " + " | ".join(map(str, row)) + " |"
 
 
 if __name__ == "__main__":
