@@ -201,11 +201,9 @@ def main(argv: list[str] | None = None) -> None:
             runs: list[tuple[int, bool, np.ndarray, np.ndarray, np.ndarray]] = []
             for seed in _seeds(args.seeds):
                 path, ok = fly(scenario, seed, model, args.out, args.acceptance, args.duration, factors)
-                measures = [
-                    vertex_cross_track(path, "haps", start_turns=False),
-                    vertex_cross_track(path, "haps", track_of="est"),
-                ]
-                runs.append((seed, ok, vertex_cross_track(path, "haps"), *measures))
+                every = vertex_cross_track(path, "haps")
+                later = vertex_cross_track(path, "haps", start_turns=False)
+                runs.append((seed, ok, every, later, vertex_cross_track(path, "haps", track_of="est")))
                 if args.per_seed:
                     print(_row(scenario.stem, str(seed), args.acceptance, model, runs[-1:]), flush=True)
             print(_row(scenario.stem, args.seeds, args.acceptance, model, runs), flush=True)
