@@ -9,7 +9,8 @@ and - on the outside. Frames: local-level NED [m] of the log.
 ``python -m sim.testbeds.mptp_turn_vertices SCENARIO.toml ... --seeds 1-20 --models simple
 simulated --out DIR`` flies every scenario with each seed and ``turn_model`` (the scenario's
 planner options otherwise unchanged; ``--acceptance`` overrides the MPTP vehicles' acceptance
-radius, ``--duration`` the sim time), keeps the logs in DIR and prints a Markdown table per
+radius, ``--duration`` the sim time, ``--since`` leaves out the plans issued before this sim
+time [s]), keeps the logs in DIR and prints a Markdown table per
 scenario and model (``--per-seed``: also a row per seed): corners, median |xte|, 95th
 percentile of the cut, largest cut, largest outside pass [m], the same two without each plan's
 start turn (vertex_cross_track) and along the estimated track the follower flew on (the true
@@ -44,17 +45,21 @@ MIN_TURN_DEG = 1.0  # a vertex turning less is not a corner
 SETTLE_S = 60.0  # corners due later than this before the next plan are left out [s]
 
 
-def vertex_cross_track(log: str | Path, vehicle: str, start_turns: bool = True, track_of: str = "truth") -> np.ndarray:
+def vertex_cross_track(
+    log: str | Path, vehicle: str, start_turns: bool = True, track_of: str = "truth", since_s: float = 0.0
+) -> np.ndarray:
     """Signed closest approach [m] of the ``track_of`` track ("truth", or "est": the estimate the
-    follower flew on) to each flown corner (see module doc); without ``start_turns`` the
-    written-out turn each plan begins with (its leading legs with a nonzero turn rate, after the
-    lead-in leg of a plan that has one, diagnostics ``start_lead_s`` > 0) is left out."""
+    follower flew on) to each flown corner (see module doc) of the plans issued from ``since_s``
+    [s] on; without ``start_turns`` the written-out turn each plan begins with (its leading legs
+    with a nonzero turn rate, after the lead-in leg of a plan that has one, diagnostics
+    ``start_lead_s`` > 0) is left out."""
     plans, skip = [], []
     for t, m in read_topic(log, f"/{vehicle}/plan"):
         plans.append((t, np.asarray(m["positions"], float)[:, :2], np.asarray(m["times"], float)))
         first = int(m.get("diagnostics", {}).get("start_lead_s", 0.0) > 0.0)
         rates = np.asarray(m.get("turn_rates") or [0.0])[first:] != 0.0
-        skip.append(0 if start_turns else first + int(np.argmin(np.r_[rates, False])))
+        start = 0 if start_turns else first + int(np.argmin(np.r_[rates, False]))
+        skip.append(start if t >= since_s else len(plans[-1][1]))
     track = read_topic(log, f"/{vehicle}/{track_of}/state")
     tt, xy = np.array([t for t, _ in track]), np.array([m["pos_ned"][:2] for _, m in track])
     return corner_cross_track(plans, tt, xy, skip)
@@ -186,6 +191,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--l1-period", type=float, default=None, help="L1 period [s] (default: the airframe's)")
     ap.add_argument("--out", type=Path, default=Path("logs/mptp_turn_vertices"))
     ap.add_argument("--per-seed", action="store_true", help="also a row per seed")
+    ap.add_argument("--since", type=float, default=0.0, help="only the plans issued from this sim time [s] on")
     args = ap.parse_args(argv)
     wind = None if args.wind is None else tuple(float(v) for v in args.wind.split(","))
     if wind is not None and len(wind) != 2:
@@ -201,9 +207,10 @@ def main(argv: list[str] | None = None) -> None:
             runs: list[tuple[int, bool, np.ndarray, np.ndarray, np.ndarray]] = []
             for seed in _seeds(args.seeds):
                 path, ok = fly(scenario, seed, model, args.out, args.acceptance, args.duration, factors)
-                every = vertex_cross_track(path, "haps")
-                later = vertex_cross_track(path, "haps", start_turns=False)
-                runs.append((seed, ok, every, later, vertex_cross_track(path, "haps", track_of="est")))
+                every = vertex_cross_track(path, "haps", since_s=args.since)
+                later = vertex_cross_track(path, "haps", start_turns=False, since_s=args.since)
+                est = vertex_cross_track(path, "haps", track_of="est", since_s=args.since)
+                runs.append((seed, ok, every, later, est))
                 if args.per_seed:
                     print(_row(scenario.stem, str(seed), args.acceptance, model, runs[-1:]), flush=True)
             print(_row(scenario.stem, args.seeds, args.acceptance, model, runs), flush=True)
