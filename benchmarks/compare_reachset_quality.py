@@ -22,7 +22,6 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from bench_reachset import code_path  # noqa: E402
 
 from sim.replay.report import log_metrics  # noqa: E402
-from sim.replay.runlog import RunLog  # noqa: E402
 from sim.runner import run_scenario  # noqa: E402
 from sim.scenario import load_scenario  # noqa: E402
 
@@ -46,7 +45,7 @@ def fly(name: str) -> dict:
     with tempfile.TemporaryDirectory() as d:
         out = Path(d) / "run.mcap"
         r = run_scenario(scenario, out, scenario_text=text)
-        m = log_metrics(RunLog(out))
+        m = log_metrics(out)
     return {
         "separation_m": {k: round(v["distance_m"], 2) for k, v in m["separation"].items()},
         "mission_s": {

@@ -162,7 +162,8 @@ def cmd_replay(args) -> int:
 
         rep = rerun_planner(log, args.rerun_planner)
         out.print(
-            f"planner re-run ({rep.vehicle}, {rep.planner}): {rep.same}/{rep.plans} plans identical; "
+            f"planner re-run ({rep.vehicle}, {rep.planner}): {rep.same}/{rep.plans} plans identical "
+            f"({rep.mode_plans} of ground-station mode planners); "
             f"max vertex difference {rep.max_position_diff_m:.3g} m / {rep.max_time_diff_s:.3g} s",
             soft_wrap=True,
             highlight=False,

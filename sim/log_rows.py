@@ -19,7 +19,6 @@ bounds are computed from, in the writer. Units and frames: :mod:`sim.log_schemas
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -31,7 +30,8 @@ from google.protobuf.message import Message
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from sim import log_proto
-from sim.core.frames import euler_to_quat, yaw_error_variance
+from sim.core.frames import euler_to_quat
+from sim.estimation.ins_model import sigma_bounds
 
 MAP = -1  # column width of a map<string, double>: its keys are in the buffer's static part
 NED_FRAME = "ned"
@@ -173,24 +173,34 @@ def _frame(static: Any) -> str:
     return dict(static)["frame"]
 
 
-def _location(v: list[float], ns: int, static: Any) -> bytes:
+def location_fix(v: Sequence[float], ns: int, frame: str) -> LocationFix:
+    """The ``foxglove.LocationFix`` of a state row (:data:`STATE`) at log time ``ns``."""
     fix = LocationFix(
-        frame_id=_frame(static), latitude=v[_AT["lat_deg"]], longitude=v[_AT["lon_deg"]], altitude=v[_AT["alt_msl_m"]]
+        frame_id=frame, latitude=v[_AT["lat_deg"]], longitude=v[_AT["lon_deg"]], altitude=v[_AT["alt_msl_m"]]
     )
     fix.timestamp.FromNanoseconds(ns)
-    return fix.SerializeToString(deterministic=True)
+    return fix
 
 
-def _transform(v: list[float], ns: int, static: Any) -> bytes:
-    """``ned`` -> vehicle: position NED [m], attitude from the Euler angles [rad]."""
+def ned_transforms(v: Sequence[float], ns: int, frame: str) -> FrameTransforms:
+    """``ned`` -> ``frame`` of a state row (:data:`STATE`) at log time ``ns``: position NED [m],
+    attitude from the Euler angles [rad]."""
     e, p = _AT["euler"], _AT["pos_ned"]
     qw, qx, qy, qz = euler_to_quat(v[e], v[e + 1], v[e + 2])
-    tf = FrameTransform(parent_frame_id=NED_FRAME, child_frame_id=_frame(static))
+    tf = FrameTransform(parent_frame_id=NED_FRAME, child_frame_id=frame)
     tf.timestamp.FromNanoseconds(ns)
     tf.translation.x, tf.translation.y, tf.translation.z = v[p], v[p + 1], v[p + 2]
     r = tf.rotation
     r.x, r.y, r.z, r.w = qx, qy, qz, qw
-    return FrameTransforms(transforms=[tf]).SerializeToString(deterministic=True)
+    return FrameTransforms(transforms=[tf])
+
+
+def _location(v: list[float], ns: int, static: Any) -> bytes:
+    return location_fix(v, ns, _frame(static)).SerializeToString(deterministic=True)
+
+
+def _transform(v: list[float], ns: int, static: Any) -> bytes:
+    return ned_transforms(v, ns, _frame(static)).SerializeToString(deterministic=True)
 
 
 # the row of cosim.EstimateSigma: what the bounds are computed from (SensorEstimator.covariance_row)
@@ -204,27 +214,6 @@ SIGMA_INPUTS: Columns = (
     ("bias.baro", 1),
     ("bias.gnss_gm", 3),
 )
-
-
-def three_sd(variance: float) -> float:
-    """3 standard deviations [the variance's unit's root]; NaN for a negative variance (as numpy)."""
-    return 3.0 * math.sqrt(variance) if variance >= 0.0 else math.nan
-
-
-def sigma_bounds(var: Sequence[float], q: Sequence[float], p_att: Sequence[float]) -> dict[str, list[float]]:
-    """The 3-sigma bounds of :meth:`sim.estimation.ins_ekf.InsEkf.three_sigma` (bit for bit)
-    from the covariance diagonal ``var`` (16), attitude ``q`` and attitude-error block ``p_att``."""
-    sd = [three_sd(v) for v in var]
-    heading = three_sd(yaw_error_variance((q[0], q[1], q[2], q[3]), list(p_att)))
-    return {
-        "pos": sd[0:3],
-        "vel": sd[3:6],
-        "att": sd[6:9],
-        "heading": [heading],
-        "accel": sd[9:12],
-        "gyro": sd[12:15],
-        "baro": sd[15:16],
-    }
 
 
 def _sigma(values: list[float], ns: int, static: Any) -> bytes:

@@ -169,6 +169,11 @@ PLAN_INPUT = _obj(
             "(waypoints NED [m], cruise_speed [m/s], acceptance_radius [m], start NED [m] or null, "
             "hold_s = [[waypoint index, s], ...], land)",
         ),
+        "mode_setup": (
+            {"type": "object"},
+            "only with mission_setup, for a ground-station mode planner: what it was built from "
+            "(hold: position NED [m]; goto: start and target NED [m], speed [m/s])",
+        ),
     },
 )
 

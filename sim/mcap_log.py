@@ -31,6 +31,7 @@ import os
 import pickle
 import subprocess
 import sys
+from array import array
 from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
@@ -117,8 +118,7 @@ class RowBuffer:
     """One vehicle's rows, one per log tick, in tick order, each made of parts (a row of a
     :mod:`sim.log_rows` layout written on its channels; which parts, its ``spec`` from
     :meth:`McapLog.row_spec`), handed to the writer ``ROWS`` rows at a time (and at the log's
-    close) as one record. The writer encodes each part's messages, logged at the part's first
-    column (sim time [s]), and numbers them per channel."""
+    close) as one record."""
 
     def __init__(self, log: McapLog):
         self._log = log
@@ -126,38 +126,38 @@ class RowBuffer:
         log._row_buffers.append(self)
 
     def add(self, spec: tuple, pieces: list[Piece]) -> None:
-        """One row as its pieces, one after the other: a list of columns (integers and booleans
-        as they are), or ``(fn, arg)`` whose ``fn(arg)`` gives them when the block is handed
-        over (for an ``arg`` nobody changes: the rows of a block are made in one go, which
-        costs less than one at a time between simulation steps). The list is the caller's no
-        more."""
+        """One row as its pieces, one after the other: a list of columns, or ``(fn, arg)`` whose
+        ``fn(arg)`` gives them when the block is handed over (for an ``arg`` nobody changes: the
+        rows of a block are made in one go, which costs less than one at a time between
+        simulation steps, whose work leaves the logging code and data out of the caches).
+        The list is the caller's no more."""
         rows = self._rows
         rows.append((spec, pieces))
         if len(rows) >= ROWS:
             self.flush()
 
     def flush(self) -> None:
-        """Hand the buffered rows to the writer now, with the records pending before them (lists
-        of floats pickle faster than arrays; a spec repeated in a block is pickled once)."""
+        """Hand the buffered rows to the writer now, with the records pending before them, as
+        ``("rows", epoch_ns, specs, values)``: one spec per row (a spec repeated in a block is
+        pickled once) and the rows' values, one row after the other, as the bytes of a float64
+        array (integers and booleans as floats; one copy instead of pickling each float)."""
         if self._rows:
-            rows = [(spec, _joined(pieces)) for spec, pieces in self._rows]
+            values = array("d")
+            put = values.fromlist
+            for _, pieces in self._rows:
+                for p in pieces:
+                    if isinstance(p, list):
+                        put(p)
+                    else:
+                        fn, arg = p
+                        put(fn(arg))
+            specs = [spec for spec, _ in self._rows]
             self._rows = []
-            self._log._record(("rows", self._log.epoch_ns, rows))
+            self._log._record(("rows", self._log.epoch_ns, specs, values.tobytes()))
             self._log._flush()
 
 
 Piece = list[float] | tuple[Callable[[Any], list[float]], Any]
-
-
-def _joined(pieces: list[Piece]) -> list[float]:
-    row: list[float] = []
-    for p in pieces:
-        if isinstance(p, list):
-            row += p
-        else:
-            fn, arg = p
-            row += fn(arg)
-    return row
 
 
 class McapLog:

@@ -9,6 +9,7 @@ import contextlib
 import pickle
 import signal
 import sys
+from array import array
 from collections.abc import Callable
 from functools import cached_property
 
@@ -24,8 +25,8 @@ class RecordWriter:
     encoding, data)``, ``("channel", id, topic, encoding, schema_id, metadata)``, ``("message",
     channel_id, time_ns, data, sequence)``, ``("proto", channel_id, time_ns, title, pickled dict,
     sequence)`` (a message to encode with :func:`sim.log_proto.encode`, imported at the first),
-    ``("rows", epoch_ns, [(spec, row), ...])`` (a block of rows made of :mod:`sim.log_rows`
-    parts, imported at the first),
+    ``("rows", epoch_ns, specs, values)`` (a block of rows made of :mod:`sim.log_rows` parts,
+    imported at the first; values: float64 bytes),
     ``("metadata", name, data)``, ``("attachment", time_ns, name, media_type, data)``. Ids are the
     log's own; mcap's are looked up."""
 
@@ -59,20 +60,21 @@ class RecordWriter:
             else:
                 raise ValueError(f"unknown log record {kind!r}")
 
-    def _rows(self, epoch_ns: int, rows: list[tuple[tuple, list[float]]]) -> None:
-        """A block of rows, each ``(spec, row)``: spec = (parts ``(layout, static)`` of
-        :mod:`sim.log_rows`, their channel ids); each part's messages, one per channel, logged at
-        the epoch plus the part's sim time (its first column) and numbered per channel (row
-        channels carry only rows)."""
+    def _rows(self, epoch_ns: int, specs: list[tuple], data: bytes) -> None:
+        """A block of rows: ``specs`` one per row, each (parts ``(layout, static)`` of
+        :mod:`sim.log_rows`, their channel ids), and the rows' values one after the other as the
+        bytes of a float64 array; each part's messages, one per channel, logged at the epoch
+        plus the part's sim time (its first column) and numbered per channel (row channels
+        carry only rows)."""
         from sim.log_rows import row_width
 
         add, seq = self.writer.add_message, self.row_seq
+        values = array("d", data).tolist()
         plans: dict[int, list] = {}  # per spec object of this block (unpickled once)
-        for spec, row in rows:
-            plan = plans.get(id(spec))
-            if plan is None:
+        for spec in specs:
+            if id(spec) not in plans:
                 parts, cids = spec
-                plan = plans[id(spec)] = [
+                plans[id(spec)] = [
                     (
                         row_width(layout, static),
                         static,
@@ -81,9 +83,13 @@ class RecordWriter:
                     for (layout, static), ids in zip(parts, cids, strict=True)
                     for outs in [self._layouts[layout].outputs]
                 ]
-            k = 0
-            for width, static, outputs in plan:
-                part = row[k : k + width]
+        width = sum(w for spec in specs for w, _, _ in plans[id(spec)])
+        if width != len(values):
+            raise ValueError(f"a block of rows has {len(values)} values, its specs take {width}")
+        k = 0
+        for spec in specs:
+            for width, static, outputs in plans[id(spec)]:
+                part = values[k : k + width]
                 k += width
                 t_ns = epoch_ns + round(part[0] * 1e9)
                 for ch, build in outputs:

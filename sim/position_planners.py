@@ -1,6 +1,8 @@
 """Planners for the ground station's modes: hold a position, go to a point.
 
-Plans are in the local-level NED frame [m]; ``labels`` are -1 (no mission waypoint).
+Plans are in the local-level NED frame [m]; ``labels`` are -1 (no mission waypoint). Each
+planner's ``setup()`` is what it was built from (logged with its first call, ``mode_setup`` in
+``/<v>/plan/input``); :func:`mode_planner` builds it again from that record (the planner re-run).
 """
 
 from __future__ import annotations
@@ -19,6 +21,9 @@ class HoldPositionPlanner:
     def __init__(self, position: np.ndarray):
         self.position = np.asarray(position, float).copy()
 
+    def setup(self) -> dict:
+        return {"position": self.position.tolist()}
+
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         return Plan(t, self.position[None, :].copy(), np.array([t]), np.array([-1]), PlanStatus.OK, planner=self.name)
 
@@ -34,7 +39,23 @@ class GotoPlanner:
         self.target = np.asarray(target, float).copy()
         self.speed = speed
 
+    def setup(self) -> dict:
+        return {"start": self.start.tolist(), "target": self.target.tolist(), "speed": self.speed}
+
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         pts = np.vstack([self.start, self.target])
         eta = t + float(np.linalg.norm(self.target - estimate.pos_ned)) / self.speed
         return Plan(t, pts, np.array([t, eta]), np.array([-1, -1]), PlanStatus.OK, planner=self.name)
+
+
+ModePlanner = HoldPositionPlanner | GotoPlanner
+
+
+def mode_planner(name: str, setup: dict) -> ModePlanner:
+    """The mode planner ``name`` (``hold``, ``goto``) built from its logged ``setup()``;
+    ValueError for another name."""
+    if name == HoldPositionPlanner.name:
+        return HoldPositionPlanner(np.asarray(setup["position"], float))
+    if name == GotoPlanner.name:
+        return GotoPlanner(np.asarray(setup["start"], float), np.asarray(setup["target"], float), float(setup["speed"]))
+    raise ValueError(f"no ground-station mode planner {name!r} (known: hold, goto)")

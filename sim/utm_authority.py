@@ -14,6 +14,9 @@ Then every vehicle sends its notification of frame i: the estimate (GCF) and its
 remaining mission waypoints from the estimate at cruise speed sampled every frame. Joined
 vehicles (rules planners, :meth:`avoidance.rules.planner.RulesAvoider.join_utm`) obey and
 acknowledge every directive they receive; the others only notify (their directives go unheard).
+A rules planner built anew during the run (a ground-station mode change back to AUTO, a mission
+upload) joins when the next directive reaches it; while a ground-station mode planner (HOLD,
+GUIDED) flies, the vehicle's directives go unheard and unacknowledged.
 
 With ``utm.weather`` the weather service's nowcasts come to the authority (not to the vehicles):
 each directive also carries the weather cases (§7.5) of the cells the recipient's filed route
@@ -67,13 +70,25 @@ class Member:
     vehicle: Vehicle
     link: Link
     registration: Registration
-    planner: RulesAvoider | None  # obeys directives and acknowledges them (None: only notifies)
+    planner: RulesAvoider | None  # the rules planner joined last (None: a vehicle that only notifies)
     down: Queue
     last_note: PositionNotification | None = None
     last_ack: int = -1
     lost: bool = True  # no fresh notification (before the first one, too)
     first_t: float | None = None  # send time of its first notification [s]
     established: bool = False  # past its start transient (:meth:`UtmAuthority._established`)
+
+    def obeying(self, lost_after: float) -> RulesAvoider | None:
+        """The planner that obeys and acknowledges directives now: the vehicle's rules planner,
+        joined to the authority when it is new (a ground-station mode change or mission upload
+        builds one); None while a mode planner (HOLD, GUIDED) flies or for other planners."""
+        p = self.vehicle.planner
+        if not isinstance(p, RulesAvoider):
+            return None
+        if p is not self.planner:
+            p.join_utm(self.vehicle.name, lost_after)
+            self.planner = p
+        return p
 
 
 class UtmAuthority:
@@ -114,8 +129,9 @@ class UtmAuthority:
                 self._log_notification(t, msg)
         for name, m in self.members.items():
             for d in m.down.due(t):
-                if m.planner is not None:
-                    self._send_up(t, name, ("ack", name, m.planner.receive_directive(d, t)))
+                p = m.obeying(self.cfg.lost_after)
+                if p is not None:
+                    self._send_up(t, name, ("ack", name, p.receive_directive(d, t)))
         if t + 1e-9 >= self.frame_no * self.cfg.frame:
             self.decide(t)
             self.frame_no += 1

@@ -30,6 +30,7 @@ from sim.geodesy import GeoPoint
 from sim.mcap_log import McapLog
 from sim.planner_records import RecordSink
 from sim.planner_registry import PLANNERS
+from sim.position_planners import GotoPlanner, HoldPositionPlanner
 from sim.replay.trace import TraceRecorder
 from sim.scheduler import LockstepScheduler, Stage
 from sim.sensors.faults import SensorFault
@@ -175,7 +176,8 @@ class Vehicle:
         latency = time.perf_counter() - t0
         new_plan = plan.t == t
         fresh, self._planner_logged = self.planner is not self._planner_logged, self.planner
-        self.logw.plan_input(t, self.planner.name, self.estimate, self.mission, new_plan, fresh)
+        setup = self.planner.setup() if fresh and isinstance(self.planner, HoldPositionPlanner | GotoPlanner) else None
+        self.logw.plan_input(t, self.planner.name, self.estimate, self.mission, new_plan, fresh, setup)
         self.follower.set_plan(plan)
         if new_plan:
             self.logw.plan(plan)
@@ -254,20 +256,16 @@ class Vehicle:
             self.log.event(t, f"{self.name}: state is not finite", level="error", name=self.name)
             raise SimulationDiverged(f"{self.name}: state went non-finite at t={t:.2f} s")
         track = self.follower.track_error(truth.pos_ned)
-        self.logw.tracking(t, track, self.follower.leg)
-        self.logw.truth(truth)
         self.recorder.state(truth, self._setpoint, self._commands, track)
-        self.logw.estimate(self.estimate)
-        sigma3 = None
-        if isinstance(self.estimator, SensorEstimator):
-            sigma3 = self.logw.estimator(t, self.estimator)
-        self.recorder.estimate(self.estimate, sigma3)
-        self.logw.control(t, self._setpoint, self._setpoint_schema, self._commands, dict(self.controller.debug))
-        if self.power is not None:
-            self.logw.energy(t, self.power.record)
+        estimator = self.estimator if isinstance(self.estimator, SensorEstimator) else None
+        control = (self._setpoint, self._setpoint_schema, self._commands, dict(self.controller.debug))
+        energy = None if self.power is None else self.power.record
         m = self.mission
         status = (m.next_index, m.complete)
+        mission = None
         if status != self._mission_logged:
             self._mission_logged = status
-            self.logw.mission(t, m.next_index, len(m.waypoints), m.complete)
-        self.logw.end_tick()
+            mission = (m.next_index, len(m.waypoints), m.complete)
+        track_leg = (track, self.follower.leg)
+        sigma3 = self.logw.tick(t, truth, track_leg, self.estimate, estimator, control, energy, mission)
+        self.recorder.estimate(self.estimate, sigma3)

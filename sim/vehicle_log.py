@@ -12,6 +12,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import operator
 from typing import Any
 
 import numpy as np
@@ -19,13 +20,11 @@ from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.GeoJSON_pb2 import GeoJSON
 from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
-from foxglove_schemas_protobuf.LocationFix_pb2 import LocationFix
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from shapely.geometry import Polygon
 
 from sim import log_rows
 from sim import log_schemas as S
-from sim.core.frames import euler_to_quat
 from sim.core.mission import Mission
 from sim.core.plan import Plan, Threats
 from sim.core.setpoints import FixedWingSetpoint, MultirotorSetpoint
@@ -40,7 +39,8 @@ from sim.core.threats import (
     StormSnapshot,
 )
 from sim.energy.power_system import EnergyRecord
-from sim.estimation.sensor_estimator import SensorEstimator
+from sim.estimation.ins_model import three_sd
+from sim.estimation.sensor_estimator import MeasurementLog, SensorEstimator, measurement_row
 from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.log_proto import scan_record
 from sim.log_rows import flatten
@@ -285,7 +285,7 @@ def write_static_frames(log: McapLog) -> None:
 
 
 _STATE_META = {"frame": "local-level NED from the scenario origin", "units": "SI, rad"}
-_ENERGY_SCALARS = tuple(name for name, width in log_rows.ENERGY if width != log_rows.MAP)
+_ENERGY_SCALARS = operator.attrgetter(*(name for name, width in log_rows.ENERGY if width != log_rows.MAP))
 _ENERGY_META = {"units": "W, Wh, state of charge 0..1"}
 _SENSORS_META = {"units": "SI, rad"}
 _SIGMA_META = {"frame": "NED; attitude error in body axes", "units": "SI, rad"}
@@ -309,6 +309,29 @@ def state_row(s: VehicleState) -> list[float]:
     ]
 
 
+_SETPOINT_COLUMNS = {name: log_rows.LAYOUTS[name].columns[1:] for name in log_rows.SETPOINT_LAYOUTS.values()}
+# a tick's control: setpoint record, its JSON schema, commands sent to the plant, controller debug
+ControlRecord = tuple[dict[str, Any], dict[str, Any], dict[str, float], dict[str, float]]
+
+
+def _sensors_row(tick: tuple[float, MeasurementLog]) -> list[float]:
+    """A ``sensors`` row: the log tick's time [s] and its measurements."""
+    t, measurements = tick
+    return [t, *measurement_row(measurements)]
+
+
+def _setpoint_row(tick: tuple[float, log_rows.Columns, dict]) -> list[float]:
+    """A setpoint row: the log tick's time [s] and the setpoint record's columns."""
+    t, columns, setpoint = tick
+    return [t, *flatten(columns, setpoint)[0]]
+
+
+def _commands_row(tick: tuple[float, dict[str, float], dict[str, float]]) -> list[float]:
+    """A ``commands`` row: the log tick's time [s], the commands' and the debug values."""
+    t, commands, debug = tick
+    return [t, *commands.values(), *debug.values()]
+
+
 class VehicleLogWriter:
     """Formats and writes one vehicle's messages; topic names are built once. In a compact log
     the per-tick topics are rows (:mod:`sim.log_rows`) that the writer process encodes; a JSON
@@ -326,10 +349,12 @@ class VehicleLogWriter:
         self.t_tracking = f"{p}/truth/tracking"
         self.t_energy = f"{p}/energy"
         self.t_lidar = f"{p}/threats/lidar"
-        self._specs: dict[tuple, tuple] = {}  # row specs by their parts (layout, static)
-        self._buffer: RowBuffer | None = None
-        self._tick_row: list[Piece] = []
-        self._tick_parts: list[tuple[str, tuple]] = []
+        # row specs by the parts' varying static values: the setpoint layout and the map keys,
+        # then the sensors' record counts (these change from tick to tick)
+        self._specs: dict[tuple, dict[tuple | None, tuple]] = {}
+        self._last_keys: tuple = ()
+        self._by_counts: dict[tuple | None, tuple] = {}
+        self._buffer = RowBuffer(log) if log.compact else None
         sp: tuple[tuple[str, ...], tuple[dict[str, str], ...]] = ((self.t_sp,), ({},))
         self._part_topics: dict[str, tuple[tuple[str, ...], tuple[dict[str, str], ...]]] = {  # per layout
             "truth": ((self.t_state, self.t_loc, "/tf"), (_STATE_META, {}, {})),
@@ -343,104 +368,113 @@ class VehicleLogWriter:
             "energy": ((self.t_energy,), (_ENERGY_META,)),
         }
 
-    def _part(self, layout: str, piece: Piece, static: tuple = ()) -> None:
-        """A part of this tick's row (compact logs; :meth:`end_tick` hands the row over)."""
-        self._tick_parts.append((layout, static))
-        self._tick_row.append(piece)
-
-    def end_tick(self) -> None:
-        """Hand this log tick's row to the vehicle's row buffer (rows stay in tick order), with
-        the spec of its parts (registered at their first row)."""
-        if not self._tick_row:
-            return
-        key = tuple(self._tick_parts)
-        spec = self._specs.get(key)
+    def tick(
+        self,
+        t: float,
+        truth: VehicleState,
+        track: tuple[float, int],
+        estimate: VehicleState,
+        estimator: SensorEstimator | None,
+        control: ControlRecord,
+        energy: EnergyRecord | None,
+        mission: tuple[int, int, bool] | None = None,
+    ) -> dict[str, Any] | None:
+        """One log tick's per-tick topics: the true state (``cosim.VehicleState``,
+        ``foxglove.LocationFix``, the ``ned`` -> vehicle transform on ``/tf``), ``track`` (true
+        cross-track error [m] to the leg being followed, that leg: what the metrics judge), the
+        estimate (what controllers and planners saw); with a :class:`SensorEstimator`, the
+        measurements delivered since the last tick and the estimate's 3-sigma bounds and biases;
+        ``control`` (the setpoint record of :func:`setpoint_record`, its JSON schema, the
+        commands sent to the plant and the controller's debug values: none of the three dicts
+        may change later), the electrical bus at ``t`` [s] (its record's own ``t`` ends the
+        control step) and ``mission`` (next waypoint, waypoints, complete) when it changed.
+        Returns the 3-sigma bounds as logged (``pos``, ``vel``, ...: sequences of floats), None
+        without a sensor estimator. In a compact log the topics are one row (:mod:`sim.log_rows`)
+        whose values are taken when its block is handed over (states, measurements and the
+        control dicts are not changed later; the bus record and the covariance are read now)."""
+        if not self.log.compact:
+            sigma3 = self._tick_json(t, truth, track, estimate, estimator, control, energy)
+            if mission is not None:
+                self.mission(t, *mission)
+            return sigma3
+        if mission is not None:  # before the row's channels (the order they had before rows)
+            self.mission(t, *mission)
+        setpoint, schema, commands, debug = control
+        layout = log_rows.SETPOINT_LAYOUTS[schema["title"]]
+        pieces: list[Piece] = [[t, *track], (state_row, truth), (state_row, estimate)]
+        counts: tuple[tuple[str, int], ...] | None = None
+        sigma3 = None
+        if estimator is not None:
+            sensors = estimator.take_measurements()
+            counts = tuple([(name, len(items)) for name, items in sensors.items()])
+            cov = estimator.covariance_row()
+            pieces += ((_sensors_row, (t, sensors)), [t, *cov])
+            sd = [three_sd(v) for v in cov[0:6]]
+            sigma3 = {"pos": sd[0:3], "vel": sd[3:6]}
+        pieces += (
+            (_setpoint_row, (t, _SETPOINT_COLUMNS[layout], setpoint)),
+            (_commands_row, (t, commands, debug)),
+        )
+        cum = None
+        if energy is not None:
+            cum = energy.cumulative_wh  # the record changes in place: its values are taken now
+            pieces.append([t, *_ENERGY_SCALARS(energy), *cum.values()])
+        keys = (layout, tuple(commands), tuple(debug), None if cum is None else tuple(cum))
+        if keys != self._last_keys:  # mostly equal: compared by the identity of their strings
+            self._last_keys, self._by_counts = keys, self._specs.setdefault(keys, {})
+        spec = self._by_counts.get(counts)
         if spec is None:
-            parts = []
-            for layout, static in key:
-                topics, meta = self._part_topics[layout]
-                parts.append((layout, topics, static, meta))
-            spec = self._specs[key] = self.log.row_spec(tuple(parts))
-        if self._buffer is None:
-            self._buffer = RowBuffer(self.log)
-        self._buffer.add(spec, self._tick_row)
-        self._tick_row, self._tick_parts = [], []
-
-    def truth(self, s: VehicleState) -> None:
-        """Log the true state (``cosim.VehicleState``, ``foxglove.LocationFix`` and the
-        ``ned`` -> vehicle transform on ``/tf``)."""
-        log, t = self.log, s.t
-        if log.compact:
-            self._part("truth", (state_row, s), (("frame", self.name),))  # a state is not changed
-            return
-        ns = log.epoch_ns + round(t * 1e9)
-        log.write_json(self.t_state, t, state_dict(s), S.VEHICLE_STATE, _STATE_META)
-        fix = LocationFix(frame_id=self.name, latitude=s.lat_deg, longitude=s.lon_deg, altitude=s.alt_msl_m)
-        fix.timestamp.FromNanoseconds(ns)
-        log.write_proto(self.t_loc, t, fix)
-        qw, qx, qy, qz = euler_to_quat(*s.euler)
-        n, e, d = s.pos_ned.tolist()
-        tf = FrameTransform(parent_frame_id=NED_FRAME, child_frame_id=self.name)
-        tf.timestamp.FromNanoseconds(ns)
-        tf.translation.x, tf.translation.y, tf.translation.z = n, e, d
-        r = tf.rotation
-        r.x, r.y, r.z, r.w = qx, qy, qz, qw
-        log.write_proto("/tf", t, FrameTransforms(transforms=[tf]))
-
-    def tracking(self, t: float, cross_track_m: float, leg: int) -> None:
-        """True cross-track error to the leg being followed (what the metrics judge)."""
-        if self.log.compact:
-            self._part("tracking", [t, cross_track_m, leg])
-            return
-        self.log.write_json(self.t_tracking, t, {"t": t, "cross_track_m": cross_track_m, "leg": leg}, S.TRACKING)
-
-    def estimate(self, s: VehicleState) -> None:
-        """Log what controllers and planners saw (same schema as the truth)."""
-        if self.log.compact:
-            self._part("estimate", (state_row, s))
-            return
-        self.log.write_json(self.t_est, s.t, state_dict(s), S.VEHICLE_STATE, _STATE_META)
-
-    def estimator(self, t: float, est: SensorEstimator) -> dict[str, Any]:
-        """Measurements delivered since the last log tick (one message, a list per sensor) and
-        the estimate's 3-sigma bounds and estimated biases; returns the 3-sigma bounds (``pos``,
-        ``vel``, ...: sequences of floats) as logged."""
-        log = self.log
-        if log.compact:
-            counts, values = est.measurement_row()
-            self._part("sensors", [t, *values], (("counts", counts),))
-            cov = est.covariance_row()
-            self._part("sigma", [t, *cov])
-            pos_vel = [log_rows.three_sd(v) for v in cov[0:6]]
-            return {"pos": pos_vel[0:3], "vel": pos_vel[3:6]}
-        sigma3 = est.three_sigma()
-        log.write_json(self.t_sensors, t, {"t": t, **est.measurements()}, S.SENSORS, _SENSORS_META)
-        log.write_json(self.t_sigma, t, {"t": t, **sigma3, "bias": est.biases()}, S.ESTIMATE_SIGMA, _SIGMA_META)
+            spec = self._by_counts[counts] = self._row_spec(keys, counts)
+        assert self._buffer is not None, "rows are written to compact logs only"
+        self._buffer.add(spec, pieces)
         return sigma3
 
-    def control(
-        self, t: float, setpoint: dict, schema: dict, commands: dict[str, float], debug: dict[str, float]
-    ) -> None:
-        """The setpoint record (:func:`setpoint_record`) and the commands sent to the plant
-        (JSBSim property -> value) with the controller's debug values."""
-        if self.log.compact:
-            layout = log_rows.SETPOINT_LAYOUTS[schema["title"]]
-            self._part(layout, [t, *flatten(log_rows.LAYOUTS[layout].columns[1:], setpoint)[0]])
-            keys = (("properties", tuple(commands)), ("debug", tuple(debug)))
-            self._part("commands", [t, *commands.values(), *debug.values()], keys)
-            return
-        self.log.write_json(self.t_sp, t, {"t": t, **setpoint}, schema)
-        self.log.write_json(self.t_cmd, t, {"t": t, "properties": commands, "debug": debug}, S.COMMANDS)
+    def _row_spec(self, keys: tuple, counts: tuple | None) -> tuple:
+        """The spec of a row of :meth:`tick` with the parts' varying static values (``keys``:
+        setpoint layout, map keys; the sensors' record counts), registering the parts'
+        channels at the first."""
+        layout, properties, debug, cumulative = keys
+        parts: list[tuple[str, tuple]] = [("tracking", ()), ("truth", (("frame", self.name),)), ("estimate", ())]
+        if counts is not None:
+            parts += (("sensors", (("counts", counts),)), ("sigma", ()))
+        parts += ((layout, ()), ("commands", (("properties", properties), ("debug", debug))))
+        if cumulative is not None:
+            parts.append(("energy", (("cumulative_wh", cumulative),)))
+        topics = self._part_topics
+        return self.log.row_spec(tuple((name, topics[name][0], static, topics[name][1]) for name, static in parts))
 
-    def energy(self, t: float, record: EnergyRecord) -> None:
-        """The electrical bus at the log tick ``t`` [s] (its record's own ``t`` ends the
-        control step)."""
-        if self.log.compact:
-            cum = record.cumulative_wh
-            row = [t, *(getattr(record, f) for f in _ENERGY_SCALARS), *cum.values()]
-            self._part("energy", row, (("cumulative_wh", tuple(cum)),))
-            return
-        self.log.write_json(self.t_energy, t, record.as_dict(), S.ENERGY, _ENERGY_META)
+    def _tick_json(
+        self,
+        t: float,
+        truth: VehicleState,
+        track: tuple[float, int],
+        estimate: VehicleState,
+        estimator: SensorEstimator | None,
+        control: ControlRecord,
+        energy: EnergyRecord | None,
+    ) -> dict[str, Any] | None:
+        """:meth:`tick` in a JSON log: one message per topic, each a dict."""
+        log = self.log
+        cross_track_m, leg = track
+        log.write_json(self.t_tracking, t, {"t": t, "cross_track_m": cross_track_m, "leg": leg}, S.TRACKING)
+        ns = log.epoch_ns + round(truth.t * 1e9)
+        log.write_json(self.t_state, truth.t, state_dict(truth), S.VEHICLE_STATE, _STATE_META)
+        row = state_row(truth)
+        log.write_proto(self.t_loc, truth.t, log_rows.location_fix(row, ns, self.name))
+        log.write_proto("/tf", truth.t, log_rows.ned_transforms(row, ns, self.name))
+        log.write_json(self.t_est, estimate.t, state_dict(estimate), S.VEHICLE_STATE, _STATE_META)
+        sigma3 = None
+        if estimator is not None:
+            sigma3 = estimator.three_sigma()
+            log.write_json(self.t_sensors, t, {"t": t, **estimator.measurements()}, S.SENSORS, _SENSORS_META)
+            sigma = {"t": t, **sigma3, "bias": estimator.biases()}
+            log.write_json(self.t_sigma, t, sigma, S.ESTIMATE_SIGMA, _SIGMA_META)
+        setpoint, schema, commands, debug = control
+        log.write_json(self.t_sp, t, {"t": t, **setpoint}, schema)
+        log.write_json(self.t_cmd, t, {"t": t, "properties": commands, "debug": debug}, S.COMMANDS)
+        if energy is not None:
+            log.write_json(self.t_energy, t, energy.as_dict(), S.ENERGY, _ENERGY_META)
+        return sigma3
 
     def mission(self, t: float, next_waypoint: int, waypoints: int, complete: bool) -> None:
         self.log.write_json(
@@ -460,13 +494,21 @@ class VehicleLogWriter:
             self.log.write_record(self.t_lidar, t, scan_record(threats.lidar), S.LIDAR_SCAN, frame)
 
     def plan_input(
-        self, t: float, planner: str, estimate: VehicleState, mission: Mission, new_plan: bool, fresh: bool
+        self,
+        t: float,
+        planner: str,
+        estimate: VehicleState,
+        mission: Mission,
+        new_plan: bool,
+        fresh: bool,
+        mode_setup: dict | None = None,
     ) -> None:
         """Per planner call: the planner's name, the estimate and mission progress it saw (the
         threats go to ``/<v>/threats``, one message per call too) and whether it made a new plan;
         ``fresh``: the planner was built since the previous call (at the start, a ground-station
         mode change or mission upload, a repeated mission): the record then holds the mission it
-        was built for (``mission_setup``)."""
+        was built for (``mission_setup``) and, for a ground-station mode planner, what it was
+        built from (``mode_setup``)."""
         rec = {
             "t": t,
             "planner": planner,
@@ -476,6 +518,8 @@ class VehicleLogWriter:
         }
         if fresh:
             rec["mission_setup"] = mission_setup(mission)
+            if mode_setup is not None:
+                rec["mode_setup"] = mode_setup
         self.log.write_json(
             self.t_input,
             t,

@@ -140,5 +140,69 @@ def test_export_reports_progress_in_messages(mixed, tmp_path):
     calls: list[tuple[int, int]] = []
     export_log(mixed, tmp_path, "csv", ["/haps/truth/state", "/tf"], lambda k, total: calls.append((k, total)))
     counts = {ti.topic: ti.count for ti in read_info(mixed).topics}
-    total = counts["/haps/truth/state"] + counts["/tf"]
+    total = 2 * (counts["/haps/truth/state"] + counts["/tf"])  # read twice: columns, then rows
     assert calls and calls[-1] == (total, total) and all(t == total for _, t in calls)
+
+
+@pytest.mark.parametrize("fmt", ["parquet", "csv"])
+def test_export_in_small_batches_equals_the_whole_topic_table(mixed, tmp_path, fmt):
+    """Written 7 rows at a time, every topic's file holds what the whole-topic table writes:
+    the same columns in the same order, the same types (integers with gaps as floats, text and
+    flags with gaps nullable), the same values; CSV byte for byte."""
+    from sim.replay.export import export_log, topic_file
+
+    log = RunLog(mixed)
+    files = export_log(mixed, tmp_path / "streamed", fmt, batch=7)
+    assert len(files) == len(log.topics)
+    whole_dir = tmp_path / "whole"
+    whole_dir.mkdir()
+    for topic in log.topics:
+        whole = whole_dir / topic_file(topic, fmt)
+        streamed = tmp_path / "streamed" / topic_file(topic, fmt)
+        if fmt == "csv":
+            log.frame(topic).to_csv(whole)
+            assert streamed.read_text() == whole.read_text(), topic
+        else:
+            log.frame(topic).to_parquet(whole)
+            pd.testing.assert_frame_equal(pd.read_parquet(streamed), pd.read_parquet(whole), obj=topic)
+
+
+def test_export_column_types_follow_the_whole_topic():
+    """A column's type is decided over every row, not per batch."""
+    from sim.replay.export import _Columns
+
+    cols = _Columns()
+    for row in ({"a": 1, "b": True, "c": "x", "d": 2}, {"a": 2.5, "b": None, "d": 3}, {"a": 3, "c": None, "d": 4}):
+        cols.add(row)
+    assert [cols.dtype(n) for n in "abcd"] == ["float64", "object", "object", "int64"]
+    assert [str(cols.arrow_type(n)) for n in "abcd"] == ["double", "bool", "string", "int64"]
+    cols.add({"e": "text"})
+    cols.add({"e": 1.0})
+    with pytest.raises(ValueError, match="column 'e' mixes float, str"):
+        cols.arrow_type("e")
+
+
+@pytest.mark.parametrize("fmt", ["parquet", "csv"])
+def test_topic_writer_gives_batches_the_whole_topic_types(tmp_path, fmt):
+    """Batches of 2 rows where the gaps fall in the last batch only: the first batch's integers
+    and flags are written as the whole table has them (floats, nullable flags)."""
+    from sim.replay.export import _Columns, _TopicWriter
+    from sim.replay.frame import frame
+
+    rows = [{"a": 1, "b": True, "s": "x"}, {"a": 2, "b": False, "s": "y"}, {"a": None, "s": "z"}, {"b": True}]
+    times = [0.0, 0.1, 0.2, 0.30000000000000004]
+    cols = _Columns()
+    for r in rows:
+        cols.add(r)
+    writer = _TopicWriter(tmp_path / f"t.{fmt}", fmt, cols, batch=2)
+    for t, r in zip(times, rows, strict=True):
+        writer.add(t, r)
+    writer.close()
+    whole = tmp_path / f"whole.{fmt}"
+    if fmt == "csv":
+        frame(times, rows).to_csv(whole)
+        assert (tmp_path / "t.csv").read_text() == whole.read_text()
+        assert (tmp_path / "t.csv").read_text().splitlines()[1] == "0.0,1.0,True,x"
+    else:
+        frame(times, rows).to_parquet(whole)
+        pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "t.parquet"), pd.read_parquet(whole))

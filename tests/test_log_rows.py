@@ -4,12 +4,18 @@ cosim.Sensors stores them)."""
 
 from __future__ import annotations
 
+from array import array
+
 import numpy as np
 import pytest
 
+from sim import log_schemas as S
+from sim.core.state import VehicleState
+from sim.energy.power_system import EnergyRecord
 from sim.log_rows import COMMANDS, ENERGY, SIGMA_INPUTS, flatten, row_dict
-from sim.mcap_log import ROWS
-from sim.mcap_read import read_info
+from sim.mcap_log import ROWS, LogWriteError, McapLog
+from sim.mcap_read import iter_messages, read_info
+from sim.vehicle_log import VehicleLogWriter
 from tests.test_log_proto import _float32
 
 ROW_TOPICS = (
@@ -75,3 +81,38 @@ def test_flatten_and_row_dict_invert_each_other():
     energy |= {"depleted": True, "cumulative_wh": {"solar": 3.0, "loads": 1.0}}
     row, static = flatten(ENERGY, energy)
     assert row_dict(ENERGY, row, static, {"depleted": bool}) == energy
+
+
+def _tick(w, t: float, energy) -> None:
+    """One tick of a fixed-wing vehicle without a sensor estimator."""
+    s = VehicleState(t, np.array([1.0, 2.0, -3.0]), np.zeros(3), np.array([0.1, 0.2, 0.3]), np.zeros(3), 3.0, 47.0, 8.0)
+    sp = {"roll_rad": 0.1, "altitude_m": 3.0, "tas_mps": 9.0, "leg": 1, "cross_track_m": 0.5, "turning": False}
+    w.tick(t, s, (0.5, 1), s, None, (sp, S.FIXED_WING_SETPOINT, {"fcs/throttle-cmd-norm": 0.4}, {}), energy)
+
+
+def test_a_tick_logs_what_its_inputs_held_at_the_tick(tmp_path):
+    """The bus record changes in place every control step: a compact log's row holds its values
+    at the tick, not at the hand-over to the writer (the states and control dicts are new each
+    step, a quadrotor's debug dict is copied by the vehicle: the JSON comparison above covers
+    those)."""
+    log = McapLog(tmp_path / "a.mcap", 0, background=False)
+    w = VehicleLogWriter(log, "v")
+    record = EnergyRecord(solar_w=10.0)
+    _tick(w, 0.1, record)
+    record.solar_w, record.cumulative_wh["solar"] = 20.0, 5.0  # the next control step
+    _tick(w, 0.2, record)
+    log.close()
+    got = {(topic, t): msg for topic, t, msg in iter_messages(log.path)}
+    assert [got["/v/energy", t]["solar_w"] for t in (0.1, 0.2)] == [10.0, 20.0]
+    assert [got["/v/energy", t]["cumulative_wh"]["solar"] for t in (0.1, 0.2)] == [0.0, 5.0]
+
+
+def test_a_block_whose_values_do_not_fit_its_specs_is_an_error(tmp_path):
+    """The writer checks a block's values against its rows' widths (a row of the wrong width
+    would shift every later row's columns)."""
+    log = McapLog(tmp_path / "a.mcap", 0, background=False)
+    spec = log.row_spec((("tracking", ("/v/truth/tracking",), (), ({},)),))
+    rows = ("rows", 0, [spec, spec], array("d", [0.1, 0.5, 1.0, 0.2, 0.5]).tobytes())
+    log._record(rows)
+    with pytest.raises(LogWriteError, match="5 values, its specs take 6"):
+        log.close()

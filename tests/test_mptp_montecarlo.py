@@ -14,6 +14,7 @@ import pytest
 from scipy import optimize, stats
 from shapely.geometry import Polygon, box
 
+from guidance.mptp.search import plan_trajectory
 from guidance.mptp.timeline import ObstacleTimeline
 from sim.testbeds import mptp_mc_stats as mcs
 from sim.testbeds import mptp_montecarlo as mc
@@ -305,3 +306,24 @@ def test_the_trapped_trial_whose_obstacle_was_a_collection_is_planned():
     trial = mc.draw_trials(tl, cfg, 16, 10, 1)[7]
     row = mc.run_trial(tl, trial, cfg)
     assert not row["status"].startswith("error") and row["success"]
+
+
+def test_a_trials_searches_share_work_with_the_same_rows(field0):
+    """The heuristics of a trial share the wait bound and the free spaces of the states both
+    expand (search.SharedWork): the rows are those of searches alone, and each row's runtime
+    counts what its search reused. Work of another configuration is refused."""
+    _, tl = field0
+    trial = mc.draw_trials(tl, mc.study_config("edh"), 0, 1, seed=3)[0]
+    cfgs = [mc.study_config(h) for h in mc.HEURISTICS]
+    shared = mc.trial_share(tl, trial, cfgs[0])
+    together = [mc.run_trial(tl, trial, c, shared) for c in cfgs]
+    assert shared.reused_cpu_s > 0.0
+    alone = [mc.run_trial(tl, trial, c) for c in cfgs]
+    times = ("runtime_s", "wall_s")
+    for a, b in zip(together, alone, strict=True):
+        assert {k: v for k, v in a.items() if k not in times} == pytest.approx(
+            {k: v for k, v in b.items() if k not in times}, nan_ok=True, rel=0, abs=0
+        )
+    other = cfgs[0].with_(tas_mps=70.0)
+    with pytest.raises(ValueError, match="shared work of another"):
+        plan_trajectory(tl, np.array(trial.start), 0.0, 0.0, shared.goal, other, shared.w, shared=shared)

@@ -18,7 +18,7 @@ from shapely.geometry import box
 
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
-from guidance.mptp.search import GOAL, START, State, _Expander, default_workspace, plan_trajectory
+from guidance.mptp.search import GOAL, START, SharedWork, State, _Expander, default_workspace, plan_trajectory
 from guidance.mptp.timeline import ObstacleTimeline
 from sim.core.threats import StormSnapshot
 
@@ -94,8 +94,8 @@ def test_planner_arrival_within_two_percent_of_the_exhaustive_optimum(seed, wait
     assert traj.status == "ok"
     arrival = float(traj.times[-1])
     w = default_workspace(np.vstack([p0, goal.at(0.0)]), cfg, cfg.mission_area)
-    exp = _Expander(tl, goal, cfg, w, cfg.turning)
-    exp.t_start, exp.t_end = 0.0, cfg.horizon_s
+    exp = _Expander(tl, goal, cfg, w, cfg.turning, SharedWork(tl, goal, cfg, w, 0.0))
+    exp.t_end = cfg.horizon_s
     oracle = _Oracle(exp, 1.1 * arrival)  # beyond the arrival: more states for the h check
     limit = sys.getrecursionlimit()
     sys.setrecursionlimit(max(limit, 10_000))
@@ -134,10 +134,9 @@ def test_the_wait_step_sets_the_wait_bound_and_changes_the_search():
         for step in (20.0, 60.0):
             c = cfg.with_(wait_step_min_s=step)
             w = default_workspace(np.vstack([p0, goal.at(0.0)]), c, c.mission_area)
-            exp = _Expander(tl, goal, c, w, c.turning)
-            exp.t_start, exp.t_end = 0.0, c.horizon_s
-            assert exp._wait_bound().tau == pytest.approx(step)
-            assert exp._wait_bound().cell == pytest.approx(c.tas_mps * step)
+            wait = SharedWork(tl, goal, c, w, 0.0).wait_bound()
+            assert wait.tau == pytest.approx(step)
+            assert wait.cell == pytest.approx(c.tas_mps * step)
             runs.append(plan_trajectory(tl, p0, 0.0, 0.0, goal, c))
         changed.append(runs[0].expanded != runs[1].expanded or not np.array_equal(runs[0].times, runs[1].times))
     assert any(changed)

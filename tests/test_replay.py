@@ -254,3 +254,73 @@ def test_compare_writes_json_and_csv_and_full_names_off_a_terminal(quad_runs, tm
     lines = _compare_cli(a, b, "--changed").splitlines()
     for k, *_ in rows:
         assert any(f"│ {k} " in line for line in lines), k
+
+
+def _peak_bytes(fn) -> int:
+    """Peak Python allocation [bytes] while ``fn`` runs (tracemalloc)."""
+    import gc
+    import tracemalloc
+
+    gc.collect()
+    tracemalloc.start()
+    try:
+        fn()
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def test_export_memory_does_not_grow_with_the_log(quad_runs, tmp_path):
+    """The quadrotor's whole flight logs 1.7x the ticks of its 40 s cut (10 Hz log; both longer
+    than an MCAP chunk). Exported in batches of 64 rows (both logs fill several), the peak of
+    the Parquet export of its largest topics grows by less than a quarter of what reading the
+    same topics whole grows by (measured: 0.4 MB, the MCAP reader's chunk, against 2.7 MB; in one
+    batch, as before streaming, the export grew 2.1 MB). At CI log lengths the report's peak is
+    its plotting (about 3.2 MB either way), so its streaming is shown on long logs:
+    ``benchmarks/bench_replay_memory.py`` (docs/analysis.md)."""
+    from sim.replay.export import export_log
+
+    _, full, cut = quad_runs
+    topics = ["/quad/truth/state", "/quad/sensors", "/quad/ctrl/commands"]
+    export_log(cut, tmp_path / "warm", "parquet", topics[:1])  # imports outside the measurement
+    peaks = {}
+    for name, path in (("cut", cut), ("full", full)):
+        peaks[name] = (
+            _peak_bytes(lambda p=path, n=name: export_log(p, tmp_path / f"export_{n}", "parquet", topics, batch=64)),
+            _peak_bytes(lambda p=path: RunLog(p, topics)),
+        )
+    (export_cut, whole_cut), (export_full, whole_full) = peaks["cut"], peaks["full"]
+    assert whole_full - whole_cut > 2e6, peaks  # the whole-log reading streaming replaced
+    assert export_full - export_cut < 0.25 * (whole_full - whole_cut), peaks
+
+
+def test_replay_of_a_log_without_a_per_tick_topic_is_a_log_read_error(short_run, tmp_path):
+    """A vehicle whose log lacks one of the per-tick topics is refused, naming the topic (not
+    folded in as a vehicle without samples)."""
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    from sim.mcap_read import LogReadError
+
+    _, path = short_run
+    edited = tmp_path / "edited.mcap"
+    with open(path, "rb") as src, open(edited, "wb") as dst:
+        reader = make_reader(src)
+        summary = reader.get_summary()
+        assert summary is not None
+        w = Writer(dst)
+        w.start()
+        schemas = {sid: w.register_schema(s.name, s.encoding, s.data) for sid, s in summary.schemas.items()}
+        channels = {
+            cid: w.register_channel(c.topic, c.message_encoding, schemas.get(c.schema_id, 0), c.metadata)
+            for cid, c in summary.channels.items()
+            if c.topic != "/haps/truth/tracking"
+        }
+        for m in reader.iter_metadata():
+            w.add_metadata(m.name, m.metadata)
+        for _, ch, msg in reader.iter_messages():
+            if ch.id in channels:
+                w.add_message(channels[ch.id], msg.log_time, msg.data, msg.publish_time)
+        w.finish()
+    with pytest.raises(LogReadError, match="no topic '/haps/truth/tracking'"):
+        log_metrics(edited)

@@ -151,6 +151,44 @@ def test_rerun_reproduces_every_plan_across_ground_station_mode_changes(tmp_path
     assert built == [0.0, 7.0, 11.0, 19.0]  # the start, AUTO, the upload, AUTO
     made = [m["t"] for m in own if m["new_plan"]]
     assert any(t > 19.0 for t in made)
+    modes = [m for m in inputs if m["planner"] != "geometric"]
+    assert [(m["t"], m["planner"]) for m in modes if "mode_setup" in m] == [
+        (4.0, "hold"),
+        (15.0, "hold"),
+        (16.0, "goto"),
+    ]
+    assert [m for m in modes if "mode_setup" in m][-1]["mode_setup"]["target"] == [40.0, -10.0, -25.0]
+    mode_made = sum(m["new_plan"] for m in modes)
     rep = rerun_planner(path, "quad")
     assert rep.differences == []
-    assert rep.plans == rep.same == len(made)  # every plan of the scenario's planner
+    assert rep.plans == rep.same == len(made) + mode_made  # every plan of the run, HOLD's and GUIDED's too
+    assert rep.mode_plans == mode_made > 0
+
+
+def test_a_rules_planner_rebuilt_by_a_mode_change_joins_the_utm_authority(tmp_path, monkeypatch):
+    """S9 under the authority, uas1 put in HOLD at 12 s and back to AUTO at 16 s (a new rules
+    planner): the new planner is registered with the authority and gets its directives; while
+    the HOLD planner flies, uas1 obeys and acknowledges nothing; and the re-run, which joins
+    its rebuilt planner the same way, reproduces every plan of the scenario's planner."""
+    from sim import world as world_mod
+    from sim.mavlink.commands import SetMode
+
+    worlds: list = []
+    schedule = world_mod.World.schedule
+    monkeypatch.setattr(world_mod.World, "schedule", lambda self, sched: (worlds.append(self), schedule(self, sched)))
+    commands = {12.0: SetMode("HOLD"), 16.0: SetMode("AUTO")}
+    path = _fly_commanded(tmp_path, "rules/s9_converging_utm.toml", 24.0, commands, monkeypatch)
+    planner = worlds[0].vehicles[0].planner
+    assert planner.utm is not None, "the rebuilt rules planner never joined the authority"
+    assert planner.utm.received_t is not None and planner.utm.received_t > 16.0
+    log = RunLog(path)
+    acks = [m["t"] for m in log.topic("/utm/ack").messages if m["from"] == "uas1"]
+    assert any(t < 12.0 for t in acks) and any(t > 17.0 for t in acks)
+    assert not [t for t in acks if 12.5 < t < 16.0]  # in HOLD: nothing acknowledged (0.2 s link latency)
+    own = [m for m in log.topic("/uas1/plan/input").messages if m["planner"] != "hold"]
+    assert [m["t"] for m in own if "mission_setup" in m] == [0.0, 16.0]
+    rep = rerun_planner(path, "uas1")
+    assert rep.differences == []
+    inputs = log.topic("/uas1/plan/input").messages
+    assert rep.plans == rep.same == sum(m["new_plan"] for m in inputs) > sum(m["new_plan"] for m in own) > 0
+    assert rep.mode_plans == sum(m["new_plan"] for m in inputs if m["planner"] == "hold") > 0

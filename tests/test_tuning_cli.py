@@ -23,7 +23,8 @@ def test_margins_haps(tmp_path, capsys):
 def test_margins_quadrotor_without_steps(tmp_path, capsys):
     assert tune_main(["margins", "quadrotor", "--no-steps", "--out", str(tmp_path)]) == 0
     rows = json.loads((tmp_path / "margins_quadrotor.json").read_text())
-    assert [r["name"] for r in rows] == ["rate", "attitude", "velocity", "position"]
+    names = ["rate", "attitude", "velocity", "position", "yaw-rate", "yaw", "climb-rate", "altitude"]
+    assert [r["name"] for r in rows] == names
     assert all("jsbsim_overshoot_pct" not in r for r in rows)
 
 
@@ -34,7 +35,7 @@ def test_bad_inputs_exit_2(capsys):
         ["margins", "haps", "--tas", "-3"],
         ["bogus"],
         ["roll-gain"],
-        ["gain", "quadrotor", "yaw", "--phase-margin", "45"],
+        ["gain", "quadrotor", "roll", "--phase-margin", "45"],
         ["gain", "haps", "roll", "--phase-margin", "45", "--crossover", "3"],
         ["gain", "haps", "roll", "--phase-margin", "190"],
         ["linearize", "quadrotor"],

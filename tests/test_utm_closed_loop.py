@@ -113,7 +113,7 @@ def test_rerun_of_the_authority_run_needs_the_directives(s9_utm, monkeypatch):
     (tests/test_replay_rerun.py) and not without them: the directives act on the plans."""
     path = s9_utm.path
     assert rerun_planner(path, "uas1").differences == []
-    monkeypatch.setattr(rerun, "_directives", lambda *a: [])
+    monkeypatch.setattr(rerun._Directives, "deliver", lambda self, flying, t: None)  # never handed over
     rep = rerun_planner(path, "uas1")
     assert rep.same < rep.plans
 

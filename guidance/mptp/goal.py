@@ -49,7 +49,15 @@ class GoalTrack:
             [np.zeros((1, 2)), np.diff(self.points, axis=0) / np.diff(self.times)[:, None], np.zeros((1, 2))]
         )
         best = np.full(len(p), np.inf)
+        t_min = float(t.min()) if len(t) else np.inf
         for k in range(len(lo)):
+            # a meeting on piece k is at t' >= t (roots >= 0) within [lo_k, hi_k] (1e-9 s slack):
+            # pieces that end before every t give none, and once every point has met the goal
+            # before a piece starts, it and all later pieces only give later times
+            if hi[k] + 1e-9 < t_min:
+                continue
+            if lo[k] - 1e-9 > best.max():
+                break
             q = anchor[k] + vel[k] * (t[:, None] - tau[k]) - p  # g(t + u) - p = q + v u
             a = vel[k] @ vel[k] - speed**2
             b = 2.0 * q @ vel[k]

@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 import shapely
@@ -44,6 +45,7 @@ from guidance.mptp.turnmodel import turn_to
 from guidance.mptp.visibility import Boundary, blocked, visible_vertices
 from guidance.mptp.waitbound import WaitBound
 
+T = TypeVar("T")
 START, VERTEX, AUX, GOAL, HOLD = "start", "vertex", "aux", "goal", "hold"
 HOLD_LAPS = (1, 2, 4, 8, 16, 32)  # wait choices per expansion [laps]
 TOUCH_M2 = 1.0  # a holding footprint may touch an envelope by this area [m^2]
@@ -109,23 +111,81 @@ def default_workspace(points: np.ndarray, cfg: MptpConfig, area: Polygon | None 
     return box if area is None else box.intersection(area)
 
 
-class _Expander:
-    def __init__(self, tl: ObstacleTimeline, goal: GoalTrack, cfg: MptpConfig, workspace: Polygon, turning: str):
-        self.tl, self.goal, self.cfg, self.w, self.turning = tl, goal, cfg, workspace, turning
-        self.start_space: FreeSpace | None = None
+class SharedWork:
+    """What searches from one start time ``t0`` [s] to ``goal`` over ``workspace`` on ``tl``
+    share when their configurations differ only in the heuristic: the wait bound (built at its
+    first use) and the free space of every expanded state, by its position and time (a free
+    space depends on nothing else; such searches expand many of the same states).
+    ``reused_cpu_s`` / ``reused_wall_s``: the CPU and wall time [s] that the reused items took
+    when first built (what the searches that reused them would have spent without sharing)."""
+
+    def __init__(self, tl: ObstacleTimeline, goal: GoalTrack, cfg: MptpConfig, workspace: Polygon, t0: float):
+        self.tl, self.goal, self.cfg, self.w, self.t0 = tl, goal, cfg, workspace, t0
         self.escape_m = 2.0 * float(min_leg_m(cfg.course_change_max, cfg))
+        self._wait: tuple[WaitBound, float, float] | None = None
+        self._spaces: dict[tuple, tuple[FreeSpace, float, float]] = {}
+        self.reused_cpu_s = self.reused_wall_s = 0.0
+
+    def matches(self, tl: ObstacleTimeline, goal: GoalTrack, cfg: MptpConfig, workspace: Polygon, t0: float) -> bool:
+        """Whether a search of these arguments may use this shared work."""
+        return (
+            tl is self.tl
+            and t0 == self.t0
+            and np.array_equal(goal.times, self.goal.times)
+            and np.array_equal(goal.points, self.goal.points)
+            and shapely.equals_exact(workspace, self.w, 0.0)
+            and cfg.with_(heuristic=self.cfg.heuristic) == self.cfg
+        )
+
+    def wait_bound(self) -> WaitBound:
+        """The wait bound from t0 to t0 + horizon at the planning speed (waitbound.py)."""
+        if self._wait is None:
+            cfg, wall, cpu = self.cfg, time.perf_counter(), time.process_time()
+            wb = WaitBound(self.tl, self.goal, self.w, self.t0, self.t0 + cfg.horizon_s, cfg.tas_mps, cfg.wait_substeps)
+            self._wait = (wb, time.process_time() - cpu, time.perf_counter() - wall)
+            return wb
+        return self._reused(self._wait)
+
+    def free_space(self, p: np.ndarray, t: float, permanent: bool = False) -> FreeSpace:
+        """EX_free of state (p, t) (statespace.free_space with an escape disc reaching two
+        minimum legs, or ``permanent``, the SSPH's view, without one)."""
+        key = (float(p[0]), float(p[1]), float(t), permanent)
+        if key not in self._spaces:
+            cfg, wall, cpu = self.cfg, time.perf_counter(), time.process_time()
+            escape = 0.0 if permanent else self.escape_m
+            fs = free_space(self.tl, p, t, self.w, cfg.tas_mps, cfg.ring_segments, escape, permanent)
+            self._spaces[key] = (fs, time.process_time() - cpu, time.perf_counter() - wall)
+            return fs
+        return self._reused(self._spaces[key])
+
+    def _reused(self, item: tuple[T, float, float]) -> T:
+        self.reused_cpu_s += item[1]
+        self.reused_wall_s += item[2]
+        return item[0]
+
+
+class _Expander:
+    def __init__(
+        self,
+        tl: ObstacleTimeline,
+        goal: GoalTrack,
+        cfg: MptpConfig,
+        workspace: Polygon,
+        turning: str,
+        shared: SharedWork,
+    ):
+        self.tl, self.goal, self.cfg, self.w, self.turning, self.shared = tl, goal, cfg, workspace, turning, shared
+        self.start_space: FreeSpace | None = None
         self.availability = GoalAvailability(tl, goal)
         self.static: StaticBound | None = None  # SSPH bound of the start state
-        self.wait: WaitBound | None = None
-        self.t_start = 0.0  # time of the start state [s]
         self.t_end = math.inf  # holds end by this time [s] (the planning horizon)
         self.lap_s = hold_lap_s(cfg)
         self.hold_senses = SENSES[turning][:1] + tuple(x for x in (1.0, -1.0) if x != SENSES[turning][0])
 
     def __call__(self, s: State):
-        cfg, v = self.cfg, self.cfg.tas_mps
+        v = self.cfg.tas_mps
         p = np.array(s.p)
-        fs = free_space(self.tl, p, s.t, self.w, v, cfg.ring_segments, self.escape_m)
+        fs = self.shared.free_space(p, s.t)
         if self.start_space is None:
             self.start_space = fs
         b = fs.boundary
@@ -193,7 +253,7 @@ class _Expander:
         for side in self.hold_senses:
             lap = hold_orbit(np.array(s.p), s.course, 1, self.cfg, side)
             footprint = shapely.convex_hull(shapely.multipoints(lap))
-            hit = shapely.intersects(footprint, envs)  # only those touched can overlap by area
+            hit = shapely.intersects(envs, footprint)  # only those touched can overlap by area (envs prepared)
             hit[hit] = shapely.area(shapely.intersection(footprint, envs[hit])) > TOUCH_M2
             free_until = int(np.argmax(hit)) - 1 if hit.any() else len(envs) - 1
             sides[(sides == 0) & (last <= free_until)] = side
@@ -204,20 +264,12 @@ class _Expander:
             return np.zeros(len(pts))
         euclid = np.maximum(
             edh(pts, times, self.goal, self.cfg.tas_mps, self.availability),
-            self._wait_bound().arrival(pts, times) - times,
+            self.shared.wait_bound().arrival(pts, times) - times,
         )
         if self.cfg.heuristic == "edh":
             return euclid
         static = self._static_bound(fs, t_goal).arrival(pts, times) - times
         return np.where(np.isfinite(static), np.maximum(static, euclid), euclid)
-
-    def _wait_bound(self) -> WaitBound:
-        """The wait bound of this search (built at the first call, from the start state's time)."""
-        if self.wait is None:
-            self.wait = WaitBound(
-                self.tl, self.goal, self.w, self.t_start, self.t_end, self.cfg.tas_mps, self.cfg.wait_substeps
-            )
-        return self.wait
 
     def _static_bound(self, fs: FreeSpace, t_goal: float) -> StaticBound:
         """SSPH bound of the start state for the whole search (one reduced visibility graph per
@@ -225,7 +277,7 @@ class _Expander:
         interception time from the start (see heuristics.py)."""
         if self.static is None:
             cfg = self.cfg
-            perm = free_space(self.tl, fs.p_in, fs.t_in, self.w, cfg.tas_mps, cfg.ring_segments, permanent=True)
+            perm = self.shared.free_space(fs.p_in, fs.t_in, permanent=True)
             tau0 = t_goal if np.isfinite(t_goal) else fs.t_in
             self.static = StaticBound(perm, self.goal, tau0, fs.t_in + cfg.horizon_s, cfg.tas_mps)
         return self.static
@@ -241,15 +293,22 @@ def plan_trajectory(
     workspace: Polygon | None = None,
     turning: str | None = None,
     min_partial_s: float = math.inf,
+    shared: SharedWork | None = None,
 ) -> Trajectory:
     """Near-time-optimal, time-monotone, flyable trajectory from (p0, t0, course0) to the goal
-    (or a partial one, see Trajectory, lasting at least ``min_partial_s`` [s])."""
+    (or a partial one, see Trajectory, lasting at least ``min_partial_s`` [s]). ``shared``:
+    the wait bound and free spaces of earlier searches of the same timeline, goal, start time,
+    workspace and configuration but for the heuristic (see SharedWork; ValueError otherwise)."""
     wall = time.perf_counter()
     p0 = np.asarray(p0, float)
     ends = goal.at(np.array([t0, t0 + cfg.horizon_s]))
     w = workspace if workspace is not None else default_workspace(np.vstack([p0, ends]), cfg, cfg.mission_area)
-    exp = _Expander(tl, goal, cfg, w, turning or cfg.turning)
-    exp.t_start, exp.t_end = t0, t0 + cfg.horizon_s
+    if shared is None:
+        shared = SharedWork(tl, goal, cfg, w, t0)
+    elif not shared.matches(tl, goal, cfg, w, t0):
+        raise ValueError("plan_trajectory: shared work of another timeline, goal, start time, workspace or config")
+    exp = _Expander(tl, goal, cfg, w, turning or cfg.turning, shared)
+    exp.t_end = t0 + cfg.horizon_s
     q_p, q_t, q_c = 0.01 * cfg.leg_m, 0.01 * cfg.dt_s, math.radians(1.0)
 
     def key(s: State):

@@ -94,7 +94,7 @@ def obstacle_region(
     env = tl.envelopes(starts, stops)
     if permanent:
         env = _suffix_intersections(tl, env, int(stops[-1]), k)
-    hit = shapely.intersects(rings, env)
+    hit = shapely.intersects(env, rings)  # the envelopes first: they are prepared
     if not hit.any():
         return Polygon()
     return polygonal(shapely.union_all(shapely.intersection(rings[hit], env[hit])))

@@ -30,13 +30,13 @@ import math
 
 import numpy as np
 import shapely
-from scipy.ndimage import minimum_filter
 from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
 
 from guidance.mptp.goal import GoalTrack
 from guidance.mptp.timeline import ObstacleTimeline
 
+NEAR_M = 1e-6  # grid points this close to the boundary go to GEOS [m]
 ERODE_SLACK = 1.0 / math.cos(math.pi / 16)  # the buffer's chords (4 per quarter) stay outside r
 
 
@@ -75,17 +75,15 @@ class WaitBound:
         k = math.floor(reach)
         off = np.arange(-k, k + 1)
         disc = np.hypot(*np.meshgrid(off, off, indexing="ij")) <= reach
+        fixed = None if goal.moving else np.maximum(np.hypot(*_offsets(xs, ys, goal.points[0])) - r, 0.0)
         b = np.empty((len(t_k), nx, ny))
         for i in range(len(t_k) - 1, -1, -1):
-            g = goal.at(t_k[i])
-            dist = np.hypot((xs - g[0])[:, None], (ys - g[1])[None, :])
-            direct = t_k[i] + np.maximum(dist - r, 0.0) / (speed + v_goal)
-            if i == len(t_k) - 1:
-                best = direct
-            else:
-                nxt = minimum_filter(b[i + 1], footprint=disc, mode="constant", cval=np.inf)
-                best = np.minimum(np.where(direct < t_k[i] + tau, direct, np.inf), nxt)
-            b[i] = np.where(blocked[i // substeps], np.inf, np.maximum(direct, best))
+            near = fixed if fixed is not None else np.maximum(np.hypot(*_offsets(xs, ys, goal.at(t_k[i]))) - r, 0.0)
+            direct = t_k[i] + near / (speed + v_goal)
+            if i < len(t_k) - 1:  # max(direct, min(direct if possible, nxt)) without the min
+                nxt = disc_minimum(b[i + 1], disc)
+                direct = np.where(direct < t_k[i] + tau, direct, np.maximum(direct, nxt))
+            b[i] = np.where(blocked[i // substeps], np.inf, direct)
         self.b, self.t_first = b, float(t_k[0])
 
     def arrival(self, pts: np.ndarray, times: np.ndarray) -> np.ndarray:
@@ -100,15 +98,59 @@ class WaitBound:
         return out
 
 
+def _offsets(xs: np.ndarray, ys: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Grid offsets from point g, (len(xs), 1) and (1, len(ys)) (broadcast to the grid)."""
+    return (xs - g[0])[:, None], (ys - g[1])[None, :]
+
+
+def disc_minimum(a: np.ndarray, disc: np.ndarray) -> np.ndarray:
+    """scipy.ndimage.minimum_filter(a, footprint=disc, mode="constant", cval=inf), for a
+    footprint (2k+1, 2k+1) symmetric about its centre whose rows are centred runs (a disc):
+    per row offset, the minimum over that row's run of a column-wise running minimum (the
+    same elements, so the same values, in a few whole-array numpy minimums)."""
+    k = disc.shape[0] // 2
+    nx, ny = a.shape
+    p = np.pad(a, k, constant_values=np.inf)
+    half = disc.sum(axis=1) // 2  # half run per row offset; rows without one (0 cells) are skipped
+    runs = [p[:, k : k + ny]]  # runs[w][:, j]: min of p's columns k + j - w .. k + j + w
+    for w in range(1, int(half.max()) + 1):
+        runs.append(np.minimum(runs[-1], np.minimum(p[:, k - w : k - w + ny], p[:, k + w : k + w + ny])))
+    out = np.full(a.shape, np.inf)
+    for d in range(2 * k + 1):
+        if disc[d].any():
+            np.minimum(out, runs[int(half[d])][d : d + nx], out=out)
+    return out
+
+
 def _inside(geom: BaseGeometry, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
-    """(len(xs), len(ys)) bool: grid point (xs[i], ys[j]) strictly inside ``geom``, tested only
-    within the geometry's bounding box (outside it nothing is inside)."""
-    out = np.zeros((len(xs), len(ys)), bool)
+    """(len(xs), len(ys)) bool: grid point (xs[i], ys[j]) strictly inside ``geom`` (a (Multi)Polygon),
+    what shapely.contains_xy gives, by crossing parity along each grid column: a point is
+    inside when an odd number of boundary edges cross its column below it. Points within
+    NEAR_M of a crossing and columns within NEAR_M of a vertex (where rounding or a vertical
+    edge could decide) are tested with contains_xy."""
     if geom.is_empty:
-        return out
-    x0, y0, x1, y1 = geom.bounds
-    i = slice(*np.searchsorted(xs, [x0, x1], side="left"))
-    j = slice(*np.searchsorted(ys, [y0, y1], side="left"))
-    gx, gy = np.meshgrid(xs[i], ys[j], indexing="ij")
-    out[i, j] = shapely.contains_xy(geom, gx, gy)
+        return np.zeros((len(xs), len(ys)), bool)
+    coords, ring = shapely.get_coordinates(shapely.get_rings(shapely.get_parts(geom)), return_index=True)
+    same = ring[1:] == ring[:-1]  # consecutive points of one ring (closed rings: every edge)
+    a, b = coords[:-1][same], coords[1:][same]
+    lo, hi = np.minimum(a[:, 0], b[:, 0]), np.maximum(a[:, 0], b[:, 0])
+    first, stop = np.searchsorted(xs, lo, side="left"), np.searchsorted(xs, hi, side="left")  # lo <= x < hi
+    n = stop - first
+    e = np.repeat(np.arange(len(a)), n)
+    ci = first[e] + (np.arange(len(e)) - np.repeat(np.cumsum(n) - n, n))
+    yc = a[e, 1] + (xs[ci] - a[e, 0]) * (b[e, 1] - a[e, 1]) / (b[e, 0] - a[e, 0])
+    below = np.searchsorted(ys, yc, side="right")  # ys[j] > yc for j >= below
+    count = np.zeros((len(xs), len(ys) + 1), int)
+    np.add.at(count, (ci, below), 1)
+    out = np.cumsum(count, axis=1)[:, :-1] % 2 == 1
+    unsure = np.zeros(out.shape, bool)
+    for j in (below - 1, below):
+        ok = (j >= 0) & (j < len(ys))
+        unsure[ci[ok], j[ok]] |= np.abs(ys[j[ok]] - yc[ok]) <= NEAR_M
+    vx = np.searchsorted(xs, coords[:, 0])
+    for i in (vx - 1, vx):
+        ok = (i >= 0) & (i < len(xs))
+        unsure[i[ok][np.abs(xs[i[ok]] - coords[ok, 0]) <= NEAR_M]] = True
+    ui, uj = np.nonzero(unsure)
+    out[ui, uj] = shapely.contains_xy(geom, xs[ui], ys[uj])
     return out

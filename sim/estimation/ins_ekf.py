@@ -50,7 +50,6 @@ from sim.core.frames import (
     quat_mul,
     quat_normalize,
     quat_to_dcm,
-    yaw_error_variance,
 )
 from sim.core.state import VehicleState
 from sim.estimation import ins_model as m
@@ -61,6 +60,7 @@ from sim.sensors.config import StrictConfig
 from sim.sensors.measurements import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample
 from sim.sensors.suite import SensorSuiteConfig
 
+_DIAGONAL = [k * (m.N + 1) for k in range(16)]  # flat indices of the covariance diagonal's first 16
 _C_REFRESH_M = 10.0  # recompute the velocity map after this much travel [m] (C changes ~2e-6/10 m)
 
 
@@ -424,21 +424,12 @@ class InsEkf:
         return self.kf.P
 
     def three_sigma(self) -> dict[str, np.ndarray]:
-        """3-sigma bounds: ``pos`` NED [m], ``vel`` NED [m/s], ``att`` body-frame attitude error
-        [rad], ``heading`` [rad] (NED-frame yaw error), biases ``accel`` [m/s^2], ``gyro`` [rad/s],
-        ``baro`` [m]."""
+        """3-sigma bounds (:func:`sim.estimation.ins_model.sigma_bounds`: ``pos``, ``vel``,
+        ``att``, ``heading``, ``accel``, ``gyro``, ``baro``) as arrays."""
         P = self.kf.P
-        sd = 3.0 * np.sqrt(np.diag(P))
-        yaw_var = yaw_error_variance(self.nav.q, P[6:9, 6:9].ravel().tolist())
-        return {
-            "pos": sd[0:3],
-            "vel": sd[3:6],
-            "att": sd[6:9],
-            "heading": np.array([3.0 * math.sqrt(yaw_var)]),
-            "accel": sd[9:12],
-            "gyro": sd[12:15],
-            "baro": sd[15:16],
-        }
+        var = P.take(_DIAGONAL).tolist()
+        bounds = m.sigma_bounds(var, self.nav.q, P[6:9, 6:9].ravel().tolist())
+        return {k: np.asarray(v) for k, v in bounds.items()}
 
     def state(self, t: float) -> VehicleState:
         """Estimate extrapolated from the filter time to ``t`` [s] (constant velocity, moving the

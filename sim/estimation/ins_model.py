@@ -25,12 +25,22 @@ position fixes then push into the Gauss-Markov state far beyond its prior.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from sim.core.constants import STANDARD_GRAVITY
-from sim.core.frames import quat_conj, quat_exp, quat_log, quat_mul, quat_normalize, quat_to_dcm
+from sim.core.frames import (
+    quat_conj,
+    quat_exp,
+    quat_log,
+    quat_mul,
+    quat_normalize,
+    quat_to_dcm,
+    yaw_error_variance,
+)
 
 N = 19
 IDX = {
@@ -44,6 +54,31 @@ IDX = {
 }
 GRAVITY = np.array([0.0, 0.0, STANDARD_GRAVITY])
 _I3 = np.eye(3)
+
+
+def three_sd(variance: float) -> float:
+    """3 standard deviations [the variance's unit's root]; NaN for a negative variance (as numpy)."""
+    return 3.0 * math.sqrt(variance) if variance >= 0.0 else math.nan
+
+
+def sigma_bounds(var: Sequence[float], q: Sequence[float], p_att: Sequence[float]) -> dict[str, list[float]]:
+    """3-sigma bounds of the error state from the covariance diagonal ``var`` (its first 16, in
+    :data:`IDX` order), attitude ``q`` (w, x, y, z) and the attitude-error covariance block
+    ``p_att`` (9, row-major): ``pos`` NED [m], ``vel`` NED [m/s], ``att`` body-frame attitude
+    error [rad], ``heading`` [rad] (NED-frame yaw error), biases ``accel`` [m/s^2], ``gyro``
+    [rad/s], ``baro`` [m]. Plain float arithmetic: the same bits in the simulation (the EKF's
+    bounds) and in the log's writer process (a compact log's ``/<v>/est/sigma3``)."""
+    sd = [three_sd(v) for v in var]
+    heading = three_sd(yaw_error_variance((q[0], q[1], q[2], q[3]), list(p_att)))
+    return {
+        "pos": sd[0:3],
+        "vel": sd[3:6],
+        "att": sd[6:9],
+        "heading": [heading],
+        "accel": sd[9:12],
+        "gyro": sd[12:15],
+        "baro": sd[15:16],
+    }
 
 
 @dataclass(slots=True)

@@ -38,7 +38,7 @@ from pydantic import Field, model_validator
 from sim.core.state import VehicleState
 from sim.estimation.gyro_attitude import GyroAttitude
 from sim.estimation.ins_ekf import InsEkf, InsEkfConfig
-from sim.estimation.ins_model import N
+from sim.estimation.ins_model import N, sigma_bounds
 from sim.geodesy import GeoPoint
 from sim.jsbsim_plant import JSBSimPlant
 from sim.sensors.airspeed import AirspeedConfig
@@ -51,6 +51,8 @@ from sim.sensors.magnetometer import MagnetometerConfig
 from sim.sensors.measurements import AirspeedSample, BaroSample, GnssFix, MagSample, Measurement
 from sim.sensors.suite import SensorSuite, SensorSuiteConfig
 from sim.sensors.truth import TruthSampler
+
+MeasurementLog = dict[str, list[Any]]  # per sensor: "imu" (t, dt, mean) tuples, the others measurements
 
 _EPS = 1e-9
 _LBF = 4.4482216152605  # N per lbf
@@ -219,7 +221,7 @@ class SensorEstimator:
         self.attitude = GyroAttitude(self.ekf.nav.q, tuple(self.ekf.nav.bg.tolist()))
         self._fused: tuple[float, np.ndarray] | None = None  # last fusion time [s], its newest IMU sample
         self._inbox: list[Measurement] = []
-        self._log: dict[str, list[Any]] = {}  # per sensor: "imu" (t, dt, mean) tuples, the others measurements
+        self._log: MeasurementLog = {}
         self._cache: tuple[float, int, VehicleState] | None = None
         self._n_fusions = 0
 
@@ -331,23 +333,12 @@ class SensorEstimator:
         self._log = {}
         return out
 
-    def measurement_row(self) -> tuple[tuple[tuple[str, int], ...], list[float]]:
-        """Measurements delivered since the last call (as :meth:`measurements`) as one flat row:
-        per sensor with records, ``(name, count)``, and the records' values in that order, each
-        record ``t`` then its fields in :meth:`measurements`' order (IMU: ``t``, ``dt``, accel,
-        gyro)."""
-        counts: list[tuple[str, int]] = []
-        row: list[float] = []
-        for name, items in self._log.items():
-            counts.append((name, len(items)))
-            if name == "imu":
-                for t, dt, mn in items:
-                    row += (t, dt, *mn.tolist())
-            else:
-                for z in items:
-                    row += _values(z)
-        self._log = {}
-        return tuple(counts), row
+    def take_measurements(self) -> MeasurementLog:
+        """Measurements delivered since the last call, as kept (none of them is changed later):
+        per sensor, IMU ``(t, dt, mean)`` fusion intervals, the others their measurements;
+        :func:`measurement_row` turns them into a log row."""
+        out, self._log = self._log, {}
+        return out
 
     def covariance_row(self) -> list[float]:
         """What :meth:`three_sigma` and :meth:`biases` are made of, as one flat row: the
@@ -362,7 +353,8 @@ class SensorEstimator:
 
     def three_sigma(self) -> dict[str, list[float]]:
         """3-sigma bounds of the estimate (see :meth:`InsEkf.three_sigma`), plain floats."""
-        return {k: _floats(v) for k, v in self.ekf.three_sigma().items()}
+        cov = self.covariance_row()
+        return sigma_bounds(cov[:16], cov[16:20], cov[20:29])
 
     def biases(self) -> dict[str, list[float]]:
         """Estimated biases: ``accel`` [m/s^2] and ``gyro`` [rad/s] body, ``baro`` height [m],
@@ -373,6 +365,21 @@ class SensorEstimator:
 
 # flat indices into the N x N covariance: its diagonal up to the baro bias, the attitude block
 _COVARIANCE_ROW = np.array([k * (N + 1) for k in range(16)] + [r * N + c for r in range(6, 9) for c in range(6, 9)])
+
+
+def measurement_row(log: MeasurementLog) -> list[float]:
+    """Measurements (:meth:`SensorEstimator.take_measurements`) as one flat row, per sensor in
+    ``log``'s order, each record ``t`` then its fields in :meth:`SensorEstimator.measurements`'
+    order (IMU: ``t``, ``dt``, accel, gyro)."""
+    row: list[float] = []
+    for name, items in log.items():
+        if name == "imu":
+            for t, dt, mn in items:
+                row += (t, dt, *mn.tolist())
+        else:
+            for z in items:
+                row += _values(z)
+    return row
 
 
 def _values(z: Measurement) -> list[float]:

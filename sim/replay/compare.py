@@ -9,7 +9,6 @@ from typing import TextIO
 
 from sim.replay.metrics import flatten
 from sim.replay.report import log_metrics
-from sim.replay.runlog import RunLog
 
 Row = tuple[str, object, object, float | None]
 COLUMNS = ("metric", "a", "b", "b_minus_a")
@@ -17,8 +16,8 @@ COLUMNS = ("metric", "a", "b", "b_minus_a")
 
 def compare_logs(a: str | Path, b: str | Path) -> list[Row]:
     """Rows (metric, value in A, value in B, B - A where both are numbers)."""
-    fa = flatten(log_metrics(RunLog(a)))
-    fb = flatten(log_metrics(RunLog(b)))
+    fa = flatten(log_metrics(a))
+    fb = flatten(log_metrics(b))
     rows: list[Row] = []
     for k in sorted(set(fa) | set(fb)):
         x, y = fa.get(k), fb.get(k)

@@ -10,7 +10,10 @@ the vehicles' ``/<vehicle>/plan/decision`` events; sim seconds.
 from __future__ import annotations
 
 from collections.abc import Iterable
+from pathlib import Path
 
+from sim.mcap_read import LogInfo
+from sim.replay.log_stream import log_vehicles
 from sim.replay.runlog import RunLog
 
 Row = tuple[float, float | None, str, str]  # from [s], until [s] (None: an instant), who, decision
@@ -61,9 +64,7 @@ def authority_rows(log: RunLog) -> list[Row]:
 
 
 def vehicle_rows(log: RunLog, vehicle: str) -> list[Row]:
-    """A rules vehicle's ``rule:*`` decisions (empty for another planner)."""
-    if not log.has(f"/{vehicle}/plan/rules"):
-        return []
+    """A rules vehicle's ``rule:*`` decisions."""
     dec = log.topic(f"/{vehicle}/plan/decision")
     frames = (
         (float(t), {e for e in m["events"] if e.startswith("rule:") and not e.startswith(_PARTS)})
@@ -72,9 +73,16 @@ def vehicle_rows(log: RunLog, vehicle: str) -> list[Row]:
     return streaks(frames, vehicle)
 
 
-def trail_markdown(log: RunLog) -> list[str]:
-    """The report section (no lines when the run has neither an authority nor rules vehicles)."""
-    rows = authority_rows(log) + [r for v in log.vehicles for r in vehicle_rows(log, v)]
+def trail_markdown(path: Path, info: LogInfo) -> list[str]:
+    """The report section (no lines when the run has neither an authority nor rules vehicles),
+    read from the log at ``path`` (summary ``info``): only the topics the trail reads."""
+    have = {ti.topic for ti in info.topics}
+    rules = [v for v in log_vehicles(info) if f"/{v}/plan/rules" in have]
+    topics = [t for t in have if t.startswith("/utm/")] + [f"/{v}/plan/decision" for v in rules]
+    if not topics:
+        return []
+    log = RunLog(path, [t for t in topics if t in have])
+    rows = authority_rows(log) + [r for v in rules for r in vehicle_rows(log, v)]
     if not rows:
         return []
     lines = ["## Decision trail", "", "| from [s] | until [s] | who | decision |", "|---|---|---|---|"]

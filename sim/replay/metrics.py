@@ -11,21 +11,28 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
+
+import numpy as np
 
 from sim.replay.metrics_world import EMPTY_WORLD, MetricsWorld
 from sim.replay.pair_metrics import PairMatcher, PairMetrics, common_times
 from sim.replay.trace import CHUNK, VehicleTrace
 from sim.replay.vehicle_metrics import VehicleMetrics
 
-__all__ = ["MetricsWorld", "RunMetrics", "differing_keys", "flatten", "run_metrics"]
+__all__ = ["MetricsWorld", "PairFn", "RunMetrics", "differing_keys", "flatten", "run_metrics"]
+
+PairFn = Callable[[str, str, np.ndarray, np.ndarray], None]  # (a, b, common times [s], a - b NED [m])
 
 
 class RunMetrics:
     """Every metric of a run, folded in chunk by chunk from each vehicle as it logs (live) or
-    from the log (replay): the same chunks give the same numbers."""
+    from the log (replay): the same chunks give the same numbers. ``on_pair`` sees each pair's
+    samples as they are matched."""
 
-    def __init__(self, world: MetricsWorld = EMPTY_WORLD):
+    def __init__(self, world: MetricsWorld = EMPTY_WORLD, on_pair: PairFn | None = None):
         self.world = world
+        self.on_pair = on_pair
         self.vehicles: dict[str, VehicleMetrics] = {}
         self.pairs: dict[tuple[str, str], tuple[PairMetrics, PairMatcher]] = {}
 
@@ -33,8 +40,19 @@ class RunMetrics:
         """Register a vehicle (pairs are named in registration order)."""
         for other in self.vehicles:
             pm = PairMetrics(self.world)
-            self.pairs[(other, name)] = (pm, PairMatcher(pm))
+            self.pairs[(other, name)] = (pm, PairMatcher(self._pair_sink(pm, other, name)))
         self.vehicles[name] = VehicleMetrics(name, kind, self.world)
+
+    def _pair_sink(self, pm: PairMetrics, a: str, b: str) -> Callable[[np.ndarray, np.ndarray], None]:
+        on_pair = self.on_pair
+        if on_pair is None:
+            return pm.add
+
+        def both(t: np.ndarray, rel_ned: np.ndarray) -> None:
+            pm.add(t, rel_ned)
+            on_pair(a, b, t, rel_ned)
+
+        return both
 
     def add(self, chunk: VehicleTrace) -> None:
         """A chunk of one registered vehicle's trace."""

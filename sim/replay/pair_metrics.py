@@ -5,6 +5,8 @@ Positions NED [m], times sim [s].
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from sim.replay.metrics_world import EMPTY_WORLD, MetricsWorld
@@ -60,9 +62,10 @@ class PairMetrics:
 
 class PairMatcher:
     """Pairs two vehicles' chunks at their common log times (to the microsecond) as they come;
-    holds only the samples the other vehicle may still log a match for."""
+    holds only the samples the other vehicle may still log a match for; ``out`` gets the
+    matched (times [s], offsets a - b NED [m])."""
 
-    def __init__(self, out: PairMetrics):
+    def __init__(self, out: Callable[[np.ndarray, np.ndarray], None]):
         self.out = out
         self.pending: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = [_empty(), _empty()]  # (µs, t, pos)
         self.last_us = [np.iinfo(np.int64).min, np.iinfo(np.int64).min]
@@ -76,7 +79,7 @@ class PairMatcher:
         _, i_mine, i_other = np.intersect1d(mine[0], other[0], assume_unique=True, return_indices=True)
         a, b = (mine, other) if side == 0 else (other, mine)
         ia, ib = (i_mine, i_other) if side == 0 else (i_other, i_mine)
-        self.out.add(a[1][ia], a[2][ia] - b[2][ib])
+        self.out(a[1][ia], a[2][ia] - b[2][ib])
         self.last_us[side] = int(us[-1])
         keep_mine = np.ones(len(mine[0]), bool)
         keep_mine[i_mine] = False

@@ -7,18 +7,18 @@ options come from the attached scenario. The planner (the scenario's own, or ano
 parameter set) is called at every logged call with those inputs, in order, so its internal
 state (replan timers, committed plans, nowcast caches) evolves as in the run; where the run
 built its planner anew for a new mission (ground-station mode change, mission upload, repeated
-mission), so does the re-run, from the mission logged with that call. Plans compare
-vertex by vertex (positions [m], due times [s], labels and status), and a call that made a new
-plan in one run but kept the previous plan in the other is a difference. Under a UTM authority
-a rules planner joins it again and gets every directive (``/utm/directive``) at the time it
-received it in the run.
+mission), so does the re-run, from the mission logged with that call; the calls of a
+ground-station mode planner (HOLD, GUIDED) are re-run by that planner, built again from what it
+was built from. Plans compare vertex by vertex (positions [m], due times [s], labels and
+status), and a call that made a new plan in one run but kept the previous plan in the other is
+a difference. Under a UTM authority a rules planner joins it again and gets every directive
+(``/utm/directive``) at the time it received it in the run.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import cast
 
 import numpy as np
 
@@ -28,10 +28,11 @@ from avoidance.utm.collision_case import CollisionCase
 from avoidance.utm.directives import Directive
 from avoidance.utm.weather_case import WeatherCase
 from sim.core.mission import Mission
-from sim.core.plan import Plan, Planner
+from sim.core.plan import Plan, Planner, Threats
 from sim.core.threats import StormSnapshot
 from sim.environment import geofence, obstacle_prism
-from sim.mcap_read import LogReadError, read_attached_scenario
+from sim.mcap_read import LogReadError, read_attached_scenario, read_info
+from sim.position_planners import mode_planner
 from sim.replay.runlog import RunLog
 from sim.scenario import Utm
 from sim.vehicle_log import (
@@ -54,18 +55,25 @@ class RerunReport:
     max_position_diff_m: float = 0.0
     max_time_diff_s: float = 0.0
     first_difference_t: float | None = None
+    mode_plans: int = 0  # of ``plans``: made by ground-station mode planners (HOLD, GUIDED)
     differences: list[str] = field(default_factory=list)  # a line per differing plan (first 20)
 
 
 def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> RerunReport:
     """Re-run ``vehicle``'s planner (``factory(mission)``; default: the scenario's own, built as
-    the run built it) on the log at ``path``. Calls made by a ground-station mode planner (HOLD,
-    GUIDED) are not re-run; where the run built its planner anew (back to AUTO, a mission
-    upload, a repeated mission: the call's logged ``mission_setup``), the re-run builds a new
-    one for the logged mission too, so its state restarts as in the run."""
+    the run built it) on the log at ``path``. Where the run built its planner anew (back to
+    AUTO, a mission upload, a repeated mission: the call's logged ``mission_setup``), the re-run
+    builds a new one for the logged mission too, so its state restarts as in the run. Calls of
+    a ground-station mode planner (HOLD, GUIDED) are re-run by that mode planner, built from
+    its logged ``mode_setup`` (logs older than that record skip them).
+
+    Under a UTM authority the directives go to the planner flying when they were handed over,
+    before the calls at that time (the authority runs before the planners in a tick): to none
+    while a mode planner flies, and a rebuilt rules planner joins the authority with the first
+    directive it gets (:meth:`sim.utm_authority.Member.obeying`)."""
     from sim.vehicle_setup import mission_from_config, scenario_planner  # the runner's own construction
 
-    log = RunLog(path)
+    log = RunLog(path, _rerun_topics(path, vehicle))
     scenario = read_attached_scenario(path)
     if scenario is None:
         raise LogReadError(f"{path}: the scenario is not attached; cannot rebuild the planner")
@@ -95,48 +103,87 @@ def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> 
     scenario_planner_name = inputs.messages[0]["planner"] if len(inputs) else ""
     logged_storms: list[dict] | None = None
     storms: list[StormSnapshot] = []
-    directives = _directives(log, vehicle, planner, scenario.utm)
+    inbox = _Directives(log, vehicle, planner, scenario.utm)
+    flying: Planner | None = planner  # the planner directives reach (None: a mode planner flies)
+    mode: Planner | None = None  # the ground-station mode planner, rebuilt from its logged setup
     called = False  # the scenario's planner has been called: a logged mission_setup rebuilds it
     for rec_in, rec_th in zip(inputs.messages, threats.messages, strict=True):
         recorded = next(plans) if rec_in["new_plan"] else None
+        t = float(rec_in["t"])
+        inbox.deliver(flying, t)
         if rec_in["planner"] != scenario_planner_name:  # a ground-station mode planner flew this call
+            flying = None
+            if "mission_setup" in rec_in:
+                setup = rec_in.get("mode_setup")
+                mode = None if setup is None else mode_planner(rec_in["planner"], setup)
+            if mode is not None:
+                before = report.plans
+                new = mode.plan(state_from_dict(rec_in["estimate"]), Threats(), t)
+                _compare(report, t, recorded, new if new.t == t else None)
+                report.mode_plans += report.plans - before
             continue
         if "mission_setup" in rec_in and called:  # the run built its planner anew before this call
             mission = mission_from_setup(rec_in["mission_setup"])
             planner = build(mission)
-        called = True
+        flying, called = planner, True
         if rec_th["storms"] != logged_storms:  # a new nowcast: new snapshot objects, as in the run
             logged_storms, storms = rec_th["storms"], storms_from_dicts(rec_th["storms"])
         restore_progress(mission, rec_in["mission"])
-        t = float(rec_in["t"])
-        while directives and directives[0][0] <= t + 1e-9:  # handed over before the planner ran
-            received, d = directives.pop(0)
-            cast(RulesAvoider, planner).receive_directive(d, received)
         new = planner.plan(state_from_dict(rec_in["estimate"]), threats_from_dict(rec_th, obstacles, fences, storms), t)
         _compare(report, t, recorded, new if new.t == t else None)
     return report
 
 
-def _directives(log: RunLog, vehicle: str, planner: object, utm: Utm | None) -> list[tuple[float, Directive]]:
-    """The UTM directives ``vehicle`` received, in order (empty without an authority or for a
-    planner that does not obey one); the planner joins the authority as in the run."""
-    if utm is None or not isinstance(planner, RulesAvoider):
-        return []
-    planner.join_utm(vehicle, utm.lost_after)
-    recs = [m for m in log.topic("/utm/directive").messages if m["to"] == vehicle and m["received_t"] is not None]
-    return [
-        (
-            float(m["received_t"]),
-            Directive(
-                m["frame"],
-                m["t"],
-                vehicle,
-                tuple(CollisionCase.from_record(c) for c in m["cases"]),
-                tuple(WeatherCase.from_record(w) for w in m.get("weather", [])),
-            ),
-        )
-        for m in sorted(recs, key=lambda m: (m["received_t"], m["frame"]))
-    ]
+def _rerun_topics(path, vehicle: str) -> list[str]:
+    """The topics a re-run reads (the planner's inputs, plans and directives), of those logged."""
+    have = {ti.topic for ti in read_info(path).topics}
+    want = [f"/{vehicle}/{s}" for s in ("plan/input", "threats", "threats/lidar", "plan")] + ["/utm/directive"]
+    return [t for t in want if t in have]
+
+
+class _Directives:
+    """The UTM directives ``vehicle`` was handed, in order, for the rules planner that flew
+    (none without an authority or for a planner that does not obey one); the first planner
+    joins the authority at the start, as in the run."""
+
+    def __init__(self, log: RunLog, vehicle: str, planner: object, utm: Utm | None):
+        self.vehicle = vehicle
+        self.lost_after = 0.0 if utm is None else utm.lost_after
+        self.joined: object | None = None
+        self.queue: list[tuple[float, Directive]] = []
+        if utm is None or not isinstance(planner, RulesAvoider):
+            return
+        self._join(planner)
+        recs = [m for m in log.topic("/utm/directive").messages if m["to"] == vehicle and m["received_t"] is not None]
+        self.queue = [
+            (
+                float(m["received_t"]),
+                Directive(
+                    m["frame"],
+                    m["t"],
+                    vehicle,
+                    tuple(CollisionCase.from_record(c) for c in m["cases"]),
+                    tuple(WeatherCase.from_record(w) for w in m.get("weather", [])),
+                ),
+            )
+            for m in sorted(recs, key=lambda m: (m["received_t"], m["frame"]))
+        ]
+        self.queue.reverse()  # popped from the end: earliest first
+
+    def _join(self, planner: RulesAvoider) -> None:
+        planner.join_utm(self.vehicle, self.lost_after)
+        self.joined = planner
+
+    def deliver(self, flying: Planner | None, t: float) -> None:
+        """Hand ``flying`` the directives handed over by ``t`` [s] (before the calls at ``t``);
+        a rules planner that has not joined joins first; without a rules planner flying they
+        go unheard."""
+        while self.queue and self.queue[-1][0] <= t + 1e-9:
+            received, d = self.queue.pop()
+            if isinstance(flying, RulesAvoider):
+                if flying is not self.joined:
+                    self._join(flying)
+                flying.receive_directive(d, received)
 
 
 def _compare(report: RerunReport, t: float, rec: dict | None, new: Plan | None) -> None:

@@ -60,13 +60,13 @@ def _get(message: Any, dotted: str):
 
 
 class RunLog:
-    """A whole run read into memory (one pass over the file)."""
+    """A run read into memory in one pass over the file: every topic, or only ``topics``."""
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, topics: list[str] | None = None):
         self.path = Path(path)
         self.info: LogInfo = read_info(self.path)
         by_topic: dict[str, tuple[list[float], list[Any]]] = defaultdict(lambda: ([], []))
-        for topic, t, msg in iter_messages(self.path):
+        for topic, t, msg in iter_messages(self.path, topics):
             ts, ms = by_topic[topic]
             ts.append(t)
             ms.append(msg)

@@ -1,6 +1,7 @@
 """A vehicle's time series as metrics need them, built live during a run or from its log.
 
-The same :class:`VehicleTrace` comes out of both paths, so metrics computed live and recomputed
+The same :class:`VehicleTrace` chunks come out of both paths (:class:`TraceRecorder`, fed live or
+from the log by :mod:`sim.replay.log_stream`), so metrics computed live and recomputed
 from the MCAP are the same numbers (JSON floats round-trip exactly).
 Units: NED [m], altitude MSL [m], speeds [m/s], angles [rad], times sim [s].
 """
@@ -14,7 +15,6 @@ import numpy as np
 
 from sim.core.state import VehicleState
 from sim.mcap_log import logged_time
-from sim.replay.runlog import RunLog
 
 # truth-state fields and the setpoint fields every follower logs; tas_mps only for fixed wing
 _STATE = ("t", "pos_ned", "vel_ned", "alt_msl_m", "tas_mps", "euler")
@@ -85,51 +85,6 @@ class VehicleTrace:
     @property
     def mission_complete(self) -> bool:
         return self.complete_t is not None
-
-    @classmethod
-    def from_log(cls, log: RunLog, name: str) -> VehicleTrace:
-        st = log.topic(f"/{name}/truth/state")
-        sp = log.topic(f"/{name}/ctrl/setpoint")
-        lat_topic, inp_topic = f"/{name}/plan/latency", f"/{name}/plan/input"
-        latency = log.topic(lat_topic)["seconds"] if log.has(lat_topic) else np.zeros(0)
-        status = log.topic(f"/{name}/mission/status")
-        total = int(status["waypoints"][-1]) if len(status) else 0
-        events = log.events()
-        prefix = f"{name}: waypoint "
-        reached = [t for t, text in events if text.startswith(prefix) and text.endswith(" reached")]
-        complete = next((t for t, text in events if text == f"{name}: mission complete"), None)
-        keys = _SETPOINT + tuple(k for k in _SETPOINT_OPTIONAL if sp.messages and k in sp.messages[0])
-        kind = log.metadata.get("vehicles", {}).get(name, "fixed_wing")
-        cmd = log.topic(f"/{name}/ctrl/commands")
-        props = cmd.messages[-1]["properties"].keys() if cmd.messages else ()
-        est = log.topic(f"/{name}/est/state")
-        sig_topic = f"/{name}/est/sigma3"
-        sig = log.topic(sig_topic) if log.has(sig_topic) else None
-        track = log.topic(f"/{name}/truth/tracking")
-        # the ticks every per-tick topic has (an unfinished log may end inside a tick)
-        n = min(len(x) for x in (st, sp, cmd, est, track, *([sig] if sig is not None else [])))
-        return cls(
-            name,
-            kind,
-            st["t"][:n],
-            st["pos_ned"][:n],
-            st["alt_msl_m"][:n],
-            st["tas_mps"][:n],
-            st["euler"][:n],
-            {k: sp[k][:n] for k in keys},
-            latency,
-            total,
-            reached,
-            complete,
-            {p: np.array([m["properties"].get(p, np.nan) for m in cmd.messages[:n]]) for p in props},
-            est["pos_ned"][:n],
-            est["vel_ned"][:n],
-            None if sig is None else sig["pos"][:n],
-            None if sig is None else sig["vel"][:n],
-            st["vel_ned"][:n],
-            track["cross_track_m"][:n],
-            plan_cache_hits=sum(not m["new_plan"] for m in log.topic(inp_topic).messages) if log.has(inp_topic) else 0,
-        )
 
 
 _VECTORS = ("pos_ned", "vel_ned", "euler")

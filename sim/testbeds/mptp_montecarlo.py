@@ -38,7 +38,7 @@ from shapely.geometry import Polygon
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
 from guidance.mptp.heuristics import StaticPaths
-from guidance.mptp.search import default_workspace, plan_trajectory
+from guidance.mptp.search import SharedWork, default_workspace, plan_trajectory
 from guidance.mptp.statespace import FreeSpace
 from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.turning import bearing
@@ -142,20 +142,46 @@ def draw_trials(tl: ObstacleTimeline, cfg: MptpConfig, field: int, n: int, seed:
     return out
 
 
-def run_trial(tl: ObstacleTimeline, trial: Trial, cfg: MptpConfig) -> dict:
+def trial_workspace(trial: Trial, cfg: MptpConfig) -> Polygon:
+    """The search workspace of ``trial``: start and goal padded, within the mission area."""
+    return default_workspace(np.vstack([trial.start, trial.goal]), cfg, cfg.mission_area)
+
+
+def trial_share(tl: ObstacleTimeline, trial: Trial, cfg: MptpConfig) -> SharedWork:
+    """What the searches of ``trial`` with the study's heuristics share (search.SharedWork)."""
+    return SharedWork(tl, GoalTrack.fixed(np.array(trial.goal)), cfg, trial_workspace(trial, cfg), 0.0)
+
+
+def run_trial(tl: ObstacleTimeline, trial: Trial, cfg: MptpConfig, shared: SharedWork | None = None) -> dict:
     """Plan once from the trial's start; the row: success, EXST, TRST, length [m], arrival [s],
     ``runtime_s`` the CPU time of this process for the search [s] (less disturbed by other jobs
-    on a loaded machine than ``wall_s``, the wall clock). A search that raises is a failure with
-    status "error: <exception>" and EXST 0."""
+    on a loaded machine than ``wall_s``, the wall clock). With ``shared`` (trial_share, used by
+    the trial's other heuristics too) both times include what the search reused from it, as
+    when it builds everything itself. A search that raises is a failure with status
+    "error: <exception>" and EXST 0."""
     p0, goal = np.array(trial.start), np.array(trial.goal)
-    work = default_workspace(np.vstack([p0, goal]), cfg, cfg.mission_area)
+    work = trial_workspace(trial, cfg)
+    reused = (shared.reused_cpu_s, shared.reused_wall_s) if shared is not None else (0.0, 0.0)
     wall, cpu = time.perf_counter(), time.process_time()
     try:
-        tr = plan_trajectory(tl, p0, 0.0, math.radians(trial.course_deg), GoalTrack.fixed(goal), cfg, work)
+        tr = plan_trajectory(
+            tl,
+            p0,
+            0.0,
+            math.radians(trial.course_deg),
+            GoalTrack.fixed(goal),
+            cfg,
+            work,
+            shared=shared,
+        )
+        failure = None
     except Exception as exc:  # noqa: BLE001 - a planner crash is this trial's outcome (a failure), kept in the row
-        cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
-        return {**_failed(cfg.heuristic, cpu, wall), "status": f"error: {type(exc).__name__}: {exc}"}
+        failure = f"error: {type(exc).__name__}: {exc}"
     cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
+    if shared is not None:
+        cpu, wall = cpu + shared.reused_cpu_s - reused[0], wall + shared.reused_wall_s - reused[1]
+    if failure is not None:
+        return {**_failed(cfg.heuristic, cpu, wall), "status": failure}
     ok = tr.status == "ok"
     return {
         "heuristic": cfg.heuristic,
@@ -200,11 +226,14 @@ def run_field(field: int, n_trials: int, seed: int, heuristics: tuple[str, ...] 
         "coverage_issue": coverage(cells, area, MARGIN_ISSUE_M, 0.0),
         "coverage_horizon": coverage(cells, area, MARGIN_HORIZON_M, HORIZON_S),
     }
+    if any(c.with_(heuristic=base.heuristic) != base for c in cfgs.values()):
+        raise ValueError("the study's configurations must differ only in the heuristic (their searches share work)")
     rows = []
     for tr in trials:
         order = heuristics if tr.index % 2 == 0 else heuristics[::-1]
+        shared = trial_share(tl, tr, base)
         for h in order:
-            row = {**asdict(tr), **cov, **run_trial(tl, tr, cfgs[h])}
+            row = {**asdict(tr), **cov, **run_trial(tl, tr, cfgs[h], shared)}
             row["start"], row["goal"] = list(tr.start), list(tr.goal)
             rows.append(row)
     return rows

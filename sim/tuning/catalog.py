@@ -15,6 +15,10 @@ quadrotor  rate (roll)            rate.roll.kp/ki/kd              roll-torque co
 quadrotor  attitude (roll)        attitude.kp_roll                roll-rate command
 quadrotor  velocity (horizontal)  velocity.kp/ki/kd_xy            acceleration demand
 quadrotor  position (horizontal)  position.kp_xy                  velocity demand
+quadrotor  yaw-rate               rate.yaw.kp/ki/kd               yaw-torque command
+quadrotor  yaw                    attitude.kp_yaw                 yaw-rate command
+quadrotor  climb-rate             velocity.kp/ki/kd_z             vertical acceleration demand
+quadrotor  altitude               position.kp_z                   climb-rate demand
 =========  =====================  ==============================  =========================
 
 Gains are addressed by their dataclass field path (``kp_roll`` on :class:`HapsGains`,
@@ -37,7 +41,7 @@ from sim.tuning.loops import LoopReport, StepResponse, analyse
 
 AIRFRAME_LOOPS = {
     "haps": ("roll", "pitch", "tecs-pitch", "tecs-throttle"),
-    "quadrotor": ("rate", "attitude", "velocity", "position"),
+    "quadrotor": ("rate", "attitude", "velocity", "position", "yaw-rate", "yaw", "climb-rate", "altitude"),
 }
 HAPS_STEP = {"roll": math.radians(5.0), "pitch": math.radians(2.0)}  # [rad]
 TECS_STEP_M, TECS_RATE_MPS = 2.0, 0.5  # altitude setpoint ramp of the TECS step
@@ -181,24 +185,37 @@ def haps_loops(alt_m: float = 20_000.0, tas_mps: float = 29.7) -> list[Loop]:
 
 
 def quad_loops() -> list[Loop]:
-    """The quadrotor's roll-axis rate and attitude loops and its horizontal velocity and position
-    loops (east), on the roll plant identified in JSBSim at hover."""
-    from sim.tuning.loops_quad import identify_rotor_axis
-    from sim.tuning.loops_quad import quad_loops as build_all
+    """The quadrotor's roll-axis rate and attitude loops, its horizontal velocity and position
+    loops (east), its yaw-rate and yaw loops and its vertical climb-rate and altitude loops (up),
+    on the roll, yaw and collective plants identified in JSBSim at hover."""
+    from sim.tuning.loops_quad import identify_rotor_axis, quad_loops, quad_vertical_loops, quad_yaw_loops
 
-    axis = identify_rotor_axis("roll")
+    roll, yaw, collective = (identify_rotor_axis(a) for a in ("roll", "yaw", "collective"))
+    build: dict[str, Callable[[MultirotorGains], tuple[Any, Any]]] = {
+        "rate": lambda g: quad_loops(roll, g).rate,
+        "attitude": lambda g: quad_loops(roll, g).attitude,
+        "velocity": lambda g: quad_loops(roll, g).velocity,
+        "position": lambda g: quad_loops(roll, g).position,
+        "yaw-rate": lambda g: quad_yaw_loops(yaw, g)[0],
+        "yaw": lambda g: quad_yaw_loops(yaw, g)[1],
+        "climb-rate": lambda g: quad_vertical_loops(collective, g)[0],
+        "altitude": lambda g: quad_vertical_loops(collective, g)[1],
+    }
 
-    def part(name: str) -> Callable[[MultirotorGains], tuple[Any, Any]]:
-        return lambda g: getattr(build_all(axis, g), name)
+    def pid(prefix: str, suffix: str = "") -> tuple[str, ...]:
+        return tuple(f"{prefix}k{t}{suffix}" for t in "pid")
 
-    rate, vel = ("rate.roll.kp", "rate.roll.ki", "rate.roll.kd"), ("velocity.kp_xy", "velocity.ki_xy", "velocity.kd_xy")
     spec = (
-        ("rate", "roll-torque command", "rad/s", rate, steps.quad_rate_step, 240.0, 2.0),
+        ("rate", "roll-torque command", "rad/s", pid("rate.roll."), steps.quad_rate_step, 240.0, 2.0),
         ("attitude", "roll-rate command", "rad", ("attitude.kp_roll",), steps.quad_attitude_step, 240.0, 1.5),
-        ("velocity", "acceleration demand", "m/s", vel, steps.quad_velocity_step, 60.0, 12.0),
+        ("velocity", "acceleration demand", "m/s", pid("velocity.", "_xy"), steps.quad_velocity_step, 60.0, 12.0),
         ("position", "velocity demand", "m", ("position.kp_xy",), steps.quad_position_step, 60.0, 10.0),
+        ("yaw-rate", "yaw-torque command", "rad/s", pid("rate.yaw."), steps.quad_yaw_rate_step, 240.0, 5.0),
+        ("yaw", "yaw-rate command", "rad", ("attitude.kp_yaw",), steps.quad_yaw_step, 240.0, 3.0),
+        ("climb-rate", "up acceleration demand", "m/s", pid("velocity.", "_z"), steps.quad_climb_rate_step, 60.0, 6.0),
+        ("altitude", "climb-rate demand", "m", ("position.kp_z",), steps.quad_altitude_step, 60.0, 8.0),
     )
-    return [Loop("quadrotor", n, at, unit, paths, part(n), fn, hz, rec) for n, at, unit, paths, fn, hz, rec in spec]
+    return [Loop("quadrotor", n, at, unit, paths, build[n], fn, hz, rec) for n, at, unit, paths, fn, hz, rec in spec]
 
 
 def loops_of(airframe: str, alt_m: float = 20_000.0, tas_mps: float = 29.7) -> list[Loop]:

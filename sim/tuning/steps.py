@@ -9,9 +9,14 @@ outer loops by the airframe's own Python controller, with the gains given (defau
   P is set to ``RATE_PROBE_KP`` and the bank command offset by step / kp, so the rate command is
   the step to within kp x bank, 1e-4 rad/s per rad).
 - :func:`quad_attitude_step`: hovering on its FCS; bank command stepped.
-- :func:`quad_velocity_step`, :func:`quad_position_step`: hovering on
-  :class:`aircraft.quadrotor.controller.MultirotorController` (60 Hz, truth state); the east
-  velocity (position held north and down) or the east position stepped.
+- :func:`quad_yaw_rate_step`: hovering on its FCS; yaw-rate command stepped through the FCS's
+  yaw-rate feed-forward, the yaw P at 0 (the yaw error wraps, so no offset command can stand for
+  a rate).
+- :func:`quad_yaw_step`: hovering on its FCS; yaw command stepped.
+- :func:`quad_velocity_step`, :func:`quad_position_step`, :func:`quad_climb_rate_step`,
+  :func:`quad_altitude_step`: hovering on
+  :class:`aircraft.quadrotor.controller.MultirotorController` (60 Hz, truth state); the east or
+  up velocity (the other position axes held) or the east or up position stepped.
 
 Each returns a :class:`StepResponse`: time [s] after the step, the response minus its value at
 the step (rad, rad/s, m/s or m), and the step size in the same unit.
@@ -153,9 +158,31 @@ def quad_rate_step(gains: MultirotorGains | None = None, seconds: float = 2.0, s
     return _record(plant, _prop(plant, "velocities/p-rad_sec"), seconds, step)
 
 
-def _controller_step(gains: MultirotorGains, seconds: float, step: float, *, velocity: bool) -> StepResponse:
-    """East velocity (``velocity``) or east position stepped by ``step`` [m/s or m] with the
-    Python controller in the loop, after ``_SETTLE_S`` of hover on it."""
+EAST, UP = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, -1.0])  # NED unit vectors
+
+
+def quad_yaw_rate_step(gains: MultirotorGains | None = None, seconds: float = 5.0, step: float = 0.2) -> StepResponse:
+    """Yaw-rate command stepped by ``step`` [rad/s] at hover (module docstring)."""
+    g = gains or MultirotorGains.load()
+    plant = _hover_on_fcs(replace(g, attitude=replace(g.attitude, kp_yaw=0.0)))
+    plant["ap/yaw-rate-ff-rps"] = step
+    return _record(plant, _prop(plant, "velocities/r-rad_sec"), seconds, step)
+
+
+def quad_yaw_step(
+    gains: MultirotorGains | None = None, seconds: float = 3.0, step: float = math.radians(5.0)
+) -> StepResponse:
+    """Yaw command stepped by ``step`` [rad] at hover."""
+    plant = _hover_on_fcs(gains or MultirotorGains.load())
+    plant["ap/yaw-cmd-rad"] = plant["attitude/psi-rad"] + step
+    return _record(plant, _prop(plant, "attitude/psi-rad"), seconds, step)
+
+
+def _controller_step(
+    gains: MultirotorGains, seconds: float, step: float, *, velocity: bool, axis: np.ndarray = EAST
+) -> StepResponse:
+    """Velocity (``velocity``) or position stepped by ``step`` [m/s or m] along ``axis`` (a NED
+    unit vector) with the Python controller in the loop, after ``_SETTLE_S`` of hover on it."""
     plant = _hover_on_fcs(gains)
     ctrl = MultirotorController(gains)
     ctrl.reset(plant.truth())
@@ -170,16 +197,16 @@ def _controller_step(gains: MultirotorGains, seconds: float, step: float, *, vel
 
         return before
 
-    def east() -> float:
+    def along() -> float:
         s = plant.truth()
-        return float(s.vel_ned[1] if velocity else s.pos_ned[1])
+        return float(axis @ (s.vel_ned if velocity else s.pos_ned))
 
-    _record(plant, east, _SETTLE_S, step, control(MultirotorSetpoint(hold.copy())))
+    _record(plant, along, _SETTLE_S, step, control(MultirotorSetpoint(hold.copy())))
     if velocity:
-        sp = MultirotorSetpoint(np.array([hold[0], math.nan, hold[2]]), np.array([0.0, step, 0.0]))
+        sp = MultirotorSetpoint(np.where(axis != 0.0, math.nan, hold), step * axis)
     else:
-        sp = MultirotorSetpoint(hold + np.array([0.0, step, 0.0]))
-    return _record(plant, east, seconds, step, control(sp))
+        sp = MultirotorSetpoint(hold + step * axis)
+    return _record(plant, along, seconds, step, control(sp))
 
 
 def quad_velocity_step(gains: MultirotorGains | None = None, seconds: float = 12.0, step: float = 1.0) -> StepResponse:
@@ -190,3 +217,13 @@ def quad_velocity_step(gains: MultirotorGains | None = None, seconds: float = 12
 def quad_position_step(gains: MultirotorGains | None = None, seconds: float = 10.0, step: float = 1.0) -> StepResponse:
     """East position demand stepped by ``step`` [m] at hover."""
     return _controller_step(gains or MultirotorGains.load(), seconds, step, velocity=False)
+
+
+def quad_climb_rate_step(gains: MultirotorGains | None = None, seconds: float = 6.0, step: float = 1.0) -> StepResponse:
+    """Up velocity demand stepped by ``step`` [m/s] at hover (north and east positions held)."""
+    return _controller_step(gains or MultirotorGains.load(), seconds, step, velocity=True, axis=UP)
+
+
+def quad_altitude_step(gains: MultirotorGains | None = None, seconds: float = 8.0, step: float = 1.0) -> StepResponse:
+    """Up position demand stepped by ``step`` [m] at hover."""
+    return _controller_step(gains or MultirotorGains.load(), seconds, step, velocity=False, axis=UP)
