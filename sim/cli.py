@@ -272,11 +272,19 @@ def cmd_batch(args) -> int:
     return EXIT_INTERRUPTED if cut else EXIT_OK if failed == 0 else EXIT_FAILED
 
 
+def _draw_indices(text: str) -> list[int]:
+    """``--draws``: comma-separated draw indices."""
+    try:
+        return [int(x) for x in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"comma-separated draw indices, got {text!r}") from None
+
+
 def cmd_encounters(args) -> int:
     from sim.encounters.campaign import load_campaign, run_campaign
 
     out_dir = Path(args.output) if args.output else Path("logs") / "encounters" / Path(args.campaign).stem
-    campaign = load_campaign(args.campaign, out_dir, args.limit)
+    campaign = load_campaign(args.campaign, out_dir, args.limit, args.draws)
     executor = None
     client = None
     if args.dask:
@@ -387,7 +395,14 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="local worker processes")
     e.add_argument("--dask", metavar="ADDRESS", help="run on a Dask distributed scheduler instead")
     e.add_argument("--no-resume", action="store_true", help="re-run runs that already finished")
-    e.add_argument("--limit", type=int, help="fly only the first N draws (the full campaign resumes them)")
+    chosen = e.add_mutually_exclusive_group()
+    chosen.add_argument("--limit", type=int, help="fly only the first N draws (the full campaign resumes them)")
+    chosen.add_argument(
+        "--draws",
+        type=_draw_indices,
+        metavar="I,J,...",
+        help="fly only these draw indices (the same runs as in the full campaign)",
+    )
     e.add_argument("-q", "--quiet", action="store_true")
     e.set_defaults(fn=cmd_encounters)
     sub.add_parser("tune", help="trim, linearise, loop margins, gain proposals (cosim tune --help)")

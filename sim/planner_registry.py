@@ -6,8 +6,9 @@ option is a field-named error like any other).
 Options are the fields of the planner's own options model, in SI units: the geometric avoider
 ``avoidance.geometric.config.GeometricConfig``, the MPTP ``guidance.mptp.config.MptpConfig``
 (``tas_mps`` and ``bank_max`` default to the mission's cruise speed and the airframe's bank
-limit), the reach-set planner ``avoidance.rules.options.RulesOptions`` (reach-set options plus
-the rules of the air), pursuit ``target``; follow_mission takes none.
+limit, ``start_lead_s`` for the fly-over turn models to the follower's turn lead), the
+reach-set planner ``avoidance.rules.options.RulesOptions`` (reach-set options plus the rules of
+the air), pursuit ``target``; follow_mission takes none.
 """
 
 from __future__ import annotations
@@ -33,16 +34,18 @@ from sim.planner_records import RecordSink, geometric_records, mptp_records, rea
 @dataclass(frozen=True, slots=True)
 class BuildContext:
     """What a planner is built for: the mission (NED [m]), the airframe kind
-    (``fixed_wing``/``multirotor``), its bank limit [rad] and the scenario's steady wind
-    (north, east) [m/s] (the MPTP's forecast); ``wind_profile``: when the scenario's wind varies
-    with altitude, its profile as rows (up [m] above the origin, north, east [m/s]), the MPTP's
-    forecast instead of the steady wind."""
+    (``fixed_wing``/``multirotor``), its bank limit [rad], how far ahead [s] its plan follower
+    feeds a planned turn forward (``turn_lead_s``, the fixed-wing ``l1_turn_lead_s``) and the
+    scenario's steady wind (north, east) [m/s] (the MPTP's forecast); ``wind_profile``: when the
+    scenario's wind varies with altitude, its profile as rows (up [m] above the origin, north,
+    east [m/s]), the MPTP's forecast instead of the steady wind."""
 
     mission: Mission
     airframe_kind: str
     bank_limit_rad: float = float(np.radians(20.0))
     wind_ne_mps: tuple[float, float] = (0.0, 0.0)
     wind_profile: tuple[tuple[float, float, float], ...] = ()
+    turn_lead_s: float = 0.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -155,11 +158,14 @@ def _reachset(options: RulesOptions, ctx: BuildContext) -> Planner:
 def _mptp(options: DataclassOptions, ctx: BuildContext) -> Planner:
     """The MPTP; its wind forecast is the scenario's wind profile (or its steady wind) plus the
     option ``wind_error_ne_mps`` at every height, or none (still air) with
-    ``wind_forecast = "none"``."""
+    ``wind_forecast = "none"``. Its fly-over turn models start each search the follower's turn
+    lead ahead (``start_lead_s``, lead_in.py); the simple model's fly-by corners carry no turn
+    rate to lead."""
     from guidance.mptp.planner import MptpPlanner
     from guidance.mptp.wind import WindForecast
 
-    cfg = options.config(tas_mps=ctx.mission.cruise_speed, bank_max=ctx.bank_limit_rad)
+    lead = ctx.turn_lead_s if getattr(options, "turn_model", "simple") != "simple" else 0.0
+    cfg = options.config(tas_mps=ctx.mission.cruise_speed, bank_max=ctx.bank_limit_rad, start_lead_s=lead)
     if cfg.wind_forecast == "none":
         return MptpPlanner(ctx.mission, cfg, wind=None)
     rows = np.array(ctx.wind_profile or [(0.0, *ctx.wind_ne_mps)], float)
@@ -213,10 +219,12 @@ def make_planner(
     bank_limit_rad: float = float(np.radians(20.0)),
     wind_ne_mps: tuple[float, float] = (0.0, 0.0),
     wind_profile: tuple[tuple[float, float, float], ...] = (),
+    turn_lead_s: float = 0.0,
 ) -> Planner:
     """The planner ``kind`` for ``mission`` flown by an ``airframe_kind`` vehicle; ``options`` is
     the type's options model (a mapping is validated into it); ``wind_ne_mps`` the scenario's
-    steady wind (north, east) [m/s], ``wind_profile`` its altitude profile (see BuildContext)."""
+    steady wind (north, east) [m/s], ``wind_profile`` its altitude profile, ``turn_lead_s`` [s]
+    the follower's turn lead (see BuildContext)."""
     entry = planner_type(kind)
     if airframe_kind not in entry.airframes:
         raise PlannerConfigError(
@@ -224,4 +232,6 @@ def make_planner(
         )
     if not isinstance(options, entry.options):
         options = entry.options.model_validate(options or {})
-    return entry.build(options, BuildContext(mission, airframe_kind, bank_limit_rad, wind_ne_mps, wind_profile))
+    return entry.build(
+        options, BuildContext(mission, airframe_kind, bank_limit_rad, wind_ne_mps, wind_profile, turn_lead_s)
+    )

@@ -278,6 +278,11 @@ def test_limit_takes_the_first_draws_and_slow_closing_draws_are_skipped(tmp_path
     part = load_campaign(_campaign_file(tmp_path), tmp_path / "o", limit=5)
     assert [r.run_id for r in part.runs] == [r.run_id for r in full.runs[:10]]
     assert [r.scenario for r in part.runs] == [r.scenario for r in full.runs[:10]]
+    picked = load_campaign(_campaign_file(tmp_path), tmp_path / "o", draws=[3, 1, 3])
+    assert [r.run_id for r in picked.runs] == [r.run_id for r in full.runs[2:4] + full.runs[6:8]]
+    assert [r.scenario for r in picked.runs] == [r.scenario for r in full.runs[2:4] + full.runs[6:8]]
+    with pytest.raises(CampaignError, match=r"draw 20: out of range 0\.\.19"):
+        load_campaign(_campaign_file(tmp_path), tmp_path / "o", draws=[2, 20])
     # overtaking at equal speed: no closing speed, every draw skipped (and counted)
     same = _campaign_file(
         tmp_path,
@@ -405,3 +410,14 @@ def test_ci_cooperative_triple_keeps_the_roundabout_margin_where_unmitigated_the
         assert flown["unmitigated"][f"metric.separation.{pair}.min_horizontal_m"] == pytest.approx(h, abs=1.5), pair
         assert flown["mitigated"][f"metric.separation.{pair}.min_horizontal_m"] >= 50.0, pair
     assert all(flown["mitigated"][f"metric.vehicles.{v}.mission.complete"] for v in ("own", "intruder", "intruder2"))
+
+
+def test_cli_draws_option_parses_indices_and_excludes_limit(capsys):
+    from sim.cli import build_parser
+
+    parser = build_parser()
+    assert parser.parse_args(["encounters", "c.toml", "--draws", "59,144"]).draws == [59, 144]
+    for bad in (["--draws", "1,x"], ["--draws", "1", "--limit", "3"]):
+        with pytest.raises(SystemExit):
+            parser.parse_args(["encounters", "c.toml", *bad])
+    assert "--draws" in capsys.readouterr().err

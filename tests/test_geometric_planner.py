@@ -293,3 +293,50 @@ def test_avoidance_path_ending_past_the_last_waypoint_still_completes_the_missio
     beyond = av.plan(state(1.0, path_end[1], 0.0), Threats(spheres=[sphere(27.0)]), 3.0)
     assert beyond.diagnostics["status"] != "committed"
     assert beyond.labels[-1] == 1 and np.allclose(beyond.positions[-1], ref[-1])
+
+
+def crossing(north: float) -> Threats:
+    """An intruder (radius 1 m) flying east at 5 m/s across the reference at ``north`` [m],
+    10 m west of it at t = 0: it crosses when a vehicle flying on from north 10 m is there."""
+    return Threats(intruders=[IntruderTrack("x", 0.0, np.array([north, -10.0, -20.0]), np.array([0, 5.0, 0]))])
+
+
+def test_too_close_conflict_flies_on_when_holding_is_worse_and_hovers_otherwise():
+    # finding 8 of docs/encounters.md: a late conflict with a 5 m miss flown on becomes a 3 m
+    # pass at a hovering vehicle. Protected radius 1 + 1.73 + 3.5 = 6.23 m, 2.5·R > 5 m/s · t_cpa.
+    cfg = GeometricConfig(start_shift_s=0.0, uav_shape="sphere_circumscribed", select_margin_m=3.5)
+    # crossing 3 m ahead: flying on misses by 4.95 m at t = 1.3 s, holding by 3 m
+    p = GeometricAvoider(REF, 5.0, cfg).plan(state(0.0, 10.0), crossing(13.0), 0.0)
+    d = p.diagnostics
+    assert d["status"] == "too_close" and d["response"] == "fly_on" and p.status is PlanStatus.OK
+    assert d["clearance_go_m"] == pytest.approx(4.95 - 1.0, abs=0.01) and d["clearance_hold_m"] == pytest.approx(2.0)
+    assert np.allclose(p.positions[0], [10, 0, -20]) and np.allclose(p.positions[1:], REF[1:])
+    # crossing 5.5 m ahead: flying on misses by 3.18 m, holding by 5.5 m: the vehicle hovers
+    p = GeometricAvoider(REF, 5.0, cfg).plan(state(0.0, 10.0), crossing(15.5), 0.0)
+    d = p.diagnostics
+    assert d["status"] == "too_close" and d["response"] == "hover" and p.status is PlanStatus.NO_SOLUTION
+    assert d["clearance_hold_m"] == pytest.approx(4.5) and d["clearance_go_m"] < d["clearance_hold_m"]
+    assert np.allclose(p.positions, [[10, 0, -20]])
+
+
+def test_min_height_keeps_candidates_above_the_floor():
+    # finding 9 of docs/encounters.md: a candidate 21.9 m down from 20 m flew the ownship into the
+    # ground. At 20 m with a 6 m floor no chosen or available candidate goes below 6 m.
+    threats = Threats(spheres=[sphere(40.0, r=5.0)])
+    free = GeometricAvoider(REF, 5.0, GeometricConfig(start_shift_s=0.0, path_types=("symmetric",)))
+    free.plan(state(0.0, 10.0), threats, 0.0)
+    floored = GeometricAvoider(
+        REF, 5.0, GeometricConfig(start_shift_s=0.0, path_types=("symmetric",), min_height_m=6.0)
+    )
+    p = floored.plan(state(0.0, 10.0), threats, 0.0)
+
+    def available_below_floor(av: GeometricAvoider) -> np.ndarray:
+        log = av.candidate_log()
+        assert log is not None
+        return (np.asarray(log["points_ned"])[:, :, 2].max(axis=1) > -6.0) & np.asarray(log["available"])
+
+    assert available_below_floor(free).any()  # without the floor some available candidate dips below 6 m
+    assert not available_below_floor(floored).any()
+    assert p.diagnostics["status"] == "avoid" and (-p.positions[:, 2]).min() >= 6.0
+    with pytest.raises(ValueError, match="min_height_m"):
+        GeometricConfig(min_height_m=float("nan"))

@@ -779,6 +779,7 @@ _GEOMETRIC = {
     "log_limits": [[-3.0, 2.5], [-0.1, 0.1], [-3.0, 0.001]],
     "main_threat_extension_s": 3.0,
     "max_cost": 0.01,
+    "min_height_m": 21.0,
     "min_replan_interval_s": 5.0,
     "min_sep_factor": 4.0,
     "n_planes": 1,
@@ -890,6 +891,7 @@ def _decision_table() -> dict[str, Decision]:
     out[prefix + "climb_rate_mps"] = ("mptp_high_cells", None, _options(climb_rate_mps=0.1))
     out[prefix + "roll_rate_max"] = ("mptp", _options(turn_model="simulated"), _options(roll_rate_max=0.5))
     out[prefix + "turn_bank_fraction"] = ("mptp", _options(turn_model="simulated"), _options(turn_bank_fraction=0.5))
+    out[prefix + "start_lead_s"] = ("mptp", _options(turn_model="simulated"), _options(start_lead_s=5.0))
     prefix = "vehicle.planner<ReachsetPlanner>.options.rules_"
     filed = _options(rules_filed={"uas3": {"category": "uas_autonomous", "maneuverability": "vtol"}})
     out[prefix + "converging"] = ("rules_pair", None, _options(rules_converging=20.0))

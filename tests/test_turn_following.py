@@ -120,6 +120,20 @@ def test_the_turn_lead_is_the_hapss_course_rate_lag(fed_forward):
     assert course_rate_lag_s(fed_forward) == pytest.approx(HapsGains.load().l1_turn_lead_s, abs=0.15)
 
 
+@pytest.mark.closed_loop
+def test_a_turn_at_the_plans_issue_is_flown_wide_unless_led_in():
+    """The MPTP's start turns: a plan that turns at its issue cannot be led, so the HAPS rolls in
+    its 1.3 s lag late and passes the turn 12.1 m outside; the same turn after a 1.3 s (33.8 m)
+    lead-in straight, the MPTP's lead-in (guidance/mptp/lead_in.py), is flown like any led turn
+    (3.7 m outside; the 3 km straight gives 3.8 m). Neither is cut."""
+    at_issue = fly(Case(straight_m=0.0)).xte
+    led_in = fly(Case(straight_m=TAS_MPS * HapsGains.load().l1_turn_lead_s)).xte
+    assert len(at_issue) == len(led_in) >= 14
+    assert max(at_issue.max(), led_in.max()) < 1.0
+    assert -at_issue.min() > 8.0
+    assert -led_in.min() < 5.0
+
+
 @pytest.mark.slow
 @pytest.mark.closed_loop
 @pytest.mark.parametrize(

@@ -176,6 +176,8 @@ def plan_avoidance(
         t_max + cfg.rejoin_check_s,
     )
     available = np.all(clearance >= cfg.r_uav + cfg.select_margin_m, axis=1)
+    if cfg.min_height_m is not None:
+        available &= cands.points[:, :, 2].min(axis=1) >= cfg.min_height_m
     t3 = clock()
     costs = evaluate_costs(cands, kin, np.flatnonzero(available), threats, durations, cfg, veh)
     t4 = clock()

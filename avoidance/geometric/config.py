@@ -102,9 +102,12 @@ class GeometricConfig:
     - ``weights``: (k_S, k_T, k_C) on normalised S_rp, T and CMO.
     - ``log_limits``: ln-space clip limits of (S, S_rp, M).
     - ``max_cost``: optional threshold above which the result is NO_SOLUTION.
+    - ``min_height_m`` [m]: optional floor, the lowest height above the local origin (ENU z) a
+      candidate may reach; candidates dipping below it are not available (None: no floor, the
+      spec's avoider knows no ground).
     - ``conflict_horizon_s`` [s]: look-ahead of the constant-velocity conflict monitor.
     - ``min_replan_interval_s`` [s]: least time between two candidate generations in the closed
-      loop (spec §9.6); a conflict inside it gets the hover plan.
+      loop (spec §9.6); a conflict inside it gets the no-candidate fallback (hover, or fly on).
     - ``replan_max_offset_m`` [m]: a committed path found unsafe is dropped for a re-plan only
       while the vehicle is within this distance of the reference; farther off, it hovers and
       resumes the path when it is clear again.
@@ -135,6 +138,7 @@ class GeometricConfig:
     cmo_min_distance: float = 0.05
     start_shift_s: float = 0.75
     max_cost: float | None = None
+    min_height_m: float | None = None
     conflict_horizon_s: float = 10.0
     min_replan_interval_s: float = 0.5
     replan_max_offset_m: float = 2.0
@@ -173,6 +177,10 @@ class GeometricConfig:
             v = getattr(self, name)
             _require(math.isfinite(v) and v >= 0, f"{name} must be finite and >= 0, got {v!r}")
         _positive("conflict_horizon_s", self.conflict_horizon_s)
+        _require(
+            self.min_height_m is None or math.isfinite(self.min_height_m),
+            f"min_height_m must be finite or None, got {self.min_height_m!r}",
+        )
         _require(self.cmo_max_range_m > 0, "cmo_max_range_m must be > 0")
         _require(
             self.cmo_max_objects >= 1 and self.cmo_threat_samples >= 2,

@@ -11,9 +11,11 @@ otherwise the conflict monitor (CPA along the reference) looks for a main threat
 the reference. Conflict -> candidates around it from the evading point (the vehicle's
 along-track position moved ahead by its along-track speed × ``start_shift_s``), the chosen path
 then the rest of the reference. No collision-free candidate (or too close) -> NO_SOLUTION with
-a hover plan at the current position. Candidates are generated at most once per
-``min_replan_interval_s``; a conflict inside that interval (including a committed path found
-unsafe) gets the hover plan (``status = rate_limited``). A committed path found unsafe while the
+a hover plan at the current position, unless flying on along the reference is predicted to stay
+clearer of the threats than holding (then the reference plan, ``response = fly_on``).
+Candidates are generated at most once per ``min_replan_interval_s``; a conflict inside that
+interval (including a committed path found unsafe) gets the same fallback (``status =
+rate_limited``). A committed path found unsafe while the
 vehicle is more than ``replan_max_offset_m`` off the reference is not dropped (the candidates
 would start on the reference, out of reach): the vehicle hovers (``status = suspended``) and
 resumes the path once its re-check is clear again, unless holding position is predicted to come
@@ -29,7 +31,7 @@ import numpy as np
 
 from avoidance.geometric.avoider import AvoidanceResult, Status, path_clearance, plan_avoidance
 from avoidance.geometric.config import PATH_TYPES, GeometricConfig, VehicleParams
-from avoidance.geometric.conflict import find_main_threat
+from avoidance.geometric.conflict import MainThreat, find_main_threat
 from avoidance.geometric.generation import CandidateSet
 from avoidance.geometric.kinematics import Kinematics
 from avoidance.geometric.reference import ReferenceLine
@@ -192,9 +194,8 @@ class GeometricAvoider:
             return self._with_diagnostics(self._reference_plan(t, s_now), {**base, "status": "no_conflict"}, t_start)
         diag = {**base, "main_threat_id": core[main.index].id, "t_cpa_s": main.t_cpa}
         if t - self._t_planned < cfg.min_replan_interval_s:
-            return self._with_diagnostics(
-                self._hover_plan(t, estimate.pos_ned), {**diag, "status": "rate_limited"}, t_start
-            )
+            fallback, extra = self._fallback_plan(t, estimate.pos_ned, s_now, start, ta, main, horizon)
+            return self._with_diagnostics(fallback, {**diag, **extra, "status": "rate_limited"}, t_start)
         self._t_planned = t
         res = plan_avoidance(start, ref.x_hat, ref.speed, ta, main, cfg, self.vehicle)
         self._last = (t, res, core)
@@ -205,7 +206,8 @@ class GeometricAvoider:
             **{f"t_{k}_s": v for k, v in res.timings.items()},
         }
         if res.status is not Status.AVOID:
-            return self._with_diagnostics(self._hover_plan(t, estimate.pos_ned), diag, t_start)
+            fallback, extra = self._fallback_plan(t, estimate.pos_ned, s_now, start, ta, main, horizon)
+            return self._with_diagnostics(fallback, diag | extra, t_start)
         diag |= {"chosen_index": res.chosen, "cost": res.cost}
         cands, kin, k = _chosen(res)
         plan = self._avoid_plan(t, s_now, s_e, t_e, cands, kin, k)
@@ -297,6 +299,33 @@ class GeometricAvoider:
             np.vstack([first_v, vel]),
             self.name,
         )
+
+    def _fallback_plan(
+        self,
+        t: float,
+        pos_ned: np.ndarray,
+        s_now: float,
+        start: np.ndarray,
+        ta: ThreatArrays,
+        main: MainThreat,
+        horizon: float,
+    ) -> tuple[Plan, _Diagnostics]:
+        """The plan when no candidate is flown (too close, no solution, rate limited): the hover
+        plan at ``pos_ned`` (NED [m]), or the reference from along-track ``s_now`` [m] when flying
+        on from the evading point ``start`` (ENU [m]) is predicted clearer of the threats ``ta``
+        (predicted to the evading instant) than holding, both over the conflict ``horizon`` [s]
+        and ``rejoin_check_s``; ties hover (the spec's no-solution response)."""
+        ref, cfg = self._require_reference(), self.config
+        here = ned_to_enu(pos_ned)
+        span = np.array([0.0, horizon])
+        go = path_clearance(
+            np.vstack([start, start + ref.velocity * horizon]), span, ta, main.index, main.t_cpa, ref.velocity, cfg
+        )
+        hold = path_clearance(np.vstack([here, here]), span, ta, main.index, main.t_cpa, np.zeros(3), cfg)
+        diag: _Diagnostics = {"clearance_go_m": go, "clearance_hold_m": hold}
+        if go > hold:
+            return self._reference_plan(t, s_now), {**diag, "response": "fly_on"}
+        return self._hover_plan(t, pos_ned), {**diag, "response": "hover"}
 
     def _hover_plan(self, t: float, pos_ned: np.ndarray) -> Plan:
         return Plan(

@@ -45,6 +45,11 @@ class MptpConfig:
     at ``turn_bank_fraction`` * bank_max (turn_bank_rad), leaving the follower the rest of its
     bank limit to make up its roll lag and look-ahead (the thesis states no reserve; the default
     0.75 turns the HAPS, bank-command limit 20 deg, at the 15 deg of the thesis's HAPS, eq. 5.53).
+    ``start_lead_s`` [s] >= 0: each replan searches from the state predicted this far past its
+    issue, the current turn held, and flies that prediction as the plan's first leg (lead_in.py),
+    so that the follower can lead the plan's first turn; the engine sets it to the airframe's
+    follower turn lead (``l1_turn_lead_s``) for the fly-over models and 0 for the simple one
+    unless the scenario gives it (on a real aircraft add the planning latency).
 
     Search: ``heuristic``; ``turning`` sense(s) of the auxiliary states; ``max_expansions``
     caps A* (the thesis's Monte-Carlo success criterion used 100); ``search_weight`` w >= 1
@@ -109,6 +114,7 @@ class MptpConfig:
     turn_model: TurnModelName = "simple"
     roll_rate_max: float = math.radians(6.0)
     turn_bank_fraction: float = 0.75
+    start_lead_s: float = 0.0
     max_expansions: int = 120
     search_weight: float = 1.1
     dominance_s: float = 240.0
@@ -174,6 +180,8 @@ class MptpConfig:
             raise ValueError("roll_rate_max must be > 0 [rad/s]")
         if not 0 < self.turn_bank_fraction <= 1:
             raise ValueError(f"turn_bank_fraction must be in (0, 1], got {self.turn_bank_fraction}")
+        if not self.start_lead_s >= 0:
+            raise ValueError(f"start_lead_s must be >= 0 [s], got {self.start_lead_s}")
         if self.wind_forecast not in ("scenario", "none"):
             raise ValueError(f"wind_forecast: expected 'scenario' or 'none', got {self.wind_forecast!r}")
         err = np.asarray(self.wind_error_ne_mps, float) if _is_numeric(self.wind_error_ne_mps) else np.empty(0)

@@ -13,7 +13,8 @@ time (keeping.py). A replan (Algorithm 2 of seed 002):
    probability level);
 2. if the goal stays covered over the whole horizon: a holding orbit (status DEGRADED), at the
    nearest pre-defined holding location the search reaches with a free orbit, else here;
-3. else the time-dependent A* from the estimated state (position, course) to the goal, with
+3. else the time-dependent A* from the estimated state (position, course; predicted
+   ``start_lead_s`` ahead, lead_in.py, the prediction being the plan's first leg) to the goal, with
    one-way auxiliary states while the goal is covered at the direct arrival time (5.4);
    a plan that circles (holding) is DEGRADED;
 4. if the search fails (expansion cap, or exhausted): the partial trajectory to the expanded
@@ -60,6 +61,7 @@ from guidance.mptp.goal import GoalTrack
 from guidance.mptp.heuristics import GoalAvailability
 from guidance.mptp.holding import holding_orbit, safe_area_leg
 from guidance.mptp.keeping import position_at, remaining_clear
+from guidance.mptp.lead_in import LeadIn, held_turn_rate, lead_in
 from guidance.mptp.search import HOLD, Trajectory, default_workspace, plan_trajectory
 from guidance.mptp.statespace import free_space
 from guidance.mptp.timeline import ObstacleTimeline
@@ -237,13 +239,22 @@ class MptpPlanner:
         t_ref = tl.t_issue
         ground_goal = self.goal_track or GoalTrack.fixed(self.mission.waypoints[k, :2])
         goal = air_goal(ground_goal, w, t_ref, t, t + 2 * cfg.horizon_s) if w.any() else ground_goal
-        p0 = to_air(np.asarray(est.pos_ned[:2], float), t, w, t_ref)
         v_air = np.asarray(est.vel_ned[:2], float) - w
-        course = math.atan2(v_air[1], v_air[0]) if np.hypot(*v_air) >= MIN_AIRSPEED else est.yaw
+        course_now = math.atan2(v_air[1], v_air[0]) if np.hypot(*v_air) >= MIN_AIRSPEED else est.yaw
+        lead = lead_in(
+            to_air(np.asarray(est.pos_ned[:2], float), t, w, t_ref),
+            t,
+            course_now,
+            held_turn_rate(est.roll, cfg.tas_mps, cfg.g),
+            cfg.tas_mps,
+            cfg.start_lead_s,
+        )
+        p0, t0, course = lead.p, lead.t, lead.course
         diag: dict[str, float | int | str] = {
             "heuristic": cfg.heuristic,
             "weather_s": weather_s,
             "tas_mps": cfg.tas_mps,
+            "start_lead_s": cfg.start_lead_s,
         }
         if w.any():
             diag.update(wind_north_mps=float(w[0]), wind_east_mps=float(w[1]))
@@ -252,17 +263,18 @@ class MptpPlanner:
         availability = GoalAvailability(tl, goal)
         levels = tl.interval(t + np.arange(0.0, cfg.horizon_s + cfg.dt_s, cfg.dt_s))
         if all(availability.covered(int(j)) for j in levels):
-            hold = self._hold_at_point(cfg, tl, p0, t, course) or self._hold_here(cfg, tl, p0, t, course)
+            hold = self._hold_at_point(cfg, tl, p0, t0, course) or self._hold_here(cfg, tl, p0, t0, course)
             if hold is not None:
                 pts, times, reason = hold
                 diag.update(runtime_s=time.perf_counter() - wall, holding_s=float(times[-1] - t), reason=reason)
-                return self._to_plan(t, est, pts, times, np.full(len(pts), -1), PlanStatus.DEGRADED, diag), None
-        arrival = float(goal.intercept(p0, np.array([t]), cfg.tas_mps)[0])
+                plan = self._to_plan(t, est, lead, pts, times, np.full(len(pts), -1), PlanStatus.DEGRADED, diag)
+                return plan, None
+        arrival = float(goal.intercept(p0, np.array([t0]), cfg.tas_mps)[0])
         turning = _one_way(cfg.turning) if availability.covered(int(tl.interval(arrival))) else cfg.turning
         # a partial trajectory must last until the next replan (the follower flies straight on
         # past a plan's end)
         traj = plan_trajectory(
-            tl, p0, t, course, goal, cfg, workspace, turning=turning, min_partial_s=cfg.replan_period_s
+            tl, p0, t0, course, goal, cfg, workspace, turning=turning, min_partial_s=cfg.replan_period_s + t - t0
         )
         diag.update(
             expanded=traj.expanded,
@@ -282,17 +294,17 @@ class MptpPlanner:
             labels[-1] = k
             diag.update(eta_s=float(traj.times[-1] - t), holding_turns=traj.holding_turn / (2 * math.pi))
             status = PlanStatus.DEGRADED if holding else PlanStatus.OK
-            return self._to_plan(t, est, pts, times, labels, status, diag, rates), traj
+            return self._to_plan(t, est, lead, pts, times, labels, status, diag, rates), traj
         if len(pts) >= 2:  # the search's best progress towards the goal
             diag.update(reason="search " + traj.status + ": partial plan", eta_s=float(traj.times[-1] - t))
-            plan = self._to_plan(t, est, pts, times, np.full(len(pts), -1), PlanStatus.DEGRADED, diag, rates)
+            plan = self._to_plan(t, est, lead, pts, times, np.full(len(pts), -1), PlanStatus.DEGRADED, diag, rates)
             return plan, traj
-        fs = traj.start_space or free_space(tl, p0, t, workspace, cfg.tas_mps, cfg.ring_segments)
+        fs = traj.start_space or free_space(tl, p0, t0, workspace, cfg.tas_mps, cfg.ring_segments)
         end, _ = safe_area_leg(fs, course, cfg, cfg.tas_mps * cfg.replan_period_s * 2)
         pts = np.vstack([p0, end])
-        times = t + np.r_[0.0, np.linalg.norm(end - p0) / cfg.tas_mps]
+        times = t0 + np.r_[0.0, np.linalg.norm(end - p0) / cfg.tas_mps]
         diag["reason"] = "search " + traj.status
-        return self._to_plan(t, est, pts, times, np.full(2, -1), PlanStatus.NO_SOLUTION, diag), traj
+        return self._to_plan(t, est, lead, pts, times, np.full(2, -1), PlanStatus.NO_SOLUTION, diag), traj
 
     def _hold_here(
         self, cfg: MptpConfig, tl: ObstacleTimeline, p0: np.ndarray, t: float, course: float
@@ -345,6 +357,7 @@ class MptpPlanner:
         self,
         t: float,
         est: VehicleState,
+        lead: LeadIn,
         ne: np.ndarray,
         times: np.ndarray,
         labels: np.ndarray,
@@ -352,8 +365,10 @@ class MptpPlanner:
         diag: dict,
         turn_rates: np.ndarray | None = None,
     ) -> Plan:
-        """A plan from states (air-mass frame ``ne`` (N, 2) [m] at ``times`` [s]) on the ground;
+        """A plan from states (air-mass frame ``ne`` (N, 2) [m] at ``times`` [s], from the
+        predicted start of ``lead``, which puts its lead-in leg in front) on the ground;
         ``turn_rates`` (N,) [rad/s]: the model's course rate on each leg (None: straight legs)."""
+        ne, times, labels, turn_rates = lead.prepend(ne, times, labels, turn_rates)
         ne = to_ground(ne, times, self.wind_ne, self.timeline.t_issue if self.timeline else t)
         d0 = float(est.pos_ned[2])
         d1 = float(self.mission.waypoints[self._goal_index_for(labels), 2])

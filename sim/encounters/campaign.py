@@ -35,7 +35,7 @@ import csv
 import json
 import math
 import tomllib
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from concurrent.futures import Executor
 from dataclasses import dataclass
 from pathlib import Path
@@ -96,9 +96,12 @@ def run_seed(master: int, index: int) -> int:
     return int(np.random.SeedSequence([master, index]).generate_state(1, dtype=np.uint64)[0] >> 1)
 
 
-def load_campaign(path: str | Path, out_dir: str | Path, limit: int | None = None) -> Campaign:
+def load_campaign(
+    path: str | Path, out_dir: str | Path, limit: int | None = None, draws: Collection[int] | None = None
+) -> Campaign:
     """Parse, sample and expand a campaign file into validated paired runs logged under ``out_dir``.
-    ``limit``: only the first draws (the same runs as in the full campaign, which resumes them)."""
+    ``limit``: only the first draws; ``draws``: only these draw indices. Either way the runs are
+    the same as in the full campaign (ids, seeds, scenarios), which resumes them."""
     path = Path(path)
     src = str(path)
     try:
@@ -138,12 +141,17 @@ def load_campaign(path: str | Path, out_dir: str | Path, limit: int | None = Non
     name = cfg.get("name", path.stem)
     master = int(cfg.get("seed", 0))
     dists = parse_distributions(cfg.get("parameters", {}), f"{src}: parameters")
-    draws = sample(dists, n, master, bool(cfg.get("latin_hypercube", False)))
+    sampled = sample(dists, n, master, bool(cfg.get("latin_hypercube", False)))
+    picked = range(len(sampled))[:limit] if draws is None else sorted(set(draws))
+    outside = [i for i in picked if not 0 <= i < len(sampled)]
+    if outside:
+        raise CampaignError(f"{src}: draw {outside[0]}: out of range 0..{len(sampled) - 1}")
     min_rel = float(cfg.get("min_relative_speed", 0.5))
     out = Path(out_dir)
     encounters, runs = [], []
     triple = intruder_count(setup) == 2
-    for i, params in enumerate(draws[:limit]):
+    for i in picked:
+        params = sampled[i]
         if relative_speed(params) < min_rel or (triple and relative_speed(second_intruder(params)) < min_rel):
             continue
         enc = Encounter(i, run_seed(master, i), params)
@@ -167,7 +175,7 @@ def load_campaign(path: str | Path, out_dir: str | Path, limit: int | None = Non
             )
     if not encounters:
         raise CampaignError(f"{src}: no encounter closes at min_relative_speed ({min_rel:g} m/s) or faster")
-    return Campaign(name, setup, encounters, runs, keep, len(draws[:limit]) - len(encounters))
+    return Campaign(name, setup, encounters, runs, keep, len(picked) - len(encounters))
 
 
 def outcome(row: dict, kind: str, count: int = 1) -> dict:

@@ -9,10 +9,12 @@ and - on the outside. Frames: local-level NED [m] of the log.
 ``python -m sim.testbeds.mptp_turn_vertices SCENARIO.toml ... --seeds 1-20 --models simple
 simulated --out DIR`` flies every scenario with each seed and ``turn_model`` (the scenario's
 planner options otherwise unchanged; ``--acceptance`` overrides the MPTP vehicles' acceptance
-radius, ``--duration`` the sim time), keeps the logs in DIR and prints a Markdown table per
-scenario and model: corners, median |xte|, 95th percentile of the cut, largest cut, largest
-outside pass [m], the same two without each plan's start turn (vertex_cross_track), and the
-missions completed.
+radius, ``--duration`` the sim time, ``--since`` leaves out the plans issued before this sim
+time [s]), keeps the logs in DIR and prints a Markdown table per
+scenario and model (``--per-seed``: also a row per seed): corners, median |xte|, 95th
+percentile of the cut, largest cut, largest outside pass [m], the same two without each plan's
+start turn (vertex_cross_track) and along the estimated track the follower flew on (the true
+track's cross-track less the navigation error), and the missions completed.
 
 Controlled factors (the experiment that isolates why turns are flown wide, docs/mptp.md):
 ``--estimator perfect`` (ideal sensors instead of the EKF), ``--wind N,E`` (the steady wind [m/s]
@@ -43,16 +45,22 @@ MIN_TURN_DEG = 1.0  # a vertex turning less is not a corner
 SETTLE_S = 60.0  # corners due later than this before the next plan are left out [s]
 
 
-def vertex_cross_track(log: str | Path, vehicle: str, start_turns: bool = True) -> np.ndarray:
-    """Signed closest approach [m] of the true track to each flown corner (see module doc);
-    without ``start_turns`` the written-out turn each plan begins with (its leading legs with a
-    nonzero turn rate) is left out: it starts at the plan's time, so the follower cannot lead it."""
+def vertex_cross_track(
+    log: str | Path, vehicle: str, start_turns: bool = True, track_of: str = "truth", since_s: float = 0.0
+) -> np.ndarray:
+    """Signed closest approach [m] of the ``track_of`` track ("truth", or "est": the estimate the
+    follower flew on) to each flown corner (see module doc) of the plans issued from ``since_s``
+    [s] on; without ``start_turns`` the written-out turn each plan begins with (its leading legs
+    with a nonzero turn rate, after the lead-in leg of a plan that has one, diagnostics
+    ``start_lead_s`` > 0) is left out."""
     plans, skip = [], []
     for t, m in read_topic(log, f"/{vehicle}/plan"):
         plans.append((t, np.asarray(m["positions"], float)[:, :2], np.asarray(m["times"], float)))
-        rates = np.asarray(m.get("turn_rates") or [0.0]) != 0.0
-        skip.append(0 if start_turns else int(np.argmin(np.r_[rates, False])))
-    track = read_topic(log, f"/{vehicle}/truth/state")
+        first = int(m.get("diagnostics", {}).get("start_lead_s", 0.0) > 0.0)
+        rates = np.asarray(m.get("turn_rates") or [0.0])[first:] != 0.0
+        start = 0 if start_turns else first + int(np.argmin(np.r_[rates, False]))
+        skip.append(start if t >= since_s else len(plans[-1][1]))
+    track = read_topic(log, f"/{vehicle}/{track_of}/state")
     tt, xy = np.array([t for t, _ in track]), np.array([m["pos_ned"][:2] for _, m in track])
     return corner_cross_track(plans, tt, xy, skip)
 
@@ -157,6 +165,11 @@ def fly(
     return path, all(v == "True" for k, v in result.items() if k.endswith(".mission_complete"))
 
 
+def _cut_and_outside(x: np.ndarray) -> tuple[float, float]:
+    """Largest cut and largest outside pass [m] (>= 0) of signed cross-tracks ``x`` (+ inside)."""
+    return max(float(x.max(initial=0.0)), 0.0), max(-float(x.min(initial=0.0)), 0.0)
+
+
 def _seeds(text: str) -> list[int]:
     """Seeds from "1-20" or "1-3,5" (ranges and single seeds, comma separated)."""
     out: list[int] = []
@@ -177,29 +190,47 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--wind", default=None, help="steady wind N,E [m/s] (replaces the scenario's)")
     ap.add_argument("--l1-period", type=float, default=None, help="L1 period [s] (default: the airframe's)")
     ap.add_argument("--out", type=Path, default=Path("logs/mptp_turn_vertices"))
+    ap.add_argument("--per-seed", action="store_true", help="also a row per seed")
+    ap.add_argument("--since", type=float, default=0.0, help="only the plans issued from this sim time [s] on")
     args = ap.parse_args(argv)
     wind = None if args.wind is None else tuple(float(v) for v in args.wind.split(","))
     if wind is not None and len(wind) != 2:
         ap.error(f"--wind: expected N,E in m/s, got {args.wind!r}")
     factors = Factors(args.estimator, wind, args.l1_period)
     args.out.mkdir(parents=True, exist_ok=True)
-    cols = ["scenario", "acceptance [m]", "turn model", "runs completed", "corners", "median abs [m]", "cut p95 [m]"]
-    cols += ["largest cut [m]", "largest outside [m]", "later turns: largest cut [m]", "largest outside [m]"]
+    cols = ["scenario", "seeds", "acceptance [m]", "turn model", "runs completed", "corners", "median abs [m]"]
+    cols += ["cut p95 [m]", "largest cut [m]", "largest outside [m]", "later turns: largest cut [m]"]
+    cols += ["largest outside [m]", "estimated track: largest cut [m]", "largest outside [m]"]
     print("| " + " | ".join(cols) + " |\n|" + "---|" * len(cols))
     for scenario in args.scenarios:
         for model in args.models:
-            xte, later, done, seeds = [], [], 0, _seeds(args.seeds)
-            for seed in seeds:
+            runs: list[tuple[int, bool, np.ndarray, np.ndarray, np.ndarray]] = []
+            for seed in _seeds(args.seeds):
                 path, ok = fly(scenario, seed, model, args.out, args.acceptance, args.duration, factors)
-                done += ok
-                xte.append(vertex_cross_track(path, "haps"))
-                later.append(vertex_cross_track(path, "haps", start_turns=False))
-            x, y = np.concatenate(xte), np.concatenate(later)
-            cut = np.maximum(x, 0.0)
-            row = [scenario.stem, args.acceptance or "shipped", model, f"{done}/{len(seeds)}", len(x)]
-            row += [f"{v:.1f}" for v in (np.median(np.abs(x)), np.percentile(cut, 95), cut.max(), max(-x.min(), 0))]
-            row += [f"{v:.1f}" for v in (max(y.max(initial=0.0), 0.0), max(-y.min(initial=0.0), 0.0))]
-            print("| " + " | ".join(map(str, row)) + " |", flush=True)
+                every = vertex_cross_track(path, "haps", since_s=args.since)
+                later = vertex_cross_track(path, "haps", start_turns=False, since_s=args.since)
+                est = vertex_cross_track(path, "haps", track_of="est", since_s=args.since)
+                runs.append((seed, ok, every, later, est))
+                if args.per_seed:
+                    print(_row(scenario.stem, str(seed), args.acceptance, model, runs[-1:]), flush=True)
+            print(_row(scenario.stem, args.seeds, args.acceptance, model, runs), flush=True)
+
+
+def _row(
+    stem: str,
+    seeds: str,
+    accept: float | None,
+    model: str,
+    runs: list[tuple[int, bool, np.ndarray, np.ndarray, np.ndarray]],
+) -> str:
+    """One Markdown table row over ``runs`` (seed, mission completed, cross-tracks [m] of every
+    corner, of the later turns, of the estimated track)."""
+    x, y, e = (np.concatenate([r[k] for r in runs]) for k in (2, 3, 4))
+    cut = np.maximum(x, 0.0)
+    row = [stem, seeds, accept or "shipped", model, f"{sum(r[1] for r in runs)}/{len(runs)}", len(x)]
+    row += [f"{v:.1f}" for v in (np.median(np.abs(x)), np.percentile(cut, 95), *_cut_and_outside(x))]
+    row += [f"{v:.1f}" for z in (y, e) for v in _cut_and_outside(z)]
+    return "| " + " | ".join(map(str, row)) + " |"
 
 
 if __name__ == "__main__":

@@ -52,13 +52,15 @@ ACCEPTANCE_M = 10.0  # below the written-out vertices' spacing of both models
 class Case:
     """One flight: ``model`` ("approximate" or "simulated"), ``feed_forward`` (the follower gets
     the plan's turn rates), ``l1_period_s`` and ``turn_lead_s`` [s] (None: the airframe's),
-    steady ``wind_ne`` (north, east) [m/s]."""
+    steady ``wind_ne`` (north, east) [m/s], ``straight_m`` [m] flown before the first turn (0:
+    the plan turns at its issue, as an MPTP plan's start turn without the lead-in)."""
 
     model: str = "simulated"
     feed_forward: bool = True
     l1_period_s: float | None = None
     wind_ne: tuple[float, float] = (0.0, 0.0)
     turn_lead_s: float | None = None
+    straight_m: float = LEAD_M
 
 
 @dataclass(frozen=True, slots=True)
@@ -76,11 +78,13 @@ class Flight:
     xte: np.ndarray
 
 
-def _states(cfg: MptpConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Air-mass (north, east) states (5, 2) [m], their arrival courses (5,) [rad] and times (5,)
-    [s]: north for LEAD_M, then a TURN_RAD right and a TURN_RAD left fly-over turn, each followed
-    by LEG_M of straight, then LEG_M on."""
-    pts, courses, times = [np.zeros(2), np.array([LEAD_M, 0.0])], [0.0, 0.0], [0.0, LEAD_M / cfg.tas_mps]
+def _states(cfg: MptpConfig, straight_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Air-mass (north, east) states (5, 2) [m] (4 without the straight), their arrival courses
+    [rad] and times [s]: north for ``straight_m``, then a TURN_RAD right and a TURN_RAD left
+    fly-over turn, each followed by LEG_M of straight, then LEG_M on."""
+    pts, courses, times = [np.zeros(2)], [0.0], [0.0]
+    if straight_m > 0.0:
+        pts, courses, times = pts + [np.array([straight_m, 0.0])], courses + [0.0], times + [straight_m / cfg.tas_mps]
     for sense in (1.0, -1.0, 0.0):
         chi = courses[-1] + sense * TURN_RAD
         end, flown = (
@@ -96,7 +100,7 @@ def planned(case: Case) -> Plan:
     """The plan of ``case``: the MPTP's written-out turns through _states, mapped to the ground in
     the steady wind at the times of flight; turn rates withheld without feed-forward."""
     cfg = MptpConfig(turn_model=case.model, tas_mps=TAS_MPS)  # type: ignore[arg-type]
-    pts, courses, times = _states(cfg)
+    pts, courses, times = _states(cfg, case.straight_m)
     ne, tt, rates = written_out(pts, times, courses, np.zeros(len(pts) - 1, bool), cfg)
     ne = to_ground(ne, tt, np.asarray(case.wind_ne, float), 0.0)
     pos = np.column_stack([ne, np.full(len(ne), -ALT_M)])
