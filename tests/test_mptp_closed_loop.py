@@ -78,15 +78,7 @@ def test_an_opening_corridor_is_waited_for_in_closed_loop(fly):
     reason="issue 20: within 5 % on most seeds, not all (seeds 3, 4, 15, 16 measured +5.3 to +15.5 %: the search's "
     "first complete plan, kept to the end, is that late; docs/mptp.md 'Corridor')",
 )
-@pytest.mark.parametrize(
-    "seed",
-    [
-        pytest.param(s, marks=pytest.mark.skip(reason="OOM-killed at 1200 s (22 GB), docs/mptp.md 'Corridor'"))
-        if s == 11
-        else s
-        for s in range(1, 21)
-    ],
-)
+@pytest.mark.parametrize("seed", range(1, 21))
 def test_a_corridor_opening_after_20_min_is_held_for_and_taken(fly, scenario_data, seed):
     """scenarios/mptp/corridor_opens.toml (default search options) on seeds 1-20: the corridor
     opens at 1182 s, so no arrival is earlier than 1797 s (the file's header). The HAPS holds
