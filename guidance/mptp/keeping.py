@@ -29,10 +29,10 @@ TOUCH_M = 1.0  # a position closer than this to an envelope's boundary is outsid
 SAMPLE_S = 2.0  # the plan is tested at its vertices and every this many seconds [s]
 
 
-def position_at(plan: Plan, t: float) -> np.ndarray:
-    """Where ``plan`` has the aircraft at time ``t`` [s]: (north, east) [m], linear in time
-    between its vertices (held at its ends)."""
-    return np.array([np.interp(t, plan.times, plan.positions[:, k]) for k in range(2)])
+def position_at(plan: Plan, t: float | np.ndarray) -> np.ndarray:
+    """Where ``plan`` has the aircraft at time(s) ``t`` [s]: (north, east) [m], shape (2,) for
+    one time and (n, 2) for n times, linear in time between its vertices (held at its ends)."""
+    return np.stack([np.interp(t, plan.times, plan.positions[:, k]) for k in range(2)], axis=-1)
 
 
 def remaining_clear(plan: Plan, tl: ObstacleTimeline, t: float, wind_ne: np.ndarray) -> bool:
@@ -43,7 +43,7 @@ def remaining_clear(plan: Plan, tl: ObstacleTimeline, t: float, wind_ne: np.ndar
     if times[-1] <= t:
         return True
     knots = np.unique(np.concatenate([np.arange(t, times[-1], SAMPLE_S), times[times > t]]))
-    ne = np.column_stack([np.interp(knots, times, plan.positions[:, k]) for k in range(2)])
+    ne = position_at(plan, knots)
     ne = to_air(ne, knots, wind_ne, tl.t_issue) if np.any(wind_ne) else ne
     j = tl.interval(knots)
     for level in np.unique(j):
