@@ -30,6 +30,13 @@ TARGETS = np.array([[20.0, 0.0, -15.0], [20.0, 20.0, -15.0], [0.0, 20.0, -15.0]]
 # A wait's upper bound [s] (wall time), against a hang only: every wait ends as soon as its
 # message arrives or the run is over; on a loaded machine a run can take tens of seconds to start.
 WAIT_S = 300.0
+# Sim time [s] an upload test may run: the GCS thread uploads when it gets to it (wall time; the
+# run is paced at 4x and shares the GIL with it), so a loaded machine delivers the upload late.
+# The run stops when the uploaded mission completes; the flight after the upload is bounded by
+# UPLOADED_MISSION_S on the event times instead.
+LATE_UPLOAD_ROOM_S = 600.0
+HOVER_HOLD = "1000 s"  # longer than any run: the hover itself never completes the mission
+UPLOADED_MISSION_S = 30.0  # the 3 uploaded waypoints take about 17 s [s, sim time]
 
 
 def _free_port() -> int:
@@ -126,17 +133,24 @@ class Gcs(threading.Thread):
         super().join(timeout)
 
 
+def _upload_to_end_s(events: list[tuple[float, str]], end_t: float) -> float:
+    """Sim time [s] from the upload event to the end of the run."""
+    uploaded = [t for t, text in events if "mission uploaded" in text]
+    assert len(uploaded) == 1, uploaded
+    return end_t - uploaded[0]
+
+
 def test_gcs_uploads_a_mission_that_the_vehicle_flies(fly, scenario_data):
     port = _free_port()
     data = scenario_data("quad_square_mission")
     data.update(
-        duration=120.0,  # room for a late upload (wall time); the run stops when the mission completes
+        duration=LATE_UPLOAD_ROOM_S,
         stop_when_complete=True,
         mavlink={"enabled": True, "base_port": port, "rate_hz": 5.0, "pace": 4.0},
     )
     v = data["vehicle"][0]
     v["mission"]["land"] = False
-    v["mission"]["waypoints"] = [{"north": 0, "east": 0, "altitude": 415, "hold": "120 s"}]
+    v["mission"]["waypoints"] = [{"north": 0, "east": 0, "altitude": 415, "hold": HOVER_HOLD}]
     gcs = Gcs(port)
     gcs.hold_off_s = 2.0  # upload while the vehicle already holds at its first waypoint (the hold must end)
     gcs.start()
@@ -154,6 +168,7 @@ def test_gcs_uploads_a_mission_that_the_vehicle_flies(fly, scenario_data):
         f"quad: waypoint {k}/3 reached" for k in (1, 2, 3)
     ]
     assert result.status == "completed"
+    assert 5.0 < _upload_to_end_s(log.events(), result.sim_time_s) < UPLOADED_MISSION_S
     assert any("mavlink" in e and "garbage" in e for e in events)
     # telemetry matched the vehicle: the last position report is near the last waypoint
     last = gcs.positions[-1]
@@ -163,7 +178,8 @@ def test_gcs_uploads_a_mission_that_the_vehicle_flies(fly, scenario_data):
 
 
 def _hover_scenario(port: int, duration: float = 20.0) -> dict:
-    """The quadrotor hovering at 15 m for 120 s (so that only a command could move it)."""
+    """The quadrotor hovering at 15 m for longer than any run (so that only a command could
+    move it, and only an uploaded mission can complete the run)."""
     data = tomllib.loads((ROOT / "scenarios" / "quad_square_mission.toml").read_text())
     data.update(
         duration=duration,
@@ -172,7 +188,7 @@ def _hover_scenario(port: int, duration: float = 20.0) -> dict:
     )
     v = data["vehicle"][0]
     v["mission"]["land"] = False
-    v["mission"]["waypoints"] = [{"north": 0, "east": 0, "altitude": 415, "hold": "120 s"}]
+    v["mission"]["waypoints"] = [{"north": 0, "east": 0, "altitude": 415, "hold": HOVER_HOLD}]
     return data
 
 
@@ -282,9 +298,7 @@ def test_fuzz_from_foreign_ids_does_not_change_the_flight(tmp_path, undisturbed)
 def test_with_signing_the_signed_gcs_is_obeyed_and_unsigned_commands_refused(tmp_path):
     port = _free_port()
     (tmp_path / "key").write_text("a passphrase")
-    # the upload lands when the GCS thread gets to it (wall time): 120 s of sim time leave room
-    # for a late one; the run stops when the uploaded mission completes (17 s after the upload)
-    data = _hover_scenario(port, duration=120.0)
+    data = _hover_scenario(port, duration=LATE_UPLOAD_ROOM_S)
     data["mavlink"]["signing_key_file"] = str(tmp_path / "key")
     gcs = Gcs(port, key=hashlib.sha256(b"a passphrase").digest())
     gcs.start()
@@ -293,11 +307,13 @@ def test_with_signing_the_signed_gcs_is_obeyed_and_unsigned_commands_refused(tmp
     assert not gcs.is_alive()
     assert gcs.error is None and gcs.heartbeat is not None and gcs.heartbeat.get_signed()
     assert gcs.ack is not None and gcs.ack.type == mav.MAV_MISSION_ACCEPTED
-    events = [text for _, text in RunLog(tmp_path / "signed.mcap").events()]
+    timed = RunLog(tmp_path / "signed.mcap").events()
+    events = [text for _, text in timed]
     assert "quad: mission uploaded: 3 waypoints, mode AUTO" in events
     assert not any("mode GUIDED" in e for e in events)  # the unsigned SET_MODE was dropped
     assert any("bad_signature" in e for e in events)
     assert result.status == "completed"
+    assert 5.0 < _upload_to_end_s(timed, result.sim_time_s) < UPLOADED_MISSION_S
 
 
 def test_fuzz_from_the_ground_station_keeps_the_vehicle_in_its_envelope(tmp_path):
