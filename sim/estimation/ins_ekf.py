@@ -233,7 +233,10 @@ class InsEkf:
         self.t = initial.t
         self._c_at = (math.inf, math.inf, math.inf)
         self._c = np.eye(3)
+        self._c9 = m.mat3(self._c)  # the same as plain floats, for the mechanisation
         self._refresh_c()
+        self._qd_dt = math.nan  # the step of the noise diagonal below [s]
+        self._decay = 1.0  # the Gauss-Markov decay over that step
         self._p_static: float | None = None
         self._dp: float | None = None
 
@@ -254,6 +257,7 @@ class InsEkf:
         a = self._c_at
         if abs(x - a[0]) + abs(y - a[1]) + abs(z - a[2]) > _C_REFRESH_M:
             self._c = self._geo.velocity_map(x, y, z)
+            self._c9 = m.mat3(self._c)
             self._c_at = (x, y, z)
         return self._c
 
@@ -292,10 +296,10 @@ class InsEkf:
         c = self._refresh_c()
         if self._numeric:
             phi = m.transition_numeric(self.nav, f, w, dt, decay, c_pos=c)
-        nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity, c)
+        nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity, self._c9)
         if not self._numeric:
-            phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay, c)
-        self._acc_ned = r @ fh + self._gravity
+            phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay, self._c9)
+        self._acc_ned = np.array(m.rotate(r, fh)) + self._gravity
         self._rates = z.gyro_body - nav.bg
         q = self._Q
         q[self._diag] = self._q_rates * dt
@@ -342,14 +346,18 @@ class InsEkf:
         gyro sample (the output body rate). ``P <- Phi P Phi^T + Q`` in place of filterpy."""
         if dt <= 0.0:
             return
-        decay = math.exp(-dt / self.cfg.gnss_gm_tau_s)
-        c = self._refresh_c()
-        nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity, c)
-        phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay, c)
-        self._acc_ned = r @ fh + self._gravity
+        qd = self._qd
+        if dt != self._qd_dt:  # the step is fixed in a run: the decay and noise once
+            self._qd_dt = dt
+            decay = self._decay = math.exp(-dt / self.cfg.gnss_gm_tau_s)
+            np.multiply(self._q_rates, dt, out=qd)
+            qd[16:19] = self._gm_var * (1.0 - decay * decay)
+        decay = self._decay
+        self._refresh_c()
+        nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity, self._c9)
+        phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay, self._c9)
+        self._acc_ned = np.array(m.rotate(r, fh)) + self._gravity
         self._rates = w_last - nav.bg
-        qd = np.multiply(self._q_rates, dt, out=self._qd)
-        qd[16:19] = self._gm_var * (1.0 - decay * decay)
         P = phi @ self.kf.P @ phi.T
         P.flat[:: m.N + 1] += qd  # the diagonal, without fancy indexing
         self.kf.P = P

@@ -39,6 +39,7 @@ from sim.core.frames import (
     quat_mul,
     quat_normalize,
     quat_to_dcm,
+    quat_to_dcm_rows,
     yaw_error_variance,
 )
 
@@ -127,27 +128,60 @@ def skew(v) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
+Vec3 = list[float]  # x, y, z as plain floats
+Mat3 = tuple[float, ...]  # a 3x3 matrix row-major, 9 plain floats
+_I9: Mat3 = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+
+
+def floats3(v) -> Vec3:
+    """The three components of a 3-vector (array or sequence) as plain floats."""
+    return v.tolist() if type(v) is np.ndarray else [float(v[0]), float(v[1]), float(v[2])]
+
+
+def mat3(c: np.ndarray | None) -> Mat3:
+    """A 3x3 matrix (``None``: the identity) as :data:`Mat3`."""
+    return _I9 if c is None else tuple(np.asarray(c, float).ravel().tolist())
+
+
+def rotate(r: Mat3, v: Vec3) -> Vec3:
+    """``r v`` for a row-major 3x3 ``r`` and a 3-vector ``v``, plain floats."""
+    x, y, z = v
+    return [r[0] * x + r[1] * y + r[2] * z, r[3] * x + r[4] * y + r[5] * z, r[6] * x + r[7] * y + r[8] * z]
+
+
 def propagate(
     s: NavState,
-    f: np.ndarray,
-    w: np.ndarray,
+    f,
+    w,
     dt: float,
     gm_decay: float,
-    gravity: np.ndarray = GRAVITY,
-    c_pos: np.ndarray | None = None,
-) -> tuple[NavState, np.ndarray, np.ndarray, np.ndarray]:
-    """Nominal state after ``dt`` [s]; also the mid-interval R and bias-corrected f, w (for F).
-    ``gravity``: NED gravity vector [m/s^2] (default: standard gravity, down). ``c_pos``: the
-    local-velocity -> scenario-position-rate map ``C`` (module doc; ``None`` = identity)."""
-    fh = f - s.ba
-    wh = w - s.bg
-    wx, wy, wz = float(wh[0]) * dt, float(wh[1]) * dt, float(wh[2]) * dt
-    r = quat_to_dcm(quat_mul(s.q, quat_exp(0.5 * wx, 0.5 * wy, 0.5 * wz)))
-    dv = (r @ fh + gravity) * dt
-    dp = (s.v + 0.5 * dv) * dt
+    gravity=GRAVITY,
+    c_pos: np.ndarray | Mat3 | None = None,
+) -> tuple[NavState, Mat3, Vec3, Vec3]:
+    """Nominal state after ``dt`` [s]; also the mid-interval R (:data:`Mat3`) and the
+    bias-corrected f [m/s^2], w [rad/s] (for Phi). ``f``, ``w``: body FRD 3-vectors. ``gravity``:
+    NED gravity vector [m/s^2] (default: standard gravity, down). ``c_pos``: the local-velocity
+    -> scenario-position-rate map ``C`` (module doc; 3x3 array or :data:`Mat3`; ``None`` =
+    identity). Plain float arithmetic on the 3-vectors (it runs at the fusion rate)."""
+    bax, bay, baz = s.ba.tolist()
+    bgx, bgy, bgz = s.bg.tolist()
+    f0, f1, f2 = floats3(f)
+    w0, w1, w2 = floats3(w)
+    fh = [f0 - bax, f1 - bay, f2 - baz]
+    wh = [w0 - bgx, w1 - bgy, w2 - bgz]
+    wx, wy, wz = wh[0] * dt, wh[1] * dt, wh[2] * dt
+    r = quat_to_dcm_rows(quat_mul(s.q, quat_exp(0.5 * wx, 0.5 * wy, 0.5 * wz)))
+    gx, gy, gz = floats3(gravity)
+    ax, ay, az = rotate(r, fh)
+    dvx, dvy, dvz = (ax + gx) * dt, (ay + gy) * dt, (az + gz) * dt
+    vx, vy, vz = s.v.tolist()
+    dp = [(vx + 0.5 * dvx) * dt, (vy + 0.5 * dvy) * dt, (vz + 0.5 * dvz) * dt]
+    if c_pos is not None:
+        dp = rotate(c_pos if type(c_pos) is tuple else mat3(c_pos), dp)
+    px, py, pz = s.p.tolist()
     nxt = NavState(
-        s.p + (dp if c_pos is None else c_pos @ dp),
-        s.v + dv,
+        np.array([px + dp[0], py + dp[1], pz + dp[2]]),
+        np.array([vx + dvx, vy + dvy, vz + dvz]),
         quat_normalize(quat_mul(s.q, quat_exp(wx, wy, wz))),
         s.ba,
         s.bg,
@@ -157,33 +191,50 @@ def propagate(
     return nxt, r, fh, wh
 
 
+# flat indices into the N x N transition of the entries that change with the step (row-major
+# within each block): dp/dv, dp/d(theta, ba), dv/d(theta, ba), dv/dbg, dtheta/dtheta
+_PHI_IDX = np.array(
+    [r * N + c for r in range(0, 3) for c in range(3, 6)]
+    + [r * N + c for r in range(0, 3) for c in range(6, 12)]
+    + [r * N + c for r in range(3, 6) for c in range(6, 12)]
+    + [r * N + c for r in range(3, 6) for c in range(12, 15)]
+    + [r * N + c for r in range(6, 9) for c in range(6, 9)]
+)
 _CONST_IDX = (np.array([6, 7, 8, 16, 17, 18]), np.array([12, 13, 14, 16, 17, 18]))
 
 
 def transition_analytic(
     out: np.ndarray,
-    r: np.ndarray,
-    fh: np.ndarray,
-    wh: np.ndarray,
+    r: Mat3,
+    fh: Vec3,
+    wh: Vec3,
     dt: float,
     gm_decay: float,
-    c_pos: np.ndarray | None = None,
+    c_pos: np.ndarray | Mat3 | None = None,
 ) -> np.ndarray:
     """Error-state transition Phi (19x19) written into ``out`` (an identity the caller reuses:
     only the entries below change); first order in dt except the attitude block and the
-    dt^2 terms of dp and dv. ``c_pos``: as in :func:`propagate` (the dp rows are ``C`` times
-    the flat-earth ones)."""
-    rfr = np.concatenate((r @ skew(fh), r), axis=1)  # [R [f]x, R]
+    dt^2 terms of dp and dv. ``r``, ``fh``, ``wh``: from :func:`propagate`. ``c_pos``: as in
+    :func:`propagate` (the dp rows are ``C`` times the flat-earth ones). The 63 changing
+    entries are worked out in plain floats and written in one ``put``."""
+    fx, fy, fz = fh
+    # rfr = [R [f]x, R] (3x6), row-major
+    rfr = []
+    for i in range(0, 9, 3):
+        r0, r1, r2 = r[i], r[i + 1], r[i + 2]
+        rfr += (r1 * fz - r2 * fy, r2 * fx - r0 * fz, r0 * fy - r1 * fx, r0, r1, r2)
+    c = _I9 if c_pos is None else c_pos if type(c_pos) is tuple else mat3(c_pos)
     k = 0.5 * dt * dt
-    if c_pos is None:
-        out[0:3, 3:6] = _I3 * dt
-        out[0:3, 6:12] = rfr * -k
-    else:
-        out[0:3, 3:6] = c_pos * dt
-        out[0:3, 6:12] = (c_pos @ rfr) * -k
-    out[3:6, 6:12] = rfr * -dt
-    out[3:6, 12:15] = rfr[:, 0:3] * k
-    out[6:9, 6:9] = quat_to_dcm(quat_exp(float(wh[0]) * dt, float(wh[1]) * dt, float(wh[2]) * dt)).T
+    crfr = [
+        -k * (c[i] * rfr[j] + c[i + 1] * rfr[j + 6] + c[i + 2] * rfr[j + 12]) for i in range(0, 9, 3) for j in range(6)
+    ]
+    vals = [x * dt for x in c]
+    vals += crfr
+    vals += [x * -dt for x in rfr]
+    vals += [rfr[j] * k for j in (0, 1, 2, 6, 7, 8, 12, 13, 14)]
+    a = quat_to_dcm_rows(quat_exp(wh[0] * dt, wh[1] * dt, wh[2] * dt))
+    vals += (a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8])  # its transpose
+    out.put(_PHI_IDX, vals)
     if out[6, 12] != -dt or out[16, 16] != gm_decay:  # constant for a fixed step: set once
         out[_CONST_IDX] = (-dt, -dt, -dt, gm_decay, gm_decay, gm_decay)
     return out
