@@ -7,20 +7,37 @@ payloads topic by topic: identical bytes, or, on the channels marked ``wallclock
 JSON once their ``wallclock_fields`` are removed (as ``tests/test_log_contracts.py`` compares two
 runs of one tree). Prints one line per scenario and exits 1 when a topic differs otherwise.
 
+``--rtol R --atol A`` (tolerance mode, for changes that reorder floating-point arithmetic): a
+topic whose bytes differ is decoded (``sim.mcap_read``) and passes when both logs hold the same
+messages at the same log times with the same fields, equal strings and booleans, and every number
+within ``A + R * max(|a|, |b|)`` (NaN equals NaN); each such topic's largest difference is
+printed with its field, its relative size and the size of the field's values.
+
     git archive <commit> | tar -x -C /tmp/before
     python benchmarks/same_logs.py /tmp/before . mixed_haps_quad_reachset reachset_fleet8 --sim-seconds 30
+    python benchmarks/same_logs.py /tmp/before . mixed_haps_quad_reachset --rtol 1e-6 --atol 1e-6
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import subprocess
 import sys
 import tempfile
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
+from google.protobuf.json_format import MessageToDict
 from mcap.reader import make_reader
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from sim.mcap_read import iter_messages  # noqa: E402
 
 FLY = """
 import sys, tomllib
@@ -77,12 +94,86 @@ def differing_topics(a: Path, b: Path) -> tuple[int, list[str]]:
     return len(set(ca) | set(cb)), bad
 
 
+@dataclass
+class Worst:
+    """A topic's largest numeric difference: |a - b|, the field, |a - b| / max(|a|, |b|), the
+    largest |value| of that field in the topic."""
+
+    diff: float = 0.0
+    field: str = ""
+    rel: float = 0.0
+    scale: float = 0.0
+
+
+def _leaves(msg: Any, prefix: str = "") -> Iterator[tuple[str, Any]]:
+    """(dotted field, value) of every leaf of a decoded message (list items by index)."""
+    if hasattr(msg, "DESCRIPTOR"):  # Foxglove protobuf types
+        msg = MessageToDict(msg, preserving_proto_field_name=True)
+    if isinstance(msg, dict):
+        for k, v in msg.items():
+            yield from _leaves(v, f"{prefix}.{k}" if prefix else str(k))
+    elif isinstance(msg, list):
+        for i, v in enumerate(msg):
+            yield from _leaves(v, f"{prefix}[{i}]")
+    else:
+        yield prefix, msg
+
+
+def _number(v: Any) -> float | None:
+    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
+
+
+def _under(field: str, roots: list[str]) -> bool:
+    """Whether ``field`` is one of ``roots`` or inside one (a member or a list item)."""
+    return any(field == r or field.startswith((r + ".", r + "[")) for r in roots)
+
+
+def within(a: Path, b: Path, topic: str, wallclock: list[str], rtol: float, atol: float) -> Worst | str:
+    """How ``topic`` differs between logs ``a`` and ``b`` beyond the wall-clock fields: its
+    largest difference when every number is within the tolerance, else the first failure."""
+    ma = [(t, dict(_leaves(m))) for _, t, m in iter_messages(a, [topic])]
+    mb = [(t, dict(_leaves(m))) for _, t, m in iter_messages(b, [topic])]
+    if len(ma) != len(mb):
+        return f"{len(ma)} messages against {len(mb)}"
+    worst = Worst()
+    scales: dict[str, float] = {}
+    for (ta, fa), (tb, fb) in zip(ma, mb, strict=True):
+        if ta != tb:
+            return f"log time {ta!r} against {tb!r}"
+        for fields in (fa, fb):
+            for f in [f for f in fields if _under(f, wallclock)]:
+                del fields[f]
+        if fa.keys() != fb.keys():
+            return f"t={ta:g}: fields {sorted(fa.keys() ^ fb.keys())[:3]} in one log only"
+        for field, va in fa.items():
+            vb = fb[field]
+            xa, xb = _number(va), _number(vb)
+            if xa is None or xb is None:
+                if va != vb:
+                    return f"t={ta:g}: {field} {va!r} against {vb!r}"
+                continue
+            size = max(abs(xa), abs(xb))
+            if math.isfinite(size):
+                scales[field] = max(scales.get(field, 0.0), size)
+            if xa == xb or (math.isnan(xa) and math.isnan(xb)):
+                continue
+            d = abs(xa - xb)
+            if not d <= atol + rtol * size:
+                return f"t={ta:g}: {field} {xa!r} against {xb!r}"
+            if d > worst.diff:
+                worst = Worst(d, field, d / size, 0.0)
+    worst.scale = scales.get(worst.field, 0.0)
+    return worst
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("before", type=Path, help="the reference code tree")
     ap.add_argument("after", type=Path, help="the code tree under test")
     ap.add_argument("scenarios", nargs="+", help="shipped scenario names (scenarios/<name>.toml)")
     ap.add_argument("--sim-seconds", type=float, default=30.0)
+    ap.add_argument("--rtol", type=float, default=None, help="tolerance mode: relative tolerance")
+    ap.add_argument("--atol", type=float, default=0.0, help="tolerance mode: absolute tolerance")
     args = ap.parse_args()
     failed = False
     with tempfile.TemporaryDirectory() as d:
@@ -94,9 +185,23 @@ def main() -> None:
                 subprocess.run(cmd, cwd=tree.resolve(), check=True)
                 logs.append(log)
             n, bad = differing_topics(*logs)
-            failed |= bool(bad)
-            verdict = "same log" if not bad else f"DIFFERENT: {bad}"
-            print(f"{name} ({args.sim_seconds:g} s): {n} topics, {verdict}")
+            if args.rtol is None:
+                failed |= bool(bad)
+                verdict = "same log" if not bad else f"DIFFERENT: {bad}"
+                print(f"{name} ({args.sim_seconds:g} s): {n} topics, {verdict}")
+                continue
+            print(f"{name} ({args.sim_seconds:g} s): {n} topics, {n - len(bad)} identical")
+            meta = channels(logs[0])
+            for topic in bad:
+                m = meta.get(topic, ({}, []))[0]
+                wall = m.get("wallclock_fields", "").split(",") if m.get("wallclock") == "true" else []
+                res = within(*logs, topic, wall, args.rtol, args.atol) if topic in meta else "in one log only"
+                failed |= isinstance(res, str)
+                if isinstance(res, str):
+                    print(f"  {topic}: DIFFERENT: {res}")
+                else:
+                    where = f"{res.field} ({res.rel:.2g} of it; values up to {res.scale:.3g})"
+                    print(f"  {topic}: within, largest {res.diff:.3g} in {where}")
     sys.exit(1 if failed else 0)
 
 

@@ -225,11 +225,18 @@ def transition_analytic(
         rfr += (r1 * fz - r2 * fy, r2 * fx - r0 * fz, r0 * fy - r1 * fx, r0, r1, r2)
     c = _I9 if c_pos is None else c_pos if type(c_pos) is tuple else mat3(c_pos)
     k = 0.5 * dt * dt
-    crfr = [
-        -k * (c[i] * rfr[j] + c[i + 1] * rfr[j + 6] + c[i + 2] * rfr[j + 12]) for i in range(0, 9, 3) for j in range(6)
-    ]
     vals = [x * dt for x in c]
-    vals += crfr
+    a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, d0, d1, d2, d3, d4, d5 = rfr
+    for i in range(0, 9, 3):  # -k C rfr, row by row
+        ca, cb, cd = c[i], c[i + 1], c[i + 2]
+        vals += (
+            -k * (ca * a0 + cb * b0 + cd * d0),
+            -k * (ca * a1 + cb * b1 + cd * d1),
+            -k * (ca * a2 + cb * b2 + cd * d2),
+            -k * (ca * a3 + cb * b3 + cd * d3),
+            -k * (ca * a4 + cb * b4 + cd * d4),
+            -k * (ca * a5 + cb * b5 + cd * d5),
+        )
     vals += [x * -dt for x in rfr]
     vals += [rfr[j] * k for j in (0, 1, 2, 6, 7, 8, 12, 13, 14)]
     a = quat_to_dcm_rows(quat_exp(wh[0] * dt, wh[1] * dt, wh[2] * dt))
