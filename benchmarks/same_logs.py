@@ -11,11 +11,15 @@ runs of one tree). Prints one line per scenario and exits 1 when a topic differs
 topic whose bytes differ is decoded (``sim.mcap_read``) and passes when both logs hold the same
 messages at the same log times with the same fields, equal strings and booleans, and every number
 within ``A + R * max(|a|, |b|)`` (NaN equals NaN); each such topic's largest difference is
-printed with its field, its relative size and the size of the field's values.
+printed with its field, its relative size and the size of the field's values. ``--ulp-floor``
+also flies the reference tree with every EKF's gravity one unit in the last place larger and
+compares it with the reference the same way: how far the same code's logs move when one bit of
+the estimator moves (the closed loop carries such a change into every vehicle state), the scale
+against which the differences of a reordered arithmetic are judged.
 
     git archive <commit> | tar -x -C /tmp/before
     python benchmarks/same_logs.py /tmp/before . mixed_haps_quad_reachset reachset_fleet8 --sim-seconds 30
-    python benchmarks/same_logs.py /tmp/before . mixed_haps_quad_reachset --rtol 1e-6 --atol 1e-6
+    python benchmarks/same_logs.py /tmp/before . mixed_haps_quad_reachset --rtol 0 --atol 0.01 --ulp-floor
 """
 
 from __future__ import annotations
@@ -40,12 +44,16 @@ sys.path.insert(0, str(ROOT))
 from sim.mcap_read import iter_messages  # noqa: E402
 
 FLY = """
-import sys, tomllib
+import math, sys, tomllib
 from pathlib import Path
 sys.path.insert(0, ".")
+import sim.estimation.sensor_estimator as se
 from sim.runner import run_scenario
 from sim.scenario import parse_scenario
-name, seconds, out = sys.argv[1], float(sys.argv[2]), sys.argv[3]
+name, seconds, out, ulp = sys.argv[1], float(sys.argv[2]), sys.argv[3], sys.argv[4] == "1"
+if ulp:  # every EKF's gravity one unit in the last place larger
+    g = se.normal_gravity
+    se.normal_gravity = lambda lat, alt: math.nextafter(g(lat, alt), math.inf)
 data = tomllib.loads(Path("scenarios", name + ".toml").read_text())
 run_scenario(parse_scenario(data, name), out, duration=seconds)
 """
@@ -174,35 +182,47 @@ def main() -> None:
     ap.add_argument("--sim-seconds", type=float, default=30.0)
     ap.add_argument("--rtol", type=float, default=None, help="tolerance mode: relative tolerance")
     ap.add_argument("--atol", type=float, default=0.0, help="tolerance mode: absolute tolerance")
+    ap.add_argument("--ulp-floor", action="store_true", help="tolerance mode: the reference against itself, 1 ulp off")
     args = ap.parse_args()
     failed = False
     with tempfile.TemporaryDirectory() as d:
         for name in args.scenarios:
+            runs = [(args.before, "0"), (args.after, "0")] + ([(args.before, "1")] if args.ulp_floor else [])
             logs = []
-            for k, tree in enumerate((args.before, args.after)):
+            for k, (tree, ulp) in enumerate(runs):
                 log = Path(d) / f"{Path(name).name}_{k}.mcap"
-                cmd = [sys.executable, "-c", FLY, name, str(args.sim_seconds), str(log)]
+                cmd = [sys.executable, "-c", FLY, name, str(args.sim_seconds), str(log), ulp]
                 subprocess.run(cmd, cwd=tree.resolve(), check=True)
                 logs.append(log)
-            n, bad = differing_topics(*logs)
             if args.rtol is None:
+                n, bad = differing_topics(*logs[:2])
                 failed |= bool(bad)
                 verdict = "same log" if not bad else f"DIFFERENT: {bad}"
                 print(f"{name} ({args.sim_seconds:g} s): {n} topics, {verdict}")
                 continue
-            print(f"{name} ({args.sim_seconds:g} s): {n} topics, {n - len(bad)} identical")
-            meta = channels(logs[0])
-            for topic in bad:
-                m = meta.get(topic, ({}, []))[0]
-                wall = m.get("wallclock_fields", "").split(",") if m.get("wallclock") == "true" else []
-                res = within(*logs, topic, wall, args.rtol, args.atol) if topic in meta else "in one log only"
-                failed |= isinstance(res, str)
-                if isinstance(res, str):
-                    print(f"  {topic}: DIFFERENT: {res}")
-                else:
-                    where = f"{res.field} ({res.rel:.2g} of it; values up to {res.scale:.3g})"
-                    print(f"  {topic}: within, largest {res.diff:.3g} in {where}")
+            failed |= compare(name, logs[0], logs[1], args.rtol, args.atol, f"{args.sim_seconds:g} s")
+            if args.ulp_floor:
+                compare(name, logs[0], logs[2], args.rtol, args.atol, "the reference 1 ulp off")
     sys.exit(1 if failed else 0)
+
+
+def compare(name: str, a: Path, b: Path, rtol: float, atol: float, what: str) -> bool:
+    """Print how the logs ``a`` and ``b`` differ, topic by topic; True when beyond tolerance."""
+    n, bad = differing_topics(a, b)
+    print(f"{name} ({what}): {n} topics, {n - len(bad)} identical")
+    meta = channels(a)
+    failed = False
+    for topic in bad:
+        m = meta.get(topic, ({}, []))[0]
+        wall = m.get("wallclock_fields", "").split(",") if m.get("wallclock") == "true" else []
+        res = within(a, b, topic, wall, rtol, atol) if topic in meta else "in one log only"
+        failed |= isinstance(res, str)
+        if isinstance(res, str):
+            print(f"  {topic}: DIFFERENT: {res}")
+        else:
+            where = f"{res.field} ({res.rel:.2g} of it; values up to {res.scale:.3g})"
+            print(f"  {topic}: within, largest {res.diff:.3g} in {where}")
+    return failed
 
 
 if __name__ == "__main__":
