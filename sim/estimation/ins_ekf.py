@@ -44,12 +44,12 @@ from pydantic import Field
 
 from sim.core.constants import STANDARD_GRAVITY
 from sim.core.frames import (
-    dcm_to_euler,
     euler_to_quat,
     quat_exp,
     quat_mul,
     quat_normalize,
     quat_to_dcm,
+    quat_to_euler,
 )
 from sim.core.state import VehicleState
 from sim.estimation import ins_model as m
@@ -443,24 +443,27 @@ class InsEkf:
         """Estimate extrapolated from the filter time to ``t`` [s] (constant velocity, moving the
         scenario position along ``C v``)."""
         nav = self.nav
-        pos = nav.p + self._c @ nav.v * (t - self.t) if t != self.t else nav.p.copy()
+        pos = nav.p.tolist()
+        v = nav.v.tolist()
+        if t != self.t:
+            dt = t - self.t
+            cv = m.rotate(self._c9, v)
+            pos = [pos[0] + cv[0] * dt, pos[1] + cv[1] * dt, pos[2] + cv[2] * dt]
         lat, lon, alt = self._geo.ned_to_geodetic(*pos)
         if self._dp is not None and self._p_static is not None:
             tas, eas = isa.airspeeds_from_dp(self._dp, self._p_static)
         else:  # no pitot: ground speed, air density from the ISA at the estimated altitude
-            tas = float(np.linalg.norm(nav.v))
-            eas = tas * math.sqrt(
-                isa.pressure_at_altitude(float(alt)) / isa.P0 * isa.T0 / isa.temperature_at_altitude(float(alt))
-            )
+            tas = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+            eas = tas * math.sqrt(isa.pressure_at_altitude(alt) / isa.P0 * isa.T0 / isa.temperature_at_altitude(alt))
         return VehicleState(
             t=t,
-            pos_ned=pos,
-            vel_ned=nav.v.copy(),
-            euler=dcm_to_euler(quat_to_dcm(nav.q)),
+            pos_ned=np.array(pos),
+            vel_ned=np.array(v),
+            euler=np.array(quat_to_euler(nav.q)),
             rates_body=self._rates.copy(),
-            alt_msl_m=float(alt),
-            lat_deg=float(lat),
-            lon_deg=float(lon),
+            alt_msl_m=alt,
+            lat_deg=lat,
+            lon_deg=lon,
             tas_mps=tas,
             eas_mps=eas,
         )
