@@ -192,8 +192,6 @@ class InsEkf:
         )
         self._gm_var = np.array([c.gnss_gm_std_ne, c.gnss_gm_std_ne, c.gnss_gm_std_d]) ** 2
         self._phi = np.eye(m.N)
-        self._Q = np.zeros((m.N, m.N))
-        self._diag = np.diag_indices(m.N)
         self._H_gnss = np.zeros((6, m.N))
         self._H_gnss[0:3, 0:3] = self._H_gnss[0:3, 16:19] = self._H_gnss[3:6, 3:6] = np.eye(3)
         self._R_gnss = (
@@ -225,7 +223,6 @@ class InsEkf:
         )
         self._numeric = c.jacobians == "numeric"
         self._gravity = np.array([0.0, 0.0, c.gravity_mps2])
-        self._qd = np.empty(m.N)
         self._inbox: list = []
         self._imu: ImuSample | None = None
         self._acc_ned = np.zeros(3)
@@ -235,8 +232,9 @@ class InsEkf:
         self._c = np.eye(3)
         self._c9 = m.mat3(self._c)  # the same as plain floats, for the mechanisation
         self._refresh_c()
-        self._qd_dt = math.nan  # the step of the noise diagonal below [s]
-        self._decay = 1.0  # the Gauss-Markov decay over that step
+        self._q_dt = math.nan  # the step [s] of the two below (:meth:`_process_noise`)
+        self._decay = 1.0
+        self._Q = np.zeros((m.N, m.N))
         self._p_static: float | None = None
         self._dp: float | None = None
 
@@ -292,7 +290,7 @@ class InsEkf:
             return
         f = 0.5 * (prev.accel_body + z.accel_body)
         w = 0.5 * (prev.gyro_body + z.gyro_body)
-        decay = math.exp(-dt / self.cfg.gnss_gm_tau_s)
+        decay, q = self._process_noise(dt)
         c = self._refresh_c()
         if self._numeric:
             phi = m.transition_numeric(self.nav, f, w, dt, decay, c_pos=c)
@@ -301,14 +299,21 @@ class InsEkf:
             phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay, self._c9)
         self._acc_ned = np.array(m.rotate(r, fh)) + self._gravity
         self._rates = z.gyro_body - nav.bg
-        q = self._Q
-        q[self._diag] = self._q_rates * dt
-        q[16:19, 16:19][np.diag_indices(3)] = self._gm_var * (1.0 - decay * decay)
         self.kf.F = phi
         self.kf.Q = q
         self.kf.predict()
         self.nav = nav
         self.t = z.t
+
+    def _process_noise(self, dt: float) -> tuple[float, np.ndarray]:
+        """The Gauss-Markov decay over a step of ``dt`` [s] and the step's discrete process
+        noise Q (19x19, diagonal), worked out again only when the step changes."""
+        if dt != self._q_dt:
+            decay = math.exp(-dt / self.cfg.gnss_gm_tau_s)
+            qd = self._q_rates * dt
+            qd[16:19] = self._gm_var * (1.0 - decay * decay)
+            self._q_dt, self._decay, self._Q = dt, decay, np.diag(qd)
+        return self._decay, self._Q
 
     # -- updates --------------------------------------------------------------------------------
     def _fuse(self, z: np.ndarray, hx: np.ndarray, H: np.ndarray, R: np.ndarray) -> None:
@@ -346,20 +351,14 @@ class InsEkf:
         gyro sample (the output body rate). ``P <- Phi P Phi^T + Q`` in place of filterpy."""
         if dt <= 0.0:
             return
-        qd = self._qd
-        if dt != self._qd_dt:  # the step is fixed in a run: the decay and noise once
-            self._qd_dt = dt
-            decay = self._decay = math.exp(-dt / self.cfg.gnss_gm_tau_s)
-            np.multiply(self._q_rates, dt, out=qd)
-            qd[16:19] = self._gm_var * (1.0 - decay * decay)
-        decay = self._decay
+        decay, q = self._process_noise(dt)
         self._refresh_c()
         nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity, self._c9)
         phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay, self._c9)
         self._acc_ned = np.array(m.rotate(r, fh)) + self._gravity
         self._rates = w_last - nav.bg
         P = phi @ self.kf.P @ phi.T
-        P.flat[:: m.N + 1] += qd  # the diagonal, without fancy indexing
+        P += q
         self.kf.P = P
         self.nav = nav
         self.t = t_end

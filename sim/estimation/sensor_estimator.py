@@ -299,9 +299,8 @@ class SensorEstimator:
                 t_prev, prev = self._fused
                 n = len(block)
                 # per axis, the samples summed in order from -0.0 (the additive identity)
-                mean = [
-                    (sum(col, -0.0) - 0.5 * a + 0.5 * b) / n for col, a, b in zip(zip(*block), last, prev, strict=True)
-                ]
+                cols = zip(*block, strict=True)
+                mean = [(sum(col, -0.0) - 0.5 * a + 0.5 * b) / n for col, a, b in zip(cols, last, prev, strict=True)]
                 dt = t - t_prev
                 self.ekf.predict_mean(mean[:3], mean[3:], dt, t, last[3:])
                 self._log.setdefault("imu", []).append((t, dt, mean))
@@ -326,10 +325,7 @@ class SensorEstimator:
         out: dict[str, list[dict]] = {}
         for name, items in self._log.items():
             if name == "imu":
-                out[name] = [
-                    {"t": t, "dt": dt, "accel_body": mn[:3], "gyro_body": mn[3:]}
-                    for t, dt, mn in items
-                ]
+                out[name] = [{"t": t, "dt": dt, "accel_body": mn[:3], "gyro_body": mn[3:]} for t, dt, mn in items]
             else:
                 out[name] = [_record(z) for z in items]
         self._log = {}
