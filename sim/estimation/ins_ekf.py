@@ -39,7 +39,6 @@ from collections.abc import Iterable
 from typing import Literal
 
 import numpy as np
-from numpy.typing import ArrayLike
 from pydantic import Field
 
 from sim.core.constants import STANDARD_GRAVITY
@@ -61,6 +60,7 @@ from sim.sensors.measurements import AirspeedSample, BaroSample, GnssFix, ImuSam
 from sim.sensors.suite import SensorSuiteConfig
 
 _DIAGONAL = [k * (m.N + 1) for k in range(16)]  # flat indices of the covariance diagonal's first 16
+_ROWS = {GnssFix: 6, BaroSample: 1, MagSample: 3}  # rows each measurement adds to a stacked update
 _C_REFRESH_M = 10.0  # recompute the velocity map after this much travel [m] (C changes ~2e-6/10 m)
 
 
@@ -211,21 +211,19 @@ class InsEkf:
         self._H_baro[0, 2], self._H_baro[0, 15] = -1.0, 1.0
         self._H_mag = np.zeros((3, m.N))
         self._R_mag = np.eye(3) * c.mag_noise_ut**2
-        self._R_gnss_diag = np.diag(self._R_gnss).copy()
-        self._R_mag_diag = np.diag(self._R_mag).copy()
+        self._R_gnss_diag = np.diag(self._R_gnss).tolist()
+        self._R_mag_diag = np.diag(self._R_mag).tolist()
         hm = c.mag_intensity_ut * math.cos(c.mag_inclination_rad)
-        self._field_ned = np.array(
-            [
-                hm * math.cos(c.mag_declination_rad),
-                hm * math.sin(c.mag_declination_rad),
-                c.mag_intensity_ut * math.sin(c.mag_inclination_rad),
-            ]
-        )
+        self._field_ned = [  # the earth field NED [uT]
+            hm * math.cos(c.mag_declination_rad),
+            hm * math.sin(c.mag_declination_rad),
+            c.mag_intensity_ut * math.sin(c.mag_inclination_rad),
+        ]
         self._numeric = c.jacobians == "numeric"
-        self._gravity = np.array([0.0, 0.0, c.gravity_mps2])
+        self._gravity = [0.0, 0.0, c.gravity_mps2]  # NED [m/s^2]
         self._inbox: list = []
         self._imu: ImuSample | None = None
-        self._acc_ned = np.zeros(3)
+        self._acc_ned = [0.0, 0.0, 0.0]  # the latest prediction's NED acceleration [m/s^2]
         self._rates = np.array(initial.rates_body, float)
         self.t = initial.t
         self._c_at = (math.inf, math.inf, math.inf)
@@ -297,13 +295,19 @@ class InsEkf:
         nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity, self._c9)
         if not self._numeric:
             phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay, self._c9)
-        self._acc_ned = np.array(m.rotate(r, fh)) + self._gravity
+        self._acc_ned = self._acceleration(r, fh)
         self._rates = z.gyro_body - nav.bg
         self.kf.F = phi
         self.kf.Q = q
         self.kf.predict()
         self.nav = nav
         self.t = z.t
+
+    def _acceleration(self, r: m.Mat3, fh: m.Vec3) -> m.Vec3:
+        """NED acceleration [m/s^2]: the rotated bias-corrected specific force plus gravity."""
+        ax, ay, az = m.rotate(r, fh)
+        gx, gy, gz = self._gravity
+        return [ax + gx, ay + gy, az + gz]
 
     def _process_noise(self, dt: float) -> tuple[float, np.ndarray]:
         """The Gauss-Markov decay over a step of ``dt`` [s] and the step's discrete process
@@ -355,7 +359,7 @@ class InsEkf:
         self._refresh_c()
         nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity, self._c9)
         phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay, self._c9)
-        self._acc_ned = np.array(m.rotate(r, fh)) + self._gravity
+        self._acc_ned = self._acceleration(r, fh)
         self._rates = w_last - nav.bg
         P = phi @ self.kf.P @ phi.T
         P += q
@@ -369,48 +373,48 @@ class InsEkf:
         state, so this equals sequential updates to first order). Each is back-shifted by its
         lag (filter time - time of validity): GNSS as in :meth:`fuse_gnss`, baro height by
         ``v_D lag``. Returns the number of rows fused."""
-        zs: list[ArrayLike] = []  # measured values
-        hs: list[ArrayLike] = []  # their predictions
-        Hs: list[np.ndarray] = []  # their Jacobians
-        rs: list[ArrayLike] = []  # their noise variances
+        zs = list(measurements)
+        n = sum(_ROWS.get(type(z), 0) for z in zs)
+        H = np.zeros((n, m.N))  # the stacked Jacobian, filled block by block
+        z: list[float] = []  # measured values
+        h: list[float] = []  # their predictions
+        r: list[float] = []  # their noise variances
         nav = self.nav
-        for z in measurements:
-            tz = type(z)
+        for meas in zs:
+            tz, k = type(meas), len(z)
             if tz is GnssFix:
-                lag = self.t - z.t
-                c = self._c
-                zs.append(z.pos_ned)
-                zs.append(z.vel_ned)
-                hs.append(m.h_gnss(nav, lag, self._acc_ned, c))
-                Hs.append(m.H_gnss(self._H_gnss, lag, c).copy())
-                rs.append(self._R_gnss_diag)
+                lag = self.t - meas.t
+                z += meas.pos_ned.tolist()
+                z += meas.vel_ned.tolist()
+                h += m.gnss_prediction(nav, lag, self._acc_ned, self._c9)
+                H[k : k + 6] = self._H_gnss
+                m.H_gnss(H[k : k + 6], lag, self._c)
+                r += self._R_gnss_diag
             elif tz is BaroSample:
-                p = z.pressure_pa
+                p = meas.pressure_pa
                 self._p_static = p
-                lag = self.t - z.t
+                lag = self.t - meas.t
                 std = self.cfg.baro_noise_pa * isa.height_per_pascal(p)
-                zs.append((isa.altitude_of_pressure(p) - self.origin.alt_m,))
-                hs.append((-(nav.p[2] - nav.v[2] * lag) + nav.bb,))
-                H = self._H_baro.copy()
-                H[0, 5] = lag
-                Hs.append(H)
-                rs.append((std * std,))
+                z.append(isa.altitude_of_pressure(p) - self.origin.alt_m)
+                h.append(-(float(nav.p[2]) - float(nav.v[2]) * lag) + nav.bb)
+                H[k] = self._H_baro[0]
+                H[k, 5] = lag
+                r.append(std * std)
             elif tz is MagSample:
-                hx = m.h_mag(nav, self._field_ned)
-                zs.append(z.field_body_ut)
-                hs.append(hx)
-                Hs.append(m.H_mag(self._H_mag, hx).copy())
-                rs.append(self._R_mag_diag)
+                hx = m.mag_prediction(nav.q, self._field_ned)
+                z += np.asarray(meas.field_body_ut, float).tolist()
+                h += hx
+                m.H_mag(H[k : k + 3], hx)
+                r += self._R_mag_diag
             elif tz is AirspeedSample:
-                self._dp = z.diff_pressure_pa
-        if not zs:
+                self._dp = meas.diff_pressure_pa
+        if not n:
             return 0
-        H = np.concatenate(Hs) if len(Hs) > 1 else Hs[0]
-        y = np.concatenate(zs) - np.concatenate(hs)
+        y = np.array([a - b for a, b in zip(z, h, strict=True)])
         P = self.kf.P
         PHt = P @ H.T
         S = H @ PHt
-        S.flat[:: len(y) + 1] += np.concatenate(rs)
+        S.flat[:: n + 1] += r
         K = PHt @ np.linalg.inv(S)
         P = P - K @ PHt.T
         self.kf.P = 0.5 * (P + P.T)
@@ -422,7 +426,7 @@ class InsEkf:
         nav.bg += dx[12:15]
         nav.bb += float(dx[15])
         nav.gm += dx[16:19]
-        return len(y)
+        return n
 
     # -- outputs --------------------------------------------------------------------------------
     @property

@@ -38,7 +38,6 @@ from sim.core.frames import (
     quat_log,
     quat_mul,
     quat_normalize,
-    quat_to_dcm,
     quat_to_dcm_rows,
     yaw_error_variance,
 )
@@ -271,11 +270,29 @@ def transition_numeric(
 # -- measurement models: h(s, ...) and analytic H ------------------------------------------------
 
 
-def h_gnss(s: NavState, lag: float, acc_ned: np.ndarray, c_pos: np.ndarray | None = None) -> np.ndarray:
-    """GNSS position and velocity ``lag`` [s] before the filter time (first-order back-shift;
-    the position one moves along ``C v``, the scenario-frame rate)."""
-    vp = s.v if c_pos is None else c_pos @ s.v
-    return np.concatenate((s.p + s.gm - vp * lag, s.v - acc_ned * lag))
+def gnss_prediction(s: NavState, lag: float, acc_ned: Vec3, c: Mat3) -> list[float]:
+    """:func:`h_gnss` as 6 plain floats (``acc_ned`` [m/s^2] and ``C`` as floats)."""
+    px, py, pz = s.p.tolist()
+    gx, gy, gz = s.gm.tolist()
+    v = s.v.tolist()
+    cx, cy, cz = rotate(c, v)
+    ax, ay, az = acc_ned
+    return [
+        px + gx - cx * lag,
+        py + gy - cy * lag,
+        pz + gz - cz * lag,
+        v[0] - ax * lag,
+        v[1] - ay * lag,
+        v[2] - az * lag,
+    ]
+
+
+def h_gnss(s: NavState, lag: float, acc_ned, c_pos: np.ndarray | Mat3 | None = None) -> np.ndarray:
+    """GNSS position [m] and velocity [m/s] ``lag`` [s] before the filter time (first-order
+    back-shift with the NED acceleration ``acc_ned`` [m/s^2]; the position one moves along
+    ``C v``, the scenario-frame rate)."""
+    c = c_pos if type(c_pos) is tuple else mat3(c_pos)
+    return np.array(gnss_prediction(s, lag, floats3(acc_ned), c))
 
 
 def H_gnss(out: np.ndarray, lag: float, c_pos: np.ndarray | None = None) -> np.ndarray:
@@ -289,9 +306,16 @@ def h_baro(s: NavState) -> np.ndarray:
     return np.array([-s.p[2] + s.bb])
 
 
-def h_mag(s: NavState, field_ned: np.ndarray) -> np.ndarray:
-    """Magnetometer field in body FRD [uT]: ``R^T m_ned`` (known earth field)."""
-    return field_ned @ quat_to_dcm(s.q)
+def mag_prediction(q: tuple[float, float, float, float], field_ned: Vec3) -> Vec3:
+    """:func:`h_mag` as plain floats: ``R(q)^T m_ned``."""
+    r = quat_to_dcm_rows(q)
+    mx, my, mz = field_ned
+    return [r[0] * mx + r[3] * my + r[6] * mz, r[1] * mx + r[4] * my + r[7] * mz, r[2] * mx + r[5] * my + r[8] * mz]
+
+
+def h_mag(s: NavState, field_ned) -> np.ndarray:
+    """Magnetometer field in body FRD [uT]: ``R^T m_ned`` (known earth field ``m_ned`` [uT])."""
+    return np.array(mag_prediction(s.q, floats3(field_ned)))
 
 
 def H_mag(out: np.ndarray, field_body: np.ndarray) -> np.ndarray:
