@@ -349,7 +349,7 @@ class InsEkf:
 
     # -- fast paths (sim.estimation.sensor_estimator): one predict per fusion interval from the
     # IMU samples averaged over it, and one stacked update per interval, without filterpy ------
-    def predict_mean(self, f: np.ndarray, w: np.ndarray, dt: float, t_end: float, w_last: np.ndarray) -> None:
+    def predict_mean(self, f: m.Vector3, w: m.Vector3, dt: float, t_end: float, w_last: m.Vector3) -> None:
         """Propagate over ``dt`` [s] to ``t_end`` with the specific force ``f`` and rate ``w``
         averaged over the interval (trapezoid over its IMU samples); ``w_last`` is the newest
         gyro sample (the output body rate). ``P <- Phi P Phi^T + Q`` in place of filterpy."""
@@ -360,7 +360,7 @@ class InsEkf:
         nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity, self._c9)
         phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay, self._c9)
         self._acc_ned = self._acceleration(r, fh)
-        self._rates = w_last - nav.bg
+        self._rates = np.subtract(w_last, nav.bg)
         P = phi @ self.kf.P @ phi.T
         P += q
         self.kf.P = P

@@ -129,17 +129,20 @@ def skew(v) -> np.ndarray:
 
 Vec3 = list[float]  # x, y, z as plain floats
 Mat3 = tuple[float, ...]  # a 3x3 matrix row-major, 9 plain floats
+Vector3 = np.ndarray | Sequence[float]  # a 3-vector as the callers hold it
 _I9: Mat3 = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 
 
-def floats3(v) -> Vec3:
+def floats3(v: Vector3) -> Vec3:
     """The three components of a 3-vector (array or sequence) as plain floats."""
     return v.tolist() if type(v) is np.ndarray else [float(v[0]), float(v[1]), float(v[2])]
 
 
-def mat3(c: np.ndarray | None) -> Mat3:
+def mat3(c: np.ndarray | Mat3 | None) -> Mat3:
     """A 3x3 matrix (``None``: the identity) as :data:`Mat3`."""
-    return _I9 if c is None else tuple(np.asarray(c, float).ravel().tolist())
+    if c is None:
+        return _I9
+    return c if isinstance(c, tuple) else tuple(np.asarray(c, float).ravel().tolist())
 
 
 def rotate(r: Mat3, v: Vec3) -> Vec3:
@@ -150,11 +153,11 @@ def rotate(r: Mat3, v: Vec3) -> Vec3:
 
 def propagate(
     s: NavState,
-    f,
-    w,
+    f: Vector3,
+    w: Vector3,
     dt: float,
     gm_decay: float,
-    gravity=GRAVITY,
+    gravity: Vector3 = GRAVITY,
     c_pos: np.ndarray | Mat3 | None = None,
 ) -> tuple[NavState, Mat3, Vec3, Vec3]:
     """Nominal state after ``dt`` [s]; also the mid-interval R (:data:`Mat3`) and the
@@ -176,7 +179,7 @@ def propagate(
     vx, vy, vz = s.v.tolist()
     dp = [(vx + 0.5 * dvx) * dt, (vy + 0.5 * dvy) * dt, (vz + 0.5 * dvz) * dt]
     if c_pos is not None:
-        dp = rotate(c_pos if type(c_pos) is tuple else mat3(c_pos), dp)
+        dp = rotate(mat3(c_pos), dp)
     px, py, pz = s.p.tolist()
     nxt = NavState(
         np.array([px + dp[0], py + dp[1], pz + dp[2]]),
@@ -218,11 +221,11 @@ def transition_analytic(
     entries are worked out in plain floats and written in one ``put``."""
     fx, fy, fz = fh
     # rfr = [R [f]x, R] (3x6), row-major
-    rfr = []
+    rfr: list[float] = []
     for i in range(0, 9, 3):
         r0, r1, r2 = r[i], r[i + 1], r[i + 2]
         rfr += (r1 * fz - r2 * fy, r2 * fx - r0 * fz, r0 * fy - r1 * fx, r0, r1, r2)
-    c = _I9 if c_pos is None else c_pos if type(c_pos) is tuple else mat3(c_pos)
+    c = mat3(c_pos)
     k = 0.5 * dt * dt
     vals = [x * dt for x in c]
     a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, d0, d1, d2, d3, d4, d5 = rfr
@@ -287,12 +290,11 @@ def gnss_prediction(s: NavState, lag: float, acc_ned: Vec3, c: Mat3) -> list[flo
     ]
 
 
-def h_gnss(s: NavState, lag: float, acc_ned, c_pos: np.ndarray | Mat3 | None = None) -> np.ndarray:
+def h_gnss(s: NavState, lag: float, acc_ned: Vector3, c_pos: np.ndarray | Mat3 | None = None) -> np.ndarray:
     """GNSS position [m] and velocity [m/s] ``lag`` [s] before the filter time (first-order
     back-shift with the NED acceleration ``acc_ned`` [m/s^2]; the position one moves along
     ``C v``, the scenario-frame rate)."""
-    c = c_pos if type(c_pos) is tuple else mat3(c_pos)
-    return np.array(gnss_prediction(s, lag, floats3(acc_ned), c))
+    return np.array(gnss_prediction(s, lag, floats3(acc_ned), mat3(c_pos)))
 
 
 def H_gnss(out: np.ndarray, lag: float, c_pos: np.ndarray | None = None) -> np.ndarray:
@@ -313,12 +315,12 @@ def mag_prediction(q: tuple[float, float, float, float], field_ned: Vec3) -> Vec
     return [r[0] * mx + r[3] * my + r[6] * mz, r[1] * mx + r[4] * my + r[7] * mz, r[2] * mx + r[5] * my + r[8] * mz]
 
 
-def h_mag(s: NavState, field_ned) -> np.ndarray:
+def h_mag(s: NavState, field_ned: Vector3) -> np.ndarray:
     """Magnetometer field in body FRD [uT]: ``R^T m_ned`` (known earth field ``m_ned`` [uT])."""
     return np.array(mag_prediction(s.q, floats3(field_ned)))
 
 
-def H_mag(out: np.ndarray, field_body: np.ndarray) -> np.ndarray:
+def H_mag(out: np.ndarray, field_body: Vector3) -> np.ndarray:
     """3x19: d (R Exp(dtheta))^T m / d dtheta = [m_body]x."""
     out[0:3, 6:9] = skew(field_body)
     return out

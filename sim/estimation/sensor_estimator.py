@@ -258,7 +258,8 @@ class SensorEstimator:
             self._fuse(t)
             if self._fused is not None:
                 nav = self.ekf.nav
-                w = gyro if gyro is not None else tuple(self._fused[1][3:])
+                prev = self._fused[1]
+                w = gyro if gyro is not None else (prev[3], prev[4], prev[5])
                 self.attitude.restart(t, nav.q, tuple(nav.bg.tolist()), w)
         elif gyro is not None:
             self.attitude.step(t, gyro, t - self._t_gyro)
