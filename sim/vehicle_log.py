@@ -543,6 +543,7 @@ class VehicleLogWriter:
                 "labels": plan.labels.tolist(),
                 "diagnostics": plan.diagnostics,
                 **({} if plan.turn_rates is None else {"turn_rates": plan.turn_rates.tolist()}),
+                **({} if plan.airspeeds is None else {"airspeeds": plan.airspeeds.tolist()}),
             },
             S.PLAN,
             {"frame": "local-level NED from the scenario origin", **wallclock_metadata(plan.planner, "")},
