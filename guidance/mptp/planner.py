@@ -40,9 +40,12 @@ grows with altitude at a fixed equivalent airspeed; and only with the storm cell
 extent the vehicle can be near over the horizon (vertical.py).
 
 A holding orbit flown at V_cor (``hold_speed_correction``, holding.py) is commanded through the
-plan's ``airspeeds``: V_cor on the orbit's legs, the planning speed V on the legs to a
-pre-defined holding location (and on a lead-in, the speed of the leg it leads into); every other
-plan commands none, so the follower flies its cruise airspeed again after a hold.
+plan's ``airspeeds``: V_cor on the orbit's legs, V on the legs to a pre-defined holding location
+(and on a lead-in, the speed of the leg it leads into); every other plan commands none, so the
+follower flies its cruise airspeed again after a hold. Such a hold is planned at the configured
+V = ``tas_mps`` (the cruise speed), never at the estimate's: a commanded speed must not carry
+the airspeed estimate's noise (sigma ~0.6 m/s at 18 km on the EKF, about the 2.6 % of the
+correction itself) or, while holding, V_cor taken for V.
 
 The plan's vertices are the trajectory states, with the modelled turns written out between them
 for the fly-over turn models (turnmodel.written_out); labels are -1 except the goal (its waypoint
@@ -273,7 +276,8 @@ class MptpPlanner:
         availability = GoalAvailability(tl, goal)
         levels = tl.interval(t + np.arange(0.0, cfg.horizon_s + cfg.dt_s, cfg.dt_s))
         if all(availability.covered(int(j)) for j in levels):
-            hold = self._hold_at_point(cfg, tl, p0, t0, course) or self._hold_here(cfg, tl, p0, t0, course)
+            hcfg = cfg.with_(tas_mps=self.cfg.tas_mps) if cfg.hold_speed_correction else cfg
+            hold = self._hold_at_point(hcfg, tl, p0, t0, course) or self._hold_here(hcfg, tl, p0, t0, course)
             if hold is not None:
                 pts, times, speeds, reason = hold
                 diag.update(runtime_s=time.perf_counter() - wall, holding_s=float(times[-1] - t), reason=reason)
