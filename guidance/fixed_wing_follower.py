@@ -6,8 +6,8 @@ to it; a leg of a planned turn (``turn_rates``, below), or leading into one, onl
 switched early, the aircraft would track the next chord before reaching it, and L1 would steer
 it to the inside of the turn. Altitude demand follows the straight line between the leg's end altitudes (MSL [m]);
 airspeed demand is the true airspeed [m/s] the plan commands on the leg (``airspeeds``, e.g. an
-MPTP holding orbit at V_cor), else the cruise one; past the plan's end it is the cruise one (the
-flight controller bounds every demand to the airframe's envelope). A plan with ``turn_rates`` has L1 feed the
+MPTP holding orbit at V_cor; past the plan's end its last leg's), else the cruise one (the flight
+controller bounds every demand to the airframe's envelope). A plan with ``turn_rates`` has L1 feed the
 planned turn rate forward as bank (guidance/l1.py), taken ``l1.turn_lead_s`` of flight at the
 ground speed ahead along the plan so that the lagging bank is the planned one when the aircraft
 gets there: written-out turns are flown on their arc rather than outside it. After the last
@@ -65,10 +65,11 @@ class FixedWingPlanFollower:
         return float(plan.turn_rates[min(max(k, self.leg), len(plan.turn_rates) - 2)])
 
     def _airspeed(self, plan: Plan) -> float:
-        """Airspeed demand [m/s TAS] on the current leg: the plan's, else (and past its end) cruise."""
-        if plan.airspeeds is None or self.leg >= len(plan.positions) - 1:
+        """Airspeed demand [m/s TAS] on the current leg: the plan's (past its end, its last leg's,
+        as the last leg's track is held), else cruise."""
+        if plan.airspeeds is None or len(plan.positions) < 2:
             return self.cruise_tas
-        return float(plan.airspeeds[self.leg])
+        return float(plan.airspeeds[min(self.leg, len(plan.positions) - 2)])
 
     @staticmethod
     def _in_turn(plan: Plan, leg: int) -> bool:

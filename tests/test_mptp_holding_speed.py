@@ -23,6 +23,7 @@ from guidance.mptp.planner import MptpPlanner
 from sim.core.mission import Mission
 from sim.core.plan import Plan, PlanStatus, Threats
 from sim.core.threats import StormSnapshot
+from sim.testbeds.mptp_holding_speed import hold_flight
 from sim.testbeds.mptp_openloop import vehicle_state
 
 
@@ -173,9 +174,10 @@ def test_replans_plan_from_the_cruise_speed_while_a_hold_is_commanded():
     assert later.diagnostics["tas_mps"] == 26.3
 
 
-def test_the_follower_flies_the_plans_airspeed_per_leg_and_cruise_after_it():
-    """Legs commanding 27 and 25 m/s, then the plan's end: the demand is 27, 25, then the
-    cruise 26 m/s; a plan without airspeeds is flown at cruise."""
+def test_the_follower_flies_the_plans_airspeed_per_leg_and_cruise_without_it():
+    """Legs commanding 27 and 25 m/s: the demand is 27, 25, and past the plan's end still the
+    last leg's 25 (its track is held until the next plan); a plan without airspeeds is flown at
+    the cruise 26 m/s."""
     follower = FixedWingPlanFollower(L1Guidance(25.0, 0.75, math.radians(20.0)), 26.0, 1.0, 0.0)
     pos = np.array([[0.0, 0.0, 0.0], [1000.0, 0.0, 0.0], [2000.0, 0.0, 0.0]])
     plan = Plan(0.0, pos, np.array([0.0, 40.0, 80.0]), np.full(3, -1), airspeeds=np.array([27.0, 25.0, 99.0]))
@@ -185,4 +187,37 @@ def test_the_follower_flies_the_plans_airspeed_per_leg_and_cruise_after_it():
         for north in (500.0, 1500.0, 2500.0):
             sp, _ = follower.update(vehicle_state(0.0, np.array([north, 0.0]), 0.0, 26.0), 0.0, 0.1)
             demands.append(sp.tas_mps)
-    assert demands == [27.0, 25.0, 26.0, 26.0, 26.0, 26.0]
+    assert demands == [27.0, 25.0, 25.0, 26.0, 26.0, 26.0]
+
+
+# Closed loop on JSBSim with the EKF (scenarios/mptp/holding_speed.toml): the hold at V_cor from
+# t = 0, the plan after it at 300 s. Tolerances: the correction is V_cor - V = 0.68 m/s, and flown
+# at V instead the orbit falls 0.68 m/s x 60 s / 26 m/s = 1.6 s behind per state (the code before
+# the speed channel: 4.7, 9.1, 13.4, 17.7 s late at the states due 60-240 s, seed 1).
+TAS_TOL = 0.2  # |mean TAS flown - commanded| [m/s]
+LAG_TOL = 1.5  # |time an orbit vertex is passed - its due time| [s]
+MISS_TOL = 30.0  # closest approach to each orbit vertex [m]
+
+
+def _check_hold(log) -> None:
+    h = hold_flight(log, "haps")
+    assert h.v_cor == pytest.approx(corrected_speed_mps(MptpConfig()))
+    assert h.setpoint_max_err == 0.0  # the follower demands the plan's V_cor throughout ...
+    assert abs(h.tas_mean - h.v_cor) < TAS_TOL  # ... and the aircraft flies it
+    assert len(h.lag_s) >= 12
+    assert np.abs(h.lag_s).max() < LAG_TOL and h.miss_m.max() < MISS_TOL
+    # after the hold: planned at the cruise V (not the estimate, ~V_cor), flown at cruise again
+    assert h.after_planned == 26.0 and h.cruise == 26.0
+    assert abs(h.after_tas_mean - 26.0) < TAS_TOL
+
+
+def test_the_hold_is_flown_at_v_cor_and_reaches_its_states_on_time(fly):
+    _check_hold(fly("mptp/holding_speed").log)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(2, 21))
+def test_the_hold_is_flown_at_v_cor_on_every_seed(fly, scenario_data, seed):
+    data = scenario_data("mptp/holding_speed")
+    data["seed"] = seed
+    _check_hold(fly(data, f"holding_speed_{seed}").log)
