@@ -192,10 +192,14 @@ def test_the_follower_flies_the_plans_airspeed_per_leg_and_cruise_without_it():
 
 # Closed loop on JSBSim with the EKF (scenarios/mptp/holding_speed.toml): the hold at V_cor from
 # t = 0, the plan after it at 300 s. Tolerances: the correction is V_cor - V = 0.68 m/s, and flown
-# at V instead the orbit falls 0.68 m/s x 60 s / 26 m/s = 1.6 s behind per state (the code before
-# the speed channel: 4.7, 9.1, 13.4, 17.7 s late at the states due 60-240 s, seed 1).
+# at V instead the orbit falls 0.68 m/s x 60 s / 26.68 m/s = 1.5 s behind per state, 6.1 s at the
+# last one judged (the code before the speed channel, seed 1, hold planned at the estimate's
+# 27.26 m/s: 4.7, 9.1, 13.4, 17.7 s late at the states due 60-240 s). Seeds 1-20 on this code:
+# TAS flown - V_cor -0.12 .. +0.12 m/s (the EKF's airspeed error per seed; TECS flies the
+# estimate), vertices passed -2.3 .. +0.4 s from due (also the follower cutting the orbit's
+# 400 m arcs, inside the 500 m acceptance radius), within 8.4 m (docs/mptp.md "V_cor flown").
 TAS_TOL = 0.2  # |mean TAS flown - commanded| [m/s]
-LAG_TOL = 1.5  # |time an orbit vertex is passed - its due time| [s]
+LAG_TOL = 3.0  # |time an orbit vertex is passed - its due time| [s]
 MISS_TOL = 30.0  # closest approach to each orbit vertex [m]
 
 
