@@ -215,11 +215,13 @@ def _check_hold(log) -> None:
     assert abs(h.after_tas_mean - 26.0) < TAS_TOL
 
 
+@pytest.mark.closed_loop
 def test_the_hold_is_flown_at_v_cor_and_reaches_its_states_on_time(fly):
     _check_hold(fly("mptp/holding_speed").log)
 
 
 @pytest.mark.slow
+@pytest.mark.closed_loop
 @pytest.mark.parametrize("seed", range(2, 21))
 def test_the_hold_is_flown_at_v_cor_on_every_seed(fly, scenario_data, seed):
     data = scenario_data("mptp/holding_speed")
