@@ -20,7 +20,8 @@ planner with a LiDAR, its scan logged at each planner call). Reported per flight
   scheduler preempts the simulation for other processes). Logging is what :data:`ACCOUNTING`
   lists for the tree's code layout, nested calls counted once:
   - current code: the log task of every vehicle (``Vehicle._log``: building its rows or messages,
-    the 3-sigma bounds, the streaming metrics it feeds), the planner-call records
+    the 3-sigma bounds, the streaming metrics it feeds; ``Vehicle.feed_metrics``: the ticks it
+    hands the metrics recorder a block at a time, the last at the run's end), the planner-call records
     (``VehicleLogWriter.threats`` / ``plan_input`` / ``plan`` / ``latency`` and the planner's own
     records, ``PlannerType.records`` of :mod:`sim.planner_registry`), the world's object log
     (``World._log_objects``) and every ``McapLog`` write (``write_json`` / ``write_proto`` /
@@ -81,6 +82,7 @@ ACCOUNTING: dict[str, tuple[str, list[tuple[str, str, str]], list[tuple[str, str
         "sim/planner_records.py",
         [
             ("sim.vehicle", "Vehicle", "_log"),
+            ("sim.vehicle", "Vehicle", "feed_metrics"),
             ("sim.world", "World", "_log_objects"),
             *(("sim.vehicle_log", "VehicleLogWriter", m) for m in ("threats", "plan_input", "plan", "latency")),
             *(("sim.mcap_log", "McapLog", m) for m in (*_LOG_WRITES, "write_record")),
