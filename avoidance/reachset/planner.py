@@ -88,14 +88,15 @@ class ReachSetAvoider:
         """Range [m] from the vehicle and horizon [s] within which other traffic can be rated in
         its grids: a track whose linear prediction over the horizon stays farther than the range
         is culled exactly (``IntruderModel.reachable``). Range = grid range + one movement (the
-        grid starts one movement ahead) + the intruder body margin + half a centre sample; the
-        cruise segment has the largest grid. ``None`` would mean: every track matters."""
+        grid starts one movement ahead) + the intruder body and vertical margins + one centre
+        spacing (half a sample along the path and half up or down); the cruise segment has the
+        largest grid. ``None`` would mean: every track matters."""
         ctl = self.control
         seg = ctl.segment(ctl.sma.active_index(KinState(np.zeros(3), np.zeros(3), 0.0, self.speed)))
         models = [a.intruder_model for a in seg.assessors.values()]
         length = float(seg.grid.steps[0])
         icfg = ctl.cfg.intruders
-        reach = seg.grid.range + length + icfg.body_margin + max(m.step for m in models)
+        reach = seg.grid.range + length + icfg.body_margin + icfg.vertical_margin + max(m.step for m in models)
         return reach, max(m.horizon for m in models)
 
     def frame_due(self, t: float) -> bool:
