@@ -48,17 +48,19 @@ class Steering:
     turn_radii: tuple[float, float]
     reach_radius: float
 
-    def in_turn_circle(self, goal_lcf: np.ndarray) -> bool:
-        """Whether ``goal_lcf`` lies deep inside the turn circle on its side: in the plane of the
-        heading X and the goal, centre at radius R towards the goal, R = max(R_h |cos ψ|,
-        R_v |sin ψ|) for the goal's direction ψ around X; deep = more than the reach radius
-        inside (a full-rate turn passes within the reach radius of the goals nearer its rim)."""
+    def in_turn_circle(self, goal_lcf: np.ndarray, depth: float | None = None) -> bool:
+        """Whether ``goal_lcf`` lies more than ``depth`` [m] inside the turn circle on its side:
+        in the plane of the heading X and the goal, centre at radius R towards the goal,
+        R = max(R_h |cos ψ|, R_v |sin ψ|) for the goal's direction ψ around X. ``depth`` defaults
+        to the reach radius (a full-rate turn passes within the reach radius of the goals nearer
+        its rim); 0 = anywhere inside."""
+        margin = self.reach_radius if depth is None else depth
         x, y, z = np.asarray(goal_lcf, float)
         b = float(np.hypot(y, z))
         if b < 1e-9:
             return False
         r = max(self.turn_radii[0] * abs(y) / b, self.turn_radii[1] * abs(z) / b)
-        return r > self.reach_radius and x * x + (b - r) ** 2 < (r - self.reach_radius) ** 2
+        return r > margin and x * x + (b - r) ** 2 < (r - margin) ** 2
 
 
 GoalCost = Callable[[np.ndarray], np.ndarray]  # LCF points (n, 3) -> distance to the goal [m]
