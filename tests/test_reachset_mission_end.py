@@ -5,12 +5,14 @@ acceptance radius stopped short of the last waypoint and the mission never compl
 import numpy as np
 import pytest
 
+from avoidance.reachset.config import DEFAULT_AVOIDANCE, AvoidanceConfig
 from avoidance.reachset.movement import multirotor_automaton
 from avoidance.reachset.planner import ReachSetAvoider
 from guidance.multirotor_follower import MultirotorPlanFollower
 from sim.core.mission import Mission
 from sim.core.plan import Threats
 from sim.core.state import VehicleState
+from sim.core.threats import IntruderTrack
 
 
 def fly(
@@ -23,16 +25,24 @@ def fly(
     heading_deg: float = 0.0,
     speed: float = 0.0,
     turns_in_place: bool = False,
+    cfg: AvoidanceConfig = DEFAULT_AVOIDANCE,
+    intruder: IntruderTrack | None = None,
+    estimate_error=(0.0, 0.0, 0.0),
+    trace: list | None = None,
 ):
     """Point-mass vehicle following the carrot (first-order position loop + feed-forward), from
-    ``start`` (NED [m]) flying at ``speed`` [m/s] on ``heading_deg``."""
+    ``start`` (true NED [m]) flying at ``speed`` [m/s] on ``heading_deg``. The vehicle knows its
+    position as truth + ``estimate_error`` (NED [m]); ``intruder`` (true state at t = 0, flying
+    straight) is sensed exactly; ``trace`` collects (t, true position, intruder position) rows.
+    Returns the mission, the final true position and the planner."""
     mission = Mission(
         np.asarray(waypoints, float), cruise_speed=cruise, acceptance_radius=acceptance, start=np.zeros(3)
     )
-    av = ReachSetAvoider(mission, multirotor_automaton(cruise, 1.0), turns_in_place=turns_in_place)
+    av = ReachSetAvoider(mission, multirotor_automaton(cruise, 1.0), cfg, turns_in_place=turns_in_place)
     fol = MultirotorPlanFollower(cruise, 2.0, 1.0, acceptance)
     yaw = float(np.radians(heading_deg))
-    pos, dt, t = np.array(start, float), 0.02, 0.0
+    error = np.asarray(estimate_error, float)
+    pos, dt, t = np.array(start, float) + error, 0.02, 0.0  # the estimate the vehicle flies
     vel = speed * np.array([np.cos(yaw), np.sin(yaw), 0.0])
     every = round(1.0 / (planner_hz * dt))
     for k in range(int(t_end / dt)):
@@ -47,8 +57,14 @@ def fly(
             lat_deg=47.0,
             lon_deg=8.0,
         )
+        tracks = []
+        if intruder is not None:
+            at = np.asarray(intruder.pos_ned) + t * np.asarray(intruder.vel_ned)
+            tracks = [IntruderTrack(intruder.id, t, at, intruder.vel_ned, intruder.radius_m)]
+            if trace is not None:
+                trace.append((t, pos - error, at))
         if k % every == 0:
-            fol.set_plan(av.plan(est, Threats(), t))
+            fol.set_plan(av.plan(est, Threats(intruders=tracks), t))
         sp, passed = fol.update(est, t, dt)
         yaw = sp.yaw_rad if np.isfinite(sp.yaw_rad) else yaw  # the vehicle turns to the follower's yaw
         for label in passed:
@@ -60,7 +76,7 @@ def fly(
         n = np.linalg.norm(cmd)
         vel = cmd * min(1.0, 1.2 * cruise / n) if n > 0 else cmd
         pos = pos + vel * dt
-    return mission, pos, av
+    return mission, pos - error, av
 
 
 def test_last_waypoint_is_reached_within_the_acceptance_radius():
