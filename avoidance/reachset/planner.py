@@ -183,8 +183,8 @@ class ReachSetAvoider:
         goal = ctl.waypoints[ctl.goal]
         here = ned_to_enu(estimate.pos_ned)
         dist = float(np.linalg.norm(goal - here))
-        near = dist <= d.reach_radius or (self.turns_in_place and self._in_turn_circle(d, here, goal))
-        if near and (not d.threat_events or self._approach_free(d, here, goal, threats)):
+        direct = dist <= d.reach_radius or (self.turns_in_place and self._in_turn_circle(d, here, goal))
+        if direct and (not d.threat_events or self._approach_free(d, here, goal, threats)):
             return (
                 enu_to_ned(np.vstack([here, goal])),
                 np.array([d.t, d.t + max(dist / speed, 1e-3)]),
