@@ -809,6 +809,7 @@ _REACHSET = {
     "constraint_margin": 3.0,
     "constraint_mode": "circle",
     "intruder_margin": 4.0,
+    "intruder_margin_vertical": 3.0,
     "separations": ["horizontal"],
 }
 _RULES_OPTIONS = {
