@@ -60,7 +60,7 @@ from sim.sensors.measurements import AirspeedSample, BaroSample, GnssFix, ImuSam
 from sim.sensors.suite import SensorSuiteConfig
 
 _DIAGONAL = [k * (m.N + 1) for k in range(16)]  # flat indices of the covariance diagonal's first 16
-_POS_DIAGONAL = _DIAGONAL[0:3]  # the position error's variances, N, E, D [m^2]
+_POS_DIAGONAL = _DIAGONAL[0:3]  # those of the position error's variances, N, E, D [m^2]
 _ROWS = {GnssFix: 6, BaroSample: 1, MagSample: 3}  # rows each measurement adds to a stacked update
 _C_REFRESH_M = 10.0  # recompute the velocity map after this much travel [m] (C changes ~2e-6/10 m)
 

@@ -58,7 +58,13 @@ _I3 = np.eye(3)
 
 def three_sd(variance: float) -> float:
     """3 standard deviations [the variance's unit's root]; NaN for a negative variance (as numpy)."""
-    return 3.0 * math.sqrt(variance) if variance >= 0.0 else math.nan
+    return three_sds((variance,))[0]
+
+
+def three_sds(variances: Sequence[float]) -> list[float]:
+    """:func:`three_sd` of each variance (one call for many: the log computes some per tick)."""
+    sqrt, nan = math.sqrt, math.nan
+    return [3.0 * sqrt(v) if v >= 0.0 else nan for v in variances]
 
 
 def sigma_bounds(var: Sequence[float], q: Sequence[float], p_att: Sequence[float]) -> dict[str, list[float]]:
@@ -68,7 +74,7 @@ def sigma_bounds(var: Sequence[float], q: Sequence[float], p_att: Sequence[float
     error [rad], ``heading`` [rad] (NED-frame yaw error), biases ``accel`` [m/s^2], ``gyro``
     [rad/s], ``baro`` [m]. Plain float arithmetic: the same bits in the simulation (the EKF's
     bounds) and in the log's writer process (a compact log's ``/<v>/est/sigma3``)."""
-    sd = [three_sd(v) for v in var]
+    sd = three_sds(var)
     heading = three_sd(yaw_error_variance((q[0], q[1], q[2], q[3]), list(p_att)))
     return {
         "pos": sd[0:3],
