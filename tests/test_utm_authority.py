@@ -45,6 +45,7 @@ QUAD: dict[str, Any] = {
     "initial": {"altitude": 20.0},
     "mission": {"cruise_speed": 2.0, "waypoints": [{"north": 5.0, "east": 0.0, "altitude": 20.0}]},
 }
+MANDATE = {"id": "m1", "vehicle": "q", "at": 1.0, "north": 5.0, "east": 0.0, "radius": 3.0}
 BASE: dict[str, Any] = {
     "name": "u",
     "seed": 1,
@@ -69,9 +70,20 @@ BASE: dict[str, Any] = {
             "end (1 s) must be after start (2 s)",
         ),
         ({"utm": {}, "vehicle": [{**QUAD, "utm_link": {"loss": 1.0}}]}, "loss"),
+        ({"vehicle": [{**QUAD, "peer_link": {}}]}, "vehicle[0].peer_link needs the [utm] section"),
+        ({"utm": {}, "vehicle": [{**QUAD, "peer_link": {"latency": "1 m"}}]}, "vehicle[0].peer_link.latency"),
+        ({"utm": {"mandate": [{**MANDATE, "vehicle": "x"}]}}, "utm.mandate[0].vehicle: no vehicle 'x'"),
+        ({"utm": {"mandate": [{**MANDATE, "radius": 0.0}]}}, "utm.mandate[0].radius"),
+        (
+            {"utm": {"mandate": [{**MANDATE, "altitude_min": 500.0, "altitude_max": 400.0}]}},
+            "altitude_max (400 m) must be above altitude_min (500 m)",
+        ),
+        ({"utm": {"mandate": [MANDATE, MANDATE]}}, "utm.mandate ids must be unique, repeated: m1"),
+        ({"utm": {"mandate": [{**MANDATE, "shape": "box"}]}}, "utm.mandate[0].shape"),
     ],
 )
 def test_bad_utm_options_are_one_line_errors(change, message):
     with pytest.raises(ScenarioError, match=re.escape(message)):
         parse_scenario({**BASE, **change})
     parse_scenario({**BASE, "utm": {}})  # the section alone is valid
+    parse_scenario({**BASE, "utm": {"mandate": [MANDATE]}, "vehicle": [{**QUAD, "peer_link": {}}]})
