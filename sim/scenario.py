@@ -784,12 +784,16 @@ class Scenario(_Strict):
             for link in ("utm_link", "peer_link"):
                 if getattr(v, link) is not None and self.utm is None:
                     raise ValueError(f"vehicle[{k}].{link} needs the [utm] section (the authority)")
-        for what, items in (("spoof", self.utm.spoof), ("mandate", self.utm.mandate)) if self.utm is not None else ():
-            for k, it in enumerate(items):
-                if it.vehicle not in names:
-                    raise ValueError(
-                        f"utm.{what}[{k}].vehicle: no vehicle {it.vehicle!r} (vehicles: {', '.join(names)})"
-                    )
+        targets: list[tuple[str, list[str]]] = []
+        if self.utm is not None:
+            targets = [
+                ("spoof", [x.vehicle for x in self.utm.spoof]),
+                ("mandate", [x.vehicle for x in self.utm.mandate]),
+            ]
+        for what, vehicles in targets:
+            for k, name in enumerate(vehicles):
+                if name not in names:
+                    raise ValueError(f"utm.{what}[{k}].vehicle: no vehicle {name!r} (vehicles: {', '.join(names)})")
         ids = [m.id for m in self.utm.mandate] if self.utm is not None else []
         dup = sorted({i for i in ids if ids.count(i) > 1})
         if dup:

@@ -148,3 +148,26 @@ def test_mandate_is_obeyed_acknowledged_and_kept_across_the_lost_link(blind, tmp
     rows = trail(log, tmp_path)
     assert any(r[2] == "utm" and r[3] == "mandate clear1 to uas2" for r in rows)
     assert any(r[2] == "uas2" and r[3] == "rule:utm_mandate:clear1" and r[1] is not None and r[1] >= 60.0 for r in rows)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(20))
+def test_response_and_blind_on_20_seeds(seed, tmp_path, fly_in, scenario_data, record_property):
+    """Per seed, both runs of this module: response mode agrees the spec's roles by
+    acknowledgement (uas1 gives way, uas2 holds its course) and keeps the margin; blind mode
+    keeps the margin and the mandate. Separations and the zone distance are recorded
+    (``--junitxml``)."""
+    base = scenario_data("rules/s9_converging_utm")
+    resp = fly_in(tmp_path, outage(base, False, seed), "resp").log
+    bl = fly_in(tmp_path, outage(base, True, seed), "blind").log
+    p = bl.topic("/uas2/truth/state")["pos_ned"]
+    zone = float(np.hypot(*(p[:, :2] - ZONE_NE).T).min())
+    record_property("response_separation_m", round(separation(resp), 2))
+    record_property("blind_separation_m", round(separation(bl), 2))
+    record_property("zone_m", round(zone, 2))
+    assert complete(resp) and separation(resp) >= CONVERGING_MARGIN
+    assert complete(bl) and separation(bl) >= CONVERGING_MARGIN
+    assert roles_flown(resp, "uas1", "rule:peer_agreed") == {"converging"}
+    assert roles_flown(resp, "uas2", "rule:peer_agreed") == {"right_of_way"}
+    assert "rule:utm_response" in names(events(resp, "uas1")) and "rule:utm_blind" in names(events(bl, "uas1"))
+    assert zone >= MANDATE["radius"]
