@@ -368,6 +368,7 @@ UTM_ACK = _obj(
         "t": (_NUM, "sim time the authority received it [s]"),
         "from": ({"type": "string"}, "the acknowledging vehicle"),
         "frame": ({"type": "integer"}, "the acknowledged directive's frame"),
+        "mandates": ({"type": "array", "items": {"type": "string"}}, "ids of the mandates the vehicle obeys"),
     },
     extra=True,
 )
