@@ -9,9 +9,14 @@ import numpy as np
 import pytest
 import shapely
 
+from avoidance.rules.config import RulesConfig
+from avoidance.rules.engine import RuleContext
+from avoidance.rules.utm_merge import merge_utm
+from avoidance.utm.cases import CaseBook
 from avoidance.utm.collision_case import CollisionCase, Encounter, Role
 from avoidance.utm.directives import Directive, LinkMode, UtmInbox
 from avoidance.utm.mandate import Mandate
+from avoidance.utm.notification import PositionNotification, Registration
 from avoidance.utm.response import PeerMessage, PeerTalk
 
 GIVE, HOLD = Role.CONVERGING, Role.RIGHT_OF_WAY
@@ -129,3 +134,31 @@ def test_mandates_bind_from_receipt_to_their_end_across_a_lost_link_and_are_ackn
     assert not fence.keep_in and fence.area.contains(shapely.Point(40.0, 100.0 + 24.0))
     assert m.inside(np.array([100.0, 40.0 + 24.0, 20.0])) and not m.inside(np.array([100.0, 40.0 + 26.0, 20.0]))
     assert math.isinf(fence.up_max_m)
+
+
+def _ctx(inbox: UtmInbox, talk: PeerTalk, t: float) -> RuleContext:
+    notes = [
+        PositionNotification(t, Registration(who), np.zeros(3), np.array([5.0, 0.0, 0.0])) for who in ("self", "uas1")
+    ]
+    return RuleContext("self", t, RulesConfig(), CaseBook(), notes, 5.0, 1.0, utm=inbox, peers=talk)
+
+
+def test_a_directed_uas_acknowledges_a_lost_peer_and_flies_the_agreement_unless_the_utm_has_the_pair():
+    """uas2 under the authority (directives arrive, none about uas1, whom the authority has
+    lost): uas1's acknowledged claim is flown over uas2's own case, and uas2 claims nothing
+    itself; a UTM case about the pair wins over the agreement."""
+    inbox, talk = UtmInbox("self", LOST_AFTER), PeerTalk("uas2", "self", LOST_AFTER)
+    inbox.receive(Directive(10, 10.0, "uas2"), 10.0)
+    inbox.update(10.5)
+    claim = case(GIVE, HOLD, "uas2")  # uas1's case: uas1 gives way
+    talk.receive(PeerMessage("claim", "uas1", "uas2", 10.3, dataclasses.replace(claim, ids=("uas1", "uas2"))), 10.5)
+    own = [case(GIVE, GIVE, "uas1")]  # uas2's own book: in doubt, gives way
+    ctx = _ctx(inbox, talk, 10.5)
+    (flown,) = merge_utm(ctx, own)
+    assert flown.role_of("self") == HOLD and flown.role_of("uas1") == GIVE
+    assert "rule:peer_agreed:self-uas1:converging:right_of_way" in ctx.events
+    assert not any(e.startswith("rule:peer_claim") for e in ctx.events)
+    directed = case(Role.ROUNDABOUT, Role.ROUNDABOUT, "uas1")
+    inbox.receive(Directive(11, 11.0, "uas2", (dataclasses.replace(directed, ids=("uas2", "uas1")),)), 11.0)
+    (flown,) = merge_utm(_ctx(inbox, talk, 11.2), own)
+    assert flown.role_of("self") == Role.ROUNDABOUT
