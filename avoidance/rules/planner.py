@@ -16,6 +16,10 @@ Per decision frame (one per movement period):
    rules disable navigation trajectories; an overtake flies its divergence / convergence waypoint
    in place of the mission goal for that run;
 5. decision point *after avoidance run*: deadlock -> emergency, resolution report.
+Under a central UTM (:meth:`join_utm`) the directives' cases are merged in *detect*; with the UTM
+link lost the UAS claims its cases to its peers and flies the acknowledged ones (response mode,
+:mod:`avoidance.utm.response`) or, hearing no peer, its own (blind); the mandates in force are
+keep-out geofences of every run, the emergency ones too.
 Every case and rule decision is an event ``rule:<code>[:<pair>:<encounter>:<role>]`` of the
 decision (logged in ``/<vehicle>/plan/decision``) and a record in :attr:`rules_record`
 (``/<vehicle>/plan/rules``). Frames: NED at the boundary, GCF (ENU) inside; sim seconds.
@@ -88,8 +92,8 @@ class RulesAvoider(ReachSetAvoider):
         return dataclasses.replace(self.registration, id=name)
 
     def receive_peer(self, m: PeerMessage, t: float) -> list[PeerMessage]:
-        """A message from a peer arrived at ``t`` [s]; returns what to send (an
-        acknowledgement, claims of the next frame wait for it)."""
+        """A message from a peer arrived at ``t`` [s]; returns what to send at once (the
+        acknowledgement of a claim)."""
         if self.peers is None:
             raise RuntimeError("receive_peer without a peer link (join_utm)")
         self.peers.receive(m, t)
