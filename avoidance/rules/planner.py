@@ -19,7 +19,7 @@ Per decision frame (one per movement period):
 Under a central UTM (:meth:`join_utm`) the directives' cases are merged in *detect*; with the UTM
 link lost the UAS claims its cases to its peers and flies the acknowledged ones (response mode,
 :mod:`avoidance.utm.response`) or, hearing no peer, its own (blind); the mandates in force are
-keep-out geofences of every run, the emergency ones too.
+keep-out geofences (hard constraints) of every run, the emergency ones too.
 Every case and rule decision is an event ``rule:<code>[:<pair>:<encounter>:<role>]`` of the
 decision (logged in ``/<vehicle>/plan/decision``) and a record in :attr:`rules_record`
 (``/<vehicle>/plan/rules``). Frames: NED at the boundary, GCF (ENU) inside; sim seconds.
@@ -201,8 +201,8 @@ class RulesAvoider(ReachSetAvoider):
         return plan
 
     def _mandated(self, threats: Threats, t: float, ctx: RuleContext) -> Threats:
-        """``threats`` with the UTM mandates in force as keep-out geofences (every run, the
-        emergency ones too: a mandate is never broken), each a ``rule:utm_mandate:<id>`` event."""
+        """``threats`` with the UTM mandates in force as keep-out geofences (hard constraints of
+        every run, the emergency ones too), each a ``rule:utm_mandate:<id>`` event."""
         assert self.utm is not None
         mandates = self.utm.in_force(t)
         if not mandates:

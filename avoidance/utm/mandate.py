@@ -6,7 +6,8 @@ The seed gives one example and no format: a passenger aircraft in distress needs
 land safely, and the UAS must obey "even at event of own destruction". A mandate here is that
 order: keep clear of a vertical cylinder (centre, radius, altitude band) from ``start`` until
 ``end`` (None: to the end of the run). The UAS applies it as a keep-out geofence in every
-reach-set run, navigation and emergency alike (hard, never relaxed), and keeps obeying a
+reach-set run, navigation and emergency alike (a hard constraint; the planner's relaxed runs,
+which drop hard constraints when no path is left, can still drop it), and keeps obeying a
 mandate it has received when its link is lost, until the mandate's end.
 Frames: GCF (ENU) [m] for the centre; heights above the scenario origin [m]; sim seconds [s].
 """
