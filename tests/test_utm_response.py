@@ -40,7 +40,7 @@ def case(own_role: Role, peer_role: Role, peer: str, head: float = 10.0) -> Coll
     )
 
 
-def exchange(a: PeerTalk, b: PeerTalk, t: float, lose: set[str] = frozenset()) -> None:
+def exchange(a: PeerTalk, b: PeerTalk, t: float, lose: frozenset[str] | set[str] = frozenset()) -> None:
     """Deliver everything ``a`` and ``b`` have to send at ``t`` [s], replies included, until
     both are quiet; messages of the kinds in ``lose`` are lost."""
     talks = {a.name: a, b.name: b}
@@ -105,6 +105,7 @@ def test_an_acknowledgement_of_another_separation_mode_agrees_nothing():
     u1 = PeerTalk("uas1", "self", LOST_AFTER)
     u1.claim(10.0, [case(GIVE, HOLD, "uas2")])
     (claim,) = u1.drain()
+    assert claim.case is not None
     other = dataclasses.replace(claim.case, roles=(HOLD, GIVE))
     u1.receive(PeerMessage("ack", "uas2", "uas1", 10.1, other), 10.2)
     assert u1.agreements(10.2) == [] and u1.heard(10.2)

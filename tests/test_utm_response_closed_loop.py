@@ -8,6 +8,7 @@ from the MCAP."""
 from __future__ import annotations
 
 import copy
+from typing import Any
 
 import jsonschema
 import numpy as np
@@ -24,7 +25,7 @@ pytestmark = pytest.mark.closed_loop
 
 UTM_OUT = (5.0, 80.0)  # both UTM links [s]: lost from 8 s (lost_after 3 s), before the case opens (~11 s)
 PEER_LINK = {"latency": "0.2 s", "loss": 0.02}
-MANDATE = {"id": "clear1", "vehicle": "uas2", "at": 4.0, "north": 40.0, "east": 100.0, "radius": 25.0}
+MANDATE: dict[str, Any] = {"id": "clear1", "vehicle": "uas2", "at": 4.0, "north": 40.0, "east": 100.0, "radius": 25.0}
 ZONE_NE = np.array([MANDATE["north"], MANDATE["east"]])  # on uas2's course: S9 flies it 1.1 m from the centre
 
 
