@@ -362,6 +362,11 @@ UTM_DIRECTIVE = _obj(
             "weather cases of the cells its filed route crosses (utm.weather): id, t, centre_enu [m], margin_m, "
             "velocity_enu [m/s], moving, body_enu [m]",
         ),
+        "mandates": (
+            _CASES,
+            "mandates in force for the recipient (never broken): id, kind (keep_clear), start_t, end_t [s], "
+            "centre_enu (east, north) [m], radius_m, up_min_m, up_max_m (heights above the origin, null: unbounded)",
+        ),
     },
 )
 
@@ -371,6 +376,7 @@ UTM_ACK = _obj(
         "t": (_NUM, "sim time the authority received it [s]"),
         "from": ({"type": "string"}, "the acknowledging vehicle"),
         "frame": ({"type": "integer"}, "the acknowledged directive's frame"),
+        "mandates": ({"type": "array", "items": {"type": "string"}}, "ids of the mandates the vehicle obeys"),
     },
     extra=True,
 )
@@ -386,7 +392,46 @@ UTM_LINK = _obj(
 
 UTM_BREACH = _obj(
     "cosim.UtmBreach",
-    {"t": (_NUM, "sim time [s]"), "case": ({"type": "object"}, "the breached case (separation_m < margin_m)")},
+    {
+        "t": (_NUM, "sim time [s]"),
+        "case": ({"type": "object"}, "the breached case (separation_m < margin_m)"),
+        "vehicle": ({"type": "string"}, "the vehicle notified inside a mandate's cylinder"),
+        "mandate": ({"type": "object"}, "the breached mandate (as in /utm/directive)"),
+    },
+)
+
+
+def _peer(title: str, what: str, fields: dict[str, tuple[dict, str]]) -> dict:
+    """A vehicle-to-vehicle message (sim/peer_link.py), logged when sent."""
+    return _obj(
+        title,
+        {
+            "t": (_NUM, "sim time sent [s]"),
+            "from": ({"type": "string"}, "the sender"),
+            "to": ({"type": "string"}, "the recipient"),
+            "received_t": (
+                _NUM_OR_NULL,
+                "sim time the recipient gets it (the first tick at or after arrival) [s]; null: lost",
+            ),
+            **fields,
+        },
+    ) | {"description": what}
+
+
+UTM_PEER_NOTIFICATION = _peer(
+    "cosim.UtmPeerNotification",
+    "position notification broadcast to a peer",
+    {"pos_enu": (_VEC3, "estimated position, GCF ENU [m]"), "vel_enu": (_VEC3, "estimated velocity, GCF ENU [m/s]")},
+)
+UTM_PEER_CLAIM = _peer(
+    "cosim.UtmPeerClaim",
+    "response mode: the separation mode (collision case) the sender claims for the pair",
+    {"case": ({"type": "object"}, "the claimed case, registration ids: " + _CASE_FIELDS)},
+)
+UTM_PEER_ACK = _peer(
+    "cosim.UtmPeerAck",
+    "response mode: the acknowledgement of a peer's claim",
+    {"case": ({"type": "object"}, "the acknowledged claim's case, registration ids")},
 )
 
 UTM_SPOOF = _obj(

@@ -243,9 +243,11 @@ class Outage(_Strict):
 
 
 class UtmLink(_Strict):
-    """A vehicle's C2/UTM link to the authority (``sim/utm_link.py``), both directions: one-way
-    ``latency``, message ``loss`` probability, ``outage`` windows. Needs the ``[utm]`` section;
-    a vehicle without it has an ideal link."""
+    """A vehicle's radio link (``sim/utm_link.py``): one-way ``latency``, message ``loss``
+    probability, ``outage`` windows. As ``utm_link``: its C2/UTM link to the authority, both
+    directions (a vehicle without one has an ideal link). As ``peer_link``: its
+    vehicle-to-vehicle link (``sim/peer_link.py``), what it sends and (outages) receives; only
+    vehicles with one talk to each other (response mode). Both need the ``[utm]`` section."""
 
     latency: Annotated[float, quantity("time", 0.0, 60.0)] = 0.0
     loss: Annotated[float, Field(ge=0.0, lt=1.0)] = 0.0
@@ -267,6 +269,7 @@ class VehicleSpec(_Strict):
     planner: PlannerConfig = Field(default_factory=_PLANNER_MODELS["follow_mission"])
     energy: EnergyOptions = EnergyOptions()
     utm_link: UtmLink | None = None
+    peer_link: UtmLink | None = None
 
     @model_validator(mode="before")
     @classmethod
@@ -661,18 +664,44 @@ class UtmSpoof(_Strict):
     margin: Annotated[float, quantity("length", 0.0, 1e5, lo_open=True)] = 50.0
 
 
+class UtmMandate(_Strict):
+    """A mandate of the authority (spec §7.1, never broken; ``avoidance/utm/mandate.py``):
+    ``vehicle`` must keep clear of the cylinder of ``radius`` around ``north``/``east`` between
+    ``altitude_min`` and ``altitude_max`` (MSL; unbounded when left out) from ``at`` for
+    ``duration`` (None: to the end). ``id`` names it in the directives and acknowledgements."""
+
+    id: Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$")]
+    vehicle: str
+    at: _Time
+    duration: Annotated[float, quantity("time", 0.0, 30 * 86400.0, lo_open=True)] | None = None
+    north: _Offset
+    east: _Offset
+    radius: Annotated[float, quantity("length", 0.0, 1e5, lo_open=True)]
+    altitude_min: _Altitude | None = None
+    altitude_max: _Altitude | None = None
+
+    @model_validator(mode="after")
+    def _band(self) -> UtmMandate:
+        lo, hi = self.altitude_min, self.altitude_max
+        if lo is not None and hi is not None and not hi > lo:
+            raise ValueError(f"altitude_max ({hi:g} m) must be above altitude_min ({lo:g} m)")
+        return self
+
+
 class Utm(_Strict):
     """The central UTM authority (``sim/utm_authority.py``): decision ``frame`` period; a link is
     lost after ``lost_after`` without a message (the authority drops a silent vehicle from its
     cases; a vehicle without directives flies blind, the rules of the air on its own tracks);
     ``spoof``: forged cases (:class:`UtmSpoof`); ``weather``: the weather service's nowcasts go
     to the authority instead of the vehicles, and it sends each vehicle the weather cases of the
-    cells its filed route crosses in its directives (§7.5; needs ``[weather]``)."""
+    cells its filed route crosses in its directives (§7.5; needs ``[weather]``); ``mandate``:
+    mandates sent in the directives (:class:`UtmMandate`)."""
 
     frame: Annotated[float, quantity("time", 0.0, 60.0, lo_open=True)] = 1.0
     lost_after: Annotated[float, quantity("time", 0.0, 600.0, lo_open=True)] = 3.0
     spoof: list[UtmSpoof] = []
     weather: bool = False
+    mandate: list[UtmMandate] = []
 
     @model_validator(mode="after")
     def _lost_after_frames(self) -> Utm:
@@ -752,11 +781,23 @@ class Scenario(_Strict):
             if f.vehicle not in names:
                 raise ValueError(f"fault[{k}].vehicle: no vehicle {f.vehicle!r} (vehicles: {', '.join(names)})")
         for k, v in enumerate(self.vehicle):
-            if v.utm_link is not None and self.utm is None:
-                raise ValueError(f"vehicle[{k}].utm_link needs the [utm] section (the authority)")
-        for k, sp in enumerate(self.utm.spoof if self.utm is not None else []):
-            if sp.vehicle not in names:
-                raise ValueError(f"utm.spoof[{k}].vehicle: no vehicle {sp.vehicle!r} (vehicles: {', '.join(names)})")
+            for link in ("utm_link", "peer_link"):
+                if getattr(v, link) is not None and self.utm is None:
+                    raise ValueError(f"vehicle[{k}].{link} needs the [utm] section (the authority)")
+        targets: list[tuple[str, list[str]]] = []
+        if self.utm is not None:
+            targets = [
+                ("spoof", [x.vehicle for x in self.utm.spoof]),
+                ("mandate", [x.vehicle for x in self.utm.mandate]),
+            ]
+        for what, vehicles in targets:
+            for k, name in enumerate(vehicles):
+                if name not in names:
+                    raise ValueError(f"utm.{what}[{k}].vehicle: no vehicle {name!r} (vehicles: {', '.join(names)})")
+        ids = [m.id for m in self.utm.mandate] if self.utm is not None else []
+        dup = sorted({i for i in ids if ids.count(i) > 1})
+        if dup:
+            raise ValueError(f"utm.mandate ids must be unique, repeated: {', '.join(dup)}")
         if self.utm is not None and self.utm.weather and self.weather is None:
             raise ValueError("utm.weather needs the [weather] section (the weather service)")
         if self.utm is not None and self.utm.frame < 1.0 / self.logging.rate_hz - 1e-9:

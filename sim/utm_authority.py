@@ -23,11 +23,15 @@ each directive also carries the weather cases (§7.5) of the cells the recipient
 (from its notified position through its remaining mission waypoints) crosses at its notified
 height, with the weather band of its registration.
 
+Mandates (``utm.mandate``, :mod:`avoidance.utm.mandate`): every directive to a vehicle carries
+the mandates in force for it (keep clear of a cylinder); the vehicle obeys and acknowledges them
+(the acknowledgement lists the ids it obeys); a notified position inside one is a breach.
+
 Topics: ``/utm/notification``, ``/utm/frame``, ``/utm/directive``, ``/utm/ack``, ``/utm/link``
 (the authority's view of a vehicle's link: lost / up), ``/utm/breach`` (an active case whose
-notified separation is below its margin, once per case chain), ``/utm/spoof`` (forged cases
-injected on a vehicle's downlink, scenario ``utm.spoof``). Frames: GCF (ENU) [m] from the
-scenario origin, sim seconds.
+notified separation is below its margin, once per case chain; a notified position inside a
+mandate's cylinder, once per mandate), ``/utm/spoof`` (forged cases injected on a vehicle's
+downlink, scenario ``utm.spoof``). Frames: GCF (ENU) [m] from the scenario origin, sim seconds.
 """
 
 from __future__ import annotations
@@ -41,13 +45,14 @@ from avoidance.rules.planner import RulesAvoider
 from avoidance.utm.cases import CaseBook, as_roundabout
 from avoidance.utm.collision_case import CollisionCase, Encounter, Role, UtmConfig
 from avoidance.utm.directives import Directive
+from avoidance.utm.mandate import Mandate
 from avoidance.utm.notification import PositionNotification, Registration, along_path
 from avoidance.utm.weather_case import WeatherCase, crossing, weather_cases
 from sim import log_schemas as S
 from sim.core.frames import ned_to_enu
 from sim.core.threats import StormSnapshot
 from sim.mcap_log import McapLog
-from sim.scenario import Utm, UtmSpoof
+from sim.scenario import Utm, UtmMandate, UtmSpoof
 from sim.utm_link import Link, Queue
 from sim.vehicle import Vehicle
 
@@ -77,6 +82,7 @@ class Member:
     lost: bool = True  # no fresh notification (before the first one, too)
     first_t: float | None = None  # send time of its first notification [s]
     established: bool = False  # past its start transient (:meth:`UtmAuthority._established`)
+    peer_link: bool = False  # it has a vehicle-to-vehicle link (response mode)
 
     def obeying(self, lost_after: float) -> RulesAvoider | None:
         """The planner that obeys and acknowledges directives now: the vehicle's rules planner,
@@ -86,7 +92,7 @@ class Member:
         if not isinstance(p, RulesAvoider):
             return None
         if p is not self.planner:
-            p.join_utm(self.vehicle.name, lost_after)
+            p.join_utm(self.vehicle.name, lost_after, self.peer_link)
             self.planner = p
         return p
 
@@ -99,23 +105,34 @@ class UtmAuthority:
     (thesis margins, unscaled) and obey nothing."""
 
     def __init__(
-        self, cfg: Utm, vehicles: list[Vehicle], links: dict[str, Link], log: McapLog, origin_alt: float, tick_hz: float
+        self,
+        cfg: Utm,
+        vehicles: list[Vehicle],
+        links: dict[str, Link],
+        log: McapLog,
+        origin_alt: float,
+        tick_hz: float,
+        peer_linked: frozenset[str] = frozenset(),
     ):
-        """``tick_hz``: the rate :meth:`tick` is called at (the log rate)."""
+        """``tick_hz``: the rate :meth:`tick` is called at (the log rate); ``peer_linked``: the
+        vehicles with a vehicle-to-vehicle link."""
         self.cfg, self.log, self.origin_alt, self.tick_hz = cfg, log, origin_alt, tick_hz
         self.members: dict[str, Member] = {}
         book_cfg: UtmConfig | None = None
         for v in vehicles:
             p = v.planner if isinstance(v.planner, RulesAvoider) else None
-            reg = p.join_utm(v.name, cfg.lost_after) if p is not None else Registration(v.name)
+            peer = v.name in peer_linked
+            reg = p.join_utm(v.name, cfg.lost_after, peer) if p is not None else Registration(v.name)
             if p is not None and book_cfg is None:
                 book_cfg = p.book.cfg
-            self.members[v.name] = Member(v, links[v.name], reg, p, Queue())
+            self.members[v.name] = Member(v, links[v.name], reg, p, Queue(), peer_link=peer)
+        self.mandates = [(m.vehicle, self._mandate(m)) for m in cfg.mandate]
         self.book = CaseBook(book_cfg or UtmConfig())
         self.up = Queue()
         self.frame_no = 0
         self.storms: list[StormSnapshot] = []  # the newest nowcast, with ``utm.weather``
         self._breached: set[tuple[tuple[str, str], float | None]] = set()
+        self._mandate_breached: set[str] = set()
 
     def tick(self, t: float) -> None:
         """Deliver what arrived by ``t`` [s]; run a decision frame when one starts."""
@@ -153,6 +170,7 @@ class UtmAuthority:
         rbs = {u: rb for rb in self.book.roundabouts() for u in rb.members}
         active = self.book.active()
         self._report_breaches(t, active)
+        self._report_mandate_breaches(t, notes)
         self.log.write_json(
             "/utm/frame",
             t,
@@ -174,7 +192,8 @@ class UtmAuthority:
         )
         for name, m in self.members.items():
             cases = [as_roundabout(c, rbs[name]) if name in rbs else c for c in active if name in c.ids]
-            d = Directive(self.frame_no, t, name, tuple(cases) + self._spoofed(t, name), self._weather(m, t))
+            mandates = tuple(md for to, md in self.mandates if to == name and md.active(t))
+            d = Directive(self.frame_no, t, name, tuple(cases) + self._spoofed(t, name), self._weather(m, t), mandates)
             self._send_down(t, m, d)
         for name, m in self.members.items():
             self._send_up(t, name, ("note", name, self._notification(m, t)))
@@ -239,6 +258,7 @@ class UtmAuthority:
                 "received_t": self._handed(due),
                 "cases": [c.record() for c in d.cases],
                 "weather": [w.record() for w in d.weather],
+                "mandates": [md.record() for md in d.mandates],
             },
             S.UTM_DIRECTIVE,
             _META,
@@ -290,6 +310,23 @@ class UtmAuthority:
                 self.log.event(
                     t, f"utm: breach {c.ids[0]}-{c.ids[1]}: {c.separation:.1f} m < {c.margin:.1f} m", "warning", "utm"
                 )
+
+    def _mandate(self, m: UtmMandate) -> Mandate:
+        """The mandate of a scenario entry (GCF centre, heights above the origin)."""
+        lo = -math.inf if m.altitude_min is None else m.altitude_min - self.origin_alt
+        hi = math.inf if m.altitude_max is None else m.altitude_max - self.origin_alt
+        end = None if m.duration is None else m.at + m.duration
+        return Mandate(m.id, m.at, end, np.array([m.east, m.north]), m.radius, lo, hi)
+
+    def _report_mandate_breaches(self, t: float, notes: list[PositionNotification]) -> None:
+        """Monitor the mandates: a notified position inside a mandate in force is a breach."""
+        where = {n.id: n.pos for n in notes}
+        for to, md in self.mandates:
+            if md.id in self._mandate_breached or to not in where or not md.active(t) or not md.inside(where[to]):
+                continue
+            self._mandate_breached.add(md.id)
+            self.log.write_json("/utm/breach", t, {"t": t, "vehicle": to, "mandate": md.record()}, S.UTM_BREACH, _META)
+            self.log.event(t, f"utm: breach of mandate {md.id} by {to}", "warning", "utm")
 
     def _log_notification(self, t: float, n: PositionNotification) -> None:
         self.log.write_json(

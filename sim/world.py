@@ -23,6 +23,7 @@ from sim.faults import FaultSchedule
 from sim.geodesy import ned_to_geodetic
 from sim.hull import Hull, load_hull
 from sim.mcap_log import McapLog
+from sim.peer_link import PeerNetwork
 from sim.perception import Perception
 from sim.planner_registry import planner_awareness
 from sim.scenario import Scenario, UtmLink
@@ -46,6 +47,16 @@ def link_streams(seed: int, n: int) -> list[np.random.SeedSequence]:
     """The C2/UTM links' streams, one per vehicle (a fifth child of the run's seed: the other
     four streams are unchanged by it)."""
     return np.random.SeedSequence(seed).spawn(5)[4].spawn(n)
+
+
+def peer_link_streams(seed: int, n: int) -> list[np.random.SeedSequence]:
+    """The vehicle-to-vehicle links' streams, one per vehicle (a sixth child of the run's seed:
+    the other five are unchanged by it)."""
+    return np.random.SeedSequence(seed).spawn(6)[5].spawn(n)
+
+
+def _link(c: UtmLink, ss: np.random.SeedSequence) -> Link:
+    return Link(c.latency, c.loss, tuple((o.start, o.end) for o in c.outage), np.random.default_rng(ss))
 
 
 def weather_seed(weather_ss: np.random.SeedSequence) -> int:
@@ -107,6 +118,7 @@ class World:
         )
         self.crashes: list[Crash] = []
         self.utm = self._authority(scenario, log) if scenario.utm is not None else None
+        self.peers = self._peer_network(scenario, log)
         write_map(log, self.obstacles, self.fences, self.origin)
         log.metadata("vehicles", {v.name: v.airframe.kind for v in self.vehicles})
 
@@ -135,6 +147,8 @@ class World:
                 )
         if self.utm is not None:
             sched.add_task("utm", log_hz, Stage.SENSE, self.utm.tick)
+        if self.peers is not None:
+            sched.add_task("utm.peers", log_hz, Stage.SENSE, self.peers.tick)
         if self.objects:
             sched.add_task("world.log", log_hz, Stage.LOG, self._log_objects)
         if len(self.vehicles) > 1:
@@ -169,13 +183,24 @@ class World:
         """The UTM authority over every vehicle, each on its modelled link (scenario ``utm``,
         ``vehicle.utm_link``)."""
         assert scenario.utm is not None
-        links = {}
-        for v, ss in zip(scenario.vehicle, link_streams(scenario.seed, len(scenario.vehicle)), strict=True):
-            c = v.utm_link or UtmLink()
-            links[v.name] = Link(
-                c.latency, c.loss, tuple((o.start, o.end) for o in c.outage), np.random.default_rng(ss)
-            )
-        return UtmAuthority(scenario.utm, self.vehicles, links, log, self.origin.alt_m, scenario.logging.rate_hz)
+        streams = link_streams(scenario.seed, len(scenario.vehicle))
+        links = {v.name: _link(v.utm_link or UtmLink(), ss) for v, ss in zip(scenario.vehicle, streams, strict=True)}
+        peered = frozenset(v.name for v in scenario.vehicle if v.peer_link is not None)
+        return UtmAuthority(
+            scenario.utm, self.vehicles, links, log, self.origin.alt_m, scenario.logging.rate_hz, peered
+        )
+
+    def _peer_network(self, scenario: Scenario, log: McapLog) -> PeerNetwork | None:
+        """The vehicle-to-vehicle links (``vehicle.peer_link``; they need ``[utm]``), None without."""
+        streams = peer_link_streams(scenario.seed, len(scenario.vehicle))
+        links = {
+            v.name: _link(v.peer_link, ss)
+            for v, ss in zip(scenario.vehicle, streams, strict=True)
+            if v.peer_link is not None
+        }
+        if not links or scenario.utm is None:
+            return None
+        return PeerNetwork(self.vehicles, links, scenario.utm.frame, log, scenario.logging.rate_hz)
 
     # -- sensing the rest of the world ---------------------------------------------------------
     def sense(self, t: float) -> None:

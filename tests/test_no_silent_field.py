@@ -402,6 +402,24 @@ def _utm(d: dict) -> None:
     _quad(d)["utm_link"] = copy.deepcopy(_UTM_LINK)
 
 
+_MANDATE = {"id": "m1", "vehicle": "quad", "at": 1.0, "north": 50.0, "east": 0.0, "radius": 10.0}
+
+
+def _utm_peers(d: dict) -> None:
+    """:func:`_utm` with a second quadrotor 30 m east and a vehicle-to-vehicle link on both
+    (their notifications to each other are logged with their arrival), and a mandate to the
+    first (logged in its directives)."""
+    _utm(d)
+    other = copy.deepcopy(_quad(d))
+    other["name"] = "quad2"
+    other["initial"]["east"] = 30.0
+    other.pop("utm_link")
+    d["vehicle"].append(other)
+    for v in d["vehicle"]:
+        v["peer_link"] = copy.deepcopy(_UTM_LINK)
+    d["utm"]["mandate"] = [dict(_MANDATE)]
+
+
 def _utm_weather(d: dict) -> None:
     """:func:`_utm` with a weather service (the quadrotor gets its nowcasts unless the
     authority takes the feed)."""
@@ -424,6 +442,17 @@ EFFECTS |= {
     "vehicle.utm_link.loss": (_QUAD, _utm, _set("vehicle.0.utm_link.loss", 0.5)),
     "vehicle.utm_link.outage.start": (_QUAD, _utm, _set("vehicle.0.utm_link.outage.0.start", 0.0)),
     "vehicle.utm_link.outage.end": (_QUAD, _utm, _set("vehicle.0.utm_link.outage.0.end", 2.5)),
+    "vehicle.peer_link.latency": (_QUAD, _utm_peers, _set("vehicle.0.peer_link.latency", 0.3)),
+    "vehicle.peer_link.loss": (_QUAD, _utm_peers, _set("vehicle.0.peer_link.loss", 0.5)),
+    "vehicle.peer_link.outage.start": (_QUAD, _utm_peers, _set("vehicle.0.peer_link.outage.0.start", 0.0)),
+    "vehicle.peer_link.outage.end": (_QUAD, _utm_peers, _set("vehicle.0.peer_link.outage.0.end", 2.5)),
+    "utm.mandate.at": (_QUAD, _utm_peers, _set("utm.mandate.0.at", 2.0)),
+    "utm.mandate.duration": (_QUAD, _utm_peers, _set("utm.mandate.0.duration", 1.0)),
+    "utm.mandate.north": (_QUAD, _utm_peers, _set("utm.mandate.0.north", 60.0)),
+    "utm.mandate.east": (_QUAD, _utm_peers, _set("utm.mandate.0.east", 5.0)),
+    "utm.mandate.radius": (_QUAD, _utm_peers, _set("utm.mandate.0.radius", 12.0)),
+    "utm.mandate.altitude_min": (_QUAD, _utm_peers, _set("utm.mandate.0.altitude_min", 300.0)),
+    "utm.mandate.altitude_max": (_QUAD, _utm_peers, _set("utm.mandate.0.altitude_max", 500.0)),
 }
 
 _LIDAR: dict[str, object] = {
@@ -499,6 +528,8 @@ LABELS = {
     "geofence.id": "names the geofence",
     "vehicle.name": "names the vehicle",
     "utm.spoof.vehicle": "names the vehicle whose downlink carries the forged case",
+    "utm.mandate.id": "names the mandate in the directives and acknowledgements",
+    "utm.mandate.vehicle": "names the vehicle the mandate binds",
     **{f"fault<{k}>.vehicle": "names the faulty vehicle" for k in _FAULTS},
     **{f"fault<{k}>.kind": "the union's tag" for k in _FAULTS},
 }

@@ -1,14 +1,18 @@
 """The central UTM authority's parts (sim/utm_authority.py): filed plans, the trajectory case of
-two diverging plans, and the scenario's utm options' errors."""
+two diverging plans, the scenario's utm options' errors, the monitoring of mandates."""
 
 import re
 from typing import Any
 
+import jsonschema
 import numpy as np
 import pytest
 
 from avoidance.utm.collision_case import UtmConfig, compute_collision_case
 from avoidance.utm.notification import PositionNotification, Registration
+from sim import log_schemas as S
+from sim.replay.decision_trail import authority_rows
+from sim.replay.runlog import RunLog
 from sim.scenario import ScenarioError, parse_scenario
 from sim.utm_authority import filed_plan
 
@@ -45,6 +49,7 @@ QUAD: dict[str, Any] = {
     "initial": {"altitude": 20.0},
     "mission": {"cruise_speed": 2.0, "waypoints": [{"north": 5.0, "east": 0.0, "altitude": 20.0}]},
 }
+MANDATE = {"id": "m1", "vehicle": "q", "at": 1.0, "north": 5.0, "east": 0.0, "radius": 3.0}
 BASE: dict[str, Any] = {
     "name": "u",
     "seed": 1,
@@ -69,9 +74,31 @@ BASE: dict[str, Any] = {
             "end (1 s) must be after start (2 s)",
         ),
         ({"utm": {}, "vehicle": [{**QUAD, "utm_link": {"loss": 1.0}}]}, "loss"),
+        ({"vehicle": [{**QUAD, "peer_link": {}}]}, "vehicle[0].peer_link needs the [utm] section"),
+        ({"utm": {}, "vehicle": [{**QUAD, "peer_link": {"latency": "1 m"}}]}, "vehicle[0].peer_link.latency"),
+        ({"utm": {"mandate": [{**MANDATE, "vehicle": "x"}]}}, "utm.mandate[0].vehicle: no vehicle 'x'"),
+        ({"utm": {"mandate": [{**MANDATE, "radius": 0.0}]}}, "utm.mandate[0].radius"),
+        (
+            {"utm": {"mandate": [{**MANDATE, "altitude_min": 500.0, "altitude_max": 400.0}]}},
+            "altitude_max (400 m) must be above altitude_min (500 m)",
+        ),
+        ({"utm": {"mandate": [MANDATE, MANDATE]}}, "utm.mandate ids must be unique, repeated: m1"),
+        ({"utm": {"mandate": [{**MANDATE, "shape": "box"}]}}, "utm.mandate[0].shape"),
     ],
 )
 def test_bad_utm_options_are_one_line_errors(change, message):
     with pytest.raises(ScenarioError, match=re.escape(message)):
         parse_scenario({**BASE, **change})
     parse_scenario({**BASE, "utm": {}})  # the section alone is valid
+    parse_scenario({**BASE, "utm": {"mandate": [MANDATE]}, "vehicle": [{**QUAD, "peer_link": {}}]})
+
+
+def test_a_vehicle_notified_inside_a_mandate_is_reported_once_as_a_breach(fly, tmp_path):
+    """The authority monitors its mandates: q (which only notifies) flies inside the cylinder of
+    a mandate from 1 s; one breach naming the vehicle and the mandate, in the decision trail too."""
+    run = fly({**BASE, "duration": 4.0, "utm": {"mandate": [{**MANDATE, "north": 0.0, "radius": 10.0}]}})
+    log = RunLog(run.path)
+    (b,) = log.topic("/utm/breach").messages
+    jsonschema.validate(b, S.UTM_BREACH)
+    assert b["vehicle"] == "q" and b["mandate"]["id"] == "m1" and 1.0 <= b["t"] <= 2.0
+    assert any(what == "breach of mandate m1 by q" for _, _, who, what in authority_rows(log) if who == "utm")

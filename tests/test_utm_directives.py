@@ -41,7 +41,7 @@ def test_inbox_renames_the_recipient_acknowledges_and_loses_the_link_after_lost_
     box = UtmInbox("self", lost_after=3.0)
     assert box.update(0.0) is None and box.mode == LinkMode.BLIND  # nothing received yet
     d = Directive(4, 4.0, "uas1", (case(("uas1", "uas2"), (Role.CONVERGING, Role.RIGHT_OF_WAY)),))
-    assert box.receive(d, 4.2) == {"frame": 4, "received_t": 4.2}
+    assert box.receive(d, 4.2) == {"frame": 4, "received_t": 4.2, "mandates": []}
     assert box.update(4.2) == LinkMode.COOPERATIVE
     assert box.cases()[0].ids == ("self", "uas2") and box.cases()[0].role_of("self") == Role.CONVERGING
     box.receive(Directive(3, 3.0, "uas1"), 4.3)  # an older frame arriving late: acknowledged, not taken

@@ -20,6 +20,7 @@ from avoidance.utm.cases import CaseBook
 from avoidance.utm.collision_case import CollisionCase
 from avoidance.utm.directives import UtmInbox
 from avoidance.utm.notification import PositionNotification
+from avoidance.utm.response import PeerTalk
 from avoidance.utm.weather_case import WeatherCase
 
 if TYPE_CHECKING:
@@ -66,6 +67,7 @@ class RuleContext:
     weather: list[WeatherCase] = field(default_factory=list)  # this frame's weather cases
     goal: np.ndarray | None = None  # GCF [m] the run flies to (mission goal or the rules' override)
     utm: UtmInbox | None = None  # the central UTM's directives (None: virtual UTM only)
+    peers: PeerTalk | None = None  # the vehicle-to-vehicle link (None: none)
 
     @property
     def unit(self) -> float:

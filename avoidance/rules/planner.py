@@ -16,6 +16,10 @@ Per decision frame (one per movement period):
    rules disable navigation trajectories; an overtake flies its divergence / convergence waypoint
    in place of the mission goal for that run;
 5. decision point *after avoidance run*: deadlock -> emergency, resolution report.
+Under a central UTM (:meth:`join_utm`) the directives' cases are merged in *detect*; with the UTM
+link lost the UAS claims its cases to its peers and flies the acknowledged ones (response mode,
+:mod:`avoidance.utm.response`) or, hearing no peer, its own (blind); the mandates in force are
+keep-out geofences (hard constraints) of every run, the emergency ones too.
 Every case and rule decision is an event ``rule:<code>[:<pair>:<encounter>:<role>]`` of the
 decision (logged in ``/<vehicle>/plan/decision``) and a record in :attr:`rules_record`
 (``/<vehicle>/plan/rules``). Frames: NED at the boundary, GCF (ENU) inside; sim seconds.
@@ -39,6 +43,7 @@ from avoidance.rules.rules_of_air import make_rules
 from avoidance.utm.cases import CaseBook
 from avoidance.utm.directives import Directive, UtmInbox
 from avoidance.utm.notification import PositionNotification, Registration, from_track
+from avoidance.utm.response import PeerMessage, PeerTalk
 from avoidance.utm.weather_case import weather_cases
 from sim.core.frames import ned_to_enu
 from sim.core.mission import Mission
@@ -75,13 +80,28 @@ class RulesAvoider(ReachSetAvoider):
         self._start: float | None = None
         self._progress: dict[str, int] = {}  # peers' filed plans: index of the next waypoint
         self.utm: UtmInbox | None = None  # set when a central UTM authority directs this UAS
+        self.peers: PeerTalk | None = None  # set when the UAS has a vehicle-to-vehicle link
 
-    def join_utm(self, name: str, lost_after: float) -> Registration:
+    def join_utm(self, name: str, lost_after: float, peer_link: bool = False) -> Registration:
         """Register with a central UTM as ``name``: directives are merged with the own cases from
-        now on; the link counts as lost after ``lost_after`` [s] without a directive. Returns
-        the registration filed."""
+        now on; the link counts as lost after ``lost_after`` [s] without a directive; with a
+        ``peer_link`` (vehicle-to-vehicle) a lost UTM link means response mode while peers are
+        heard. Returns the registration filed."""
         self.utm = UtmInbox(OWN, lost_after)
+        self.peers = PeerTalk(name, OWN, lost_after) if peer_link else None
         return dataclasses.replace(self.registration, id=name)
+
+    def receive_peer(self, m: PeerMessage, t: float) -> list[PeerMessage]:
+        """A message from a peer arrived at ``t`` [s]; returns what to send at once (the
+        acknowledgement of a claim)."""
+        if self.peers is None:
+            raise RuntimeError("receive_peer without a peer link (join_utm)")
+        self.peers.receive(m, t)
+        return self.peers.drain()
+
+    def peer_outbox(self) -> list[PeerMessage]:
+        """The messages to send to peers now (this frame's claims)."""
+        return [] if self.peers is None else self.peers.drain()
 
     def receive_directive(self, d: Directive, t: float) -> dict:
         """A UTM directive arrived at ``t`` [s]; returns the acknowledgement."""
@@ -127,11 +147,13 @@ class RulesAvoider(ReachSetAvoider):
             unresolved=self._unresolved,
             start=self._start if self._start is not None else t,
             utm=self.utm,
+            peers=self.peers,
         )
         if self.utm is not None:
-            mode = self.utm.update(t)
+            mode = self.utm.update(t, self.peers is not None and self.peers.heard(t))
             if mode is not None:
                 ctx.record(f"utm_{mode.value}")
+            threats = self._mandated(threats, t, ctx)
         self._ctx = ctx
         self._start = ctx.start
         weather = self.engine.enabled("weather")
@@ -177,6 +199,18 @@ class RulesAvoider(ReachSetAvoider):
         }
         self._ctx = None
         return plan
+
+    def _mandated(self, threats: Threats, t: float, ctx: RuleContext) -> Threats:
+        """``threats`` with the UTM mandates in force as keep-out geofences (hard constraints of
+        every run, the emergency ones too), each a ``rule:utm_mandate:<id>`` event."""
+        assert self.utm is not None
+        mandates = self.utm.in_force(t)
+        if not mandates:
+            return threats
+        for m in mandates:
+            ctx.events.append(f"rule:utm_mandate:{m.id}")
+            ctx.decisions.append({"rule": "utm_mandate", "mandate": m.record()})
+        return dataclasses.replace(threats, geofences=[*threats.geofences, *(m.geofence() for m in mandates)])
 
     def _restrict(self, d: Decision, run: GridRun) -> np.ndarray | None:
         """Decision point *trajectory restrictions* on the navigation run."""

@@ -6,8 +6,12 @@ cases as the authority computed them (ids with the recipient renamed to the UAS'
 when the authority owns the weather feed, the weather cases of the cells its route crosses
 (§7.5); the newest weather cases are kept across a lost link (the last weather picture). The
 UAS acknowledges every directive it receives. When no directive has arrived for ``lost_after``
-[s] the link is lost and the UAS flies *blind* (spec §7.1): the rules of the air on its own cases
-only (its virtual UTM) until a directive arrives again.
+[s] the link is lost (spec §7.1, non-cooperative): the UAS is in *response* mode while it hears
+its peers over the vehicle-to-vehicle link (roles agreed by acknowledged claims,
+:mod:`avoidance.utm.response`), else *blind*: the rules of the air on its own cases only (its
+virtual UTM), until a directive arrives again. Directives also carry *mandates*
+(:mod:`avoidance.utm.mandate`): each is obeyed from its receipt to its end, across a lost link,
+and acknowledged with every directive while in force.
 
 Merge (tab. 6.10), per peer:
 - UTM case and own case: the UTM's collision point, encounter and roles (reported when the
@@ -27,24 +31,28 @@ from enum import Enum
 import numpy as np
 
 from avoidance.utm.collision_case import CollisionCase
+from avoidance.utm.mandate import Mandate
+from avoidance.utm.response import renamed
 from avoidance.utm.weather_case import WeatherCase
 
 
 class LinkMode(str, Enum):
     COOPERATIVE = "cooperative"  # directives arrive: UTM cases merged with the own ones
-    BLIND = "blind"  # link lost: rules of the air on the own cases only
+    RESPONSE = "response"  # UTM link lost, peers heard: cases agreed with them by acknowledged claims
+    BLIND = "blind"  # UTM link lost, no peer heard: rules of the air on the own cases only
 
 
 @dataclass(frozen=True, slots=True)
 class Directive:
-    """The UTM's commands of one frame for one UAS: its active collision cases and its weather
-    cases (GCF)."""
+    """The UTM's commands of one frame for one UAS: its active collision cases (resolutions),
+    its weather cases (GCF) and the mandates in force for it."""
 
     frame: int
     t: float  # frame time [s]
     to: str  # the recipient's registration id
     cases: tuple[CollisionCase, ...] = ()
     weather: tuple[WeatherCase, ...] = ()
+    mandates: tuple[Mandate, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -105,36 +113,39 @@ class UtmInbox:
     latest: Directive | None = None
     received_t: float | None = None  # sim time the newest directive arrived [s]
     mode: LinkMode = LinkMode.BLIND
+    mandates: dict[str, Mandate] = field(default_factory=dict)  # every mandate received, by id (newest)
 
     def receive(self, d: Directive, t: float) -> dict:
         """Take a directive that arrived at ``t`` [s] (an older frame than the newest is only
-        acknowledged); returns the acknowledgement: frame and arrival time."""
+        acknowledged; its mandates are taken either way); returns the acknowledgement: frame, arrival time and
+        the ids of the mandates in force."""
         if self.latest is None or d.frame > self.latest.frame:
-            cases = tuple(_renamed(c, d.to, self.own) for c in d.cases)
+            cases = tuple(renamed(c, d.to, self.own) for c in d.cases)
             self.latest, self.received_t = replace(d, cases=cases), t
-        return {"frame": d.frame, "received_t": t}
+        self.mandates.update((m.id, m) for m in d.mandates)
+        return {"frame": d.frame, "received_t": t, "mandates": [m.id for m in self.in_force(t)]}
 
-    def update(self, t: float) -> LinkMode | None:
-        """The link mode at ``t`` [s]; the new mode when it changed, else None."""
+    def update(self, t: float, peers_heard: bool = False) -> LinkMode | None:
+        """The link mode at ``t`` [s] (``peers_heard``: a peer was heard over the
+        vehicle-to-vehicle link within ``lost_after``); the new mode when it changed, else None."""
         up = self.received_t is not None and t - self.received_t <= self.lost_after
-        mode = LinkMode.COOPERATIVE if up else LinkMode.BLIND
+        mode = LinkMode.COOPERATIVE if up else LinkMode.RESPONSE if peers_heard else LinkMode.BLIND
         if mode == self.mode:
             return None
         self.mode = mode
         return mode
 
     def cases(self) -> list[CollisionCase]:
-        """The UTM cases to merge (none in blind mode)."""
-        if self.mode == LinkMode.BLIND or self.latest is None:
+        """The UTM cases to merge (none while the link is lost)."""
+        if self.mode != LinkMode.COOPERATIVE or self.latest is None:
             return []
         return list(self.latest.cases)
+
+    def in_force(self, t: float) -> list[Mandate]:
+        """The mandates binding at ``t`` [s], in id order (whatever the link mode)."""
+        return [m for _, m in sorted(self.mandates.items()) if m.active(t)]
 
     def weather(self) -> list[WeatherCase]:
         """The newest directive's weather cases, in blind mode too (cells move slowly and the
         cases carry their velocity: the last weather picture beats none)."""
         return [] if self.latest is None else list(self.latest.weather)
-
-
-def _renamed(c: CollisionCase, name: str, own: str) -> CollisionCase:
-    ids = tuple(own if i == name else i for i in c.ids)
-    return replace(c, ids=(ids[0], ids[1]))

@@ -1,8 +1,9 @@
 """The decision trail of a run's rules of the air and UTM authority, for the Markdown report:
-what the authority decided (cases from open to close, roundabouts, weather cases and forged
-cases sent, vehicles without acknowledgement, links lost and regained, breaches) and what every
-rules vehicle decided (its ``rule:*`` events: cases, merges with the directives, blind /
-cooperative mode, manoeuvres; not the restrictions a manoeuvre is made of), each as one row
+what the authority decided (cases from open to close, roundabouts, weather cases, mandates and
+forged cases sent, vehicles without acknowledgement, links lost and regained, breaches) and what
+every rules vehicle decided (its ``rule:*`` events: cases, merges with the directives,
+cooperative / response / blind mode, claims and acknowledgements of response mode, mandates
+obeyed, manoeuvres; not the restrictions a manoeuvre is made of), each as one row
 from the first to the last consecutive frame it held in. Read from the ``/utm/*`` topics and
 the vehicles' ``/<vehicle>/plan/decision`` events; sim seconds.
 """
@@ -53,13 +54,15 @@ def authority_rows(log: RunLog) -> list[Row]:
         now |= {f"no acknowledgement from {v}" for v in f["unacknowledged"]}
     for d in log.topic("/utm/directive").messages:  # sent at the frame time
         items[float(d["t"])] |= {f"weather case {w['id']} to {d['to']}" for w in d.get("weather", [])}
+        items[float(d["t"])] |= {f"mandate {m['id']} to {d['to']}" for m in d.get("mandates", [])}
     for m in log.topic("/utm/spoof").messages if log.has("/utm/spoof") else []:
         items[float(m["t"])].add(f"forged case {m['case']['ids'][1]} to {m['to']}")
     rows = streaks(sorted(items.items()), "utm")
     for m in log.topic("/utm/link").messages if log.has("/utm/link") else []:
         rows.append((float(m["t"]), None, "utm", f"link to {m['vehicle']} {m['state']}"))
     for m in log.topic("/utm/breach").messages if log.has("/utm/breach") else []:
-        rows.append((float(m["t"]), None, "utm", f"breach of {_case(m['case'])}"))
+        what = f"mandate {m['mandate']['id']} by {m['vehicle']}" if "mandate" in m else _case(m["case"])
+        rows.append((float(m["t"]), None, "utm", f"breach of {what}"))
     return rows
 
 

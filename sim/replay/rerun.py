@@ -12,7 +12,8 @@ ground-station mode planner (HOLD, GUIDED) are re-run by that planner, built aga
 was built from. Plans compare vertex by vertex (positions [m], due times [s], labels and
 status), and a call that made a new plan in one run but kept the previous plan in the other is
 a difference. Under a UTM authority a rules planner joins it again and gets every directive
-(``/utm/directive``) at the time it received it in the run.
+(``/utm/directive``) and every message of its vehicle-to-vehicle link (``/utm/peer/*``) at the
+time it received it in the run.
 """
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ from aircraft.registry import get_airframe
 from avoidance.rules.planner import RulesAvoider
 from avoidance.utm.collision_case import CollisionCase
 from avoidance.utm.directives import Directive
+from avoidance.utm.mandate import Mandate
+from avoidance.utm.response import PeerMessage
 from avoidance.utm.weather_case import WeatherCase
 from sim.core.mission import Mission
 from sim.core.plan import Plan, Planner, Threats
@@ -103,7 +106,7 @@ def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> 
     scenario_planner_name = inputs.messages[0]["planner"] if len(inputs) else ""
     logged_storms: list[dict] | None = None
     storms: list[StormSnapshot] = []
-    inbox = _Directives(log, vehicle, planner, scenario.utm)
+    inbox = _Directives(log, vehicle, planner, scenario.utm, cfg.peer_link is not None)
     flying: Planner | None = planner  # the planner directives reach (None: a mode planner flies)
     mode: Planner | None = None  # the ground-station mode planner, rebuilt from its logged setup
     called = False  # the scenario's planner has been called: a logged mission_setup rebuilds it
@@ -138,52 +141,74 @@ def _rerun_topics(path, vehicle: str) -> list[str]:
     """The topics a re-run reads (the planner's inputs, plans and directives), of those logged."""
     have = {ti.topic for ti in read_info(path).topics}
     want = [f"/{vehicle}/{s}" for s in ("plan/input", "threats", "threats/lidar", "plan")] + ["/utm/directive"]
+    want += [f"/utm/peer/{k}" for k in PEER_KINDS]
     return [t for t in want if t in have]
 
 
-class _Directives:
-    """The UTM directives ``vehicle`` was handed, in order, for the rules planner that flew
-    (none without an authority or for a planner that does not obey one); the first planner
-    joins the authority at the start, as in the run."""
+PEER_KINDS = ("notification", "claim", "ack")
 
-    def __init__(self, log: RunLog, vehicle: str, planner: object, utm: Utm | None):
-        self.vehicle = vehicle
+
+def _directive(m: dict, vehicle: str) -> Directive:
+    """The directive of a ``/utm/directive`` record."""
+    return Directive(
+        m["frame"],
+        m["t"],
+        vehicle,
+        tuple(CollisionCase.from_record(c) for c in m["cases"]),
+        tuple(WeatherCase.from_record(w) for w in m.get("weather", [])),
+        tuple(Mandate.from_record(x) for x in m.get("mandates", [])),
+    )
+
+
+def _peer_message(kind: str, m: dict) -> PeerMessage:
+    """The message of a ``/utm/peer/<kind>`` record."""
+    case = CollisionCase.from_record(m["case"]) if "case" in m else None
+    pos, vel = (np.asarray(m[k], float) if k in m else None for k in ("pos_enu", "vel_enu"))
+    return PeerMessage(kind, m["from"], m["to"], m["t"], case, pos, vel)
+
+
+class _Directives:
+    """The UTM directives and the vehicle-to-vehicle messages ``vehicle`` was handed, in
+    order (directives first within a tick, as the authority ticks before the peer links), for
+    the rules planner that flew (none without an authority or for a planner that does not obey
+    one); the first planner joins the authority at the start, as in the run."""
+
+    def __init__(self, log: RunLog, vehicle: str, planner: object, utm: Utm | None, peer_link: bool):
+        self.vehicle, self.peer_link = vehicle, peer_link
         self.lost_after = 0.0 if utm is None else utm.lost_after
         self.joined: object | None = None
-        self.queue: list[tuple[float, Directive]] = []
+        self.queue: list[tuple[float, int, float, Directive | PeerMessage]] = []
         if utm is None or not isinstance(planner, RulesAvoider):
             return
         self._join(planner)
-        recs = [m for m in log.topic("/utm/directive").messages if m["to"] == vehicle and m["received_t"] is not None]
-        self.queue = [
-            (
-                float(m["received_t"]),
-                Directive(
-                    m["frame"],
-                    m["t"],
-                    vehicle,
-                    tuple(CollisionCase.from_record(c) for c in m["cases"]),
-                    tuple(WeatherCase.from_record(w) for w in m.get("weather", [])),
-                ),
-            )
-            for m in sorted(recs, key=lambda m: (m["received_t"], m["frame"]))
-        ]
-        self.queue.reverse()  # popped from the end: earliest first
+        for m in log.topic("/utm/directive").messages:
+            if m["to"] == vehicle and m["received_t"] is not None:
+                self.queue.append((float(m["received_t"]), 0, float(m["frame"]), _directive(m, vehicle)))
+        for kind in PEER_KINDS:
+            for m in log.topic(f"/utm/peer/{kind}").messages if log.has(f"/utm/peer/{kind}") else []:
+                if m["to"] == vehicle and m["received_t"] is not None:
+                    self.queue.append((float(m["received_t"]), 1, float(m["t"]), _peer_message(kind, m)))
+        self.queue.sort(key=lambda q: q[:3], reverse=True)  # popped from the end: earliest first
 
     def _join(self, planner: RulesAvoider) -> None:
-        planner.join_utm(self.vehicle, self.lost_after)
+        planner.join_utm(self.vehicle, self.lost_after, self.peer_link)
         self.joined = planner
 
     def deliver(self, flying: Planner | None, t: float) -> None:
-        """Hand ``flying`` the directives handed over by ``t`` [s] (before the calls at ``t``);
-        a rules planner that has not joined joins first; without a rules planner flying they
-        go unheard."""
+        """Hand ``flying`` the directives and peer messages handed over by ``t`` [s] (before the
+        calls at ``t``); a rules planner that has not joined joins first; without a rules
+        planner flying they go unheard. What the planner would send is dropped."""
         while self.queue and self.queue[-1][0] <= t + 1e-9:
-            received, d = self.queue.pop()
+            received, _, _, m = self.queue.pop()
             if isinstance(flying, RulesAvoider):
                 if flying is not self.joined:
                     self._join(flying)
-                flying.receive_directive(d, received)
+                if isinstance(m, Directive):
+                    flying.receive_directive(m, received)
+                elif flying.peers is not None:
+                    flying.receive_peer(m, received)
+        if isinstance(flying, RulesAvoider):
+            flying.peer_outbox()
 
 
 def _compare(report: RerunReport, t: float, rec: dict | None, new: Plan | None) -> None:
