@@ -60,7 +60,7 @@ from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
 from guidance.mptp.heuristics import GoalAvailability
 from guidance.mptp.holding import holding_orbit, safe_area_leg
-from guidance.mptp.keeping import position_at, remaining_clear
+from guidance.mptp.keeping import TOUCH_M, extra_growth_m, position_at, remaining_clear
 from guidance.mptp.lead_in import LeadIn, held_turn_rate, lead_in
 from guidance.mptp.search import HOLD, Trajectory, default_workspace, plan_trajectory
 from guidance.mptp.statespace import free_space
@@ -140,7 +140,8 @@ class MptpPlanner:
     def _keeps(self, est: VehicleState, new: Plan, t: float, k: int, now: MptpConfig, near, key) -> bool:
         """Whether to fly on the current plan instead of ``new`` (keeping.py): it reaches goal
         ``k``, the aircraft is within ``keep_within_m`` of where it has it now, the rest of it is
-        clear of this nowcast's obstacle at its probability, and ``new`` does not arrive earlier
+        clear of this nowcast's obstacle at its probability and the extra margin it was planned
+        with (keeping.extra_growth_m), and ``new`` does not arrive earlier
         by more than ``keep_slack`` of its remaining time."""
         old = self.plan_
         if old is None or self.cfg.keep_within_m <= 0 or k != self._goal_index or old.times[-1] <= t:
@@ -154,7 +155,7 @@ class MptpPlanner:
         p = float(old.diagnostics.get("probability", now.probability))
         cfg = now if p == now.probability else now.with_(probability=p)
         tl, _ = self._timeline_for(near, t, self.wind_ne, cfg, key)
-        return remaining_clear(old, tl, t, self.wind_ne)
+        return remaining_clear(old, tl, t, self.wind_ne, TOUCH_M + extra_growth_m(old, tl, cfg))
 
     def margins_at(self, t: float):
         """The margin region of the last replan's timeline at time ``t`` [s], on the ground
