@@ -32,8 +32,10 @@ level (the mean of the estimate's and the goal's heights): storms drift at their
 the wind, the goal drifts at minus the wind, the course is that of the air velocity, and the
 planned states map back to the ground at their times.
 
-Each replan plans at the vehicle's current true airspeed (the estimate's; the configured
-``tas_mps`` only while the estimate has none, or always with ``speed_source = "config"``), so
+Each replan plans at the vehicle's current true airspeed (the mean of the estimate's over the
+planner calls of the last ``replan_period_s``, so that one noisy pitot sample does not set a
+plan's schedule; the configured ``tas_mps`` only while the estimate has none, or always with
+``speed_source = "config"``), so
 the turn radius and leg lengths follow the speed as it grows with altitude at a fixed
 equivalent airspeed; and only with the storm cells whose vertical extent the vehicle can be
 near over the horizon (vertical.py).
@@ -51,6 +53,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import deque
 
 import numpy as np
 import shapely
@@ -114,6 +117,7 @@ class MptpPlanner:
         self._nowcast_key: tuple | None = None
         self._timelines: dict[float, ObstacleTimeline] = {}  # of the last nowcast, per P
         self._issue: tuple = ()  # identity of the last nowcast seen
+        self._tas: deque[tuple[float, float]] = deque()  # (t [s], TAS [m/s]) of the calls of the last period
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         m = self.mission
@@ -132,6 +136,7 @@ class MptpPlanner:
         issue = tuple((id(s), s.t) for s in threats.storms)
         due = k != self._goal_index or issue != self._issue or t - self._t_plan >= self.cfg.replan_period_s - 1e-9
         self._issue = issue
+        self._sample_tas(estimate, t)
         if self.plan_ is None or due:
             self.plan_ = self._replan(estimate, threats.storms or [StormSnapshot(t, ())], t, k)
             self._t_plan, self._goal_index = t, k
@@ -179,12 +184,25 @@ class MptpPlanner:
             return self._timelines[cfg.probability], time.perf_counter() - wall
         return self._timelines[cfg.probability], 0.0
 
+    def _sample_tas(self, est: VehicleState, t: float) -> None:
+        """Adds the estimate's TAS at call time ``t`` [s] and drops the samples older than one
+        ``replan_period_s``; an estimate below ``MIN_AIRSPEED`` (none) clears them."""
+        if est.tas_mps < MIN_AIRSPEED:
+            self._tas.clear()
+            return
+        self._tas.append((t, float(est.tas_mps)))
+        while self._tas[0][0] <= t - self.cfg.replan_period_s:
+            self._tas.popleft()
+
     def config_now(self, est: VehicleState) -> MptpConfig:
         """The configuration at the vehicle's current true airspeed [m/s] (``speed_source``
-        "estimate"; the configured one while the estimate's is below ``MIN_AIRSPEED``)."""
+        "estimate": the mean of the estimate's over the calls of the last ``replan_period_s``,
+        this one's alone when none was sampled; the configured one while the estimate's is below
+        ``MIN_AIRSPEED``)."""
         if self.cfg.speed_source == "config" or est.tas_mps < MIN_AIRSPEED:
             return self.cfg
-        return self.cfg.with_(tas_mps=float(est.tas_mps))
+        tas = np.mean([v for _, v in self._tas]) if self._tas else est.tas_mps
+        return self.cfg.with_(tas_mps=float(tas))
 
     def _storms_near(self, est: VehicleState, storms: list[StormSnapshot], k: int, cfg: MptpConfig):
         """The cells the vehicle can come near in height over the horizon (vertical.py), the
