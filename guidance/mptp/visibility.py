@@ -9,6 +9,9 @@ or the outside of the workspace (the thesis's reversed mission-area ring).
   when the previous and next vertices of v lie on the same side of the line s-v (or on it).
 - Only convex obstacle corners (left turn with the obstacle on the left) can be on a shortest
   path; reflex vertices are dropped (4.1.2).
+- Memory: the pairwise tests (every candidate against every edge its bounding box meets, every
+  convex vertex against every other) run in blocks of at most MAX_PAIRS pairs, so a boundary
+  of many vertices costs time, not memory that grows with the square of its size.
 - Visibility: a candidate segment is visible when no boundary edge crosses it away from its two
   end points (crossings through an edge's end point count, so passing exactly through a vertex
   is conservatively blocked) and its midpoint lies in the free space (on its boundary counts).
@@ -26,6 +29,7 @@ import shapely
 from shapely.geometry.base import BaseGeometry
 
 END_TOL_M = 1e-3  # crossings closer than this to a candidate's end points are ignored [m]
+MAX_PAIRS = 2_000_000  # (segment, edge) or (vertex, vertex) pairs held in memory at once
 
 
 @dataclass(frozen=True, slots=True)
@@ -69,11 +73,13 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
-def tangent(src: np.ndarray, b: Boundary) -> np.ndarray:
-    """(S, V) bool: the segment from each source to each convex vertex is tangent at the vertex."""
-    d = b.verts[None, :, :] - src[:, None, :]
-    c1 = _cross(d, (b.prev - b.verts)[None])
-    c2 = _cross(d, (b.next - b.verts)[None])
+def tangent(src: np.ndarray, b: Boundary, cols: np.ndarray | slice = slice(None)) -> np.ndarray:
+    """(S, V) bool: the segment from each source to each convex vertex (of ``cols``, an index
+    or slice of them) is tangent at the vertex."""
+    verts = b.verts[cols]
+    d = verts[None, :, :] - src[:, None, :]
+    c1 = _cross(d, (b.prev[cols] - verts)[None])
+    c2 = _cross(d, (b.next[cols] - verts)[None])
     return c1 * c2 >= 0.0
 
 
@@ -90,10 +96,20 @@ def blocked(p: np.ndarray, q: np.ndarray, b: Boundary) -> np.ndarray:
 
 def first_hit(p: np.ndarray, q: np.ndarray, b: Boundary) -> np.ndarray:
     """(C,) fraction along p -> q of the first boundary crossing (inf when none). Edges are
-    pre-selected by bounding box (STRtree), then intersected exactly in one numpy pass."""
+    pre-selected by bounding box (STRtree), then intersected exactly in one numpy pass per
+    block of candidates (a block meets at most MAX_PAIRS edges)."""
     out = np.full(len(p), np.inf)
     if not len(p) or not b.n_edges:
         return out
+    step = max(1, MAX_PAIRS // b.n_edges)
+    for k in range(0, len(p), step):
+        out[k : k + step] = _first_hit(p[k : k + step], q[k : k + step], b)
+    return out
+
+
+def _first_hit(p: np.ndarray, q: np.ndarray, b: Boundary) -> np.ndarray:
+    """first_hit of one block of candidates."""
+    out = np.full(len(p), np.inf)
     ci, ei = b.tree.query(shapely.linestrings(np.stack([p, q], 1)))
     if not len(ci):
         return out
@@ -119,9 +135,18 @@ def visible_vertices(src: np.ndarray, b: Boundary) -> tuple[np.ndarray, np.ndarr
 
 def reduced_graph(b: Boundary) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Edges (i, j, length) of the reduced visibility graph VG_r among the convex vertices:
-    bitangent (tangent at both ends) and visible, each undirected edge once (i < j)."""
-    t = tangent(b.verts, b)
-    i, j = np.nonzero(np.triu(t & t.T, k=1))
+    bitangent (tangent at both ends) and visible, each undirected edge once (i < j); the
+    tangency matrix is built in blocks of rows of at most MAX_PAIRS entries."""
+    n = len(b.verts)
+    rows = max(1, MAX_PAIRS // max(n, 1))
+    ii, jj = [np.empty(0, int)], [np.empty(0, int)]
+    for r0 in range(0, n, rows):
+        block = slice(r0, min(n, r0 + rows))
+        both = tangent(b.verts[block], b) & tangent(b.verts, b, block).T  # (rows, n): at j and at i
+        bi, bj = np.nonzero(np.triu(both, k=r0 + 1))
+        ii.append(bi + r0)
+        jj.append(bj)
+    i, j = np.concatenate(ii), np.concatenate(jj)
     ok = ~blocked(b.verts[i], b.verts[j], b)
     i, j = i[ok], j[ok]
     return i, j, np.linalg.norm(b.verts[j] - b.verts[i], axis=1)
