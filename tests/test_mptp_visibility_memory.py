@@ -1,6 +1,8 @@
 """The pairwise visibility tests of the MPTP (guidance/mptp/visibility.py) hold at most
 MAX_PAIRS pairs at once: a free space with many obstacle corners costs time, not memory that
-grows with the square of its corners (issue 20: a corridor_opens replan was killed at 22 GB)."""
+grows with the square of its corners (issue 20: a corridor_opens replan was killed at 22 GB),
+and a reduced visibility graph over GRAPH_PAIR_BUDGET pairs is not built: the search runs on
+EDH and the plan's diagnostics say so."""
 
 import tracemalloc
 
@@ -10,7 +12,13 @@ import shapely
 from shapely.geometry import box
 
 from guidance.mptp import visibility
+from guidance.mptp.config import MptpConfig
+from guidance.mptp.planner import MptpPlanner
 from guidance.mptp.visibility import boundary_of, first_hit, reduced_graph
+from sim.core.mission import Mission
+from sim.core.plan import Plan, Threats
+from sim.core.threats import StormSnapshot
+from sim.testbeds.mptp_openloop import vehicle_state
 
 
 def _scattered(n: int) -> visibility.Boundary:
@@ -54,3 +62,24 @@ def test_the_peak_memory_stays_within_the_pair_budget(monkeypatch, fn):
     _, peak = _peak(calls[fn])
     assert len(b.verts) == 400
     assert peak < 8e6, f"{peak / 1e6:.1f} MB"
+
+
+def test_an_ssph_graph_over_budget_is_skipped_with_a_note_and_the_search_runs_on_edh(monkeypatch):
+    """A replan around one cell: with the reduced graph's budget at 10 (segment, edge) pairs the
+    SSPH is not built, the plan is the EDH search's own, and its diagnostics say why."""
+    cfg = MptpConfig(safety_single_m=(1000.0,) * 3, sigma_front_mps=0.0, sigma_back_mps=0.0)
+    storms = [StormSnapshot(0.0, (box(6000.0, -1500.0, 9000.0, 1500.0),), np.zeros((1, 2)))]
+
+    def plan(c: MptpConfig) -> Plan:
+        planner = MptpPlanner(Mission(np.array([[20_000.0, 0.0, 0.0]]), c.tas_mps, 500.0), c)
+        return planner.plan(vehicle_state(0.0, np.zeros(2), 0.0, c.tas_mps), Threats(storms=storms), 0.0)
+
+    full = plan(cfg)
+    assert "search_note" not in full.diagnostics and (full.labels >= 0).any()
+    edh = plan(cfg.with_(heuristic="edh"))
+    monkeypatch.setattr(visibility, "GRAPH_PAIR_BUDGET", 10)
+    capped = plan(cfg)
+    assert capped.diagnostics["search_note"].startswith("ssph skipped, edh used: its reduced visibility graph tests")
+    assert "more than 10 (segment, edge) pairs" in capped.diagnostics["search_note"]
+    assert np.array_equal(capped.positions, edh.positions) and np.array_equal(capped.times, edh.times)
+    assert capped.diagnostics["expanded"] == edh.diagnostics["expanded"]

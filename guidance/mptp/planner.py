@@ -304,6 +304,8 @@ class MptpPlanner:
         )
         if traj.start_space is not None:
             diag["vertices"] = len(traj.start_space.boundary.verts)
+        if traj.note:
+            diag["search_note"] = traj.note
         pts, times, rates = traj.positions, traj.times, None
         if cfg.turn_model != "simple" and len(pts) >= 2:
             pts, times, rates = written_out(pts, times, traj.courses, traj.kinds[1:] == HOLD, cfg)

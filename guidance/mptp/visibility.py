@@ -22,6 +22,7 @@ or the outside of the workspace (the thesis's reversed mission-area ring).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,6 +31,11 @@ from shapely.geometry.base import BaseGeometry
 
 END_TOL_M = 1e-3  # crossings closer than this to a candidate's end points are ignored [m]
 MAX_PAIRS = 2_000_000  # (segment, edge) or (vertex, vertex) pairs held in memory at once
+GRAPH_PAIR_BUDGET = 100_000_000  # (segment, edge) pairs one reduced visibility graph may test
+
+
+class OverBudget(RuntimeError):
+    """A reduced visibility graph would test more than GRAPH_PAIR_BUDGET (segment, edge) pairs."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -83,34 +89,40 @@ def tangent(src: np.ndarray, b: Boundary, cols: np.ndarray | slice = slice(None)
     return c1 * c2 >= 0.0
 
 
-def blocked(p: np.ndarray, q: np.ndarray, b: Boundary) -> np.ndarray:
+def blocked(p: np.ndarray, q: np.ndarray, b: Boundary, budget: float = math.inf) -> np.ndarray:
     """(C,) bool: segment p_i -> q_i is crossed by a boundary edge away from its end points, or
     its midpoint is outside the free space (by more than END_TOL_M: the midpoint of a segment
-    along a boundary edge is a rounding error off it)."""
+    along a boundary edge is a rounding error off it). ``budget``: see first_hit."""
     mid = 0.5 * (p + q)
-    out = first_hit(p, q, b) < np.inf
+    out = first_hit(p, q, b, budget) < np.inf
     near = ~out & ~shapely.contains_xy(b.free, mid[:, 0], mid[:, 1])  # inside: distance 0
     out[near] = ~shapely.dwithin(b.free, shapely.points(mid[near]), END_TOL_M)
     return out
 
 
-def first_hit(p: np.ndarray, q: np.ndarray, b: Boundary) -> np.ndarray:
+def first_hit(p: np.ndarray, q: np.ndarray, b: Boundary, budget: float = math.inf) -> np.ndarray:
     """(C,) fraction along p -> q of the first boundary crossing (inf when none). Edges are
     pre-selected by bounding box (STRtree), then intersected exactly in one numpy pass per
-    block of candidates (a block meets at most MAX_PAIRS edges)."""
+    block of candidates (a block meets at most MAX_PAIRS edges). Raises OverBudget when the
+    (candidate, edge) pairs tested exceed ``budget``."""
     out = np.full(len(p), np.inf)
     if not len(p) or not b.n_edges:
         return out
     step = max(1, MAX_PAIRS // b.n_edges)
+    tested = 0
     for k in range(0, len(p), step):
-        out[k : k + step] = _first_hit(p[k : k + step], q[k : k + step], b)
+        ci, ei = b.tree.query(shapely.linestrings(np.stack([p[k : k + step], q[k : k + step]], 1)))
+        tested += len(ci)
+        if tested > budget:
+            raise OverBudget(f"more than {budget:.0f} (segment, edge) pairs on a boundary of {b.n_edges} edges")
+        out[k : k + step] = _first_hit(p[k : k + step], q[k : k + step], b, ci, ei)
     return out
 
 
-def _first_hit(p: np.ndarray, q: np.ndarray, b: Boundary) -> np.ndarray:
-    """first_hit of one block of candidates."""
+def _first_hit(p: np.ndarray, q: np.ndarray, b: Boundary, ci: np.ndarray, ei: np.ndarray) -> np.ndarray:
+    """first_hit of one block of candidates, whose pre-selected (candidate, edge) pairs are
+    ``ci``, ``ei``."""
     out = np.full(len(p), np.inf)
-    ci, ei = b.tree.query(shapely.linestrings(np.stack([p, q], 1)))
     if not len(ci):
         return out
     pp, r = p[ci], q[ci] - p[ci]
@@ -136,7 +148,8 @@ def visible_vertices(src: np.ndarray, b: Boundary) -> tuple[np.ndarray, np.ndarr
 def reduced_graph(b: Boundary) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Edges (i, j, length) of the reduced visibility graph VG_r among the convex vertices:
     bitangent (tangent at both ends) and visible, each undirected edge once (i < j); the
-    tangency matrix is built in blocks of rows of at most MAX_PAIRS entries."""
+    tangency matrix is built in blocks of rows of at most MAX_PAIRS entries. Raises OverBudget
+    when its visibility tests would take more than GRAPH_PAIR_BUDGET (segment, edge) pairs."""
     n = len(b.verts)
     rows = max(1, MAX_PAIRS // max(n, 1))
     ii, jj = [np.empty(0, int)], [np.empty(0, int)]
@@ -147,6 +160,6 @@ def reduced_graph(b: Boundary) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         ii.append(bi + r0)
         jj.append(bj)
     i, j = np.concatenate(ii), np.concatenate(jj)
-    ok = ~blocked(b.verts[i], b.verts[j], b)
+    ok = ~blocked(b.verts[i], b.verts[j], b, GRAPH_PAIR_BUDGET)
     i, j = i[ok], j[ok]
     return i, j, np.linalg.norm(b.verts[j] - b.verts[i], axis=1)
