@@ -157,7 +157,11 @@ PLAN_INPUT = _obj(
     {
         "t": (_NUM, "sim time of the planner call [s]"),
         "planner": ({"type": "string"}, "planner name"),
-        "estimate": ({"type": "object"}, "the estimate the planner saw (cosim.VehicleState)"),
+        "estimate": (
+            {"type": "object"},
+            "the estimate the planner saw (cosim.VehicleState; with pos_sigma_m, the 1-sigma N, E, D"
+            " position uncertainty [m], from an estimator that has one)",
+        ),
         "mission": (
             {"type": "object"},
             "mission progress: reached = [[waypoint index, sim time [s]], ...], landed_t, completed_t [s] or null",

@@ -71,7 +71,8 @@ def state_dict(s: VehicleState) -> dict:
 
 
 def state_from_dict(d: dict) -> VehicleState:
-    """A logged ``cosim.VehicleState`` message (plain dict) back into a VehicleState."""
+    """A logged ``cosim.VehicleState`` message (plain dict, with ``pos_sigma_m`` in a planner
+    input record) back into a VehicleState."""
     return VehicleState(
         t=float(d["t"]),
         pos_ned=np.asarray(d["pos_ned"], float),
@@ -85,6 +86,7 @@ def state_from_dict(d: dict) -> VehicleState:
         eas_mps=float(d.get("eas_mps", 0.0)),
         alpha_rad=float(d.get("alpha_rad", 0.0)),
         beta_rad=float(d.get("beta_rad", 0.0)),
+        pos_sigma_m=np.asarray(d["pos_sigma_m"], float) if "pos_sigma_m" in d else None,
     )
 
 
@@ -509,10 +511,13 @@ class VehicleLogWriter:
         mode change or mission upload, a repeated mission): the record then holds the mission it
         was built for (``mission_setup``) and, for a ground-station mode planner, what it was
         built from (``mode_setup``)."""
+        seen = state_dict(estimate)
+        if estimate.pos_sigma_m is not None:
+            seen["pos_sigma_m"] = estimate.pos_sigma_m.tolist()
         rec = {
             "t": t,
             "planner": planner,
-            "estimate": state_dict(estimate),
+            "estimate": seen,
             "mission": mission_progress(mission),
             "new_plan": new_plan,
         }

@@ -340,3 +340,35 @@ def test_min_height_keeps_candidates_above_the_floor():
     assert p.diagnostics["status"] == "avoid" and (-p.positions[:, 2]).min() >= 6.0
     with pytest.raises(ValueError, match="min_height_m"):
         GeometricConfig(min_height_m=float("nan"))
+
+
+def test_own_position_uncertainty_grows_every_threat_by_k_sigma_own():
+    """A sphere 0.5 m outside the body clearance of the reference is no conflict; an estimate
+    with a 0.6 m largest 1-sigma axis and ``k_sigma_own = 1`` grows it into one. Without that
+    option, or an estimate without uncertainty, nothing changes. The committed path's re-check
+    keeps the allowance: a sphere 0.5 m outside the body clearance of the path drops it."""
+    sigma = np.array([0.3, 0.6, 0.2])
+
+    def first_plan(k_own: float, with_sigma: bool) -> tuple[GeometricAvoider, Plan]:
+        cfg = GeometricConfig(start_shift_s=0.0, k_sigma_own=k_own, conflict_horizon_s=8.0)
+        av = GeometricAvoider(REF, 5.0, cfg)
+        est = state(0.0, 10.0)
+        if with_sigma:
+            est.pos_sigma_m = sigma
+        side = Threats(spheres=[sphere(40.0, east=av.config.r_uav + 2.0 + 0.5)])
+        return av, av.plan(est, side, 0.0)
+
+    assert first_plan(0.0, True)[1].diagnostics["status"] == "no_conflict"
+    assert first_plan(1.0, False)[1].diagnostics["status"] == "no_conflict"
+    av, p = first_plan(1.0, True)
+    assert p.diagnostics["status"] == "avoid"
+    assert av.own_allowance(state(0.0, 0.0)) == 0.0
+
+    av = GeometricAvoider(REF, 5.0, GeometricConfig(start_shift_s=0.0, k_sigma_own=1.0))
+    first = av.plan(state(0.0, 10.0), Threats(spheres=[sphere(25.0)]), 0.0)
+    peak, out = peak_of(first)
+    near = Threats(spheres=[sphere(25.0), SphereThreat("near", 0.5, peak + out * (1.0 + av.config.r_uav + 0.5), 1.0)])
+    assert av.plan(state(0.5, 12.5), near, 0.5).diagnostics["status"] == "committed"
+    uncertain = state(0.5, 12.5)
+    uncertain.pos_sigma_m = sigma
+    assert av.plan(uncertain, near, 0.5).diagnostics["status"] != "committed"

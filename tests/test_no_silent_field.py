@@ -743,6 +743,11 @@ ENCOUNTERS: dict[str, dict] = {
 
 # the same with the HAPS at 17 km climbing to 18 km and the cells from 18.5 km up (the MPTP's
 # vertical options: within 1 km of the heights it reaches in the horizon at 1 m/s)
+# the geometric encounter on the default EKF, whose estimates carry a position uncertainty, with
+# the allowance for it on: its plans re-run from the log only if the log keeps that uncertainty
+ENCOUNTERS["geometric_ekf"] = copy.deepcopy(ENCOUNTERS["geometric"]) | {"name": "silent_geometric_ekf"}
+del ENCOUNTERS["geometric_ekf"]["vehicle"][0]["estimator"]
+ENCOUNTERS["geometric_ekf"]["vehicle"][0]["planner"]["options"] = {"k_sigma_own": 1.0}
 ENCOUNTERS["mptp_high_cells"] = copy.deepcopy(ENCOUNTERS["mptp"]) | {"name": "silent_mptp_high_cells"}
 ENCOUNTERS["mptp_high_cells"]["weather"]["base"] = 18_500.0
 ENCOUNTERS["mptp_high_cells"]["vehicle"][0]["initial"]["altitude"] = 17_000.0
@@ -880,6 +885,7 @@ def _decision_table() -> dict[str, Decision]:
         _options(dynamic_mode="swept"),
         _options(main_threat_extension_s=3.0),
     )
+    out[prefix + "k_sigma_own"] = ("geometric_ekf", None, _options(k_sigma_own=0.0))
     prefix = "vehicle.planner<MptpPlanner>.options."
     out[prefix + "safety_line_m"] = ("mptp", _options(line_aspect=1.0), _options(safety_line_m=[1000.0] * 3))
     out[prefix + "wind_forecast"] = ("mptp", _set("wind.east", 10.0), _options(wind_forecast="none"))

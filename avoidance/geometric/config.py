@@ -98,6 +98,10 @@ class GeometricConfig:
       the margin is also a hysteresis against track noise (closed loop; 0 = thesis).
     - ``main_threat_extension_s`` [s]: swept mode, extends a moving main threat past p_c.
     - ``k_sigma``: threat radius inflation in standard deviations of the track covariance.
+    - ``k_sigma_own``: threat radius inflation in standard deviations of the ownship's own
+      position estimate (its largest axis, ``VehicleState.pos_sigma_m``; nothing when the estimate
+      carries none): the relative position is wrong by the ownship's error as much as by the
+      track's, and a candidate's clearance is judged from the estimate (0 = the spec's avoider).
     - ``start_shift_s`` [s]: latency compensation, start point moved ahead along the reference.
     - ``weights``: (k_S, k_T, k_C) on normalised S_rp, T and CMO.
     - ``log_limits``: ln-space clip limits of (S, S_rp, M).
@@ -126,6 +130,7 @@ class GeometricConfig:
     select_margin_m: float = 0.0
     main_threat_extension_s: float = 0.0
     k_sigma: float = 0.0
+    k_sigma_own: float = 0.0
     smoothness: str = "curvature"
     k_p: float = 1.0
     k1: float = 0.5
@@ -167,6 +172,7 @@ class GeometricConfig:
             "select_margin_m",
             "main_threat_extension_s",
             "k_sigma",
+            "k_sigma_own",
             "k_p",
             "start_shift_s",
             "k1",

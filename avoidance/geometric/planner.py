@@ -74,17 +74,18 @@ class _Commitment:
         return np.vstack([here, self.points_enu[later]]), np.concatenate([[0.0], self.times[later] - t_here])
 
 
-def sensed_threats(threats: Threats, t0: float, k_sigma: float) -> tuple[list[Threat], int]:
+def sensed_threats(threats: Threats, t0: float, k_sigma: float, own_m: float = 0.0) -> tuple[list[Threat], int]:
     """Spheres and intruder tracks as core threats predicted to time ``t0`` [s] (ENU, radius
-    inflated by the covariances, §3.1), and the number of threat objects this planner ignores
-    (obstacles, geofences, storms, LiDAR)."""
+    inflated by the covariances, §3.1, and by ``own_m`` [m], the allowance for the ownship's own
+    position error), and the number of threat objects this planner ignores (obstacles,
+    geofences, storms, LiDAR)."""
     out = []
     for th in threats.spheres:
         r, g = inflate(th.radius_m, th.center_cov, None, k_sigma, t0 - th.t)
-        out.append(_predicted(th.id, th.center_ned, th.vel_ned, r, g, t0 - th.t))
+        out.append(_predicted(th.id, th.center_ned, th.vel_ned, r + own_m, g, t0 - th.t))
     for tr in threats.intruders:
         r, g = inflate(tr.radius_m, tr.pos_cov, tr.vel_cov, k_sigma, t0 - tr.t)
-        out.append(_predicted(tr.id, tr.pos_ned, tr.vel_ned, r, g, t0 - tr.t))
+        out.append(_predicted(tr.id, tr.pos_ned, tr.vel_ned, r + own_m, g, t0 - tr.t))
     ignored = len(threats.obstacles) + len(threats.geofences) + len(threats.storms) + (threats.lidar is not None)
     return out, ignored
 
@@ -137,6 +138,7 @@ class GeometricAvoider:
         self._commit: _Commitment | None = None
         self._t_planned = -np.inf  # time of the last candidate generation [s]
         self._last: tuple[float, AvoidanceResult, list[Threat]] | None = None
+        self._own_m = 0.0  # the last estimate's own-position allowance [m]
         if reference_ned is not None:
             if speed is None:
                 raise ValueError("a reference needs its speed")
@@ -151,6 +153,15 @@ class GeometricAvoider:
         self._commit = None
         self._t_planned = -np.inf
         self._last = None
+        self._own_m = 0.0
+
+    def own_allowance(self, estimate: VehicleState) -> float:
+        """``k_sigma_own`` x the largest 1-sigma axis of the estimate's position [m] (0 when it
+        carries no uncertainty)."""
+        sigma = estimate.pos_sigma_m
+        if self.config.k_sigma_own == 0.0 or sigma is None:
+            return 0.0
+        return self.config.k_sigma_own * float(np.max(sigma))
 
     # -- protocol -------------------------------------------------------------------------------
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
@@ -160,6 +171,7 @@ class GeometricAvoider:
         if not (np.isfinite(t) and np.all(np.isfinite(pos)) and np.all(np.isfinite(vel))):
             raise ValueError("estimate position, velocity and time must be finite")
         cfg = self.config
+        self._own_m = self.own_allowance(estimate)
         s_now, cross = ref.project(pos)
         replan = ""
         commit = self._commit
@@ -179,7 +191,7 @@ class GeometricAvoider:
         v_along = min(max(float(vel @ ref.x_hat), 0.0), ref.speed)
         s_e = min(s_now + v_along * cfg.start_shift_s, ref.length)
         t_e = t + cfg.start_shift_s
-        core, ignored = sensed_threats(threats, t_e, cfg.k_sigma)
+        core, ignored = sensed_threats(threats, t_e, cfg.k_sigma, self._own_m)
         base: _Diagnostics = {"cross_track_m": cross, "ignored_threats": ignored, "replan_reason": replan}
         start = ref.point(s_e)
         ta = ThreatArrays.of(core)
@@ -238,7 +250,7 @@ class GeometricAvoider:
         ref, cfg = self._require_reference(), self.config
         here = ned_to_enu(pos_ned)
         pts, times = c.remaining(ref.project(here)[0])
-        core, _ = sensed_threats(threats, t, cfg.k_sigma)
+        core, _ = sensed_threats(threats, t, cfg.k_sigma, self._own_m)
         ids = [th.id for th in core]
         main_index = ids.index(c.main_id) if c.main_id in ids else None
         ta = ThreatArrays.of(core)

@@ -21,7 +21,9 @@ import numpy as np
 
 @dataclass(slots=True)
 class VehicleState:
-    """Kinematic and air-data state of one vehicle at sim time ``t`` [s]."""
+    """Kinematic and air-data state of one vehicle at sim time ``t`` [s]. ``pos_sigma_m``: the
+    estimate's 1-sigma position uncertainty along N, E, D [m] (the estimator's covariance
+    diagonal); None where nothing is estimated (truth, perfect sensors)."""
 
     t: float
     pos_ned: np.ndarray
@@ -36,6 +38,7 @@ class VehicleState:
     alpha_rad: float = 0.0
     beta_rad: float = 0.0
     extra: dict[str, float] = field(default_factory=dict)
+    pos_sigma_m: np.ndarray | None = None
 
     @property
     def roll(self) -> float:

@@ -60,7 +60,10 @@ from sim.sensors.config import StrictConfig
 from sim.sensors.measurements import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample
 from sim.sensors.suite import SensorSuiteConfig
 
-_DIAGONAL = [k * (m.N + 1) for k in range(16)]  # flat indices of the covariance diagonal's first 16
+_DIAGONAL = [k * (m.N + 1) for k in range(16)]
+_POS_DIAGONAL = _DIAGONAL[
+    0:3
+]  # the position error's variances, N, E, D [m^2]  # flat indices of the covariance diagonal's first 16
 _C_REFRESH_M = 10.0  # recompute the velocity map after this much travel [m] (C changes ~2e-6/10 m)
 
 
@@ -455,4 +458,5 @@ class InsEkf:
             lon_deg=float(lon),
             tas_mps=tas,
             eas_mps=eas,
+            pos_sigma_m=np.sqrt(np.maximum(self.kf.P.take(_POS_DIAGONAL), 0.0)),
         )
