@@ -79,7 +79,7 @@ def test_an_ssph_graph_over_budget_is_skipped_with_a_note_and_the_search_runs_on
     edh = plan(cfg.with_(heuristic="edh"))
     monkeypatch.setattr(visibility, "GRAPH_PAIR_BUDGET", 10)
     capped = plan(cfg)
-    assert capped.diagnostics["search_note"].startswith("ssph skipped, edh used: its reduced visibility graph tests")
-    assert "more than 10 (segment, edge) pairs" in capped.diagnostics["search_note"]
+    note = str(capped.diagnostics["search_note"])
+    assert note.startswith("ssph skipped, edh used: its reduced visibility graph tests more than 10 (segment, edge)")
     assert np.array_equal(capped.positions, edh.positions) and np.array_equal(capped.times, edh.times)
     assert capped.diagnostics["expanded"] == edh.diagnostics["expanded"]
