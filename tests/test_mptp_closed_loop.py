@@ -76,8 +76,8 @@ def test_an_opening_corridor_is_waited_for_in_closed_loop(fly):
 @pytest.mark.xfail(
     strict=False,
     reason="issue 20: not shown on all 20 seeds: with the period's mean planning TAS and the keep test at the "
-    "planned margin, seeds 1-13 and 16 flown, 13 of 14 within 5 %; seed 7 +9.3 % (the search's first complete "
-    "plan predicts 2003 s); 14, 15, 17-20 not re-flown; docs/mptp.md 'Corridor'",
+    "planned margin, seeds 1-16 flown, 14 of 16 within 5 %; seeds 7 +9.3 %, 14 +6.1 % (the search's first complete "
+    "plan predicts 2003 s); 17-20 not re-flown; docs/mptp.md 'Corridor'",
 )
 @pytest.mark.parametrize("seed", range(1, 21))
 def test_a_corridor_opening_after_20_min_is_held_for_and_taken(fly, scenario_data, seed):
