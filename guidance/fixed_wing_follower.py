@@ -5,7 +5,9 @@ is within the acceptance radius of its end or has passed the line through its en
 to it; a leg of a planned turn (``turn_rates``, below), or leading into one, only at that line:
 switched early, the aircraft would track the next chord before reaching it, and L1 would steer
 it to the inside of the turn. Altitude demand follows the straight line between the leg's end altitudes (MSL [m]);
-airspeed demand is the cruise true airspeed [m/s]. A plan with ``turn_rates`` has L1 feed the
+airspeed demand is the true airspeed [m/s] the plan commands on the leg (``airspeeds``, e.g. an
+MPTP holding orbit at V_cor; past the plan's end its last leg's), else the cruise one (the flight
+controller bounds every demand to the airframe's envelope). A plan with ``turn_rates`` has L1 feed the
 planned turn rate forward as bank (guidance/l1.py), taken ``l1.turn_lead_s`` of flight at the
 ground speed ahead along the plan so that the lagging bank is the planned one when the aircraft
 gets there: written-out turns are flown on their arc rather than outside it. After the last
@@ -62,6 +64,13 @@ class FixedWingPlanFollower:
         k = int(np.searchsorted(self._leg_start_m, s, side="right")) - 1
         return float(plan.turn_rates[min(max(k, self.leg), len(plan.turn_rates) - 2)])
 
+    def _airspeed(self, plan: Plan) -> float:
+        """Airspeed demand [m/s TAS] on the current leg: the plan's (past its end, its last leg's,
+        as the last leg's track is held), else cruise."""
+        if plan.airspeeds is None or len(plan.positions) < 2:
+            return self.cruise_tas
+        return float(plan.airspeeds[min(self.leg, len(plan.positions) - 2)])
+
     @staticmethod
     def _in_turn(plan: Plan, leg: int) -> bool:
         """Whether ``leg`` is a piece of a planned turn or leads into one (nonzero turn rate on it
@@ -98,5 +107,5 @@ class FixedWingPlanFollower:
         d = a[2] + prog.fraction * (b[2] - a[2])
         heading_err = abs(math.remainder(est.course_rad - prog.bearing_rad, math.tau))
         self.turning = heading_err > _STRAIGHT_HEADING_ERR or abs(self.cross_track_m) > _STRAIGHT_CROSS_M
-        sp = FixedWingSetpoint(roll_rad=roll, altitude_m=self.origin_alt_m - float(d), tas_mps=self.cruise_tas)
+        sp = FixedWingSetpoint(roll_rad=roll, altitude_m=self.origin_alt_m - float(d), tas_mps=self._airspeed(plan))
         return sp, passed

@@ -151,7 +151,8 @@ class MultirotorPlanFollower:
             return 0.0
         a, u = self._leg_au
         ap = pos_ned - a
-        return float(np.linalg.norm(ap - u * float(ap @ u)))
+        r = ap - u * float(ap @ u)
+        return math.sqrt(r.dot(r))  # np.linalg.norm's arithmetic, without its dispatch
 
 
 def _leg_unit(positions: np.ndarray, leg: int) -> np.ndarray:

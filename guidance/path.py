@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 
-@dataclass(frozen=True, slots=True)
-class LegProgress:
+class LegProgress(NamedTuple):
+    """Where a position is relative to a leg (immutable; a named tuple: made several times per
+    control step and per log tick, a frozen dataclass costs several times more to build)."""
+
     along_m: float  # distance flown along the leg from its start [m]
     length_m: float  # horizontal leg length [m]
     cross_m: float  # signed cross-track distance, right of the leg positive [m]
@@ -22,9 +24,13 @@ class LegProgress:
 
 
 def leg_progress(pos: np.ndarray, a: np.ndarray, b: np.ndarray) -> LegProgress:
-    """Where ``pos`` is relative to the leg a -> b (horizontal components only)."""
-    dn, de = float(b[0] - a[0]), float(b[1] - a[1])
-    pn, pe = float(pos[0] - a[0]), float(pos[1] - a[1])
+    """Where ``pos`` is relative to the leg a -> b (horizontal components only; NED [m], 3
+    components each)."""
+    an, ae, _ = a.tolist()
+    bn, be, _ = b.tolist()
+    qn, qe, _ = pos.tolist()
+    dn, de = bn - an, be - ae
+    pn, pe = qn - an, qe - ae
     length = math.hypot(dn, de)
     if length < 1e-9:
         return LegProgress(0.0, 0.0, 0.0, math.hypot(pn, pe), 0.0)

@@ -19,6 +19,7 @@ bounds are computed from, in the writer. Units and frames: :mod:`sim.log_schemas
 from __future__ import annotations
 
 import functools
+import operator
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -138,6 +139,30 @@ def flatten(columns: Columns, d: dict[str, Any]) -> tuple[list[float], tuple[tup
         else:
             row.append(v)
     return row, tuple(static)
+
+
+def record_values(columns: Columns) -> Callable[[dict[str, Any]], list[float]]:
+    """A function giving a message dict's row as :func:`flatten` does, for columns of top-level
+    scalars and lists only (no maps, no nested fields): all fields in one lookup, built once
+    per layout for records made every log tick."""
+    if any(width == MAP or "." in name for name, width in columns):
+        raise ValueError(f"record_values: columns {columns} have a map or a nested field")
+    names = tuple(name for name, _ in columns)
+    get: Callable[[dict[str, Any]], tuple] = operator.itemgetter(*names) if len(names) > 1 else lambda d: (d[names[0]],)
+    widths = tuple(width for _, width in columns)
+    if not any(widths):
+        return lambda d: list(get(d))
+
+    def values(d: dict[str, Any]) -> list[float]:
+        row: list[float] = []
+        for v, width in zip(get(d), widths, strict=True):
+            if width:
+                row += v
+            else:
+                row.append(v)
+        return row
+
+    return values
 
 
 @functools.cache

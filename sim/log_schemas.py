@@ -113,6 +113,10 @@ PLAN = _obj(
             {"type": "array", "items": _NUM},
             "planned air-relative course rate on the leg from each vertex [rad/s], + right (turn-model plans only)",
         ),
+        "airspeeds": (
+            {"type": "array", "items": _NUM},
+            "commanded true airspeed on the leg from each vertex [m/s] (plans that command one, e.g. a hold at V_cor)",
+        ),
     },
 )
 

@@ -149,6 +149,7 @@ def run_scenario(
             result.missions[v.name] = MissionResult(len(m.reached), len(m.waypoints), m.complete, m.completed_t)
         try:
             for v in vehicles:
+                v.feed_metrics()
                 v.recorder.flush()
             result.metrics = (metrics or RunMetrics()).result()
             log.metadata("metrics", {"json": json.dumps(result.metrics, sort_keys=True)})

@@ -13,6 +13,7 @@ import itertools
 import json
 import math
 import operator
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -39,11 +40,10 @@ from sim.core.threats import (
     StormSnapshot,
 )
 from sim.energy.power_system import EnergyRecord
-from sim.estimation.ins_model import three_sd
+from sim.estimation.ins_model import three_sds
 from sim.estimation.sensor_estimator import MeasurementLog, SensorEstimator, measurement_row
 from sim.geodesy import GeoPoint, ned_to_geodetic
 from sim.log_proto import scan_record
-from sim.log_rows import flatten
 from sim.mcap_log import McapLog, Piece, RowBuffer
 from sim.planner_records import wallclock_metadata
 
@@ -311,7 +311,9 @@ def state_row(s: VehicleState) -> list[float]:
     ]
 
 
-_SETPOINT_COLUMNS = {name: log_rows.LAYOUTS[name].columns[1:] for name in log_rows.SETPOINT_LAYOUTS.values()}
+_SETPOINT_VALUES = {  # setpoint layout: its record's values after ``t``
+    name: log_rows.record_values(log_rows.LAYOUTS[name].columns[1:]) for name in log_rows.SETPOINT_LAYOUTS.values()
+}
 # a tick's control: setpoint record, its JSON schema, commands sent to the plant, controller debug
 ControlRecord = tuple[dict[str, Any], dict[str, Any], dict[str, float], dict[str, float]]
 
@@ -322,10 +324,10 @@ def _sensors_row(tick: tuple[float, MeasurementLog]) -> list[float]:
     return [t, *measurement_row(measurements)]
 
 
-def _setpoint_row(tick: tuple[float, log_rows.Columns, dict]) -> list[float]:
+def _setpoint_row(tick: tuple[float, Callable[[dict], list[float]], dict]) -> list[float]:
     """A setpoint row: the log tick's time [s] and the setpoint record's columns."""
-    t, columns, setpoint = tick
-    return [t, *flatten(columns, setpoint)[0]]
+    t, values, setpoint = tick
+    return [t, *values(setpoint)]
 
 
 def _commands_row(tick: tuple[float, dict[str, float], dict[str, float]]) -> list[float]:
@@ -411,10 +413,10 @@ class VehicleLogWriter:
             counts = tuple([(name, len(items)) for name, items in sensors.items()])
             cov = estimator.covariance_row()
             pieces += ((_sensors_row, (t, sensors)), [t, *cov])
-            sd = [three_sd(v) for v in cov[0:6]]
+            sd = three_sds(cov[0:6])
             sigma3 = {"pos": sd[0:3], "vel": sd[3:6]}
         pieces += (
-            (_setpoint_row, (t, _SETPOINT_COLUMNS[layout], setpoint)),
+            (_setpoint_row, (t, _SETPOINT_VALUES[layout], setpoint)),
             (_commands_row, (t, commands, debug)),
         )
         cum = None
@@ -548,6 +550,7 @@ class VehicleLogWriter:
                 "labels": plan.labels.tolist(),
                 "diagnostics": plan.diagnostics,
                 **({} if plan.turn_rates is None else {"turn_rates": plan.turn_rates.tolist()}),
+                **({} if plan.airspeeds is None else {"airspeeds": plan.airspeeds.tolist()}),
             },
             S.PLAN,
             {"frame": "local-level NED from the scenario origin", **wallclock_metadata(plan.planner, "")},

@@ -314,3 +314,18 @@ def test_climb_and_descent_follow_the_eas_schedule():
         ap.reset(s)
         ap.update(s, FixedWingSetpoint(0.0, alt_dem, TAS + 2.0), DT)
         assert ap.debug["v_dem_mps"] == pytest.approx(v_expected, rel=1e-9), name
+
+
+def test_a_planned_airspeed_is_flown_within_the_eas_envelope():
+    """A plan's commanded airspeed (e.g. the MPTP's V_cor) is the TECS demand inside the EAS
+    envelope and clipped to it outside: at EAS/TAS = 8/29.7, 30 m/s TAS passes; 100 m/s
+    becomes eas_max = 12 m/s EAS = 44.55 m/s TAS; 10 m/s becomes eas_min = 7.3 m/s EAS = 27.10 m/s."""
+    g = HapsGains.load()
+    ratio = TAS / 8.0  # TAS per EAS of _state
+    for demand, expected in ((30.0, 30.0), (100.0, g.eas_max * ratio), (10.0, g.eas_min * ratio)):
+        ap = HapsAutopilot(g)
+        s = _state(0.0, 0.0, 0.0, speed=TAS)
+        ap.reset(s)
+        ap.update(s, FixedWingSetpoint(0.0, ALT, demand), DT)
+        assert ap.debug["v_dem_mps"] == pytest.approx(expected, rel=1e-9), demand
+    assert g.eas_max * ratio == pytest.approx(44.55) and g.eas_min * ratio == pytest.approx(27.1012, abs=1e-4)

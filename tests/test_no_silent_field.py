@@ -507,11 +507,15 @@ _WIRED = "tests/test_mavlink_authority.py::test_scenario_mavlink_settings_reach_
 SHOWN_ELSEWHERE = {
     "vehicle.planner<MptpPlanner>.options.hold_speed_correction": (
         "acts when the goal is covered over the whole horizon (a holding orbit): "
-        "tests/test_mptp_holding_speed.py::test_the_planner_holds_on_the_corrected_circle_when_the_goal_is_covered"
+        "tests/test_mptp_holding_speed.py::test_the_planner_holds_on_the_corrected_circle_when_the_goal_is_covered; "
+        "flown at the commanded V_cor in closed loop: "
+        "tests/test_mptp_holding_speed.py::test_the_hold_is_flown_at_v_cor_and_reaches_its_states_on_time"
     ),
     "vehicle.planner<MptpPlanner>.options.holding_points": (
         "acts when the goal is covered over the whole horizon (a holding orbit): "
-        "tests/test_mptp_holding_speed.py::test_a_predefined_holding_location_is_used_when_it_is_free"
+        "tests/test_mptp_holding_speed.py::test_a_predefined_holding_location_is_used_when_it_is_free; "
+        "the nearest free one is held at: "
+        "tests/test_mptp_holding_speed.py::test_a_hold_plan_commands_v_to_the_holding_point_and_v_cor_on_its_orbit"
     ),
     "vehicle.planner<MptpPlanner>.options.wait_step_min_s": (
         "acts on the wait bound's time step and cells (at most 3 steps per dt no shorter than it): "
@@ -805,6 +809,7 @@ _REACHSET = {
     "constraint_margin": 3.0,
     "constraint_mode": "circle",
     "intruder_margin": 4.0,
+    "intruder_margin_vertical": 3.0,
     "separations": ["horizontal"],
 }
 _RULES_OPTIONS = {

@@ -80,9 +80,14 @@ def test_a_planner_table_without_type_follows_the_mission():
 
 
 def test_options_reach_the_planner_they_configure():
-    rs = make_planner("reachset", MISSION, "multirotor", {"period": 2.0, "intruder_margin": 3.0})
+    rs = make_planner(
+        "reachset", MISSION, "multirotor", {"period": 2.0, "intruder_margin": 3.0, "intruder_margin_vertical": 1.5}
+    )
     base = make_planner("reachset", MISSION, "multirotor", {})
     assert rs.control.cfg.intruders.body_margin == 3.0 != base.control.cfg.intruders.body_margin
+    assert rs.control.cfg.intruders.vertical_margin == 1.5 != base.control.cfg.intruders.vertical_margin
+    # a multirotor turns in place (direct leg to a goal inside the turn circle), a fixed wing not
+    assert base.turns_in_place and not make_planner("reachset", MISSION, "fixed_wing", {}).turns_in_place
     assert rs.control.sma.automata[0].table.config.period == 2.0 != base.control.sma.automata[0].table.config.period
     rules = make_planner("reachset", MISSION, "multirotor", {"rules": ["head_on"], "rules_unit": 5.0})
     assert type(rules).__name__ == "RulesAvoider" and rules.rules.unit == 5.0 and rules.rules.enabled == ("head_on",)

@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 from avoidance.reachset.config import AvoidanceConfig
 from avoidance.reachset.frames import from_polar
 from avoidance.reachset.grid import AvoidanceGrid
-from avoidance.reachset.mission import MissionControl
+from avoidance.reachset.gridrun import closest_approach
+from avoidance.reachset.mission import MissionControl, Mode
 from avoidance.reachset.movement import KinState, thesis_automaton
 from avoidance.reachset.threats.intruders import IntruderModel
 from sim.core.plan import Threats
@@ -78,6 +79,53 @@ def test_body_rating_covers_the_swept_body_and_stays_within_one_sample_of_it():
             assert not hit[0, c], c
     assert 0 < hit.sum() < GRID.n_cells
     np.testing.assert_array_equal(m.ratings(motion)[0], hit[0])
+
+
+def capsule_distance(points: np.ndarray, centres: np.ndarray, half_height: float) -> np.ndarray:
+    """(points, centres) distance [m] of points to the vertical segments centre ± half_height."""
+    d = points[:, None, :] - centres[None]
+    dz = np.clip(np.abs(d[..., 2]) - half_height, 0.0, None)
+    return np.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2 + dz**2)
+
+
+def test_vertical_margin_stretches_the_swept_body_into_a_vertical_capsule():
+    """Finding 11 (docs/encounters.md): an intruder crossing 7.5 m above the grid's centre plane
+    (5 m body, 4 m/s) with a 2.5 m vertical margin: every cell holding a point within the radius
+    of the swept vertical segment (brute force) is hit, none farther than radius + half a sample
+    along the path + half a sample vertically, and the capsule hits cells the ball alone does
+    not (its lower end reaches 2.5 m further down)."""
+    m0 = model(GRID, timed=False, give_way_turn_rate=0.0)
+    m = model(GRID, timed=False, give_way_turn_rate=0.0, vertical_margin=2.5)
+    x, v, r, e = np.array([25.0, -20.0, 7.5]), np.array([0.0, 4.0, 0.0]), 5.0, 2.5
+    motion = np.array([[*x, *v, r]])
+    hit = m._body(motion, np.array([4.0]))[0][0]
+    path = x + np.linspace(0.0, m.horizon, 400)[:, None] * v
+    lattice = cell_lattice(GRID, 5)
+    offsets, half_gap = m._vertical_offsets()
+    assert offsets[0] == -e and offsets[-1] == e and np.diff(offsets).max() <= m.step + 1e-12
+    dt = m.horizon / (m._samples(4.0) - 1)
+    axis = (path[::4, None, :] + np.linspace(-e, e, 51)[None, :, None] * [0.0, 0.0, 1.0]).reshape(-1, 3)
+    far = GRID.distance(axis).min(axis=0)  # exact cell distances to the capsule's axis (0.1 m samples)
+    for c in range(GRID.n_cells):
+        near = capsule_distance(lattice[c], path, e).min() <= r
+        if near:
+            assert hit[c], c
+        if far[c] > r + 0.5 * 4.0 * dt + half_gap + 0.3:
+            assert not hit[c], c
+    ball = m0.ratings(motion)[0] > 0
+    assert (hit >= ball).all() and hit.sum() > ball.sum()
+    assert m.reachable(motion).all() and (m.reach(motion) >= m0.reach(motion) + e).all()
+
+
+def test_closest_approach_is_measured_to_the_capsule():
+    """The last resort's clearance (D-18) against a vertical capsule: a path passing straight
+    under an intruder 9 m above clears a 5 m ball by 4 m and a ±2.5 m capsule by 1.5 m."""
+    tree = MissionControl(np.array([[30.0, 0.0, 0.0]]), thesis_automaton(), CFG).segment(0).trees[Mode.NAVIGATION]
+    straight = int(np.flatnonzero((tree.depth == 1) & (tree.movement == 0))[0])
+    motion = np.array([[0.5, 0.0, 9.0, 0.0, 0.0, 0.0, 5.0]])  # hovering above the first movement
+    ball = closest_approach(tree, motion, 0.0)[straight]
+    capsule = closest_approach(tree, motion, 0.0, vertical_margin=2.5)[straight]
+    assert ball == pytest.approx(4.0, abs=1e-9) and capsule == pytest.approx(1.5, abs=1e-9)
 
 
 def test_path_step_is_the_centre_spacing_and_a_coarse_step_still_covers():

@@ -3,23 +3,47 @@ lie on a movement-length lattice, so without the exact goal vertex a follower wi
 acceptance radius stopped short of the last waypoint and the mission never completed."""
 
 import numpy as np
+import pytest
 
+from avoidance.reachset.config import DEFAULT_AVOIDANCE, AvoidanceConfig
 from avoidance.reachset.movement import multirotor_automaton
 from avoidance.reachset.planner import ReachSetAvoider
 from guidance.multirotor_follower import MultirotorPlanFollower
 from sim.core.mission import Mission
 from sim.core.plan import Threats
 from sim.core.state import VehicleState
+from sim.core.threats import IntruderTrack
 
 
-def fly(waypoints, planner_hz: float, cruise: float = 5.0, acceptance: float = 1.0, t_end: float = 80.0):
-    """Point-mass vehicle following the carrot (first-order position loop + feed-forward)."""
+def fly(
+    waypoints,
+    planner_hz: float,
+    cruise: float = 5.0,
+    acceptance: float = 1.0,
+    t_end: float = 80.0,
+    start=(0.0, 0.0, -20.0),
+    heading_deg: float = 0.0,
+    speed: float = 0.0,
+    turns_in_place: bool = False,
+    cfg: AvoidanceConfig = DEFAULT_AVOIDANCE,
+    intruder: IntruderTrack | None = None,
+    estimate_error=(0.0, 0.0, 0.0),
+    trace: list | None = None,
+):
+    """Point-mass vehicle following the carrot (first-order position loop + feed-forward), from
+    ``start`` (true NED [m]) flying at ``speed`` [m/s] on ``heading_deg``. The vehicle knows its
+    position as truth + ``estimate_error`` (NED [m]); ``intruder`` (true state at t = 0, flying
+    straight) is sensed exactly; ``trace`` collects (t, true position, intruder position) rows.
+    Returns the mission, the final true position and the planner."""
     mission = Mission(
         np.asarray(waypoints, float), cruise_speed=cruise, acceptance_radius=acceptance, start=np.zeros(3)
     )
-    av = ReachSetAvoider(mission, multirotor_automaton(cruise, 1.0))
+    av = ReachSetAvoider(mission, multirotor_automaton(cruise, 1.0), cfg, turns_in_place=turns_in_place)
     fol = MultirotorPlanFollower(cruise, 2.0, 1.0, acceptance)
-    pos, vel, dt, t, yaw = np.array([0.0, 0.0, -20.0]), np.zeros(3), 0.02, 0.0, 0.0
+    yaw = float(np.radians(heading_deg))
+    error = np.asarray(estimate_error, float)
+    pos, dt, t = np.array(start, float) + error, 0.02, 0.0  # the estimate the vehicle flies
+    vel = speed * np.array([np.cos(yaw), np.sin(yaw), 0.0])
     every = round(1.0 / (planner_hz * dt))
     for k in range(int(t_end / dt)):
         t = k * dt
@@ -33,8 +57,14 @@ def fly(waypoints, planner_hz: float, cruise: float = 5.0, acceptance: float = 1
             lat_deg=47.0,
             lon_deg=8.0,
         )
+        tracks = []
+        if intruder is not None:
+            at = np.asarray(intruder.pos_ned) + t * np.asarray(intruder.vel_ned)
+            tracks = [IntruderTrack(intruder.id, t, at, intruder.vel_ned, intruder.radius_m)]
+            if trace is not None:
+                trace.append((t, pos - error, at))
         if k % every == 0:
-            fol.set_plan(av.plan(est, Threats(), t))
+            fol.set_plan(av.plan(est, Threats(intruders=tracks), t))
         sp, passed = fol.update(est, t, dt)
         yaw = sp.yaw_rad if np.isfinite(sp.yaw_rad) else yaw  # the vehicle turns to the follower's yaw
         for label in passed:
@@ -46,7 +76,7 @@ def fly(waypoints, planner_hz: float, cruise: float = 5.0, acceptance: float = 1
         n = np.linalg.norm(cmd)
         vel = cmd * min(1.0, 1.2 * cruise / n) if n > 0 else cmd
         pos = pos + vel * dt
-    return mission, pos, av
+    return mission, pos - error, av
 
 
 def test_last_waypoint_is_reached_within_the_acceptance_radius():
@@ -62,3 +92,21 @@ def test_intermediate_waypoints_off_the_lattice_and_fast_planner_calls():
         assert mission.complete, (hz, mission.reached)
         assert [i for i, _ in mission.reached] == [0, 1, 2]
         assert np.linalg.norm(pos - mission.waypoints[-1]) <= mission.acceptance_radius
+
+
+@pytest.mark.parametrize("turns_in_place", [True, False])
+def test_a_goal_inside_the_turn_circle_is_flown_to_directly_by_a_vehicle_that_turns_in_place(turns_in_place):
+    """Finding 12 (docs/encounters.md, encounter 72 at 61 s): at 5 m/s heading 304°, the goal
+    12.8 m away 61° to the right and 2.8 m below lies inside the movements' turn circle
+    (R = 19.1 m). The movements reach it only by a loop away and back (~25 s here; the JSBSim
+    quadrotor flew the loop wider and orbited 11-17 m off the goal until the run ended); a
+    vehicle that turns in place flies the direct leg."""
+    goal = [75.0, 0.0, -20.0]
+    mission, pos, _ = fly(
+        [goal], 1.0, start=(62.6, -1.1, -22.8), heading_deg=-56.0, speed=5.0, t_end=40.0, turns_in_place=turns_in_place
+    )
+    assert mission.complete and np.linalg.norm(pos - goal) <= mission.acceptance_radius
+    if turns_in_place:
+        assert mission.completed_t < 6.0
+    else:
+        assert mission.completed_t > 15.0  # the loop

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from shapely.geometry import Polygon
 
-from sim.core.plan import Threats
+from sim.core.plan import Plan, Threats
 from sim.core.threats import IntruderTrack, LidarScan, SphereThreat, StormSnapshot
 from sim.replay import rerun
 from sim.replay.report import log_metrics
@@ -192,3 +192,21 @@ def test_a_rules_planner_rebuilt_by_a_mode_change_joins_the_utm_authority(tmp_pa
     inputs = log.topic("/uas1/plan/input").messages
     assert rep.plans == rep.same == sum(m["new_plan"] for m in inputs) > sum(m["new_plan"] for m in own) > 0
     assert rep.mode_plans == sum(m["new_plan"] for m in inputs if m["planner"] == "hold") > 0
+
+
+def test_a_rerun_plan_with_other_commanded_airspeeds_differs():
+    """The re-run's plan equals the recorded one only with the same commanded airspeeds (an MPTP
+    hold at V_cor), vertices and times being equal."""
+    pos, times, labels = np.zeros((2, 3)), np.array([0.0, 60.0]), np.array([-1, -1])
+    rec = {"status": "ok", "positions": pos.tolist(), "times": times.tolist(), "labels": [-1, -1]}
+    held = {**rec, "airspeeds": [26.68, 26.68]}
+    cases = [
+        (rec, None, []),
+        (held, np.array([26.68, 26.68]), []),
+        (held, np.array([26.68, 27.38]), ["commanded airspeeds differ"]),
+        (held, None, ["commanded airspeeds differ"]),
+        (rec, np.array([26.68, 26.68]), ["commanded airspeeds differ"]),
+    ]
+    for recorded, speeds, why in cases:
+        new = Plan(0.0, pos, times, labels, airspeeds=speeds)
+        assert rerun._differences(rerun.RerunReport("haps", "mptp"), recorded, new) == why

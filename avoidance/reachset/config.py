@@ -148,6 +148,9 @@ class IntruderModelConfig:
     body); ``spacing`` the cone's lattice spacing [m]; ``time_error`` widens the UAS window [s];
     ``cone_steps`` lattice points per ellipse axis; ``density`` ``mean`` (6.133) or ``product``;
     ``body_margin`` [m] is added to every intruder's body radius (safety-margin bloat, §8.2);
+    ``vertical_margin`` [m] stretches every body vertically into a capsule (the centre anywhere
+    within ± this of its predicted height): the allowance for the ownship's vertical navigation
+    error, which the estimate does not carry (docs/encounters.md finding 11);
     ``give_way_turn_rate`` [rad/s]: every intruder is also predicted turning right at this rate,
     as the rules of the air have aircraft give way, in the intruder space and in the last
     resort's clearance, and the last resort turns right (D-21; 0 = straight lines only, D-18;
@@ -165,6 +168,7 @@ class IntruderModelConfig:
     cone_steps: int = 7
     density: str = "mean"
     body_margin: float = 0.0
+    vertical_margin: float = 0.0
     give_way_turn_rate: float = pi / 12
 
     @staticmethod

@@ -36,7 +36,8 @@ class ThreatParts:
     intruder), ``hard`` / ``soft`` constraint masks, and the intruders' linear predictions
     ``intruder_motion`` (one row per intruder: LCF position [m] at the grid time, LCF velocity
     [m/s], body radius [m]; the last resort of a relaxed run, D-18) with the rate [rad/s] at which
-    that last resort assumes them to turn right, giving way (D-21)."""
+    that last resort assumes them to turn right, giving way (D-21), and the vertical margin [m]
+    that stretches their bodies into vertical capsules."""
 
     visibility: np.ndarray  # (n_sensors, n_cells)
     obstacle: np.ndarray  # (n_sensors, n_cells)
@@ -46,6 +47,7 @@ class ThreatParts:
     soft: np.ndarray
     intruder_motion: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))  # (n_intruders, 7)
     give_way_turn_rate: float = 0.0
+    vertical_margin: float = 0.0
 
     @staticmethod
     def empty(n_cells: int) -> ThreatParts:

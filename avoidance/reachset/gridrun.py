@@ -48,17 +48,19 @@ class Steering:
     turn_radii: tuple[float, float]
     reach_radius: float
 
-    def in_turn_circle(self, goal_lcf: np.ndarray) -> bool:
-        """Whether ``goal_lcf`` lies deep inside the turn circle on its side: in the plane of the
-        heading X and the goal, centre at radius R towards the goal, R = max(R_h |cos ψ|,
-        R_v |sin ψ|) for the goal's direction ψ around X; deep = more than the reach radius
-        inside (a full-rate turn passes within the reach radius of the goals nearer its rim)."""
+    def in_turn_circle(self, goal_lcf: np.ndarray, depth: float | None = None) -> bool:
+        """Whether ``goal_lcf`` lies more than ``depth`` [m] inside the turn circle on its side:
+        in the plane of the heading X and the goal, centre at radius R towards the goal,
+        R = max(R_h |cos ψ|, R_v |sin ψ|) for the goal's direction ψ around X. ``depth`` defaults
+        to the reach radius (a full-rate turn passes within the reach radius of the goals nearer
+        its rim); 0 = anywhere inside."""
+        margin = self.reach_radius if depth is None else depth
         x, y, z = np.asarray(goal_lcf, float)
         b = float(np.hypot(y, z))
         if b < 1e-9:
             return False
         r = max(self.turn_radii[0] * abs(y) / b, self.turn_radii[1] * abs(z) / b)
-        return r > self.reach_radius and x * x + (b - r) ** 2 < (r - self.reach_radius) ** 2
+        return r > margin and x * x + (b - r) ** 2 < (r - margin) ** 2
 
 
 GoalCost = Callable[[np.ndarray], np.ndarray]  # LCF points (n, 3) -> distance to the goal [m]
@@ -173,26 +175,33 @@ def emergency_runs(
                     goal_lcf,
                     parts.intruder_motion if dropped else None,
                     parts.give_way_turn_rate,
+                    parts.vertical_margin,
                 )
                 runs[-1].path = least if least.ok else runs[-1].path
             return runs, len(runs) - 1
     return runs, -1
 
 
-def closest_approach(tree: ReachSetTree, motion: np.ndarray, right_turn_rate: float) -> np.ndarray:
+def closest_approach(
+    tree: ReachSetTree, motion: np.ndarray, right_turn_rate: float, vertical_margin: float = 0.0
+) -> np.ndarray:
     """Per node (N,): the smallest predicted clearance [m] between the path root -> node and the
     intruders' bodies (``motion`` rows: LCF position at the grid time [m], velocity [m/s], body
     radius [m]; :func:`avoidance.reachset.threats.intruders.intruder_motion`), over every sample of
     the path at its own time (the root: +inf). Each intruder is predicted on its straight line and,
     with ``right_turn_rate`` > 0 [rad/s], also turning right at that rate (it gives way by the
-    rules of the air, D-21); the clearance is the smaller of the two."""
+    rules of the air, D-21); the clearance is the smaller of the two. ``vertical_margin`` [m]
+    stretches each body into a vertical capsule (its centre anywhere within ± the margin of the
+    predicted height)."""
     t = tree.sample_times()  # (N, S) [s]
     closest = np.full(tree.n_nodes, np.inf)
     for rate in prediction_rates(right_turn_rate):
         other = predicted_positions(
             motion[:, None, None, :3], motion[:, None, None, 3:6], t[None], rate
         )  # (I, N, S, 3)
-        gap = np.linalg.norm(tree.samples[None] - other, axis=-1) - motion[:, 6, None, None]
+        d = tree.samples[None] - other
+        dz = np.clip(np.abs(d[..., 2]) - vertical_margin, 0.0, None)
+        gap = np.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2 + dz**2) - motion[:, 6, None, None]
         closest = np.minimum(closest, gap.min(axis=(0, 2)))
     closest[tree.depth == 0] = np.inf
     return tree.along_paths(closest, np.minimum)
@@ -205,6 +214,7 @@ def least_threat_path(
     goal_lcf: np.ndarray,
     intruder_motion: np.ndarray | None = None,
     give_way_turn_rate: float = 0.0,
+    vertical_margin: float = 0.0,
 ) -> PathResult:
     """The path of a relaxed run (a threat category dropped because no path respects it, spec
     §6.2 step 11): of the full-length trajectories feasible in ``fused``, the one least exposed to
@@ -219,7 +229,8 @@ def least_threat_path(
     descend, like the slash set, would trade the level convention for a height change the others
     cannot foresee) (D-21); then the path with the largest predicted clearance to the intruders'
     bodies, rounded to 1 cm (D-18), each intruder on its straight line and turning right at
-    ``give_way_turn_rate`` [rad/s] (:func:`closest_approach`). The exposure to the intruder space
+    ``give_way_turn_rate`` [rad/s], bodies stretched by ``vertical_margin`` [m]
+    (:func:`closest_approach`). The exposure to the intruder space
     (line, body, time window) does not say which side is farther from the aircraft: two vehicles
     in each other's space chose independently and flew side by side (S8). Against straight lines
     alone, two converging vehicles each passed behind the other and turned into each other."""
@@ -238,7 +249,8 @@ def least_threat_path(
     near = np.linalg.norm(tree.tip[cand] - goal_lcf, axis=1)
     keys = [cand, near, -clear[cand], np.round(exposure[cand], 9)]
     if intruder_motion is not None and len(intruder_motion):
-        keys.append(-np.round(closest_approach(tree, intruder_motion, give_way_turn_rate)[cand], 2))
+        clearance = closest_approach(tree, intruder_motion, give_way_turn_rate, vertical_margin)
+        keys.append(-np.round(clearance[cand], 2))
         if give_way_turn_rate > 0.0 and (tree.movement == MovementType.RIGHT).any():
             left = tree.along_paths(tree.tip_att[:, 2] > 1e-9, np.logical_or)  # ever left of the heading
             keys.append(left[cand])

@@ -294,7 +294,13 @@ class MissionControl:
         kept = dataclasses.replace(run.fused, node_ok=run.fused.node_ok & tree.subtree(node))
         if d.selected > 0 and not run.categories.intruders:
             path = least_threat_path(
-                tree, kept, d.runs[d.selected - 1].fused, goal_lcf, parts.intruder_motion, parts.give_way_turn_rate
+                tree,
+                kept,
+                d.runs[d.selected - 1].fused,
+                goal_lcf,
+                parts.intruder_motion,
+                parts.give_way_turn_rate,
+                parts.vertical_margin,
             )
         else:
             path = find_best_path(plan.grid, tree, kept, goal_lcf, steering, goal_cost)

@@ -2,7 +2,9 @@
 
 ``period`` [s]: the movement period of the automaton; ``constraint_margin`` [m]: the safety-margin
 ring of constraints; ``constraint_mode``: ``polygon`` (exact) or ``circle`` (the thesis' Welzl
-barrel); ``intruder_margin`` [m]: added to every intruder's body radius; ``separations``: planar
+barrel); ``intruder_margin`` [m]: added to every intruder's body radius; ``intruder_margin_vertical``
+[m]: every intruder body stretched by this up and down (a vertical capsule), the allowance for
+the ownship's vertical navigation error; ``separations``: planar
 separations of ACAS-like reach sets (spec §4.8, e.g. ["horizontal"], the thesis' S1-S4) used in
 both modes instead of the 3-D harmonic / combined sets.
 """
@@ -33,6 +35,7 @@ class ReachSetOptions(BaseModel):
     constraint_margin: Annotated[float, Field(ge=0.0)] | None = None
     constraint_mode: Literal["polygon", "circle"] | None = None
     intruder_margin: Annotated[float, Field(ge=0.0)] | None = None
+    intruder_margin_vertical: Annotated[float, Field(ge=0.0)] | None = None
     separations: Annotated[list[Separation], Field(min_length=1)] | None = None
 
     def avoidance_config(self) -> AvoidanceConfig:
@@ -45,6 +48,10 @@ class ReachSetOptions(BaseModel):
         if self.intruder_margin is not None:
             cfg = dataclasses.replace(
                 cfg, intruders=dataclasses.replace(cfg.intruders, body_margin=self.intruder_margin)
+            )
+        if self.intruder_margin_vertical is not None:
+            cfg = dataclasses.replace(
+                cfg, intruders=dataclasses.replace(cfg.intruders, vertical_margin=self.intruder_margin_vertical)
             )
         if self.separations is not None:
             acas = ReachSetConfig.single(ExpansionConfig.acas(tuple(self.separations)))

@@ -25,6 +25,7 @@ import numpy as np
 from avoidance.reachset.config import DEFAULT_AVOIDANCE, AvoidanceConfig
 from avoidance.reachset.frames import GridPose, heading_from_yaw_ned
 from avoidance.reachset.fusion import SpaceClass, fuse_cells
+from avoidance.reachset.gridrun import Steering
 from avoidance.reachset.mission import Decision, MissionControl, Restriction
 from avoidance.reachset.movement import KinState, SegmentedMovementAutomaton
 from sim.core.frames import enu_to_ned, ned_to_enu
@@ -46,8 +47,12 @@ class ReachSetAvoider:
         cache_dir: Path | None = None,
         restrict: Restriction | None = None,
         heading_from_velocity: float = 0.5,
+        turns_in_place: bool = False,
     ):
+        """``turns_in_place``: the vehicle can turn on the spot (a multirotor), so a goal inside
+        the movements' turn circle is flown to on a direct leg (see :meth:`_vertices`)."""
         self.mission = mission
+        self.turns_in_place = turns_in_place
         self.control = MissionControl(
             ned_to_enu(mission.waypoints), sma, cfg, cache_dir, restrict, advance_on_reach=False
         )
@@ -88,14 +93,15 @@ class ReachSetAvoider:
         """Range [m] from the vehicle and horizon [s] within which other traffic can be rated in
         its grids: a track whose linear prediction over the horizon stays farther than the range
         is culled exactly (``IntruderModel.reachable``). Range = grid range + one movement (the
-        grid starts one movement ahead) + the intruder body margin + half a centre sample; the
-        cruise segment has the largest grid. ``None`` would mean: every track matters."""
+        grid starts one movement ahead) + the intruder body and vertical margins + one centre
+        spacing (half a sample along the path and half up or down); the cruise segment has the
+        largest grid. ``None`` would mean: every track matters."""
         ctl = self.control
         seg = ctl.segment(ctl.sma.active_index(KinState(np.zeros(3), np.zeros(3), 0.0, self.speed)))
         models = [a.intruder_model for a in seg.assessors.values()]
         length = float(seg.grid.steps[0])
         icfg = ctl.cfg.intruders
-        reach = seg.grid.range + length + icfg.body_margin + max(m.step for m in models)
+        reach = seg.grid.range + length + icfg.body_margin + icfg.vertical_margin + max(m.step for m in models)
         return reach, max(m.horizon for m in models)
 
     def frame_due(self, t: float) -> bool:
@@ -159,9 +165,12 @@ class ReachSetAvoider:
         The movements end on a 1-movement-length lattice, so the mission's waypoint (acceptance
         radius of the follower, usually below a movement length) is added exactly:
         - complete: hold at the last waypoint (labelled);
-        - final approach (the estimate within the reach radius of the goal, and no threat in the
-          grid or the leg clear in a grid placed at the estimate facing the goal): a direct leg
-          from the estimate to the goal;
+        - final approach (the estimate within the reach radius of the goal -- or, for a vehicle
+          that turns in place, the goal anywhere inside the turn circle at the grid origin, which
+          the movements reach only by flying a loop away from it and back (a wider loop flown
+          passed outside the reach radius for ever) -- and no threat in the grid or the leg clear
+          in a grid placed at the estimate facing the goal): a direct leg from the estimate to
+          the goal;
         - otherwise the path up to its first movement end (from the executing movement's end on)
           within the reach radius of the goal, then the goal itself, if that last leg only crosses
           Free cells of the assessed grid.
@@ -174,7 +183,8 @@ class ReachSetAvoider:
         goal = ctl.waypoints[ctl.goal]
         here = ned_to_enu(estimate.pos_ned)
         dist = float(np.linalg.norm(goal - here))
-        if dist <= d.reach_radius and (not d.threat_events or self._approach_free(d, here, goal, threats)):
+        direct = dist <= d.reach_radius or (self.turns_in_place and self._in_turn_circle(d, here, goal))
+        if direct and (not d.threat_events or self._approach_free(d, here, goal, threats)):
             return (
                 enu_to_ned(np.vstack([here, goal])),
                 np.array([d.t, d.t + max(dist / speed, 1e-3)]),
@@ -196,6 +206,13 @@ class ReachSetAvoider:
             times = np.append(times[: k + 1], times[k] + max(gap / speed, 1e-3))
             labels = np.append(labels[: k + 1], ctl.goal)
         return enu_to_ned(gcf), times, labels
+
+    def _in_turn_circle(self, d: Decision, here: np.ndarray, goal: np.ndarray) -> bool:
+        """Whether the goal (GCF) lies inside the turn circle of the active segment's movements
+        at the decision's grid pose (anywhere inside: no depth margin)."""
+        ctl = self.control
+        turn_radii = ctl.sma.active(KinState(here, np.zeros(3), d.t, self.speed)).table.turn_radii
+        return Steering(turn_radii, d.reach_radius).in_turn_circle(d.pose.to_lcf(goal), depth=0.0)
 
     def _approach_free(self, d: Decision, here: np.ndarray, goal: np.ndarray, threats: Threats) -> bool:
         """Whether the direct leg here -> goal (GCF) crosses only Free cells, assessed (with the

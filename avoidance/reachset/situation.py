@@ -60,6 +60,7 @@ class Assessor:
         ]
         parts.intruder_motion = intruder_motion(pose, t_grid, tracks, cfg.intruders.body_margin)
         parts.give_way_turn_rate = cfg.intruders.give_way_turn_rate
+        parts.vertical_margin = cfg.intruders.vertical_margin
         parts.intruders = self.intruder_model.ratings(parts.intruder_motion)
         parts.hard, parts.soft = classify(
             grid, pose, self.constraints(threats, t_grid), cfg.constraints, t_grid, self.uas_leave

@@ -34,11 +34,20 @@ planned states map back to the ground at their times.
 
 Each replan plans at the vehicle's current true airspeed (the mean of the estimate's over the
 planner calls of the last ``replan_period_s``, so that one noisy pitot sample does not set a
-plan's schedule; the configured ``tas_mps`` only while the estimate has none, or always with
-``speed_source = "config"``), so
-the turn radius and leg lengths follow the speed as it grows with altitude at a fixed
-equivalent airspeed; and only with the storm cells whose vertical extent the vehicle can be
-near over the horizon (vertical.py).
+plan's schedule, samples taken while a plan commands airspeeds left out; the configured
+``tas_mps`` while the estimate has none, while the plan in force commands airspeeds (a hold at
+V_cor: the estimate is then V_cor, not the cruise speed V the hold was planned from), or always
+with ``speed_source = "config"``), so the turn radius and leg lengths follow the speed as it
+grows with altitude at a fixed equivalent airspeed; and only with the storm cells whose vertical
+extent the vehicle can be near over the horizon (vertical.py).
+
+A holding orbit flown at V_cor (``hold_speed_correction``, holding.py) is commanded through the
+plan's ``airspeeds``: V_cor on the orbit's legs, V on the legs to a pre-defined holding location
+(and on a lead-in, the speed of the leg it leads into); every other plan commands none, so the
+follower flies its cruise airspeed again after a hold. Such a hold is planned at the configured
+V = ``tas_mps`` (the cruise speed), never at the estimate's: a commanded speed must not carry
+the airspeed estimate's noise (sigma ~0.6 m/s at 18 km on the EKF, about the 2.6 % of the
+correction itself) or, while holding, V_cor taken for V.
 
 The plan's vertices are the trajectory states, with the modelled turns written out between them
 for the fly-over turn models (turnmodel.written_out); labels are -1 except the goal (its waypoint
@@ -62,7 +71,7 @@ from shapely.geometry import Polygon
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
 from guidance.mptp.heuristics import GoalAvailability
-from guidance.mptp.holding import holding_orbit, safe_area_leg
+from guidance.mptp.holding import corrected_speed_mps, holding_orbit, safe_area_leg
 from guidance.mptp.keeping import TOUCH_M, extra_growth_m, position_at, remaining_clear
 from guidance.mptp.lead_in import LeadIn, held_turn_rate, lead_in
 from guidance.mptp.search import HOLD, Trajectory, default_workspace, plan_trajectory
@@ -77,6 +86,8 @@ from sim.core.state import VehicleState
 from sim.core.threats import StormSnapshot
 
 MIN_AIRSPEED = 1.0  # below this the course is taken from the yaw [m/s]
+
+Hold = tuple[np.ndarray, np.ndarray, np.ndarray | None, str]  # points, times, airspeeds, reason
 
 
 class MptpPlanner:
@@ -186,8 +197,9 @@ class MptpPlanner:
 
     def _sample_tas(self, est: VehicleState, t: float) -> None:
         """Adds the estimate's TAS at call time ``t`` [s] and drops the samples older than one
-        ``replan_period_s``; an estimate below ``MIN_AIRSPEED`` (none) clears them."""
-        if est.tas_mps < MIN_AIRSPEED:
+        ``replan_period_s``; an estimate below ``MIN_AIRSPEED`` (none), or one taken while the
+        plan in force commands airspeeds (a hold at V_cor), clears them."""
+        if est.tas_mps < MIN_AIRSPEED or (self.plan_ is not None and self.plan_.airspeeds is not None):
             self._tas.clear()
             return
         self._tas.append((t, float(est.tas_mps)))
@@ -198,8 +210,9 @@ class MptpPlanner:
         """The configuration at the vehicle's current true airspeed [m/s] (``speed_source``
         "estimate": the mean of the estimate's over the calls of the last ``replan_period_s``,
         this one's alone when none was sampled; the configured one while the estimate's is below
-        ``MIN_AIRSPEED``)."""
-        if self.cfg.speed_source == "config" or est.tas_mps < MIN_AIRSPEED:
+        ``MIN_AIRSPEED`` or the plan in force commands airspeeds)."""
+        holds = self.plan_ is not None and self.plan_.airspeeds is not None
+        if self.cfg.speed_source == "config" or est.tas_mps < MIN_AIRSPEED or holds:
             return self.cfg
         tas = np.mean([v for _, v in self._tas]) if self._tas else est.tas_mps
         return self.cfg.with_(tas_mps=float(tas))
@@ -282,11 +295,15 @@ class MptpPlanner:
         availability = GoalAvailability(tl, goal)
         levels = tl.interval(t + np.arange(0.0, cfg.horizon_s + cfg.dt_s, cfg.dt_s))
         if all(availability.covered(int(j)) for j in levels):
-            hold = self._hold_at_point(cfg, tl, p0, t0, course) or self._hold_here(cfg, tl, p0, t0, course)
+            hcfg = cfg.with_(tas_mps=self.cfg.tas_mps) if cfg.hold_speed_correction else cfg
+            hold = self._hold_at_point(hcfg, tl, p0, t0, course) or self._hold_here(hcfg, tl, p0, t0, course)
             if hold is not None:
-                pts, times, reason = hold
+                pts, times, speeds, reason = hold
                 diag.update(runtime_s=time.perf_counter() - wall, holding_s=float(times[-1] - t), reason=reason)
-                plan = self._to_plan(t, est, lead, pts, times, np.full(len(pts), -1), PlanStatus.DEGRADED, diag)
+                if speeds is not None:
+                    diag["hold_tas_mps"] = float(speeds[-1])
+                labels = np.full(len(pts), -1)
+                plan = self._to_plan(t, est, lead, pts, times, labels, PlanStatus.DEGRADED, diag, airspeeds=speeds)
                 return plan, None
         arrival = float(goal.intercept(p0, np.array([t0]), cfg.tas_mps)[0])
         turning = _one_way(cfg.turning) if availability.covered(int(tl.interval(arrival))) else cfg.turning
@@ -327,18 +344,17 @@ class MptpPlanner:
         diag["reason"] = "search " + traj.status
         return self._to_plan(t, est, lead, pts, times, np.full(2, -1), PlanStatus.NO_SOLUTION, diag), traj
 
-    def _hold_here(
-        self, cfg: MptpConfig, tl: ObstacleTimeline, p0: np.ndarray, t: float, course: float
-    ) -> tuple[np.ndarray, np.ndarray, str] | None:
+    def _hold_here(self, cfg: MptpConfig, tl: ObstacleTimeline, p0: np.ndarray, t: float, course: float) -> Hold | None:
         """A holding orbit from the current state until the next replan, or None."""
         orbit = holding_orbit(tl, p0, t, course, t + cfg.replan_period_s, cfg, _one_way(cfg.turning))
-        return None if orbit is None else (orbit[0], orbit[1], "goal covered")
+        return None if orbit is None else (orbit[0], orbit[1], _hold_airspeeds(cfg, 0, len(orbit[0])), "goal covered")
 
     def _hold_at_point(
         self, cfg: MptpConfig, tl: ObstacleTimeline, p0: np.ndarray, t: float, course: float
-    ) -> tuple[np.ndarray, np.ndarray, str] | None:
+    ) -> Hold | None:
         """The trajectory to the nearest pre-defined holding location (5.4) that the search
-        reaches and whose orbit, for a replan period after arrival, is free; None when none is."""
+        reaches and whose orbit, for a replan period after arrival, is free; None when none is.
+        With the speed correction the legs to it are commanded at V and the orbit's at V_cor."""
         points = np.asarray(cfg.holding_points, float).reshape(-1, 2)
         w, t_ref = self.wind_ne, tl.t_issue
         ground = to_air(points, t, w, t_ref) if w.any() else points
@@ -360,7 +376,9 @@ class MptpPlanner:
             )
             if orbit is not None:
                 pts = np.vstack([traj.positions, orbit[0][1:]])
-                return pts, np.concatenate([traj.times, orbit[1][1:]]), f"goal covered: holding at point {int(i)}"
+                speeds = _hold_airspeeds(cfg, len(traj.positions) - 1, len(pts))
+                times = np.concatenate([traj.times, orbit[1][1:]])
+                return pts, times, speeds, f"goal covered: holding at point {int(i)}"
         return None
 
     def _workspace(
@@ -385,11 +403,17 @@ class MptpPlanner:
         status: PlanStatus,
         diag: dict,
         turn_rates: np.ndarray | None = None,
+        airspeeds: np.ndarray | None = None,
     ) -> Plan:
         """A plan from states (air-mass frame ``ne`` (N, 2) [m] at ``times`` [s], from the
         predicted start of ``lead``, which puts its lead-in leg in front) on the ground;
-        ``turn_rates`` (N,) [rad/s]: the model's course rate on each leg (None: straight legs)."""
+        ``turn_rates`` (N,) [rad/s]: the model's course rate on each leg (None: straight legs);
+        ``airspeeds`` (N,) [m/s]: the commanded true airspeed on each leg (None: cruise), the
+        lead-in flown at its first leg's."""
+        n = len(ne)
         ne, times, labels, turn_rates = lead.prepend(ne, times, labels, turn_rates)
+        if airspeeds is not None:
+            airspeeds = np.r_[np.full(len(ne) - n, airspeeds[0]), airspeeds]
         ne = to_ground(ne, times, self.wind_ne, self.timeline.t_issue if self.timeline else t)
         d0 = float(est.pos_ned[2])
         d1 = float(self.mission.waypoints[self._goal_index_for(labels), 2])
@@ -406,11 +430,31 @@ class MptpPlanner:
         vel = np.diff(pos, axis=0) / np.maximum(np.diff(times), 1e-9)[:, None]
         vel = np.vstack([vel, vel[-1:]]) if len(vel) else np.zeros((1, 3))
         return Plan(
-            t, pos, np.asarray(times, float), np.asarray(labels), status, vel, self.name, diag, turn_rates=turn_rates
+            t,
+            pos,
+            np.asarray(times, float),
+            np.asarray(labels),
+            status,
+            vel,
+            self.name,
+            diag,
+            turn_rates=turn_rates,
+            airspeeds=airspeeds,
         )
 
     def _goal_index_for(self, labels: np.ndarray) -> int:
         return int(labels.max()) if (labels >= 0).any() else self.mission.next_index
+
+
+def _hold_airspeeds(cfg: MptpConfig, transit_legs: int, n: int) -> np.ndarray | None:
+    """Commanded true airspeeds [m/s] of a hold plan's ``n`` vertices: V (``cfg.tas_mps``) on its
+    first ``transit_legs`` legs (to a holding location), V_cor on the orbit's after them; None
+    without the speed correction (the n-gon is flown at the cruise speed)."""
+    if not cfg.hold_speed_correction:
+        return None
+    speeds = np.full(n, corrected_speed_mps(cfg))
+    speeds[:transit_legs] = cfg.tas_mps
+    return speeds
 
 
 def _one_way(turning: str) -> str:

@@ -70,14 +70,36 @@ def euler_to_quat(roll: float, pitch: float, yaw: float) -> tuple[float, float, 
     )
 
 
-def quat_to_dcm(q: tuple[float, float, float, float]) -> np.ndarray:
+def quat_to_dcm_rows(q: tuple[float, float, float, float]) -> tuple[float, ...]:
+    """Rotation matrix body FRD -> NED of a unit quaternion, row-major as 9 plain floats."""
     w, x, y, z = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
+    return (
+        1 - 2 * (y * y + z * z),
+        2 * (x * y - w * z),
+        2 * (x * z + w * y),
+        2 * (x * y + w * z),
+        1 - 2 * (x * x + z * z),
+        2 * (y * z - w * x),
+        2 * (x * z - w * y),
+        2 * (y * z + w * x),
+        1 - 2 * (x * x + y * y),
+    )
+
+
+def quat_to_dcm(q: tuple[float, float, float, float]) -> np.ndarray:
+    """Rotation matrix body FRD -> NED (3x3) of a unit quaternion."""
+    return np.array(quat_to_dcm_rows(q)).reshape(3, 3)
+
+
+def quat_to_euler(q: tuple[float, float, float, float]) -> tuple[float, float, float]:
+    """3-2-1 Euler angles (roll, pitch, yaw) [rad] of a unit quaternion, body FRD -> NED, as
+    plain floats (the same bits as :func:`dcm_to_euler` of :func:`quat_to_dcm`)."""
+    w, x, y, z = q
+    s = 2.0 * (w * y - x * z)
+    return (
+        math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y)),
+        math.asin(-1.0 if s < -1.0 else min(s, 1.0)),
+        math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)),
     )
 
 

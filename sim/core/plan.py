@@ -33,7 +33,11 @@ class Plan:
     change, 6.202), honoured by the multirotor follower; None = the cruise speed.
     ``turn_rates`` (N,) [rad/s]: the rate of the air-relative course (+ = right) the planner's
     aircraft model flies on the leg from each vertex to the next (the last entry unused), fed
-    forward as bank by the fixed-wing follower; None = straight legs between corners."""
+    forward as bank by the fixed-wing follower; None = straight legs between corners.
+    ``airspeeds`` (N,) [m/s]: the true airspeed the planner commands on the leg from each vertex
+    to the next (the last entry unused), taken by the fixed-wing follower as its airspeed demand
+    (the flight controller bounds it to the airframe's envelope), e.g. an MPTP holding orbit
+    flown at V_cor; None = the mission's cruise airspeed on every leg."""
 
     t: float
     positions: np.ndarray
@@ -45,6 +49,7 @@ class Plan:
     diagnostics: dict[str, float | int | str] = field(default_factory=dict)
     speed: float | None = None
     turn_rates: np.ndarray | None = None
+    airspeeds: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = len(self.positions)
@@ -52,6 +57,8 @@ class Plan:
             raise ValueError("plan arrays must be positions (N,3), times (N,), labels (N,)")
         if self.turn_rates is not None and self.turn_rates.shape != (n,):
             raise ValueError(f"plan turn_rates must be (N,) = ({n},), got {self.turn_rates.shape}")
+        if self.airspeeds is not None and (self.airspeeds.shape != (n,) or not np.all(self.airspeeds > 0)):
+            raise ValueError(f"plan airspeeds must be (N,) = ({n},) and > 0 m/s, got {self.airspeeds!r}")
 
 
 @dataclass(slots=True)

@@ -14,23 +14,10 @@ Plain float math: this runs at the IMU rate.
 
 from __future__ import annotations
 
-import math
-
-from sim.core.frames import quat_exp, quat_mul
+from sim.core.frames import quat_exp, quat_mul, quat_to_euler
 from sim.core.state import AttitudeSample
 
 Quat = tuple[float, float, float, float]
-
-
-def quat_to_euler(q: Quat) -> tuple[float, float, float]:
-    """3-2-1 Euler angles (roll, pitch, yaw) [rad] of a unit quaternion, body FRD -> NED."""
-    w, x, y, z = q
-    s = 2.0 * (w * y - x * z)
-    return (
-        math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y)),
-        math.asin(-1.0 if s < -1.0 else min(s, 1.0)),
-        math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)),
-    )
 
 
 class GyroAttitude:

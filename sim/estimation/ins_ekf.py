@@ -39,17 +39,16 @@ from collections.abc import Iterable
 from typing import Literal
 
 import numpy as np
-from numpy.typing import ArrayLike
 from pydantic import Field
 
 from sim.core.constants import STANDARD_GRAVITY
 from sim.core.frames import (
-    dcm_to_euler,
     euler_to_quat,
     quat_exp,
     quat_mul,
     quat_normalize,
     quat_to_dcm,
+    quat_to_euler,
 )
 from sim.core.state import VehicleState
 from sim.estimation import ins_model as m
@@ -60,10 +59,9 @@ from sim.sensors.config import StrictConfig
 from sim.sensors.measurements import AirspeedSample, BaroSample, GnssFix, ImuSample, MagSample
 from sim.sensors.suite import SensorSuiteConfig
 
-_DIAGONAL = [k * (m.N + 1) for k in range(16)]
-_POS_DIAGONAL = _DIAGONAL[
-    0:3
-]  # the position error's variances, N, E, D [m^2]  # flat indices of the covariance diagonal's first 16
+_DIAGONAL = [k * (m.N + 1) for k in range(16)]  # flat indices of the covariance diagonal's first 16
+_POS_DIAGONAL = _DIAGONAL[0:3]  # those of the position error's variances, N, E, D [m^2]
+_ROWS = {GnssFix: 6, BaroSample: 1, MagSample: 3}  # rows each measurement adds to a stacked update
 _C_REFRESH_M = 10.0  # recompute the velocity map after this much travel [m] (C changes ~2e-6/10 m)
 
 
@@ -195,8 +193,6 @@ class InsEkf:
         )
         self._gm_var = np.array([c.gnss_gm_std_ne, c.gnss_gm_std_ne, c.gnss_gm_std_d]) ** 2
         self._phi = np.eye(m.N)
-        self._Q = np.zeros((m.N, m.N))
-        self._diag = np.diag_indices(m.N)
         self._H_gnss = np.zeros((6, m.N))
         self._H_gnss[0:3, 0:3] = self._H_gnss[0:3, 16:19] = self._H_gnss[3:6, 3:6] = np.eye(3)
         self._R_gnss = (
@@ -216,27 +212,28 @@ class InsEkf:
         self._H_baro[0, 2], self._H_baro[0, 15] = -1.0, 1.0
         self._H_mag = np.zeros((3, m.N))
         self._R_mag = np.eye(3) * c.mag_noise_ut**2
-        self._R_gnss_diag = np.diag(self._R_gnss).copy()
-        self._R_mag_diag = np.diag(self._R_mag).copy()
+        self._R_gnss_diag = np.diag(self._R_gnss).tolist()
+        self._R_mag_diag = np.diag(self._R_mag).tolist()
         hm = c.mag_intensity_ut * math.cos(c.mag_inclination_rad)
-        self._field_ned = np.array(
-            [
-                hm * math.cos(c.mag_declination_rad),
-                hm * math.sin(c.mag_declination_rad),
-                c.mag_intensity_ut * math.sin(c.mag_inclination_rad),
-            ]
-        )
+        self._field_ned = [  # the earth field NED [uT]
+            hm * math.cos(c.mag_declination_rad),
+            hm * math.sin(c.mag_declination_rad),
+            c.mag_intensity_ut * math.sin(c.mag_inclination_rad),
+        ]
         self._numeric = c.jacobians == "numeric"
-        self._gravity = np.array([0.0, 0.0, c.gravity_mps2])
-        self._qd = np.empty(m.N)
+        self._gravity = [0.0, 0.0, c.gravity_mps2]  # NED [m/s^2]
         self._inbox: list = []
         self._imu: ImuSample | None = None
-        self._acc_ned = np.zeros(3)
+        self._acc_ned = [0.0, 0.0, 0.0]  # the latest prediction's NED acceleration [m/s^2]
         self._rates = np.array(initial.rates_body, float)
         self.t = initial.t
         self._c_at = (math.inf, math.inf, math.inf)
         self._c = np.eye(3)
+        self._c9 = m.mat3(self._c)  # the same as plain floats, for the mechanisation
         self._refresh_c()
+        self._q_dt = math.nan  # the step [s] of the two below (:meth:`_process_noise`)
+        self._decay = 1.0
+        self._Q = np.zeros((m.N, m.N))
         self._p_static: float | None = None
         self._dp: float | None = None
 
@@ -257,6 +254,7 @@ class InsEkf:
         a = self._c_at
         if abs(x - a[0]) + abs(y - a[1]) + abs(z - a[2]) > _C_REFRESH_M:
             self._c = self._geo.velocity_map(x, y, z)
+            self._c9 = m.mat3(self._c)
             self._c_at = (x, y, z)
         return self._c
 
@@ -291,23 +289,36 @@ class InsEkf:
             return
         f = 0.5 * (prev.accel_body + z.accel_body)
         w = 0.5 * (prev.gyro_body + z.gyro_body)
-        decay = math.exp(-dt / self.cfg.gnss_gm_tau_s)
+        decay, q = self._process_noise(dt)
         c = self._refresh_c()
         if self._numeric:
             phi = m.transition_numeric(self.nav, f, w, dt, decay, c_pos=c)
-        nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity, c)
+        nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity, self._c9)
         if not self._numeric:
-            phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay, c)
-        self._acc_ned = r @ fh + self._gravity
+            phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay, self._c9)
+        self._acc_ned = self._acceleration(r, fh)
         self._rates = z.gyro_body - nav.bg
-        q = self._Q
-        q[self._diag] = self._q_rates * dt
-        q[16:19, 16:19][np.diag_indices(3)] = self._gm_var * (1.0 - decay * decay)
         self.kf.F = phi
         self.kf.Q = q
         self.kf.predict()
         self.nav = nav
         self.t = z.t
+
+    def _acceleration(self, r: m.Mat3, fh: m.Vec3) -> m.Vec3:
+        """NED acceleration [m/s^2]: the rotated bias-corrected specific force plus gravity."""
+        ax, ay, az = m.rotate(r, fh)
+        gx, gy, gz = self._gravity
+        return [ax + gx, ay + gy, az + gz]
+
+    def _process_noise(self, dt: float) -> tuple[float, np.ndarray]:
+        """The Gauss-Markov decay over a step of ``dt`` [s] and the step's discrete process
+        noise Q (19x19, diagonal), worked out again only when the step changes."""
+        if dt != self._q_dt:
+            decay = math.exp(-dt / self.cfg.gnss_gm_tau_s)
+            qd = self._q_rates * dt
+            qd[16:19] = self._gm_var * (1.0 - decay * decay)
+            self._q_dt, self._decay, self._Q = dt, decay, np.diag(qd)
+        return self._decay, self._Q
 
     # -- updates --------------------------------------------------------------------------------
     def _fuse(self, z: np.ndarray, hx: np.ndarray, H: np.ndarray, R: np.ndarray) -> None:
@@ -339,22 +350,20 @@ class InsEkf:
 
     # -- fast paths (sim.estimation.sensor_estimator): one predict per fusion interval from the
     # IMU samples averaged over it, and one stacked update per interval, without filterpy ------
-    def predict_mean(self, f: np.ndarray, w: np.ndarray, dt: float, t_end: float, w_last: np.ndarray) -> None:
+    def predict_mean(self, f: m.Vector3, w: m.Vector3, dt: float, t_end: float, w_last: m.Vector3) -> None:
         """Propagate over ``dt`` [s] to ``t_end`` with the specific force ``f`` and rate ``w``
         averaged over the interval (trapezoid over its IMU samples); ``w_last`` is the newest
         gyro sample (the output body rate). ``P <- Phi P Phi^T + Q`` in place of filterpy."""
         if dt <= 0.0:
             return
-        decay = math.exp(-dt / self.cfg.gnss_gm_tau_s)
-        c = self._refresh_c()
-        nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity, c)
-        phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay, c)
-        self._acc_ned = r @ fh + self._gravity
-        self._rates = w_last - nav.bg
-        qd = np.multiply(self._q_rates, dt, out=self._qd)
-        qd[16:19] = self._gm_var * (1.0 - decay * decay)
+        decay, q = self._process_noise(dt)
+        self._refresh_c()
+        nav, r, fh, wh = m.propagate(self.nav, f, w, dt, decay, self._gravity, self._c9)
+        phi = m.transition_analytic(self._phi, r, fh, wh, dt, decay, self._c9)
+        self._acc_ned = self._acceleration(r, fh)
+        self._rates = np.subtract(w_last, nav.bg)
         P = phi @ self.kf.P @ phi.T
-        P.flat[:: m.N + 1] += qd  # the diagonal, without fancy indexing
+        P += q
         self.kf.P = P
         self.nav = nav
         self.t = t_end
@@ -365,48 +374,48 @@ class InsEkf:
         state, so this equals sequential updates to first order). Each is back-shifted by its
         lag (filter time - time of validity): GNSS as in :meth:`fuse_gnss`, baro height by
         ``v_D lag``. Returns the number of rows fused."""
-        zs: list[ArrayLike] = []  # measured values
-        hs: list[ArrayLike] = []  # their predictions
-        Hs: list[np.ndarray] = []  # their Jacobians
-        rs: list[ArrayLike] = []  # their noise variances
+        zs = list(measurements)
+        n = sum(_ROWS.get(type(z), 0) for z in zs)
+        H = np.zeros((n, m.N))  # the stacked Jacobian, filled block by block
+        z: list[float] = []  # measured values
+        h: list[float] = []  # their predictions
+        r: list[float] = []  # their noise variances
         nav = self.nav
-        for z in measurements:
-            tz = type(z)
+        for meas in zs:
+            tz, k = type(meas), len(z)
             if tz is GnssFix:
-                lag = self.t - z.t
-                c = self._c
-                zs.append(z.pos_ned)
-                zs.append(z.vel_ned)
-                hs.append(m.h_gnss(nav, lag, self._acc_ned, c))
-                Hs.append(m.H_gnss(self._H_gnss, lag, c).copy())
-                rs.append(self._R_gnss_diag)
+                lag = self.t - meas.t
+                z += meas.pos_ned.tolist()
+                z += meas.vel_ned.tolist()
+                h += m.gnss_prediction(nav, lag, self._acc_ned, self._c9)
+                H[k : k + 6] = self._H_gnss
+                m.H_gnss(H[k : k + 6], lag, self._c)
+                r += self._R_gnss_diag
             elif tz is BaroSample:
-                p = z.pressure_pa
+                p = meas.pressure_pa
                 self._p_static = p
-                lag = self.t - z.t
+                lag = self.t - meas.t
                 std = self.cfg.baro_noise_pa * isa.height_per_pascal(p)
-                zs.append((isa.altitude_of_pressure(p) - self.origin.alt_m,))
-                hs.append((-(nav.p[2] - nav.v[2] * lag) + nav.bb,))
-                H = self._H_baro.copy()
-                H[0, 5] = lag
-                Hs.append(H)
-                rs.append((std * std,))
+                z.append(isa.altitude_of_pressure(p) - self.origin.alt_m)
+                h.append(-(float(nav.p[2]) - float(nav.v[2]) * lag) + nav.bb)
+                H[k] = self._H_baro[0]
+                H[k, 5] = lag
+                r.append(std * std)
             elif tz is MagSample:
-                hx = m.h_mag(nav, self._field_ned)
-                zs.append(z.field_body_ut)
-                hs.append(hx)
-                Hs.append(m.H_mag(self._H_mag, hx).copy())
-                rs.append(self._R_mag_diag)
+                hx = m.mag_prediction(nav.q, self._field_ned)
+                z += np.asarray(meas.field_body_ut, float).tolist()
+                h += hx
+                m.H_mag(H[k : k + 3], hx)
+                r += self._R_mag_diag
             elif tz is AirspeedSample:
-                self._dp = z.diff_pressure_pa
-        if not zs:
+                self._dp = meas.diff_pressure_pa
+        if not n:
             return 0
-        H = np.concatenate(Hs) if len(Hs) > 1 else Hs[0]
-        y = np.concatenate(zs) - np.concatenate(hs)
+        y = np.array([a - b for a, b in zip(z, h, strict=True)])
         P = self.kf.P
         PHt = P @ H.T
         S = H @ PHt
-        S.flat[:: len(y) + 1] += np.concatenate(rs)
+        S.flat[:: n + 1] += r
         K = PHt @ np.linalg.inv(S)
         P = P - K @ PHt.T
         self.kf.P = 0.5 * (P + P.T)
@@ -418,7 +427,7 @@ class InsEkf:
         nav.bg += dx[12:15]
         nav.bb += float(dx[15])
         nav.gm += dx[16:19]
-        return len(y)
+        return n
 
     # -- outputs --------------------------------------------------------------------------------
     @property
@@ -438,24 +447,27 @@ class InsEkf:
         """Estimate extrapolated from the filter time to ``t`` [s] (constant velocity, moving the
         scenario position along ``C v``)."""
         nav = self.nav
-        pos = nav.p + self._c @ nav.v * (t - self.t) if t != self.t else nav.p.copy()
+        pos = nav.p.tolist()
+        v = nav.v.tolist()
+        if t != self.t:
+            dt = t - self.t
+            cv = m.rotate(self._c9, v)
+            pos = [pos[0] + cv[0] * dt, pos[1] + cv[1] * dt, pos[2] + cv[2] * dt]
         lat, lon, alt = self._geo.ned_to_geodetic(*pos)
         if self._dp is not None and self._p_static is not None:
             tas, eas = isa.airspeeds_from_dp(self._dp, self._p_static)
         else:  # no pitot: ground speed, air density from the ISA at the estimated altitude
-            tas = float(np.linalg.norm(nav.v))
-            eas = tas * math.sqrt(
-                isa.pressure_at_altitude(float(alt)) / isa.P0 * isa.T0 / isa.temperature_at_altitude(float(alt))
-            )
+            tas = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+            eas = tas * math.sqrt(isa.pressure_at_altitude(alt) / isa.P0 * isa.T0 / isa.temperature_at_altitude(alt))
         return VehicleState(
             t=t,
-            pos_ned=pos,
-            vel_ned=nav.v.copy(),
-            euler=dcm_to_euler(quat_to_dcm(nav.q)),
+            pos_ned=np.array(pos),
+            vel_ned=np.array(v),
+            euler=np.array(quat_to_euler(nav.q)),
             rates_body=self._rates.copy(),
-            alt_msl_m=float(alt),
-            lat_deg=float(lat),
-            lon_deg=float(lon),
+            alt_msl_m=alt,
+            lat_deg=lat,
+            lon_deg=lon,
             tas_mps=tas,
             eas_mps=eas,
             pos_sigma_m=np.sqrt(np.maximum(self.kf.P.take(_POS_DIAGONAL), 0.0)),

@@ -215,11 +215,10 @@ class SensorEstimator:
         self._aid_next = -math.inf
         self._t_sensed = -math.inf
         self._block: list[list[float]] = []  # the fusion interval's IMU outputs (accel, gyro)
-        self._block_t: list[float] = []  # their times [s]
         self._t_gyro = -math.inf  # time of the newest gyro sample [s]
         # inner-loop inputs: the attitude propagated with the bias-corrected gyro between fusions
         self.attitude = GyroAttitude(self.ekf.nav.q, tuple(self.ekf.nav.bg.tolist()))
-        self._fused: tuple[float, np.ndarray] | None = None  # last fusion time [s], its newest IMU sample
+        self._fused: tuple[float, list[float]] | None = None  # last fusion time [s], its newest IMU sample
         self._inbox: list[Measurement] = []
         self._log: MeasurementLog = {}
         self._cache: tuple[float, int, VehicleState] | None = None
@@ -249,7 +248,6 @@ class SensorEstimator:
             k = _LBF / (mass * _SLUG)
             row = self.imu.measure_one(t, (fx * k, fy * k, fz * k, p, q, r), self._imu_period)
             if row is not None:  # a sample a fault dropped leaves the inner loops on the previous one
-                self._block_t.append(t)
                 self._block.append(row)
                 gyro = (row[3], row[4], row[5])
             self._imu_next = (math.floor((t + _EPS) / self._imu_period) + 1) * self._imu_period
@@ -260,7 +258,8 @@ class SensorEstimator:
             self._fuse(t)
             if self._fused is not None:
                 nav = self.ekf.nav
-                w = gyro if gyro is not None else tuple(self._fused[1][3:].tolist())
+                prev = self._fused[1]
+                w = gyro if gyro is not None else (prev[3], prev[4], prev[5])
                 self.attitude.restart(t, nav.q, tuple(nav.bg.tolist()), w)
         elif gyro is not None:
             self.attitude.step(t, gyro, t - self._t_gyro)
@@ -292,19 +291,22 @@ class SensorEstimator:
         self._aid_next = nxt
 
     def _fuse(self, t: float) -> None:
-        y = np.array(self._block).reshape(-1, 6)
-        self._block.clear()
-        self._block_t.clear()
-        if len(y):
+        block = self._block
+        if block:
+            last = block[-1]
             if self._fused is None:  # first sample: the start of the first interval
                 self.ekf.t = t
             else:  # trapezoid over [previous interval's last sample, this one's samples]
                 t_prev, prev = self._fused
-                mean = (y.sum(axis=0) - 0.5 * y[-1] + 0.5 * prev) / len(y)
+                n = len(block)
+                # per axis, the samples summed in order from -0.0 (the additive identity)
+                cols = zip(*block, strict=True)
+                mean = [(sum(col, -0.0) - 0.5 * a + 0.5 * b) / n for col, a, b in zip(cols, last, prev, strict=True)]
                 dt = t - t_prev
-                self.ekf.predict_mean(mean[:3], mean[3:], dt, t, y[-1, 3:])
-                self._log.setdefault("imu", []).append((t, dt, mean))  # converted on demand
-            self._fused = (t, y[-1].copy())
+                self.ekf.predict_mean(mean[:3], mean[3:], dt, t, last[3:])
+                self._log.setdefault("imu", []).append((t, dt, mean))
+            self._fused = (t, last)
+            block.clear()
         elif self._fused is not None:  # IMU dropout: coast on the previous interval's last sample
             t_prev, prev = self._fused
             self.ekf.predict_mean(prev[:3], prev[3:], t - t_prev, t, prev[3:])
@@ -324,10 +326,7 @@ class SensorEstimator:
         out: dict[str, list[dict]] = {}
         for name, items in self._log.items():
             if name == "imu":
-                out[name] = [
-                    {"t": t, "dt": dt, "accel_body": _floats(mn[:3]), "gyro_body": _floats(mn[3:])}
-                    for t, dt, mn in items
-                ]
+                out[name] = [{"t": t, "dt": dt, "accel_body": mn[:3], "gyro_body": mn[3:]} for t, dt, mn in items]
             else:
                 out[name] = [_record(z) for z in items]
         self._log = {}
@@ -375,7 +374,7 @@ def measurement_row(log: MeasurementLog) -> list[float]:
     for name, items in log.items():
         if name == "imu":
             for t, dt, mn in items:
-                row += (t, dt, *mn.tolist())
+                row += (t, dt, *mn)
         else:
             for z in items:
                 row += _values(z)

@@ -221,4 +221,13 @@ def _differences(report: RerunReport, rec: dict | None, new: Plan | None) -> lis
     report.max_time_diff_s = max(report.max_time_diff_s, dt)
     if dp > 1e-6 or dt > 1e-6:
         why.append(f"vertices differ by up to {dp:.3g} m / {dt:.3g} s")
+    if not _same_airspeeds(rec.get("airspeeds"), new.airspeeds):
+        why.append("commanded airspeeds differ")
     return why
+
+
+def _same_airspeeds(old: list[float] | None, new: np.ndarray | None) -> bool:
+    """Whether a recorded plan's commanded airspeeds [m/s] (None: none) are the re-run's."""
+    if old is None or new is None:
+        return old is None and new is None
+    return bool(np.allclose(old, new))

@@ -40,16 +40,20 @@ class Channel:
         self.bias = cfg.bias_init_std * rng.standard_normal(dim)
 
     def apply(self, true: np.ndarray, dt: float) -> np.ndarray:
-        """Measured value of ``true`` after ``dt`` [s] since the previous sample."""
+        """Measured value of ``true`` after ``dt`` [s] since the previous sample. Plain float
+        arithmetic per axis (a sensor sample has 1 to 3 axes), the same operations in the same
+        order as :meth:`apply_block`'s arrays: the same bits, the sign of a zero included."""
         c = self.cfg
         if c.bias_rw > 0.0 and dt > 0.0:
             self.bias += (c.bias_rw * math.sqrt(dt)) * self._rng.standard_normal(self.dim)
-        y = self.scale * true + self.bias
+        y = [s * x + b for s, x, b in zip(self.scale.tolist(), true.tolist(), self.bias.tolist(), strict=True)]
         if c.noise_std > 0.0:
-            y += c.noise_std * self._rng.standard_normal(self.dim)
+            k = c.noise_std
+            y = [v + k * e for v, e in zip(y, self._rng.standard_normal(self.dim).tolist(), strict=True)]
         if c.quantum > 0.0:
-            y = c.quantum * np.round(y / c.quantum)
-        return y
+            q = c.quantum
+            y = [math.copysign(q * round(v / q), v) for v in y]  # round half to even, as numpy's
+        return np.array(y)
 
     def apply_block(self, true: np.ndarray, dt: float) -> np.ndarray:
         """Measured values of ``true`` (n, dim), sampled every ``dt`` [s] after the previous

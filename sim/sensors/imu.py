@@ -72,13 +72,35 @@ class Imu(SampledSensor[ImuSample]):
 
     def __init__(self, cfg: ImuConfig, rng: np.random.Generator):
         super().__init__(cfg, rng)
-        self.accel = Channel(cfg.accel_channel(), 3, rng)
-        self.gyro = Channel(cfg.gyro_channel(), 3, rng)
+        self._accel = Channel(cfg.accel_channel(), 3, rng)
+        self._gyro = Channel(cfg.gyro_channel(), 3, rng)
+        self._bias_row: int | None = None  # the pool row the channels' biases are still to be set to
         self._blk: tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._walk = self._white = np.empty((0, 6))
         self._rows: tuple[list[list[float]], list[list[float]]] = ([], [])  # the pool as lists
         self._one: tuple[list[float], list[float], list[bool]] = ([], [], [])  # scale, quantum, mask
         self._pool_i = 0
+
+    @property
+    def accel(self) -> Channel:
+        """The accelerometer channel (its ``bias``: the bias of the newest sample)."""
+        self._set_biases()
+        return self._accel
+
+    @property
+    def gyro(self) -> Channel:
+        """The gyro channel (its ``bias``: the bias of the newest sample)."""
+        self._set_biases()
+        return self._gyro
+
+    def _set_biases(self) -> None:
+        """Set the channels' biases to the pool row of the newest sample, if not done yet (the
+        per-sample path leaves it to the first reader)."""
+        i, self._bias_row = self._bias_row, None
+        if i is not None:
+            b = self._walk[i]
+            self._accel.bias = b[:3].copy()
+            self._gyro.bias = b[3:].copy()
 
     def _measure(self, truth: TruthSample, dt: float) -> np.ndarray:
         return np.concatenate(
@@ -113,9 +135,7 @@ class Imu(SampledSensor[ImuSample]):
             self._rows = (self._walk.tolist(), self._white.tolist())
             i = 0
         self._pool_i = i + n
-        b = self._walk[i + n - 1]
-        self.accel.bias = b[:3].copy()
-        self.gyro.bias = b[3:].copy()
+        self._bias_row = i + n - 1
         return i
 
     def measure_one(self, t: float, true: tuple[float, ...], dt: float) -> list[float] | None:
@@ -124,11 +144,18 @@ class Imu(SampledSensor[ImuSample]):
         if self.faults.faults:
             ts, block = self.measure_block(np.array([t]), np.array([true]), dt)
             return block[0].tolist() if len(ts) else None
-        i = self._take(1, dt)
+        i = self._pool_i
+        if self._blk is not None and self._blk[0] == dt and i < len(self._rows[0]):  # _take(1, dt), inline
+            self._pool_i = i + 1
+            self._bias_row = i
+        else:
+            i = self._take(1, dt)
         scale, quantum, q_mask = self._one
         walk, white = self._rows[0][i], self._rows[1][i]
-        y = [x * s + w + e for x, s, w, e in zip(true, scale, walk, white, strict=True)]
-        return [round(v / q) * q if m else v for v, q, m in zip(y, quantum, q_mask, strict=True)]
+        return [
+            round((x * s + w + e) / q) * q if m else x * s + w + e
+            for x, s, w, e, q, m in zip(true, scale, walk, white, quantum, q_mask, strict=True)
+        ]
 
     def measure_block(self, t: np.ndarray, true: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Samples taken at times ``t`` (n,) every ``dt`` [s] from the true specific force and

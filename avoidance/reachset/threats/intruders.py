@@ -82,7 +82,9 @@ class IntruderModel:
     the sample spacing, so the sampled balls cover the swept body; ``[i_e, i_l]`` is the hull of
     the hit times (every ball point carries its centre's time). With ``give_way_turn_rate`` > 0
     the centre is sampled on the straight and on the right-turning prediction, and hits and times
-    are the union over both (D-21). The line is the body of radius 0, inside the body in space and
+    are the union over both (D-21). With ``vertical_margin`` every centre sample is copied up
+    and down over ± the margin (at most ``path_step`` apart, the bound grown by half that
+    spacing): the swept body becomes a vertical capsule. The line is the body of radius 0, inside the body in space and
     time, so with the body on its rate never exceeds the body's and only the body is rated. The
     cone (6.129-6.149) keeps its lattice at ``spacing``. Intruders whose reachable volume within
     the horizon (the capsule of the model's radius around the predicted segment, or with the turn
@@ -121,12 +123,23 @@ class IntruderModel:
         """Centre samples over the horizon: at most ``step`` apart, at least both ends."""
         return max(2, int(np.ceil(speed * self.horizon / self.step)) + 1)
 
+    def _vertical_offsets(self) -> tuple[np.ndarray, float]:
+        """Vertical offsets [m] of the centre copies spanning ``vertical_margin`` (at most
+        ``step`` apart; one copy at 0 without it) and half their spacing [m]."""
+        margin = self.cfg.vertical_margin
+        if margin <= 0.0:
+            return np.zeros(1), 0.0
+        n = int(np.ceil(2.0 * margin / self.step)) + 1
+        return np.linspace(-margin, margin, n), margin / (n - 1)
+
     def reach(self, motion: np.ndarray) -> np.ndarray:
         """(n,) radius [m] around each predicted segment within which the models can rate a cell."""
         cfg = self.cfg
         speed = np.linalg.norm(motion[:, 3:6], axis=1)
         n_t = np.array([self._samples(s) for s in speed])
+        offsets, half_gap = self._vertical_offsets()
         out = np.where(cfg.body, motion[:, 6], 0.0) + 0.5 * speed * self.horizon / (n_t - 1)
+        out = out + offsets[-1] + half_gap
         if not (cfg.line or cfg.body):
             out = np.full(len(motion), -np.inf)
         if cfg.spread:
@@ -178,9 +191,16 @@ class IntruderModel:
         rates = prediction_rates(self.cfg.give_way_turn_rate)
         centres = np.concatenate([predicted_positions(motion[owner, :3], motion[owner, 3:6], tau, r) for r in rates])
         owner, tau = np.tile(owner, len(rates)), np.tile(tau, len(rates))
+        offsets, half_gap = self._vertical_offsets()  # the capsule: copies of every centre up and down
+        centres = (centres[:, None, :] + offsets[None, :, None] * np.array([0.0, 0.0, 1.0])).reshape(-1, 3)
+        owner, tau = np.repeat(owner, len(offsets)), np.repeat(tau, len(offsets))
         order = np.argsort(owner, kind="stable")  # samples grouped per intruder (reduceat below)
         owner, tau, centres = owner[order], tau[order], centres[order]
-        bound = (motion[owner, 6] if self.cfg.body else 0.0) + 0.5 * speed[owner] * self.horizon / (n_t[owner] - 1)
+        bound = (
+            (motion[owner, 6] if self.cfg.body else 0.0)
+            + 0.5 * speed[owner] * self.horizon / (n_t[owner] - 1)
+            + half_gap
+        )
         hit = np.zeros((n, n_cells))
         i_e = np.full((n, n_cells), np.inf)
         i_l = np.full((n, n_cells), -np.inf)
