@@ -14,7 +14,7 @@ from shapely import affinity
 from shapely.geometry import box
 
 from guidance.mptp.config import MptpConfig
-from guidance.mptp.keeping import position_at, remaining_clear
+from guidance.mptp.keeping import extra_growth_m, position_at, remaining_clear
 from guidance.mptp.planner import MptpPlanner
 from guidance.mptp.timeline import ObstacleTimeline
 from sim.core.mission import Mission
@@ -137,3 +137,41 @@ def test_the_vertices_and_the_samples_between_them_are_tested():
     assert not shapely.contains_xy(tl.shape_at(0.0), 0.0, 0.0) and not shapely.contains_xy(
         tl.shape_at(0.0), 10_000.0, 0.0
     )
+
+
+def test_a_plan_is_not_dropped_for_margins_grown_by_a_faster_airspeed_estimate(flying):
+    """The replan's airspeed estimate is 2 m/s above the first plan's (pitot noise): the same
+    nowcast's envelopes grow by the turn cut at that speed, so the plan's legs along them lie
+    ~2.5 m inside; it is still clear at the margins it was planned with, and kept (slack 0.6: a
+    faster plan's earlier arrival is not what is tested). Seed 16 of corridor_opens dropped its
+    plan at 1080 s this way and flew one 500 s later."""
+    planner, first = _first(flying, keep_slack=0.6)
+    est = _on_plan(first, 120.0)
+    fast = vehicle_state(120.0, est.pos_ned[:2], est.yaw, CFG.tas_mps + 2.0)
+    storms = _nowcast(120.0)
+    tl = ObstacleTimeline(storms, CFG.with_(tas_mps=CFG.tas_mps + 2.0), 120.0 + 2 * CFG.horizon_s)
+    assert not remaining_clear(first, tl, 120.0, np.zeros(2))  # at the new speed's margins
+    assert extra_growth_m(first, tl, CFG) > 2.0
+    assert planner.plan(fast, Threats(storms=storms), 120.0) is first
+    planner, first = _first(flying, keep_slack=0.6)
+    cell = box(*(position_at(first, first.times[-1] - 200.0)[None] + [[-300.0], [300.0]]).ravel())
+    blocked = _nowcast(120.0, extra=(cell,))
+    assert planner.plan(fast, Threats(storms=blocked), 120.0) is not first  # a real obstacle still counts
+
+
+def test_each_replan_plans_at_the_mean_airspeed_of_the_last_period():
+    """Pitot samples alternating 24 / 28 m/s every 10 s (the planner's calls): a replan plans at
+    their mean over the last replan period, 26 m/s, not at the last sample; samples older than
+    one period are dropped (20 m/s before 120 s is forgotten by the replan at 240 s). Seed 16 of
+    corridor_opens planned at a 27.0 m/s sample, fell 500 m behind its plan flying ~25.8 m/s and
+    dropped it."""
+    cfg = MptpConfig(replan_period_s=120.0, keep_within_m=0.0)
+    planner = MptpPlanner(Mission(np.array([[20_000.0, 0.0, 0.0]]), cfg.tas_mps, 100.0), cfg)
+    plans = {}
+    for k in range(25):
+        t = 10.0 * k
+        tas = 20.0 if t < 120.0 else (24.0 if k % 2 else 28.0)
+        plans[t] = planner.plan(vehicle_state(t, np.array([26.0 * t, 0.0]), 0.0, tas), Threats(), t)
+    assert plans[0.0].diagnostics["tas_mps"] == 20.0
+    assert plans[120.0].diagnostics["tas_mps"] == pytest.approx((11 * 20.0 + 28.0) / 12)
+    assert plans[240.0].diagnostics["tas_mps"] == pytest.approx(26.0)

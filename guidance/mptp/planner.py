@@ -32,7 +32,9 @@ level (the mean of the estimate's and the goal's heights): storms drift at their
 the wind, the goal drifts at minus the wind, the course is that of the air velocity, and the
 planned states map back to the ground at their times.
 
-Each replan plans at the vehicle's current true airspeed (the estimate's; the configured
+Each replan plans at the vehicle's current true airspeed (the mean of the estimate's over the
+planner calls of the last ``replan_period_s``, so that one noisy pitot sample does not set a
+plan's schedule, samples taken while a plan commands airspeeds left out; the configured
 ``tas_mps`` while the estimate has none, while the plan in force commands airspeeds (a hold at
 V_cor: the estimate is then V_cor, not the cruise speed V the hold was planned from), or always
 with ``speed_source = "config"``), so the turn radius and leg lengths follow the speed as it
@@ -60,6 +62,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import deque
 
 import numpy as np
 import shapely
@@ -69,7 +72,7 @@ from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
 from guidance.mptp.heuristics import GoalAvailability
 from guidance.mptp.holding import corrected_speed_mps, holding_orbit, safe_area_leg
-from guidance.mptp.keeping import position_at, remaining_clear
+from guidance.mptp.keeping import TOUCH_M, extra_growth_m, position_at, remaining_clear
 from guidance.mptp.lead_in import LeadIn, held_turn_rate, lead_in
 from guidance.mptp.search import HOLD, Trajectory, default_workspace, plan_trajectory
 from guidance.mptp.statespace import free_space
@@ -125,6 +128,7 @@ class MptpPlanner:
         self._nowcast_key: tuple | None = None
         self._timelines: dict[float, ObstacleTimeline] = {}  # of the last nowcast, per P
         self._issue: tuple = ()  # identity of the last nowcast seen
+        self._tas: deque[tuple[float, float]] = deque()  # (t [s], TAS [m/s]) of the calls of the last period
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         m = self.mission
@@ -143,6 +147,7 @@ class MptpPlanner:
         issue = tuple((id(s), s.t) for s in threats.storms)
         due = k != self._goal_index or issue != self._issue or t - self._t_plan >= self.cfg.replan_period_s - 1e-9
         self._issue = issue
+        self._sample_tas(estimate, t)
         if self.plan_ is None or due:
             self.plan_ = self._replan(estimate, threats.storms or [StormSnapshot(t, ())], t, k)
             self._t_plan, self._goal_index = t, k
@@ -151,7 +156,8 @@ class MptpPlanner:
     def _keeps(self, est: VehicleState, new: Plan, t: float, k: int, now: MptpConfig, near, key) -> bool:
         """Whether to fly on the current plan instead of ``new`` (keeping.py): it reaches goal
         ``k``, the aircraft is within ``keep_within_m`` of where it has it now, the rest of it is
-        clear of this nowcast's obstacle at its probability, and ``new`` does not arrive earlier
+        clear of this nowcast's obstacle at its probability and the extra margin it was planned
+        with (keeping.extra_growth_m), and ``new`` does not arrive earlier
         by more than ``keep_slack`` of its remaining time."""
         old = self.plan_
         if old is None or self.cfg.keep_within_m <= 0 or k != self._goal_index or old.times[-1] <= t:
@@ -165,7 +171,7 @@ class MptpPlanner:
         p = float(old.diagnostics.get("probability", now.probability))
         cfg = now if p == now.probability else now.with_(probability=p)
         tl, _ = self._timeline_for(near, t, self.wind_ne, cfg, key)
-        return remaining_clear(old, tl, t, self.wind_ne)
+        return remaining_clear(old, tl, t, self.wind_ne, TOUCH_M + extra_growth_m(old, tl, cfg))
 
     def margins_at(self, t: float):
         """The margin region of the last replan's timeline at time ``t`` [s], on the ground
@@ -189,14 +195,27 @@ class MptpPlanner:
             return self._timelines[cfg.probability], time.perf_counter() - wall
         return self._timelines[cfg.probability], 0.0
 
+    def _sample_tas(self, est: VehicleState, t: float) -> None:
+        """Adds the estimate's TAS at call time ``t`` [s] and drops the samples older than one
+        ``replan_period_s``; an estimate below ``MIN_AIRSPEED`` (none), or one taken while the
+        plan in force commands airspeeds (a hold at V_cor), clears them."""
+        if est.tas_mps < MIN_AIRSPEED or (self.plan_ is not None and self.plan_.airspeeds is not None):
+            self._tas.clear()
+            return
+        self._tas.append((t, float(est.tas_mps)))
+        while self._tas[0][0] <= t - self.cfg.replan_period_s:
+            self._tas.popleft()
+
     def config_now(self, est: VehicleState) -> MptpConfig:
         """The configuration at the vehicle's current true airspeed [m/s] (``speed_source``
-        "estimate"; the configured one while the estimate's is below ``MIN_AIRSPEED`` or the plan
-        in force commands airspeeds)."""
+        "estimate": the mean of the estimate's over the calls of the last ``replan_period_s``,
+        this one's alone when none was sampled; the configured one while the estimate's is below
+        ``MIN_AIRSPEED`` or the plan in force commands airspeeds)."""
         holds = self.plan_ is not None and self.plan_.airspeeds is not None
         if self.cfg.speed_source == "config" or est.tas_mps < MIN_AIRSPEED or holds:
             return self.cfg
-        return self.cfg.with_(tas_mps=float(est.tas_mps))
+        tas = np.mean([v for _, v in self._tas]) if self._tas else est.tas_mps
+        return self.cfg.with_(tas_mps=float(tas))
 
     def _storms_near(self, est: VehicleState, storms: list[StormSnapshot], k: int, cfg: MptpConfig):
         """The cells the vehicle can come near in height over the horizon (vertical.py), the
@@ -302,6 +321,8 @@ class MptpPlanner:
         )
         if traj.start_space is not None:
             diag["vertices"] = len(traj.start_space.boundary.verts)
+        if traj.note:
+            diag["search_note"] = traj.note
         pts, times, rates = traj.positions, traj.times, None
         if cfg.turn_model != "simple" and len(pts) >= 2:
             pts, times, rates = written_out(pts, times, traj.courses, traj.kinds[1:] == HOLD, cfg)

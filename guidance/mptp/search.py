@@ -42,7 +42,7 @@ from guidance.mptp.timeline import ObstacleTimeline
 from guidance.mptp.turning import SENSES, admissible, aux_states, hold_lap_s, hold_orbit, min_leg_m
 from guidance.mptp.turnmodel import aux_states as fly_over_aux
 from guidance.mptp.turnmodel import turn_to
-from guidance.mptp.visibility import Boundary, blocked, visible_vertices
+from guidance.mptp.visibility import Boundary, OverBudget, blocked, visible_vertices
 from guidance.mptp.waitbound import WaitBound
 
 T = TypeVar("T")
@@ -69,7 +69,8 @@ class Trajectory:
     "ok", "limit" or "exhausted"; when not "ok" the states are the partial trajectory to the
     expanded state closest to the goal (by the heuristic) that lasts at least ``min_partial_s``
     and has successors, or empty; ``expanded`` EXST; ``start_space`` EX_free of the start state
-    (for diagnostics and fall-backs)."""
+    (for diagnostics and fall-backs); ``note``: set when the SSPH's reduced visibility graph was
+    over its budget (visibility.GRAPH_PAIR_BUDGET) and the search used EDH instead."""
 
     positions: np.ndarray
     times: np.ndarray
@@ -79,6 +80,7 @@ class Trajectory:
     expanded: int
     runtime_s: float
     start_space: FreeSpace | None  # None when the start state was never expanded
+    note: str = ""  # why the search ran without its SSPH bound (its reduced graph over budget)
 
     @property
     def length_m(self) -> float:
@@ -178,6 +180,7 @@ class _Expander:
         self.start_space: FreeSpace | None = None
         self.availability = GoalAvailability(tl, goal)
         self.static: StaticBound | None = None  # SSPH bound of the start state
+        self.note = ""  # set when the SSPH bound is over budget (then EDH alone)
         self.t_end = math.inf  # holds end by this time [s] (the planning horizon)
         self.lap_s = hold_lap_s(cfg)
         self.hold_senses = SENSES[turning][:1] + tuple(x for x in (1.0, -1.0) if x != SENSES[turning][0])
@@ -268,18 +271,25 @@ class _Expander:
         )
         if self.cfg.heuristic == "edh":
             return euclid
-        static = self._static_bound(fs, t_goal).arrival(pts, times) - times
+        bound = self._static_bound(fs, t_goal)
+        if bound is None:
+            return euclid
+        static = bound.arrival(pts, times) - times
         return np.where(np.isfinite(static), np.maximum(static, euclid), euclid)
 
-    def _static_bound(self, fs: FreeSpace, t_goal: float) -> StaticBound:
+    def _static_bound(self, fs: FreeSpace, t_goal: float) -> StaticBound | None:
         """SSPH bound of the start state for the whole search (one reduced visibility graph per
         replan instead of one per expansion) on its permanent obstacle, to the goal at its
-        interception time from the start (see heuristics.py)."""
-        if self.static is None:
+        interception time from the start (see heuristics.py); None, with ``note`` set, when its
+        reduced graph is over budget (the search then runs on EDH)."""
+        if self.static is None and not self.note:
             cfg = self.cfg
             perm = self.shared.free_space(fs.p_in, fs.t_in, permanent=True)
             tau0 = t_goal if np.isfinite(t_goal) else fs.t_in
-            self.static = StaticBound(perm, self.goal, tau0, fs.t_in + cfg.horizon_s, cfg.tas_mps)
+            try:
+                self.static = StaticBound(perm, self.goal, tau0, fs.t_in + cfg.horizon_s, cfg.tas_mps)
+            except OverBudget as err:
+                self.note = f"ssph skipped, edh used: its reduced visibility graph tests {err}"
         return self.static
 
 
@@ -336,6 +346,7 @@ def plan_trajectory(
         res.expanded,
         time.perf_counter() - wall,
         exp.start_space,
+        exp.note,
     )
 
 
