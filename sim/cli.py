@@ -307,15 +307,16 @@ def cmd_encounters(args) -> int:
     finally:
         if client is not None:
             client.close()
-    s = summary[campaign.planner]
-    out.print(
-        f"{s['n']} encounters: NMAC {s.get('nmac_mitigated')} mitigated / {s.get('nmac_unmitigated')} unmitigated, "
-        f"risk ratio {s.get('risk_ratio')}, induced {s.get('induced_nmac')}, completion {s.get('completion_rate')}; "
-        f"report: {out_dir / 'report.md'}",
-        soft_wrap=True,
-        highlight=False,
-    )
-    return EXIT_OK if s.get("failed_runs", 0) == 0 else EXIT_FAILED
+    for key, s in summary.items():
+        out.print(
+            f"{key}: {s['n']} encounters: NMAC {s.get('nmac_mitigated')} mitigated / {s.get('nmac_unmitigated')} "
+            f"unmitigated, risk ratio {s.get('risk_ratio')}, induced {s.get('induced_nmac')}, "
+            f"completion {s.get('completion_rate')}",
+            soft_wrap=True,
+            highlight=False,
+        )
+    out.print(f"report: {out_dir / 'report.md'}", soft_wrap=True, highlight=False)
+    return EXIT_OK if all(s.get("failed_runs", 0) == 0 for s in summary.values()) else EXIT_FAILED
 
 
 def cmd_validate(args) -> int:

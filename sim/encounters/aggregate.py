@@ -3,16 +3,19 @@
 Risk ratio = P(NMAC | mitigated) / P(NMAC | unmitigated) (RTCA DO-365 style), with a 95 %
 interval by MOVER-R (Zou & Donner 2008, ratio of two proportions from their Wilson score
 intervals; the pairing is ignored, which widens the interval). Induced NMAC: an encounter safe
-unmitigated and an NMAC mitigated.
+unmitigated and an NMAC mitigated. Extra path length: the mitigated ownship's mission path minus
+its planned straight leg [m]; minimum separation: the mitigated run's closest horizontal pass [m].
 """
 
 from __future__ import annotations
 
 import math
+import statistics
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 Z95 = 1.959963984540054  # two-sided 95 % normal quantile
+_STATS: dict[str, Callable[[list[float]], float]] = {"mean": statistics.fmean, "median": statistics.median, "min": min}
 
 
 def wilson(k: int, n: int, z: float = Z95) -> tuple[float, float]:
@@ -51,10 +54,13 @@ class Pair:
     lowc_unmitigated: bool
     complete_mitigated: bool
     geometry: dict[str, str]  # bin name -> bin label
+    extra_path_m: float | None = None  # mitigated ownship path minus its planned straight leg [m]
+    min_separation_m: float | None = None  # mitigated closest horizontal separation [m]
 
 
 def summarise(pairs: list[Pair]) -> dict:
-    """n, NMAC counts, risk ratio and its interval, LoWC ratio, induced NMACs, completion rate."""
+    """n, NMAC counts, risk ratio and its interval, LoWC ratio, induced NMACs, completion rate,
+    extra path length (mean, median) and minimum separation (smallest, median) where known."""
     n = len(pairs)
     if n == 0:
         return {"n": 0}
@@ -74,7 +80,22 @@ def summarise(pairs: list[Pair]) -> dict:
         "lowc_ratio": lm / lu if lu else None,
         "induced_nmac": sum(p.nmac_mitigated and not p.nmac_unmitigated for p in pairs),
         "completion_rate": sum(p.complete_mitigated for p in pairs) / n,
+        **_spread("extra_path_m", [p.extra_path_m for p in pairs], ("mean", "median")),
+        **_spread("min_separation_m", [p.min_separation_m for p in pairs], ("min", "median")),
     }
+
+
+def _spread(name: str, values: list[float | None], stats: tuple[str, ...]) -> dict[str, float]:
+    """``{name_stat: value}`` of the known ``values`` (none known: empty)."""
+    known = [v for v in values if v is not None]
+    if not known:
+        return {}
+    funcs: dict[str, Callable[[list[float]], float]] = {
+        "mean": statistics.fmean,
+        "median": statistics.median,
+        "min": min,
+    }
+    return {f"{name}_{s}": float(funcs[s](known)) for s in stats}
 
 
 def by_bin(pairs: list[Pair]) -> dict[str, dict[str, dict]]:

@@ -1,5 +1,5 @@
 """Encounter campaigns on the batch machinery: a campaign file expands into paired runs
-(:data:`~sim.encounters.geometry.MODES`) of sampled encounters, flown by
+(mitigated and unmitigated, :data:`~sim.encounters.geometry.MODES`) of sampled encounters, flown by
 :func:`sim.batch.run_batch` (process pool or Dask, resumable), then tabled and summarised.
 
 A campaign file (TOML)::
@@ -24,9 +24,17 @@ A campaign file (TOML)::
     count = 1                      # 2: a cooperative triple (approach_angle_2, intruder_speed_2, hmd_2)
     [parameters]                   # sim.encounters.model.PARAMETERS: number or distribution
     approach_angle = { uniform = [0, 360] }
+    [[variant]]                    # optional, repeatable: the mitigated run flown several ways
+    name = "utm"                   # its mode in the outputs (run ids, encounters.csv, summary.json)
+    utm = { frame = 1.0 }          # planner, utm, utm_link, peer_link: sim.encounters.geometry.Variant
+
+Without ``[[variant]]`` every encounter is flown ``mitigated`` and ``unmitigated``; with them,
+once per variant (mode = its name) and once unmitigated, all with the encounter's seed: the
+variants are compared on the same draws against one shared unmitigated run.
 
 Outputs in the campaign folder: ``runs/`` (the batch's per-run JSON; MCAPs of failed, NMAC and
-induced-NMAC encounters, or all), ``encounters.csv``, ``summary.json``, ``report.md``.
+induced-NMAC encounters, or all), ``encounters.csv``, ``summary.json`` (keyed by the planner, or
+by variant), ``report.md``.
 """
 
 from __future__ import annotations
@@ -34,6 +42,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import re
 import tomllib
 from collections.abc import Callable, Collection
 from concurrent.futures import Executor
@@ -49,11 +58,12 @@ from sim.encounters.geometry import (
     INTRUDER,
     INTRUDER2,
     INTRUDER_KINDS,
-    MODES,
     OWN,
     EncounterSetup,
+    Variant,
     build_scenario,
     intruder_count,
+    legs,
     relative_speed,
     second_intruder,
 )
@@ -67,7 +77,8 @@ NMAC_DO365 = {"nmac_horizontal": 500 * FT, "nmac_vertical": 100 * FT}
 NMAC_SMALL_UAS = {"nmac_horizontal": 5.0, "nmac_vertical": 2.5}
 TOP_KEYS = {"name", "seed", "encounters", "latin_hypercube", "altitude", "after_cpa", "slack", "keep_mcaps"}
 TOP_KEYS |= {"min_relative_speed"}
-TOP_KEYS |= {"surveillance_rate_hz", "origin", "metrics", "ownship", "intruder", "parameters"}
+TOP_KEYS |= {"surveillance_rate_hz", "origin", "metrics", "ownship", "intruder", "parameters", "variant"}
+VARIANT_KEYS = ("name", "planner", "utm", "utm_link", "peer_link")
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,13 +93,47 @@ class Campaign:
     name: str
     setup: EncounterSetup
     encounters: list[Encounter]  # flown: draws closing at min_relative_speed or faster
-    runs: list[RunSpec]  # per encounter: mitigated, unmitigated
+    runs: list[RunSpec]  # per encounter: one per variant, then unmitigated
     keep_mcaps: str
     skipped: int = 0  # draws closing slower than min_relative_speed
+    variants: tuple[Variant, ...] = (Variant(),)
+    named: bool = False  # variants from the file ([[variant]]), not the one default
 
     @property
     def planner(self) -> str:
         return self.setup.ownship["planner"].get("type", "follow_mission")
+
+    @property
+    def modes(self) -> tuple[str, ...]:
+        """The modes each encounter is flown in, in run order: the variants', then unmitigated."""
+        return (*(v.name for v in self.variants), "unmitigated")
+
+    def summary_key(self, variant: Variant) -> str:
+        """A variant's key in the summary: its name, or the planner's without ``[[variant]]``."""
+        return variant.name if self.named else self.planner
+
+
+def parse_variants(table: object, src: str) -> tuple[Variant, ...]:
+    """The ``[[variant]]`` tables: unique names (letters, digits, ``_``, not ``unmitigated``) and
+    only :data:`VARIANT_KEYS`, each other key a table."""
+    if not isinstance(table, list) or not table or not all(isinstance(v, dict) for v in table):
+        raise CampaignError(f"{src}: variant: an array of tables [[variant]]")
+    out = []
+    for k, v in enumerate(table):
+        name = v.get("name")
+        unknown = sorted(set(v) - set(VARIANT_KEYS))
+        if unknown:
+            raise CampaignError(f"{src}: variant[{k}].{unknown[0]}: unknown key (known: {', '.join(VARIANT_KEYS)})")
+        if not isinstance(name, str) or not re.fullmatch(r"\w+", name) or name == "unmitigated":
+            raise CampaignError(f"{src}: variant[{k}].name: letters, digits and _, not 'unmitigated', got {name!r}")
+        bad = [key for key in VARIANT_KEYS[1:] if key in v and not isinstance(v[key], dict)]
+        if bad:
+            raise CampaignError(f"{src}: variant[{k}].{bad[0]}: a table")
+        out.append(Variant(name, **{key: v[key] for key in VARIANT_KEYS[1:] if key in v}))
+    names = [v.name for v in out]
+    if len(set(names)) < len(names):
+        raise CampaignError(f"{src}: variant: repeated name {next(n for n in names if names.count(n) > 1)!r}")
+    return tuple(out)
 
 
 def run_seed(master: int, index: int) -> int:
@@ -146,6 +191,8 @@ def load_campaign(
     outside = [i for i in picked if not 0 <= i < len(sampled)]
     if outside:
         raise CampaignError(f"{src}: draw {outside[0]}: out of range 0..{len(sampled) - 1}")
+    named = "variant" in cfg
+    variants = parse_variants(cfg["variant"], src) if named else (Variant(),)
     min_rel = float(cfg.get("min_relative_speed", 0.5))
     out = Path(out_dir)
     encounters, runs = [], []
@@ -156,11 +203,12 @@ def load_campaign(
             continue
         enc = Encounter(i, run_seed(master, i), params)
         encounters.append(enc)
-        for mode in MODES:
-            run_id = f"{name}_{i:05d}_{mode}"
+        for variant, mode in [(v, "mitigated") for v in variants] + [(Variant(), "unmitigated")]:
+            label = variant.name if mode == "mitigated" else mode
+            run_id = f"{name}_{i:05d}_{label}"
             try:
-                scen = build_scenario(params, setup, enc.seed, mode, run_id)
-                parse_scenario(scen, f"{src} encounter {i} ({mode})")
+                scen = build_scenario(params, setup, enc.seed, mode, run_id, variant)
+                parse_scenario(scen, f"{src} encounter {i} ({label})")
             except (ScenarioError, CampaignError) as exc:
                 raise CampaignError(f"{src}: {exc}") from None
             runs.append(
@@ -170,12 +218,12 @@ def load_campaign(
                     None,
                     str(out / "runs" / f"{run_id}.mcap"),
                     str(out / "runs" / f"{run_id}.json"),
-                    {"encounter": i, "mode": mode, "seed": enc.seed, **params},
+                    {"encounter": i, "mode": label, "seed": enc.seed, **params},
                 )
             )
     if not encounters:
         raise CampaignError(f"{src}: no encounter closes at min_relative_speed ({min_rel:g} m/s) or faster")
-    return Campaign(name, setup, encounters, runs, keep, len(picked) - len(encounters))
+    return Campaign(name, setup, encounters, runs, keep, len(picked) - len(encounters), variants, named)
 
 
 def outcome(row: dict, kind: str, count: int = 1) -> dict:
@@ -205,42 +253,52 @@ def outcome(row: dict, kind: str, count: int = 1) -> dict:
     }
 
 
-def _extra(a: float | None, b: float | None) -> float | None:
-    return a - b if a is not None and b is not None else None
+def _extra(a: float | None, b: float) -> float | None:
+    return a - b if a is not None else None
 
 
-def tabulate(c: Campaign, rows: list[dict]) -> tuple[list[dict], list[Pair]]:
-    """encounters.csv rows (one per encounter and mode: parameters, outcome, extra time and path
-    of the mitigated run) and the pairs of encounters whose two runs did not fail."""
-    kind = c.setup.intruder["kind"]
+def tabulate(c: Campaign, rows: list[dict]) -> tuple[list[dict], dict[str, list[Pair]]]:
+    """encounters.csv rows (one per encounter and mode, in run order: parameters, outcome, and the
+    ownship's extra time and path over its planned straight leg, start to waypoint at cruise speed)
+    and, per variant, the pairs of encounters whose variant run and unmitigated run did not fail.
+    Against the plan, not the unmitigated run: that one stops where the two collide."""
+    kind, m = c.setup.intruder["kind"], len(c.modes)
     table: list[dict] = []
-    pairs: list[Pair] = []
+    pairs: dict[str, list[Pair]] = {v.name: [] for v in c.variants}
     for k, enc in enumerate(c.encounters):
-        mit, unm = (outcome(r, kind, intruder_count(c.setup)) for r in rows[2 * k : 2 * k + 2])
-        for mode, o in zip(MODES, (mit, unm), strict=True):
-            extra: dict[str, float | None] = {"extra_time_s": None, "extra_path_m": None}
-            if mode == "mitigated":
-                extra = {
-                    "extra_time_s": _extra(mit["time_s"], unm["time_s"]),
-                    "extra_path_m": _extra(mit["path_length_m"], unm["path_length_m"]),
-                }
+        plan_t = enc.params["time_to_cpa"] + c.setup.after_cpa
+        plan_m = float(np.linalg.norm(legs(enc.params, c.setup)[0].velocity)) * plan_t
+        *mits, unm = (outcome(r, kind, intruder_count(c.setup)) for r in rows[m * k : m * (k + 1)])
+        for mode, o in zip(c.modes, (*mits, unm), strict=True):
+            extra = {"extra_time_s": _extra(o["time_s"], plan_t), "extra_path_m": _extra(o["path_length_m"], plan_m)}
             table.append({"encounter": enc.index, "mode": mode, "seed": enc.seed, **enc.params, **o, **extra})
-        if mit["status"] != "failed" and unm["status"] != "failed":
-            pairs.append(
-                Pair(mit["nmac"], unm["nmac"], mit["lowc"], unm["lowc"], mit["complete"], geometry_bins(enc.params))
-            )
+            if o is not unm and o["status"] != "failed" and unm["status"] != "failed":
+                pairs[mode].append(
+                    Pair(
+                        o["nmac"],
+                        unm["nmac"],
+                        o["lowc"],
+                        unm["lowc"],
+                        o["complete"],
+                        geometry_bins(enc.params),
+                        extra["extra_path_m"],
+                        o["min_horizontal_m"],
+                    )
+                )
     return table, pairs
 
 
 def keep_logs(c: Campaign, table: list[dict]) -> set[str]:
-    """Run ids whose MCAP is kept: both runs of an encounter with a failed run, a mitigated NMAC
-    (induced or not) or an incomplete mitigated mission (every run with ``keep_mcaps = "all"``)."""
-    keep = set()
+    """Run ids whose MCAP is kept: every run of an encounter with a failed run, a mitigated NMAC
+    (induced or not) or an incomplete mitigated mission in any variant (every run with
+    ``keep_mcaps = "all"``)."""
+    keep, m = set(), len(c.modes)
     for k in range(len(c.encounters)):
-        mit, unm = table[2 * k], table[2 * k + 1]
-        bad = "failed" in (mit["status"], unm["status"]) or mit["nmac"] or not mit["complete"]
+        rows = table[m * k : m * (k + 1)]
+        bad = any(r["status"] == "failed" for r in rows)
+        bad |= any(r["nmac"] or not r["complete"] for r in rows[:-1])
         if bad or c.keep_mcaps == "all":
-            keep |= {c.runs[2 * k].run_id, c.runs[2 * k + 1].run_id}
+            keep |= {spec.run_id for spec in c.runs[m * k : m * (k + 1)]}
     return keep
 
 
@@ -253,7 +311,7 @@ def run_campaign(
     resume: bool = True,
 ) -> dict:
     """Fly every run (finished ones skipped when ``resume``), write the outputs, return the
-    summary ({planner: summary with ``bins``})."""
+    summary ({planner, or variant name: summary with ``bins``})."""
     from sim.encounters.report import write_report
 
     out = Path(out_dir)
@@ -266,9 +324,11 @@ def run_campaign(
             log.unlink(missing_ok=True)
         row["mcap"] = str(log.relative_to(out)) if log.exists() else ""
     write_table(out / "encounters.csv", table)
-    failed = sum(r["status"] == "failed" for r in table)
-    summary = {c.planner: summarise(pairs) | {"failed_runs": failed, "skipped_draws": c.skipped}}
-    summary[c.planner]["bins"] = by_bin(pairs)
+    summary = {}
+    for v in c.variants:
+        failed = sum(r["status"] == "failed" for r in table if r["mode"] in (v.name, "unmitigated"))
+        s = summarise(pairs[v.name]) | {"failed_runs": failed, "skipped_draws": c.skipped}
+        summary[c.summary_key(v)] = s | {"bins": by_bin(pairs[v.name])}
     (out / "summary.json").write_text(json.dumps(summary, indent=2, sort_keys=True))
     write_report(out, c, table, summary)
     return summary

@@ -11,7 +11,8 @@ along its leg at its cruise speed (a multirotor already moving: its initial airs
 waypoint lies ``after_cpa`` beyond the CPA. A cooperative triple (``intruder.count = 2``) adds a
 second cooperative intruder built the same way from ``approach_angle_2``, ``intruder_speed_2`` and
 ``hmd_2`` (level, at the ownship's altitude), meeting the ownship at the same time: all three pass
-their closest approaches together.
+their closest approaches together. A :class:`Variant` names one way of flying the mitigated run
+(its planner, UTM authority and links), so one encounter can be flown under several.
 """
 
 from __future__ import annotations
@@ -48,6 +49,21 @@ class EncounterSetup:
     origin: dict = field(default_factory=lambda: dict(DEFAULT_ORIGIN))
     surveillance_rate_hz: float = 2.0
     metrics: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True, slots=True)
+class Variant:
+    """One way of flying an encounter's mitigated run, named ``name`` (its mode in the outputs).
+    ``planner``: the scenario planner table of the ownship (and of cooperative intruders) instead
+    of the campaign's; ``utm``: the scenario's ``[utm]`` table (a central authority); ``utm_link``
+    and ``peer_link``: the ``[vehicle.utm_link]`` / ``[vehicle.peer_link]`` tables of every vehicle
+    running that planner. None: the campaign's planner, no authority, no link."""
+
+    name: str = "mitigated"
+    planner: dict | None = None
+    utm: dict | None = None
+    utm_link: dict | None = None
+    peer_link: dict | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -110,8 +126,11 @@ def legs(p: dict[str, float], setup: EncounterSetup) -> tuple[Leg, Leg]:
     return Leg(cpa_o - v_o * t, v_o), Leg(cpa_i - v_i * t, v_i)
 
 
-def _vehicle(name: str, aircraft: str, leg: Leg, setup: EncounterSetup, end_t: float, cfg: dict, planner: dict) -> dict:
-    """A scenario ``[[vehicle]]`` flying ``leg`` from t = 0 to its waypoint at ``end_t`` [s]."""
+def _vehicle(
+    name: str, aircraft: str, leg: Leg, setup: EncounterSetup, end_t: float, cfg: dict, planner: dict, links: dict
+) -> dict:
+    """A scenario ``[[vehicle]]`` flying ``leg`` from t = 0 to its waypoint at ``end_t`` [s], with
+    the ``links`` tables (``utm_link``, ``peer_link``)."""
     alt0 = setup.origin["altitude"]
     end = leg.at(end_t)
     horizontal = float(np.hypot(*leg.velocity[:2]))
@@ -135,19 +154,24 @@ def _vehicle(name: str, aircraft: str, leg: Leg, setup: EncounterSetup, end_t: f
     }
     if "estimator" in cfg:
         vehicle["estimator"] = cfg["estimator"]
-    return vehicle
+    return vehicle | links
 
 
-def build_scenario(p: dict[str, float], setup: EncounterSetup, seed: int, mode: str, name: str) -> dict:
+def build_scenario(
+    p: dict[str, float], setup: EncounterSetup, seed: int, mode: str, name: str, variant: Variant | None = None
+) -> dict:
     """The scenario mapping of one encounter flown in ``mode`` (:data:`MODES`): mitigated, the
-    ownship (and a cooperative intruder) run the campaign's planner; unmitigated, every vehicle
-    runs ``follow_mission``."""
+    ownship (and a cooperative intruder) run the campaign's planner, or the ``variant``'s, with its
+    authority and links; unmitigated, every vehicle runs ``follow_mission`` (no authority)."""
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     own_leg, int_leg = legs(p, setup)
     end_t = p["time_to_cpa"] + setup.after_cpa
     kind = setup.intruder["kind"]
-    planner = setup.ownship["planner"] if mode == "mitigated" else FOLLOW
+    mitigated = mode == "mitigated"
+    variant = variant or Variant()
+    planner = (variant.planner or setup.ownship["planner"]) if mitigated else FOLLOW
+    links = {k: getattr(variant, k) for k in ("utm_link", "peer_link") if mitigated and getattr(variant, k)}
     wind = math.radians(p["wind_direction"])
     scen: dict = {
         "name": name,
@@ -163,8 +187,10 @@ def build_scenario(p: dict[str, float], setup: EncounterSetup, seed: int, mode: 
         },
         "wind": {"north": p["wind_speed"] * math.cos(wind), "east": p["wind_speed"] * math.sin(wind)},
         "metrics": dict(setup.metrics),
-        "vehicle": [_vehicle(OWN, setup.ownship["aircraft"], own_leg, setup, end_t, setup.ownship, planner)],
+        "vehicle": [_vehicle(OWN, setup.ownship["aircraft"], own_leg, setup, end_t, setup.ownship, planner, links)],
     }
+    if mitigated and variant.utm is not None:
+        scen["utm"] = dict(variant.utm)
     alt0 = setup.origin["altitude"]
     if kind == "object":
         scen["object"] = [
@@ -179,9 +205,13 @@ def build_scenario(p: dict[str, float], setup: EncounterSetup, seed: int, mode: 
         ]
     else:
         aircraft = "haps" if kind == "haps" else "quadrotor"
-        int_planner = planner if kind == "cooperative" else FOLLOW
-        scen["vehicle"].append(_vehicle(INTRUDER, aircraft, int_leg, setup, end_t, setup.intruder, int_planner))
+        coop = kind == "cooperative"
+        int_planner = planner if coop else FOLLOW
+        int_links = links if coop else {}
+        int_legs = [(INTRUDER, int_leg)]
         if intruder_count(setup) == 2:
-            _, leg2 = legs(second_intruder(p), setup)
-            scen["vehicle"].append(_vehicle(INTRUDER2, aircraft, leg2, setup, end_t, setup.intruder, int_planner))
+            int_legs.append((INTRUDER2, legs(second_intruder(p), setup)[1]))
+        scen["vehicle"] += [
+            _vehicle(n, aircraft, leg, setup, end_t, setup.intruder, int_planner, int_links) for n, leg in int_legs
+        ]
     return scen
