@@ -12,7 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from sim.encounters.campaign import load_campaign, run_campaign
+from sim.encounters.aggregate import Pair, summarise
+from sim.encounters.campaign import load_campaign, run_campaign, tabulate
 from sim.encounters.geometry import FOLLOW
 from sim.encounters.model import CampaignError
 from sim.replay.runlog import RunLog
@@ -119,3 +120,55 @@ def test_ci_variants_differ_in_what_acts_and_share_the_unmitigated_run(tmp_path)
     assert [r["mode"] for r in rows] == list(MODES) and len({r["seed"] for r in rows}) == 1
     report = (out / "report.md").read_text()
     assert all(f"| {m} |" in report for m in ("utm", "blind", "emergency"))
+
+
+def _row(status: str, sep: float, nmac: bool, path: float, time: float | None) -> dict:
+    """A batch row of a cooperative pair's run with the given outcome."""
+    m = "metric.separation.own-intruder."
+    return {
+        "status": status,
+        f"{m}min_horizontal_m": sep,
+        f"{m}nmac": nmac,
+        f"{m}lowc": sep < 40.0,
+        "metric.vehicles.own.mission.complete": time is not None,
+        "metric.vehicles.intruder.mission.complete": time is not None,
+        "metric.vehicles.own.mission.time_s": time,
+        "metric.vehicles.own.mission.path_length_m": path,
+    }
+
+
+def test_tabulate_pairs_each_variant_with_the_shared_unmitigated_run(tmp_path):
+    """Per variant: its pairs with the unmitigated run of the same encounter; a failed variant run
+    drops that encounter from its variant alone, a failed unmitigated run from every variant; the
+    extra path and time are over the planned straight leg (5 m/s, time_to_cpa + after_cpa)."""
+    c = load_campaign(CAMPAIGN, tmp_path, limit=2)
+    plans = [e.params["time_to_cpa"] + c.setup.after_cpa for e in c.encounters]
+    rows = [
+        _row("completed", 60.0, False, 5 * plans[0] + 30.0, plans[0] + 6.0),  # utm
+        _row("completed", 45.0, False, 5 * plans[0] + 10.0, plans[0] + 2.0),  # blind
+        _row("failed", 0.0, False, 0.0, None),  # emergency
+        _row("crashed", 0.5, True, 90.0, None),  # unmitigated: stops at the collision
+        _row("completed", 80.0, False, 5 * plans[1] + 50.0, plans[1] + 10.0),
+        _row("completed", 70.0, False, 5 * plans[1] + 20.0, plans[1] + 4.0),
+        _row("completed", 4.0, True, 5 * plans[1] + 2.0, plans[1]),
+        _row("failed", 0.0, False, 0.0, None),
+    ]
+    table, pairs = tabulate(c, rows)
+    assert [r["mode"] for r in table] == list(MODES) * 2
+    assert [r["extra_path_m"] for r in table[:2]] == pytest.approx([30.0, 10.0])
+    assert [r["extra_time_s"] for r in table[:2]] == pytest.approx([6.0, 2.0])
+    assert table[3]["extra_path_m"] == pytest.approx(90.0 - 5 * plans[0]) and table[3]["extra_time_s"] is None
+    assert {m: len(p) for m, p in pairs.items()} == {"utm": 1, "blind": 1, "emergency": 0}
+    s = summarise(pairs["utm"])
+    assert s["nmac_unmitigated"] == 1 and s["nmac_mitigated"] == 0 and s["lowc_mitigated"] == 0
+    assert s["extra_path_m_mean"] == pytest.approx(30.0) and s["min_separation_m_min"] == 60.0
+
+
+def test_summary_spreads_of_extra_path_and_separation_by_hand():
+    g = {"approach": "180 head-on"}
+    pairs = [Pair(False, True, False, True, True, g, e, s) for e, s in ((10.0, 50.0), (40.0, 45.0), (None, 70.0))]
+    pairs.append(Pair(False, False, False, False, True, g, 100.0, None))
+    s = summarise(pairs)
+    assert s["extra_path_m_mean"] == pytest.approx(50.0) and s["extra_path_m_median"] == pytest.approx(40.0)
+    assert s["min_separation_m_min"] == 45.0 and s["min_separation_m_median"] == 50.0
+    assert "extra_path_m_mean" not in summarise([Pair(False, True, False, True, True, g)])

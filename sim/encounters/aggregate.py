@@ -90,12 +90,7 @@ def _spread(name: str, values: list[float | None], stats: tuple[str, ...]) -> di
     known = [v for v in values if v is not None]
     if not known:
         return {}
-    funcs: dict[str, Callable[[list[float]], float]] = {
-        "mean": statistics.fmean,
-        "median": statistics.median,
-        "min": min,
-    }
-    return {f"{name}_{s}": float(funcs[s](known)) for s in stats}
+    return {f"{name}_{s}": float(_STATS[s](known)) for s in stats}
 
 
 def by_bin(pairs: list[Pair]) -> dict[str, dict[str, dict]]:
