@@ -150,11 +150,10 @@ def _reachset(options: RulesOptions, ctx: BuildContext) -> Planner:
 
     sma = options.automaton(ctx.airframe_kind, ctx.mission.cruise_speed, ctx.bank_limit_rad)
     rules = options.rules_config()
+    turns_in_place = ctx.airframe_kind == "multirotor"
     if rules is None:
-        return ReachSetAvoider(
-            ctx.mission, sma, options.avoidance_config(), turns_in_place=ctx.airframe_kind == "multirotor"
-        )
-    return RulesAvoider(ctx.mission, sma, rules, options.avoidance_config())
+        return ReachSetAvoider(ctx.mission, sma, options.avoidance_config(), turns_in_place=turns_in_place)
+    return RulesAvoider(ctx.mission, sma, rules, options.avoidance_config(), turns_in_place=turns_in_place)
 
 
 def _mptp(options: DataclassOptions, ctx: BuildContext) -> Planner:

@@ -11,7 +11,7 @@ import pytest
 from avoidance.reachset.config import AvoidanceConfig
 from avoidance.reachset.frames import GridPose
 from avoidance.reachset.grid import AvoidanceGrid
-from avoidance.reachset.gridrun import closest_approach, emergency_runs
+from avoidance.reachset.gridrun import closest_approach, emergency_runs, passing_on_the_right
 from avoidance.reachset.mission import MissionControl, Mode
 from avoidance.reachset.movement import KinState
 from avoidance.reachset.movement import MovementType as M
@@ -19,6 +19,7 @@ from avoidance.reachset.options import ReachSetOptions
 from avoidance.reachset.threats.intruders import IntruderModel, predicted_positions
 from sim.core.plan import Threats
 from sim.core.threats import IntruderTrack
+from tests.test_reachset_mission_end import fly
 
 SPEED = 5.0  # [m/s] S8's cruise speed
 GIVE_WAY = np.pi / 12  # [rad/s] the thesis' 15° per 1 s movement
@@ -173,3 +174,46 @@ def test_a_set_whose_right_turns_descend_keeps_the_clearance_ranking():
     chosen = runs[sel].path.node
     assert clearance[chosen] >= clearance[cand].max() - 0.01
     assert tree.buffer(chosen)[0] == M.UP_LEFT
+
+
+def test_passing_on_the_right_by_hand():
+    """Ownship straight on at 5 m/s (LCF X); an intruder 40.62 m ahead, 3.05 m right, at
+    (-3.96, -1.29) m/s: relative velocity (-8.96, -1.29), closest approach after
+    (40.62 * 8.96 - 3.05 * 1.29) / (8.96² + 1.29²) = 4.39 s, 3.05 + 4.39 * 1.29 = 8.72 m to the
+    right: clear of a 5 m body, not of a 9 m one; mirrored it passes on the left; exactly
+    head-on it passes through; a receding intruder counts where it is now."""
+    row = np.array([40.62, -3.05, 0.0, -3.96, -1.29, 0.0, 5.0])
+    mirrored = row * np.array([1, -1, 1, 1, -1, 1, 1])
+    big = row.copy()
+    big[6] = 9.0
+    head_on = np.array([40.0, 0.0, 0.0, -5.0, 0.0, 0.0, 5.0])
+    receding = np.array([-10.0, -6.0, 0.0, -5.0, 0.0, 0.0, 5.0])
+    got = passing_on_the_right(np.vstack([row, big, mirrored, head_on, receding]), 5.0)
+    assert got.tolist() == [True, False, False, False, True]
+
+
+def test_last_resort_does_not_cross_ahead_of_an_intruder_already_passing_on_the_right():
+    """Finding 15 (docs/encounters.md, encounter 390 at 25 s): ownship north at 5 m/s with the
+    campaign's options; a 4.2 m/s intruder 40.6 m ahead, 3.05 m right, level, on course 162°:
+    flown straight on it would pass 8.72 m to the right (``test_passing_on_the_right_by_hand``).
+    Its predicted right turn (the give-way convention) closes every path, so the last resort
+    decides; ranking never-left-of-the-heading paths first turned right, across its track ahead
+    of it (point mass: 0.7 m / 1.9 m, an NMAC). Now the largest clearance decides: the pass
+    stays > 10 m (13.6 m)."""
+    intruder = IntruderTrack("intruder", 0.0, np.array([40.62, 3.05, -20.0]), np.array([-3.96, 1.29, 0.0]), 0.45)
+    cfg = ReachSetOptions(period=1.0, intruder_margin=4.55, intruder_margin_vertical=2.0).avoidance_config()
+    trace: list = []
+    fly(
+        [[150.0, 0.0, -20.0]],
+        1.0,
+        start=(0.0, 0.0, -20.0),
+        speed=5.0,
+        t_end=12.0,
+        cfg=cfg,
+        intruder=intruder,
+        trace=trace,
+    )
+    rel = np.array([q - p for _, p, q in trace])
+    horizontal = np.hypot(rel[:, 0], rel[:, 1])
+    assert horizontal.min() > 10.0, horizontal.min()
+    assert horizontal[-1] > horizontal.min()  # the pair met and separates again

@@ -2,17 +2,22 @@
 lie on a movement-length lattice, so without the exact goal vertex a follower with a 1 m
 acceptance radius stopped short of the last waypoint and the mission never completed."""
 
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 
 from avoidance.reachset.config import DEFAULT_AVOIDANCE, AvoidanceConfig
 from avoidance.reachset.movement import multirotor_automaton
 from avoidance.reachset.planner import ReachSetAvoider
+from avoidance.rules.config import RulesConfig
+from avoidance.rules.planner import RulesAvoider
 from guidance.multirotor_follower import MultirotorPlanFollower
 from sim.core.mission import Mission
 from sim.core.plan import Threats
 from sim.core.state import VehicleState
 from sim.core.threats import IntruderTrack
+from sim.planner_registry import make_planner
 
 
 def fly(
@@ -29,16 +34,22 @@ def fly(
     intruder: IntruderTrack | None = None,
     estimate_error=(0.0, 0.0, 0.0),
     trace: list | None = None,
+    build: Callable[[Mission], ReachSetAvoider] | None = None,
 ):
     """Point-mass vehicle following the carrot (first-order position loop + feed-forward), from
     ``start`` (true NED [m]) flying at ``speed`` [m/s] on ``heading_deg``. The vehicle knows its
     position as truth + ``estimate_error`` (NED [m]); ``intruder`` (true state at t = 0, flying
     straight) is sensed exactly; ``trace`` collects (t, true position, intruder position) rows.
-    Returns the mission, the final true position and the planner."""
+    ``build`` makes the planner from the mission (default: a ``ReachSetAvoider`` with ``cfg`` and
+    ``turns_in_place``). Returns the mission, the final true position and the planner."""
     mission = Mission(
         np.asarray(waypoints, float), cruise_speed=cruise, acceptance_radius=acceptance, start=np.zeros(3)
     )
-    av = ReachSetAvoider(mission, multirotor_automaton(cruise, 1.0), cfg, turns_in_place=turns_in_place)
+    av = (
+        build(mission)
+        if build is not None
+        else ReachSetAvoider(mission, multirotor_automaton(cruise, 1.0), cfg, turns_in_place=turns_in_place)
+    )
     fol = MultirotorPlanFollower(cruise, 2.0, 1.0, acceptance)
     yaw = float(np.radians(heading_deg))
     error = np.asarray(estimate_error, float)
@@ -107,6 +118,32 @@ def test_a_goal_inside_the_turn_circle_is_flown_to_directly_by_a_vehicle_that_tu
     )
     assert mission.complete and np.linalg.norm(pos - goal) <= mission.acceptance_radius
     if turns_in_place:
+        assert mission.completed_t < 6.0
+    else:
+        assert mission.completed_t > 15.0  # the loop
+
+
+RULES = {"period": 1.0, "rules": ["detect", "resolve", "close", "head_on", "converging", "overtake"], "rules_unit": 5.0}
+
+
+@pytest.mark.parametrize("registry", [True, False])
+def test_the_rules_avoider_of_a_multirotor_flies_to_a_goal_inside_the_turn_circle_directly(registry):
+    """Finding 12's state (above) under the rules avoider: the registry builds a multirotor's
+    rules avoider with ``turns_in_place`` (direct leg, complete within 6 s); built without it, the
+    same avoider flies the loop."""
+
+    def build(mission: Mission) -> ReachSetAvoider:
+        if registry:
+            return make_planner("reachset", mission, "multirotor", RULES)
+        return RulesAvoider(mission, multirotor_automaton(5.0, 1.0), RulesConfig(unit=5.0))
+
+    goal = [75.0, 0.0, -20.0]
+    mission, pos, av = fly(
+        [goal], 1.0, start=(62.6, -1.1, -22.8), heading_deg=-56.0, speed=5.0, t_end=40.0, build=build
+    )
+    assert isinstance(av, RulesAvoider)
+    assert mission.complete and np.linalg.norm(pos - goal) <= mission.acceptance_radius
+    if registry:
         assert mission.completed_t < 6.0
     else:
         assert mission.completed_t > 15.0  # the loop

@@ -207,6 +207,23 @@ def closest_approach(
     return tree.along_paths(closest, np.minimum)
 
 
+def straight_speed(tree: ReachSetTree) -> float:
+    """The planning speed [m/s]: the reach of the farthest first movement (Straight) per period."""
+    return float(tree.tip[tree.depth == 1, 0].max() / tree.period)
+
+
+def passing_on_the_right(motion: np.ndarray, speed: float) -> np.ndarray:
+    """Per intruder (rows as in :func:`closest_approach`): whether its straight-line prediction
+    passes the vehicle flying straight on at ``speed`` [m/s] (LCF X) on the right, clear of its
+    body: the horizontal relative position at the closest approach (now, if they separate) lies
+    more than the body radius to the right (LCF Y < -radius)."""
+    rel = motion[:, :2]
+    vel = motion[:, 3:5] - np.array([speed, 0.0])
+    vv = np.einsum("ij,ij->i", vel, vel)
+    tcpa = np.clip(-np.einsum("ij,ij->i", rel, vel) / np.where(vv > 0.0, vv, 1.0), 0.0, None)
+    return rel[:, 1] + tcpa * vel[:, 1] < -motion[:, 6]
+
+
 def least_threat_path(
     tree: ReachSetTree,
     fused: Fused,
@@ -227,7 +244,9 @@ def least_threat_path(
     and a ``give_way_turn_rate`` > 0, first the paths that never turn left of the heading, as the
     others are assumed to turn right, if the set can turn right level (a set whose right turns
     descend, like the slash set, would trade the level convention for a height change the others
-    cannot foresee) (D-21); then the path with the largest predicted clearance to the intruders'
+    cannot foresee) and some intruder is not already passing on the right
+    (:func:`passing_on_the_right`: turning right would then cross ahead of every one of them, the
+    passes the convention exists to avoid) (D-21); then the path with the largest predicted clearance to the intruders'
     bodies, rounded to 1 cm (D-18), each intruder on its straight line and turning right at
     ``give_way_turn_rate`` [rad/s], bodies stretched by ``vertical_margin`` [m]
     (:func:`closest_approach`). The exposure to the intruder space
@@ -251,7 +270,11 @@ def least_threat_path(
     if intruder_motion is not None and len(intruder_motion):
         clearance = closest_approach(tree, intruder_motion, give_way_turn_rate, vertical_margin)
         keys.append(-np.round(clearance[cand], 2))
-        if give_way_turn_rate > 0.0 and (tree.movement == MovementType.RIGHT).any():
+        if (
+            give_way_turn_rate > 0.0
+            and (tree.movement == MovementType.RIGHT).any()
+            and not passing_on_the_right(intruder_motion, straight_speed(tree)).all()
+        ):
             left = tree.along_paths(tree.tip_att[:, 2] > 1e-9, np.logical_or)  # ever left of the heading
             keys.append(left[cand])
     best = int(cand[np.lexsort(keys)[0]])

@@ -61,10 +61,12 @@ class RulesAvoider(ReachSetAvoider):
         rules: RulesConfig,
         cfg: AvoidanceConfig = DEFAULT_AVOIDANCE,
         cache_dir: Path | None = None,
+        turns_in_place: bool = False,
     ):
-        """``cfg``'s navigation reach set is replaced by the rules' ACAS-like one."""
+        """``cfg``'s navigation reach set is replaced by the rules' ACAS-like one;
+        ``turns_in_place`` as in :class:`ReachSetAvoider`."""
         cfg = rules.avoidance(cfg)
-        super().__init__(mission, sma, cfg, cache_dir, restrict=self._restrict)
+        super().__init__(mission, sma, cfg, cache_dir, restrict=self._restrict, turns_in_place=turns_in_place)
         self.rules = rules
         self.engine = RuleEngine(make_rules(rules.enabled))
         cruise = sma.automata[sma.active_index(KinState(np.zeros(3), np.zeros(3), 0.0, self.speed))].table.config
