@@ -72,10 +72,12 @@ def test_the_wait_lasts_at_most_one_replan_period():
 
 
 def test_only_the_first_plan_waits():
-    """After a plan was made, a later estimate at 3 m (a GNSS outage) replans as usual."""
+    """After a plan was made, a later estimate at 3 m (a GNSS outage) within the first replan
+    period replans as usual (at a new nowcast, 100 s)."""
     planner = _planner()
     first = planner.plan(_est(0.0, CONVERGED), STORMS, 0.0)
-    later = planner.plan(_est(300.0, ALIGNMENT), STORMS, 300.0)
+    nowcast = Threats(storms=[StormSnapshot(100.0, STORMS.storms[0].cells, np.zeros((1, 2)))])
+    later = planner.plan(_est(100.0, ALIGNMENT), nowcast, 100.0)
     assert first.status == later.status == PlanStatus.OK
     assert "nav_sigma_m" not in later.diagnostics
 
