@@ -131,9 +131,9 @@ def replanned(case: Case, s: VehicleState) -> Plan:
     pts = np.array([lead.p, end[-1] + LEG_M * unit, end[-1] + 2 * LEG_M * unit])
     times = lead.t + np.r_[0.0, (flown[-1] + LEG_M) / TAS_MPS, (flown[-1] + 2 * LEG_M) / TAS_MPS]
     ne, tt, rates = written_out(pts, times, np.array([lead.course, chi, chi]), np.zeros(2, bool), cfg, bank)
-    ne, tt, labels, rates = lead.prepend(ne, tt, np.full(len(ne), -1), rates)
+    ne, tt, labels, led = lead.prepend(ne, tt, np.full(len(ne), -1), rates)
     pos = np.column_stack([ne, np.full(len(ne), -ALT_M)])
-    return Plan(s.t, pos, tt, labels, turn_rates=rates)
+    return Plan(s.t, pos, tt, labels, turn_rates=led)
 
 
 def fly(case: Case) -> Flight:
