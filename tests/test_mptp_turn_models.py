@@ -291,17 +291,18 @@ def test_an_acceptance_radius_over_the_vertex_spacing_is_refused():
 def test_corner_cross_track_signs_a_cut_corner():
     """A plan north 1 km then east 1 km (a right corner at (1000, 0)): a track rounding the
     corner 10 m inside (through (990, 10)) cuts it by +14.1 m; one passing (1010, -10) is -14.1 m
-    outside; a straight-on vertex (no corner) and the corner due within SETTLE_S of the next
-    plan are left out."""
+    outside; a straight-on vertex (no corner), the corner due within SETTLE_S of the next plan
+    and the corner due after the track ends are left out."""
     pts = np.array([[0.0, 0.0], [500.0, 0.0], [1000.0, 0.0], [1000.0, 1000.0]])
     due = np.array([0.0, 20.0, 40.0, 80.0])
-    tt = np.arange(5.0)
+    tt = np.array([0.0, 20.0, 40.0, 60.0, 80.0])
     for corner, want in (([990.0, 10.0], 14.14), ([1010.0, -10.0], -14.14)):
         xy = np.array([[0.0, 0.0], [500.0, 0.0], corner, [1000.0, 500.0], [1000.0, 1000.0]])
         assert corner_cross_track([(0.0, pts, due)], tt, xy) == pytest.approx([want], abs=0.01)
     assert not len(corner_cross_track([(0.0, pts, due), (40.0 + SETTLE_S - 1.0, pts, due)], tt, xy))
     assert corner_cross_track([(0.0, pts, due)], tt, xy, [1]) == pytest.approx([-14.14], abs=0.01)
     assert not len(corner_cross_track([(0.0, pts, due)], tt, xy, [2]))  # up to the corner: left out
+    assert not len(corner_cross_track([(0.0, pts, due)], tt[:2], xy[:2]))  # the flight ends before it
 
 
 @pytest.mark.slow

@@ -92,6 +92,11 @@ class MptpConfig:
     "scenario" = the planner is given the scenario's steady wind plus ``wind_error_ne_mps``
     (north, east) [m/s] as its forecast; "none" = still air (wind-blind planning).
 
+    Navigation (planner.py): the first plan waits, flying straight on, while the estimate's
+    horizontal position sigma (the larger of its N and E 1-sigma) is above ``nav_std_max_m`` [m]
+    (> 0; inf never waits), at most one ``replan_period_s``: a plan made on the EKF's initial
+    alignment (3 m per axis) turns where the first GNSS fix moves the estimate by metres.
+
     Plan keeping (keeping.py): a replan flies on the current plan while it reaches the goal, the
     aircraft is within ``keep_within_m`` [m] of where the plan has it now, the rest of the plan is
     clear of the new nowcast, and the new plan would not arrive earlier by more than
@@ -144,6 +149,7 @@ class MptpConfig:
     speed_source: SpeedSource = "estimate"
     keep_within_m: float = 500.0
     keep_slack: float = 0.02
+    nav_std_max_m: float = 1.5
 
     def __post_init__(self) -> None:
         if self.tas_mps <= 0 or self.dt_s <= 0 or self.horizon_s < self.dt_s:
@@ -154,6 +160,8 @@ class MptpConfig:
             raise ValueError("need search_weight >= 1, dominance_s > 0 and wait_step_min_s > 0")
         if not self.keep_within_m >= 0 or not 0 <= self.keep_slack < 1:
             raise ValueError("need keep_within_m >= 0 and keep_slack in [0, 1)")
+        if not self.nav_std_max_m > 0:
+            raise ValueError(f"nav_std_max_m must be > 0 [m], got {self.nav_std_max_m}")
         if not self.vertical_margin_m >= 0 or not self.climb_rate_mps >= 0:
             raise ValueError("need vertical_margin_m >= 0 and climb_rate_mps >= 0")
         if not 0 <= self.probability < 1:

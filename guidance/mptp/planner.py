@@ -22,6 +22,13 @@ time (keeping.py). A replan (Algorithm 2 of seed 002):
    conflict free like any other), else straight flight inside the estimated safe area
    (NO_SOLUTION).
 
+Navigation first: the first plan waits while the estimate's horizontal position sigma (the
+larger of its N and E 1-sigma, ``VehicleState.pos_sigma_m``) is above ``nav_std_max_m``, at most
+one ``replan_period_s`` from the first call: it flies straight on, a DEGRADED plan (diagnostics
+``reason`` and ``nav_sigma_m`` [m], ``levels_tried`` 0), and the next call replans. A plan made
+on the EKF's initial alignment would put its first turn where the first GNSS fix moves the
+estimate by metres; only the first plan waits.
+
 Steps 1-4 run for every probability level of the config, largest P first; the first plan that
 reaches the goal is flown (3.1.1: "the feasible solution with the highest P"), and when no
 level's does, the largest P's fall-back (the largest margins; a smaller P only earns its
@@ -129,6 +136,9 @@ class MptpPlanner:
         self._timelines: dict[float, ObstacleTimeline] = {}  # of the last nowcast, per P
         self._issue: tuple = ()  # identity of the last nowcast seen
         self._tas: deque[tuple[float, float]] = deque()  # (t [s], TAS [m/s]) of the calls of the last period
+        self._t_first: float | None = None  # time of the first replan [s]
+        self._planned = False  # a plan other than a navigation wait was made
+        self._nav_wait = False  # the plan in force waits for the navigation
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         m = self.mission
@@ -146,6 +156,7 @@ class MptpPlanner:
         k = m.next_index
         issue = tuple((id(s), s.t) for s in threats.storms)
         due = k != self._goal_index or issue != self._issue or t - self._t_plan >= self.cfg.replan_period_s - 1e-9
+        due = due or self._nav_wait
         self._issue = issue
         self._sample_tas(estimate, t)
         if self.plan_ is None or due:
@@ -238,6 +249,12 @@ class MptpPlanner:
         now = self.config_now(est)
         near, key, ignored = self._storms_near(est, storms, k, now)
         levels = self.cfg.probability_levels
+        if self._waits_for_navigation(est, t):
+            top = now if levels[0] == now.probability else now.with_(probability=levels[0])
+            plan = self._navigation_wait(top, est, near, key, t)
+            plan.diagnostics.update(probability=levels[0], levels_tried=0, cells_ignored=ignored)
+            return plan
+        self._planned = True
         fallback: tuple[Plan, ObstacleTimeline, Trajectory | None] | None = None
         chosen: tuple[Plan, ObstacleTimeline, Trajectory | None] | None = None
         for p in levels:
@@ -259,6 +276,59 @@ class MptpPlanner:
         plan, self.timeline, self.trajectory = chosen
         return plan
 
+    def _waits_for_navigation(self, est: VehicleState, t: float) -> bool:
+        """Whether the replan at ``t`` [s] waits for the navigation: no plan was made yet, the
+        estimate's horizontal position sigma is above ``nav_std_max_m`` and the first replan was
+        less than one ``replan_period_s`` ago."""
+        if self._t_first is None:
+            self._t_first = t
+        waiting = t - self._t_first < self.cfg.replan_period_s - 1e-9
+        self._nav_wait = not self._planned and waiting and nav_sigma_m(est) > self.cfg.nav_std_max_m
+        return self._nav_wait
+
+    def _navigation_wait(
+        self, cfg: MptpConfig, est: VehicleState, storms: list[StormSnapshot], key: tuple, t: float
+    ) -> Plan:
+        """The plan that waits for the navigation: straight on the current air course for one
+        ``replan_period_s`` at ``cfg``'s speed (DEGRADED), with the timeline of ``cfg``'s probability
+        built (the next replan reuses it) and the diagnostics of a replan."""
+        wall = time.perf_counter()
+        tl, weather_s = self._timeline_for(storms, t, self.wind_ne, cfg, key)
+        self.timeline = tl
+        p0, course = self._air_start(est, t, tl.t_issue)
+        lead = lead_in(p0, t, course, 0.0, cfg.tas_mps, 0.0)
+        end = p0 + cfg.tas_mps * cfg.replan_period_s * np.array([math.cos(course), math.sin(course)])
+        sigma = nav_sigma_m(est)
+        diag = self._diagnostics(cfg, weather_s)
+        diag.update(
+            reason=f"navigation: position sigma {sigma:.1f} m > nav_std_max_m {cfg.nav_std_max_m:g} m",
+            nav_sigma_m=sigma,
+            runtime_s=time.perf_counter() - wall,
+        )
+        pts, times = np.vstack([p0, end]), t + np.r_[0.0, cfg.replan_period_s]
+        return self._to_plan(t, est, lead, pts, times, np.full(2, -1), PlanStatus.DEGRADED, diag)
+
+    def _air_start(self, est: VehicleState, t: float, t_ref: float) -> tuple[np.ndarray, float]:
+        """The estimate's position (2,) [m] in the air-mass frame of the last wind (reference
+        time ``t_ref`` [s]) and its air course [rad] (the yaw below MIN_AIRSPEED)."""
+        w = self.wind_ne
+        v_air = np.asarray(est.vel_ned[:2], float) - w
+        course = math.atan2(v_air[1], v_air[0]) if np.hypot(*v_air) >= MIN_AIRSPEED else est.yaw
+        return to_air(np.asarray(est.pos_ned[:2], float), t, w, t_ref), course
+
+    def _diagnostics(self, cfg: MptpConfig, weather_s: float) -> dict[str, float | int | str]:
+        """The diagnostics every replan's plan carries."""
+        w = self.wind_ne
+        diag: dict[str, float | int | str] = {
+            "heuristic": cfg.heuristic,
+            "weather_s": weather_s,
+            "tas_mps": cfg.tas_mps,
+            "start_lead_s": cfg.start_lead_s,
+        }
+        if w.any():
+            diag.update(wind_north_mps=float(w[0]), wind_east_mps=float(w[1]))
+        return diag
+
     def _replan_at(
         self, cfg: MptpConfig, est: VehicleState, storms: list[StormSnapshot], key: tuple, t: float, k: int
     ) -> tuple[Plan, Trajectory | None]:
@@ -271,25 +341,11 @@ class MptpPlanner:
         t_ref = tl.t_issue
         ground_goal = self.goal_track or GoalTrack.fixed(self.mission.waypoints[k, :2])
         goal = air_goal(ground_goal, w, t_ref, t, t + 2 * cfg.horizon_s) if w.any() else ground_goal
-        v_air = np.asarray(est.vel_ned[:2], float) - w
-        course_now = math.atan2(v_air[1], v_air[0]) if np.hypot(*v_air) >= MIN_AIRSPEED else est.yaw
-        lead = lead_in(
-            to_air(np.asarray(est.pos_ned[:2], float), t, w, t_ref),
-            t,
-            course_now,
-            held_turn_rate(est.roll, cfg.tas_mps, cfg.g),
-            cfg.tas_mps,
-            cfg.start_lead_s,
-        )
+        p_now, course_now = self._air_start(est, t, t_ref)
+        rate = held_turn_rate(est.roll, cfg.tas_mps, cfg.g)
+        lead = lead_in(p_now, t, course_now, rate, cfg.tas_mps, cfg.start_lead_s)
         p0, t0, course = lead.p, lead.t, lead.course
-        diag: dict[str, float | int | str] = {
-            "heuristic": cfg.heuristic,
-            "weather_s": weather_s,
-            "tas_mps": cfg.tas_mps,
-            "start_lead_s": cfg.start_lead_s,
-        }
-        if w.any():
-            diag.update(wind_north_mps=float(w[0]), wind_east_mps=float(w[1]))
+        diag = self._diagnostics(cfg, weather_s)
         wall = time.perf_counter()
         workspace = self._workspace(p0, goal, t, w, t_ref, cfg)
         availability = GoalAvailability(tl, goal)
@@ -310,7 +366,16 @@ class MptpPlanner:
         # a partial trajectory must last until the next replan (the follower flies straight on
         # past a plan's end)
         traj = plan_trajectory(
-            tl, p0, t0, course, goal, cfg, workspace, turning=turning, min_partial_s=cfg.replan_period_s + t - t0
+            tl,
+            p0,
+            t0,
+            course,
+            goal,
+            cfg,
+            workspace,
+            turning=turning,
+            min_partial_s=cfg.replan_period_s + t - t0,
+            bank0=est.roll,
         )
         diag.update(
             expanded=traj.expanded,
@@ -325,7 +390,7 @@ class MptpPlanner:
             diag["search_note"] = traj.note
         pts, times, rates = traj.positions, traj.times, None
         if cfg.turn_model != "simple" and len(pts) >= 2:
-            pts, times, rates = written_out(pts, times, traj.courses, traj.kinds[1:] == HOLD, cfg)
+            pts, times, rates = written_out(pts, times, traj.courses, traj.kinds[1:] == HOLD, cfg, traj.start_bank)
         if traj.status == "ok":
             holding = traj.holding_turn >= 2 * math.pi - 1e-6
             labels = np.full(len(pts), -1)
@@ -444,6 +509,12 @@ class MptpPlanner:
 
     def _goal_index_for(self, labels: np.ndarray) -> int:
         return int(labels.max()) if (labels >= 0).any() else self.mission.next_index
+
+
+def nav_sigma_m(est: VehicleState) -> float:
+    """The estimate's horizontal position sigma [m]: the larger of its N and E 1-sigma (0 when
+    it has none: truth, perfect sensors)."""
+    return 0.0 if est.pos_sigma_m is None else float(np.max(np.asarray(est.pos_sigma_m, float)[:2]))
 
 
 def _hold_airspeeds(cfg: MptpConfig, transit_legs: int, n: int) -> np.ndarray | None:

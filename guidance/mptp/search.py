@@ -70,7 +70,8 @@ class Trajectory:
     expanded state closest to the goal (by the heuristic) that lasts at least ``min_partial_s``
     and has successors, or empty; ``expanded`` EXST; ``start_space`` EX_free of the start state
     (for diagnostics and fall-backs); ``note``: set when the SSPH's reduced visibility graph was
-    over its budget (visibility.GRAPH_PAIR_BUDGET) and the search used EDH instead."""
+    over its budget (visibility.GRAPH_PAIR_BUDGET) and the search used EDH instead;
+    ``start_bank``: the bank the fly-over models' first turn started from (turnmodel.turn_to)."""
 
     positions: np.ndarray
     times: np.ndarray
@@ -81,6 +82,7 @@ class Trajectory:
     runtime_s: float
     start_space: FreeSpace | None  # None when the start state was never expanded
     note: str = ""  # why the search ran without its SSPH bound (its reduced graph over budget)
+    start_bank: float = 0.0  # the aircraft's bank at the start [rad] (+ right), where its first turn begins
 
     @property
     def length_m(self) -> float:
@@ -175,8 +177,10 @@ class _Expander:
         workspace: Polygon,
         turning: str,
         shared: SharedWork,
+        bank0: float = 0.0,
     ):
         self.tl, self.goal, self.cfg, self.w, self.turning, self.shared = tl, goal, cfg, workspace, turning, shared
+        self.bank0 = bank0  # the aircraft's bank at the start state [rad] (+ right)
         self.start_space: FreeSpace | None = None
         self.availability = GoalAvailability(tl, goal)
         self.static: StaticBound | None = None  # SSPH bound of the start state
@@ -222,7 +226,8 @@ class _Expander:
         """Flyable successors of s among ``targets`` (N, 2) of ``target_kinds`` (GOAL / VERTEX)
         and its auxiliary states not blocked by the boundary b: positions, courses at arrival
         [rad], flown distances [m] and kinds. Fly-by (simple model, turning.py) or fly-over
-        (turnmodel.py) states by ``turn_model``."""
+        (turnmodel.py) states by ``turn_model``; a fly-over turn from the start begins at the
+        aircraft's bank (``bank0``)."""
         cfg, p, start = self.cfg, np.array(s.p), s.kind == START
         if cfg.turn_model == "simple":
             aux_p, _ = aux_states(p, s.course, cfg, self.turning, from_start=start)
@@ -231,8 +236,9 @@ class _Expander:
             kinds = np.concatenate([target_kinds, [AUX] * len(aux_p)])
             ok, chi, leg = admissible(p, s.course, pts, cfg, to_goal=kinds == GOAL, from_start=start)
             return pts[ok], chi[ok], leg[ok], kinds[ok]
-        ok, _, chi, leg = turn_to(p, s.course, targets, cfg)
-        aux_p, aux_chi, aux_leg = fly_over_aux(p, s.course, cfg, SENSES[self.turning])
+        bank = self.bank0 if start else 0.0
+        ok, _, chi, leg = turn_to(p, s.course, targets, cfg, bank)
+        aux_p, aux_chi, aux_leg = fly_over_aux(p, s.course, cfg, SENSES[self.turning], bank)
         free = ~blocked(np.repeat(p[None], len(aux_p), 0), aux_p, b)
         kinds = np.concatenate([target_kinds[ok], [AUX] * int(free.sum())])
         return (
@@ -304,11 +310,14 @@ def plan_trajectory(
     turning: str | None = None,
     min_partial_s: float = math.inf,
     shared: SharedWork | None = None,
+    bank0: float = 0.0,
 ) -> Trajectory:
     """Near-time-optimal, time-monotone, flyable trajectory from (p0, t0, course0) to the goal
     (or a partial one, see Trajectory, lasting at least ``min_partial_s`` [s]). ``shared``:
     the wait bound and free spaces of earlier searches of the same timeline, goal, start time,
-    workspace and configuration but for the heuristic (see SharedWork; ValueError otherwise)."""
+    workspace and configuration but for the heuristic (see SharedWork; ValueError otherwise).
+    ``bank0`` [rad] (+ right): the aircraft's bank at the start, where the fly-over models'
+    first turn begins (turnmodel.turn_to; the simple model ignores it)."""
     wall = time.perf_counter()
     p0 = np.asarray(p0, float)
     ends = goal.at(np.array([t0, t0 + cfg.horizon_s]))
@@ -317,7 +326,7 @@ def plan_trajectory(
         shared = SharedWork(tl, goal, cfg, w, t0)
     elif not shared.matches(tl, goal, cfg, w, t0):
         raise ValueError("plan_trajectory: shared work of another timeline, goal, start time, workspace or config")
-    exp = _Expander(tl, goal, cfg, w, turning or cfg.turning, shared)
+    exp = _Expander(tl, goal, cfg, w, turning or cfg.turning, shared, bank0)
     exp.t_end = t0 + cfg.horizon_s
     q_p, q_t, q_c = 0.01 * cfg.leg_m, 0.01 * cfg.dt_s, math.radians(1.0)
 
@@ -347,6 +356,7 @@ def plan_trajectory(
         time.perf_counter() - wall,
         exp.start_space,
         exp.note,
+        bank0,
     )
 
 

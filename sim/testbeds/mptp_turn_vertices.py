@@ -2,7 +2,8 @@
 
 For every plan the MPTP logged (``/<v>/plan``), its corners (interior vertices where the plan
 turns by at least MIN_TURN_DEG) that fell due while it was the newest plan, at least SETTLE_S
-before the next plan: the closest approach [m] of the true horizontal track flown while it was
+before the next plan and before the track ends (a short flight leaves its last plan's later
+corners unflown): the closest approach [m] of the true horizontal track flown while it was
 the newest plan, signed + on the inside of the corner (the side the plan turns to: a cut corner)
 and - on the outside. Frames: local-level NED [m] of the log.
 
@@ -70,10 +71,12 @@ def corner_cross_track(
 ) -> np.ndarray:
     """Signed closest approach [m] of the track ``xy`` (K, 2) [m] at times ``tt`` (K,) [s] to the
     corners of ``plans`` (issue time [s], vertices (N, 2) [m], due times (N,) [s]), in time
-    order; + inside the corner, - outside (see module doc). ``skip``: per plan, the corners up to
-    this vertex index are left out (default none)."""
+    order; + inside the corner, - outside (see module doc); corners due after the track's last
+    time are left out. ``skip``: per plan, the corners up to this vertex index are left out
+    (default none)."""
     out: list[float] = []
     ends = [t for t, _, _ in plans[1:]] + [math.inf]
+    last = float(tt[-1]) if len(tt) else -math.inf
     for (t0, pts, due), t1, first in zip(plans, ends, skip or [0] * len(plans), strict=True):
         window = (tt >= t0) & (tt < t1)
         if len(pts) < 3 or not window.any():
@@ -82,7 +85,7 @@ def corner_cross_track(
         for k in range(max(1, first + 1), len(pts) - 1):
             a, b = pts[k] - pts[k - 1], pts[k + 1] - pts[k]
             na, nb = np.linalg.norm(a), np.linalg.norm(b)
-            if na < 1e-6 or nb < 1e-6 or due[k] > t1 - SETTLE_S:
+            if na < 1e-6 or nb < 1e-6 or due[k] > min(t1 - SETTLE_S, last):
                 continue
             inward = b / nb - a / na
             if np.linalg.norm(inward) < 2.0 * math.sin(0.5 * math.radians(MIN_TURN_DEG)):

@@ -10,7 +10,10 @@ written-out vertex, + inside the turn (a cut corner), - outside. Frames: local-l
 
 Factors: the turn model (``approximate``, ``simulated``), the follower's turn-rate feed-forward
 (the plan's ``turn_rates`` given to it or withheld), the L1 period [s], a steady wind (north,
-east) [m/s]. L1 on the chords of an arc of radius R without feed-forward rides outside it by d
+east) [m/s], and a replan in the first turn (``replan_turn_rad``: a new plan made from the true
+state ``REPLAN_INTO_TURN_S`` into the first turn, as the MPTP makes it: its lead-in, then a
+fly-over turn starting at the aircraft's bank or, ``banked_start`` False, wings level; only the
+new plan's vertices are measured). L1 on the chords of an arc of radius R without feed-forward rides outside it by d
 with 4 damping^2 d / L1^2 = 1 / (R + d) (guidance/l1.py); ``predicted_offset_m`` gives d.
 
 ``python -m sim.testbeds.turn_following`` prints the Markdown table of CASES and the HAPS's lag of
@@ -31,10 +34,12 @@ from aircraft.haps.gains import HapsGains
 from guidance.fixed_wing_follower import FixedWingPlanFollower
 from guidance.l1 import L1Guidance
 from guidance.mptp.config import MptpConfig
+from guidance.mptp.lead_in import held_turn_rate, lead_in
 from guidance.mptp.turnmodel import turn_points, written_out
 from guidance.mptp.wind import to_ground
 from sim.core.constants import STANDARD_GRAVITY
 from sim.core.plan import Plan
+from sim.core.state import VehicleState
 from sim.geodesy import GeoPoint
 from sim.jsbsim_plant import InitialConditions, JSBSimPlant
 from sim.testbeds.mptp_turn_vertices import corner_cross_track
@@ -46,6 +51,7 @@ LEAD_M = 3000.0  # straight before the first turn [m]
 LEG_M = 1500.0  # straight after each turn [m]
 TURN_RAD = math.radians(40.0)  # within the MPTP's course_change_max (45 deg)
 ACCEPTANCE_M = 10.0  # below the written-out vertices' spacing of both models
+REPLAN_INTO_TURN_S = 5.0  # a replan comes this long after the first turn's planned start [s]
 
 
 @dataclass(frozen=True, slots=True)
@@ -53,7 +59,8 @@ class Case:
     """One flight: ``model`` ("approximate" or "simulated"), ``feed_forward`` (the follower gets
     the plan's turn rates), ``l1_period_s`` and ``turn_lead_s`` [s] (None: the airframe's),
     steady ``wind_ne`` (north, east) [m/s], ``straight_m`` [m] flown before the first turn (0:
-    the plan turns at its issue, as an MPTP plan's start turn without the lead-in)."""
+    the plan turns at its issue, as an MPTP plan's start turn without the lead-in);
+    ``replan_turn_rad`` [rad] (+ right; None: no replan) and ``banked_start``: see the module doc."""
 
     model: str = "simulated"
     feed_forward: bool = True
@@ -61,6 +68,8 @@ class Case:
     wind_ne: tuple[float, float] = (0.0, 0.0)
     turn_lead_s: float | None = None
     straight_m: float = LEAD_M
+    replan_turn_rad: float | None = None
+    banked_start: bool = True
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,6 +116,26 @@ def planned(case: Case) -> Plan:
     return Plan(0.0, pos, tt, np.full(len(ne), -1), turn_rates=rates if case.feed_forward else None)
 
 
+def replanned(case: Case, s: VehicleState) -> Plan:
+    """The replan of ``case`` from the true state ``s`` (still air): the lead-in of the MPTP
+    (``l1_turn_lead_s`` ahead, s's turn rate held), a fly-over turn of ``replan_turn_rad`` from
+    s's bank (or wings level), LEG_M straight, LEG_M on; written out with its turn rates."""
+    cfg = MptpConfig(turn_model=case.model, tas_mps=TAS_MPS)  # type: ignore[arg-type]
+    bank = s.roll if case.banked_start else 0.0
+    lead_s = HapsGains.load().l1_turn_lead_s
+    lead = lead_in(s.pos_ned[:2], s.t, s.course_rad, held_turn_rate(s.roll, TAS_MPS, cfg.g), TAS_MPS, lead_s)
+    turn = float(case.replan_turn_rad or 0.0)
+    end, flown = turn_points(lead.p, lead.course, turn, cfg, bank)
+    chi = lead.course + turn
+    unit = np.array([math.cos(chi), math.sin(chi)])
+    pts = np.array([lead.p, end[-1] + LEG_M * unit, end[-1] + 2 * LEG_M * unit])
+    times = lead.t + np.r_[0.0, (flown[-1] + LEG_M) / TAS_MPS, (flown[-1] + 2 * LEG_M) / TAS_MPS]
+    ne, tt, rates = written_out(pts, times, np.array([lead.course, chi, chi]), np.zeros(2, bool), cfg, bank)
+    ne, tt, labels, led = lead.prepend(ne, tt, np.full(len(ne), -1), rates)
+    pos = np.column_stack([ne, np.full(len(ne), -ALT_M)])
+    return Plan(s.t, pos, tt, labels, turn_rates=led)
+
+
 def fly(case: Case) -> Flight:
     """Fly ``case`` on JSBSim with truth as the estimate."""
     plant = JSBSimPlant("haps", 1.0 / PLANT_HZ, ORIGIN, airframe_dir("haps"))
@@ -125,16 +154,21 @@ def fly(case: Case) -> Flight:
     follower = FixedWingPlanFollower(L1Guidance.for_airframe(ap), TAS_MPS, ACCEPTANCE_M, ORIGIN.alt_m)
     plan = planned(case)
     follower.set_plan(plan)
+    t_replan = math.inf if case.replan_turn_rad is None else float(plan.times[int(case.straight_m > 0)])
+    t_replan += REPLAN_INTO_TURN_S
     dt, rec = 1.0 / CONTROL_HZ, []
     while plant.time < plan.times[-1]:
         s = plant.truth()
+        if s.t >= t_replan:
+            plan, t_replan = replanned(case, s), math.inf
+            follower.set_plan(plan)
         sp, _ = follower.update(s, s.t, dt)
         cmd = ap.update(s, sp, dt)
         plant.set_many(cmd)
         plant.step(PLANT_HZ // CONTROL_HZ)
         rec.append((s.t, s.pos_ned[0], s.pos_ned[1], cmd["ap/roll-cmd-rad"], s.course_rad, s.tas_mps))
     r = np.array(rec)
-    xte = corner_cross_track([(0.0, plan.positions[:, :2], plan.times)], r[:, 0], r[:, 1:3])
+    xte = corner_cross_track([(plan.t, plan.positions[:, :2], plan.times)], r[:, 0], r[:, 1:3])
     return Flight(r[:, 0], r[:, 1:3], r[:, 3], np.unwrap(r[:, 4]), r[:, 5], xte)
 
 
