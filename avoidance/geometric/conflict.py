@@ -30,8 +30,10 @@ class MainThreat:
     radius: float
 
 
-def cpa(start: np.ndarray, ref_vel: np.ndarray, threats: ThreatArrays, horizon: float) -> tuple[np.ndarray, np.ndarray]:
-    """(t_cpa (J,), miss distance (J,)) with t_cpa clipped to [0, horizon] [s]."""
+def cpa(
+    start: np.ndarray, ref_vel: np.ndarray, threats: ThreatArrays, horizon: float | np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(t_cpa (J,), miss distance (J,)) with t_cpa clipped to [0, horizon] [s] (scalar or (J,))."""
     r0 = threats.p - start
     w = threats.v - ref_vel
     ww = np.einsum("ji,ji->j", w, w)
@@ -51,16 +53,37 @@ def main_threat(
     return MainThreat(index, tc, start + ref_vel * tc, m, float(r))
 
 
+def detection_horizon(
+    threats: ThreatArrays, r_uav: float, min_sep_factor: float, ref_speed: float, lead_s: float
+) -> np.ndarray:
+    """(J,) look-ahead [s] per threat that shows a conflict while candidates can still be built
+    for it, ``lead_s`` [s] (one candidate-generation cycle) before it becomes too close.
+
+    A threat of radius r [m] growing at g [m/s] conflicts when its miss distance is below
+    r + g·t + ``r_uav`` (the vehicle radius with any selection margin), so the sphere enclosing
+    it at the collision point has R = r + g·t + miss < 2(r + g·t) + r_uav. Candidates need the
+    evading point at least ``min_sep_factor``·R along the reference from the collision point,
+    which the vehicle reaches at ``ref_speed`` [m/s] at t_cpa: t_cpa·v >= f·R. That holds for
+    every conflicting threat from t = f·(2r + r_uav) / (v − 2·f·g) on (the intruder's speed does
+    not enter: the too-close distance is measured along the vehicle's own reference); inf when
+    v <= 2·f·g (the growth outruns the vehicle)."""
+    f = min_sep_factor
+    rate = ref_speed - 2.0 * f * threats.growth
+    t = f * (2.0 * threats.radius + r_uav) / np.where(rate > 0, rate, 1.0)
+    return np.where(rate > 0, t + lead_s, np.inf)
+
+
 def find_main_threat(
     start: np.ndarray,
     ref_vel: np.ndarray,
     threats: ThreatArrays,
     r_uav: float,
-    horizon: float,
+    horizon: float | np.ndarray,
     geometry_horizon: float | None = None,
 ) -> MainThreat | None:
-    """The earliest threat whose CPA miss distance within ``horizon`` [s] is below its (grown)
-    radius + ``r_uav`` [m]; ties broken by the smaller miss. None when nothing conflicts.
+    """The earliest threat whose CPA miss distance within ``horizon`` [s] (one for all, or (J,)
+    per threat) is below its (grown) radius + ``r_uav`` [m]; ties broken by the smaller miss.
+    None when nothing conflicts.
 
     The main threat's collision point and enclosing sphere come from its CPA clipped to
     ``geometry_horizon`` [s] (default ``horizon``; the planner passes the time to the reference
@@ -79,5 +102,5 @@ def find_main_threat(
         start,
         ref_vel,
         threats,
-        horizon if geometry_horizon is None else max(geometry_horizon, horizon),
+        float(np.max(horizon)) if geometry_horizon is None else max(geometry_horizon, float(np.max(horizon))),
     )

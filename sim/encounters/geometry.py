@@ -1,17 +1,20 @@
-"""Encounter construction: from sampled parameters to a scenario whose unmitigated closest
-approach is the sampled one.
+"""Encounter construction: from sampled parameters to a scenario whose unmitigated closest approach is
+the sampled one.
 
 Local NED [m] from the scenario origin, altitudes MSL [m], speeds [m/s], sim time [s]. Both
 vehicles fly straight, constant-velocity legs through their closest point of approach (CPA) at
 ``time_to_cpa``: the ownship passes over (north, east) = (0, 0) at ``altitude``; the intruder is
 then ``hmd`` to the right of the horizontal relative velocity (intruder minus ownship) and ``vmd``
-above. With the relative position at that time perpendicular to the relative velocity, that time
-is the horizontal CPA and ``hmd`` its miss distance. Each vehicle starts ``time_to_cpa`` back
-along its leg at its cruise speed (a multirotor already moving: its initial airspeed) and its one
-waypoint lies ``after_cpa`` beyond the CPA. A cooperative triple (``intruder.count = 2``) adds a
-second cooperative intruder built the same way from ``approach_angle_2``, ``intruder_speed_2`` and
-``hmd_2`` (level, at the ownship's altitude), meeting the ownship at the same time: all three pass
-their closest approaches together.
+above. With the relative position at that time perpendicular to the relative velocity, that time is
+the horizontal CPA and ``hmd`` its miss distance. Each vehicle starts ``time_to_cpa`` back along
+its leg at its cruise speed (a multirotor already moving: its initial airspeed). The ownship's one
+waypoint (its goal) lies ``after_cpa`` beyond the CPA, and so does a cooperative intruder's; a
+non-cooperative intruder's lies :data:`RUN_ON_S` past the run's end, so it flies its leg at constant
+speed to the end (it never brakes to hover on or beside the ownship's route); the run ends when the
+ownship's mission (and a cooperative intruder's) is complete. A cooperative triple
+(``intruder.count = 2``) adds a second cooperative intruder built the same way from
+``approach_angle_2``, ``intruder_speed_2`` and ``hmd_2`` (level, at the ownship's altitude),
+meeting the ownship at the same time: all three pass their closest approaches together.
 """
 
 from __future__ import annotations
@@ -28,6 +31,9 @@ MODES = ("mitigated", "unmitigated")
 OWN, INTRUDER, INTRUDER2 = "own", "intruder", "intruder2"
 FOLLOW = {"type": "follow_mission"}
 DEFAULT_ORIGIN = {"lat": 47.0, "lon": 8.0, "altitude": 400.0}  # [deg, deg, m MSL]
+# [s] a non-cooperative intruder's waypoint lies this far along its leg past the run's end: more
+# than a multirotor's carrot lead (5 m) at any speed above 0.5 m/s, so it never slows down
+RUN_ON_S = 10.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -146,13 +152,15 @@ def build_scenario(p: dict[str, float], setup: EncounterSetup, seed: int, mode: 
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     own_leg, int_leg = legs(p, setup)
     end_t = p["time_to_cpa"] + setup.after_cpa
+    duration = end_t + setup.slack
     kind = setup.intruder["kind"]
+    int_end_t = end_t if kind == "cooperative" else duration + RUN_ON_S
     planner = setup.ownship["planner"] if mode == "mitigated" else FOLLOW
     wind = math.radians(p["wind_direction"])
     scen: dict = {
         "name": name,
         "seed": seed,
-        "duration": end_t + setup.slack,
+        "duration": duration,
         "origin": dict(setup.origin),
         "surveillance": {
             "rate_hz": setup.surveillance_rate_hz,
@@ -180,8 +188,9 @@ def build_scenario(p: dict[str, float], setup: EncounterSetup, seed: int, mode: 
     else:
         aircraft = "haps" if kind == "haps" else "quadrotor"
         int_planner = planner if kind == "cooperative" else FOLLOW
-        scen["vehicle"].append(_vehicle(INTRUDER, aircraft, int_leg, setup, end_t, setup.intruder, int_planner))
+        scen["vehicle"].append(_vehicle(INTRUDER, aircraft, int_leg, setup, int_end_t, setup.intruder, int_planner))
         if intruder_count(setup) == 2:
             _, leg2 = legs(second_intruder(p), setup)
             scen["vehicle"].append(_vehicle(INTRUDER2, aircraft, leg2, setup, end_t, setup.intruder, int_planner))
+    scen["stop_when_complete"] = [v["name"] for v in scen["vehicle"] if v["name"] == OWN or kind == "cooperative"]
     return scen
