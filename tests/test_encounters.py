@@ -15,7 +15,15 @@ import pytest
 
 from sim.encounters.aggregate import Pair, ratio_interval, summarise, wilson
 from sim.encounters.campaign import load_campaign, outcome, run_campaign
-from sim.encounters.geometry import MODES, RUN_ON_S, EncounterSetup, build_scenario, legs, second_intruder
+from sim.encounters.geometry import (
+    MODES,
+    RUN_ON_S,
+    EncounterSetup,
+    build_scenario,
+    legs,
+    second_intruder,
+    start_within,
+)
 from sim.encounters.model import PARAMETERS, CampaignError, Distribution, parse_distributions, sample
 from sim.replay.metrics import flatten
 from sim.replay.runlog import RunLog
@@ -341,6 +349,25 @@ def test_limit_takes_the_first_draws_and_slow_closing_draws_are_skipped(tmp_path
     assert all(e.params["approach_angle"] == 180.0 for e in c.encounters)
 
 
+def test_draws_starting_inside_the_nmac_cylinder_and_start_margin_are_skipped(tmp_path):
+    # head-on at 5 + 3 m/s with no miss: 0.8 s before the CPA the two start 6.4 m apart, inside the
+    # 5 m cylinder + the default 2.5 m margin (skipped), outside it with start_margin = 1 (flown);
+    # 6 s before, 48 m apart (flown). Draw 367 of geometric_quad_pairs (6.9 m) is one of these.
+    text = {
+        "approach_angle = { choice = [180, 180, 90] }": "approach_angle = 180",
+        "hmd = { choice = [0, 500] }": "hmd = 0",
+        "time_to_cpa = 6": "time_to_cpa = { choice = [0.8, 6] }",
+    }
+    c = load_campaign(_campaign_file(tmp_path, **text), tmp_path / "o")
+    assert {e.params["time_to_cpa"] for e in c.encounters} == {6.0} and c.skipped > 0
+    assert len(c.encounters) + c.skipped == 20
+    wide = load_campaign(_campaign_file(tmp_path, **text, **{"seed = 5": "seed = 5\nstart_margin = 1"}), tmp_path / "o")
+    assert wide.skipped == 0 and len(wide.encounters) == 20
+    assert start_within(BASE | {"time_to_cpa": 0.8, "intruder_speed": 3.0}, SETUP, 5.0 + 2.5, 2.5 + 2.5)
+    assert not start_within(BASE | {"time_to_cpa": 0.8, "intruder_speed": 3.0}, SETUP, 5.0 + 1.0, 2.5 + 1.0)
+    assert not start_within(BASE | {"time_to_cpa": 0.8, "intruder_speed": 3.0, "vmd": 6.0}, SETUP, 7.5, 5.0)
+
+
 @pytest.mark.parametrize(
     ("replace", "message"),
     [
@@ -351,6 +378,8 @@ def test_limit_takes_the_first_draws_and_slow_closing_draws_are_skipped(tmp_path
         ({'type = "geometric"': 'type = "warp"'}, "planner.type"),
         ({"radius = 0.5": "radius = 0.5\ncount = 2"}, "intruder.count: 1, or 2 for kind 'cooperative'"),
         ({'kind = "object"': 'kind = "cooperative"\ncount = 3'}, "intruder.count"),
+        ({"seed = 5": "seed = 5\nstart_margin = -1"}, "start_margin: a distance >= 0"),
+        ({"surveillance_dropout = 0.0": "surveillance_dropout = 0.0\n[metrics]\nnmac_horizontal = -5"}, "metrics: "),
     ],
 )
 def test_bad_campaign_files_are_one_line_errors(tmp_path, replace, message):

@@ -116,6 +116,20 @@ def legs(p: dict[str, float], setup: EncounterSetup) -> tuple[Leg, Leg]:
     return Leg(cpa_o - v_o * t, v_o), Leg(cpa_i - v_i * t, v_i)
 
 
+def start_within(p: dict[str, float], setup: EncounterSetup, horizontal: float, vertical: float) -> bool:
+    """Whether two of the encounter's vehicles start less than ``horizontal`` [m] apart
+    horizontally and ``vertical`` [m] vertically (a triple: any pair)."""
+    own, intruder = legs(p, setup)
+    starts = [own.start, intruder.start]
+    if intruder_count(setup) == 2:
+        starts.append(legs(second_intruder(p), setup)[1].start)
+    return any(
+        math.hypot(*(a[:2] - b[:2])) < horizontal and abs(a[2] - b[2]) < vertical
+        for k, a in enumerate(starts)
+        for b in starts[k + 1 :]
+    )
+
+
 def _vehicle(name: str, aircraft: str, leg: Leg, setup: EncounterSetup, end_t: float, cfg: dict, planner: dict) -> dict:
     """A scenario ``[[vehicle]]`` flying ``leg`` from t = 0 to its waypoint at ``end_t`` [s]."""
     alt0 = setup.origin["altitude"]
