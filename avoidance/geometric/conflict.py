@@ -54,23 +54,19 @@ def main_threat(
 
 
 def detection_horizon(
-    threats: ThreatArrays, r_uav: float, min_sep_factor: float, ref_speed: float, lead_s: float
+    t_cpa: np.ndarray, miss: np.ndarray, threats: ThreatArrays, min_sep_factor: float, ref_speed: float, lead_s: float
 ) -> np.ndarray:
-    """(J,) look-ahead [s] per threat that shows a conflict while candidates can still be built
-    for it, ``lead_s`` [s] (one candidate-generation cycle) before it becomes too close.
+    """(J,) look-ahead [s] per threat that shows a conflict with it while candidates can still be
+    built, ``lead_s`` [s] (one candidate-generation cycle) before it becomes too close.
 
-    A threat of radius r [m] growing at g [m/s] conflicts when its miss distance is below
-    r + g·t + ``r_uav`` (the vehicle radius with any selection margin), so the sphere enclosing
-    it at the collision point has R = r + g·t + miss < 2(r + g·t) + r_uav. Candidates need the
-    evading point at least ``min_sep_factor``·R along the reference from the collision point,
-    which the vehicle reaches at ``ref_speed`` [m/s] at t_cpa: t_cpa·v >= f·R. That holds for
-    every conflicting threat from t = f·(2r + r_uav) / (v − 2·f·g) on (the intruder's speed does
-    not enter: the too-close distance is measured along the vehicle's own reference); inf when
-    v <= 2·f·g (the growth outruns the vehicle)."""
-    f = min_sep_factor
-    rate = ref_speed - 2.0 * f * threats.growth
-    t = f * (2.0 * threats.radius + r_uav) / np.where(rate > 0, rate, 1.0)
-    return np.where(rate > 0, t + lead_s, np.inf)
+    ``t_cpa`` [s], ``miss`` [m]: each threat's closest approach to the reference up to its end.
+    Detected as main threat, a threat gets the enclosing sphere R = r + g·t_cpa + miss at its
+    collision point, and candidates need the evading point at least ``min_sep_factor``·R along the
+    reference from it, which the vehicle covers at ``ref_speed`` [m/s] in f·R / v. The look-ahead
+    adds ``lead_s`` to that. The intruder's speed does not enter: the too-close distance is
+    measured along the vehicle's own reference."""
+    radius = threats.radius + threats.growth * t_cpa + miss
+    return min_sep_factor * radius / ref_speed + lead_s
 
 
 def find_main_threat(

@@ -31,7 +31,7 @@ import numpy as np
 
 from avoidance.geometric.avoider import AvoidanceResult, Status, path_clearance, plan_avoidance
 from avoidance.geometric.config import PATH_TYPES, GeometricConfig, VehicleParams
-from avoidance.geometric.conflict import MainThreat, detection_horizon, find_main_threat
+from avoidance.geometric.conflict import MainThreat, cpa, detection_horizon, find_main_threat
 from avoidance.geometric.generation import CandidateSet
 from avoidance.geometric.kinematics import Kinematics
 from avoidance.geometric.reference import ReferenceLine
@@ -163,16 +163,16 @@ class GeometricAvoider:
             return 0.0
         return self.config.k_sigma_own * float(np.max(sigma))
 
-    def horizons(self, threats: ThreatArrays) -> np.ndarray:
-        """(J,) conflict look-ahead [s] per threat: ``conflict_horizon_s``, or longer where a
-        conflict seen at that horizon could already be too close for candidates (its inflated
-        radius, the selection margin, one ``min_replan_interval_s`` of lead; see
-        :func:`~avoidance.geometric.conflict.detection_horizon`)."""
+    def horizons(self, start: np.ndarray, threats: ThreatArrays, to_end: float) -> np.ndarray:
+        """(J,) conflict look-ahead [s] per threat from the evading point ``start`` (ENU [m]):
+        ``conflict_horizon_s``, or longer where a conflict first seen at that horizon would
+        already be too close for candidates (one ``min_replan_interval_s`` of lead; see
+        :func:`~avoidance.geometric.conflict.detection_horizon`); at most ``to_end`` [s], the time
+        to the reference end."""
         cfg, ref = self.config, self._require_reference()
-        need = detection_horizon(
-            threats, cfg.r_uav + cfg.select_margin_m, cfg.min_sep_factor, ref.speed, cfg.min_replan_interval_s
-        )
-        return np.maximum(cfg.conflict_horizon_s, need)
+        t_cpa, miss = cpa(start, ref.velocity, threats, to_end)
+        need = detection_horizon(t_cpa, miss, threats, cfg.min_sep_factor, ref.speed, cfg.min_replan_interval_s)
+        return np.minimum(np.maximum(cfg.conflict_horizon_s, need), to_end)
 
     # -- protocol -------------------------------------------------------------------------------
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
@@ -207,7 +207,7 @@ class GeometricAvoider:
         start = ref.point(s_e)
         ta = ThreatArrays.of(core)
         to_end = (ref.length - s_e) / ref.speed
-        horizons = np.minimum(self.horizons(ta), to_end)
+        horizons = self.horizons(start, ta, to_end)
         main = (
             find_main_threat(start, ref.velocity, ta, cfg.r_uav + cfg.select_margin_m, horizons, to_end)
             if to_end > 0
