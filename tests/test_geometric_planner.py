@@ -375,12 +375,10 @@ def test_own_position_uncertainty_grows_every_threat_by_k_sigma_own():
 
 
 def test_detection_horizon_by_hand():
-    # r = 1 m threats, 2.5 R rule, 5 m/s, 0.5 s lead. Missing by 6 m at t_cpa = 4 s: R = 7 m,
-    # 2.5 · 7 / 5 + 0.5 = 4.0 s; growing at 0.5 m/s, on the line at 2 s: R = 1 + 1 = 2 m, 1.5 s;
-    # missing by 3 m now: R = 4 m, 2.5 s
+    # r = 1 m threats, 2.5 R rule, 5 m/s, 0.5 s lead. Missing by 6 m: R = 7 m, 2.5 · 7 / 5 + 0.5 =
+    # 4.0 s; on the line: R = 1 m, 1.0 s, whatever its growth (0.5 m/s here); missing by 3 m: 2.5 s
     ta = ThreatArrays.of([Threat(f"t{g}", np.zeros(3), np.zeros(3), 1.0, g) for g in (0.0, 0.5, 0.0)])
-    h = detection_horizon(np.array([4.0, 2.0, 0.0]), np.array([6.0, 0.0, 3.0]), ta, 2.5, 5.0, 0.5)
-    assert h == pytest.approx([4.0, 1.5, 2.5])
+    assert detection_horizon(np.array([6.0, 0.0, 3.0]), ta, 2.5, 5.0, 0.5) == pytest.approx([4.0, 1.0, 2.5])
 
 
 def test_a_conflict_is_first_seen_while_candidates_can_still_be_built():

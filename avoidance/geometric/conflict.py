@@ -54,19 +54,20 @@ def main_threat(
 
 
 def detection_horizon(
-    t_cpa: np.ndarray, miss: np.ndarray, threats: ThreatArrays, min_sep_factor: float, ref_speed: float, lead_s: float
+    miss: np.ndarray, threats: ThreatArrays, min_sep_factor: float, ref_speed: float, lead_s: float
 ) -> np.ndarray:
     """(J,) look-ahead [s] per threat that shows a conflict with it while candidates can still be
     built, ``lead_s`` [s] (one candidate-generation cycle) before it becomes too close.
 
-    ``t_cpa`` [s], ``miss`` [m]: each threat's closest approach to the reference up to its end.
-    Detected as main threat, a threat gets the enclosing sphere R = r + g·t_cpa + miss at its
-    collision point, and candidates need the evading point at least ``min_sep_factor``·R along the
-    reference from it, which the vehicle covers at ``ref_speed`` [m/s] in f·R / v. The look-ahead
-    adds ``lead_s`` to that. The intruder's speed does not enter: the too-close distance is
-    measured along the vehicle's own reference."""
-    radius = threats.radius + threats.growth * t_cpa + miss
-    return min_sep_factor * radius / ref_speed + lead_s
+    ``miss`` [m]: each threat's miss distance at its closest approach to the reference up to its
+    end. Made main threat, a threat gets the enclosing sphere R = r + miss (+ its growth over the
+    prediction) at its collision point, and candidates need the evading point at least
+    ``min_sep_factor``·R along the reference from it, which the vehicle covers at ``ref_speed``
+    [m/s] in f·R / v; the look-ahead adds ``lead_s``, which also absorbs a growth of up to
+    v·lead_s / f [m] over the look-ahead. The growth is otherwise left out: a fresh track's
+    velocity uncertainty would stretch the look-ahead without bound. The intruder's speed does not
+    enter: the too-close distance is measured along the vehicle's own reference."""
+    return min_sep_factor * (threats.radius + miss) / ref_speed + lead_s
 
 
 def find_main_threat(

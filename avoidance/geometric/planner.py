@@ -170,8 +170,8 @@ class GeometricAvoider:
         :func:`~avoidance.geometric.conflict.detection_horizon`); at most ``to_end`` [s], the time
         to the reference end."""
         cfg, ref = self.config, self._require_reference()
-        t_cpa, miss = cpa(start, ref.velocity, threats, to_end)
-        need = detection_horizon(t_cpa, miss, threats, cfg.min_sep_factor, ref.speed, cfg.min_replan_interval_s)
+        _, miss = cpa(start, ref.velocity, threats, to_end)
+        need = detection_horizon(miss, threats, cfg.min_sep_factor, ref.speed, cfg.min_replan_interval_s)
         return np.minimum(np.maximum(cfg.conflict_horizon_s, need), to_end)
 
     # -- protocol -------------------------------------------------------------------------------
