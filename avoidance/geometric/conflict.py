@@ -54,20 +54,30 @@ def main_threat(
 
 
 def detection_horizon(
-    miss: np.ndarray, threats: ThreatArrays, min_sep_factor: float, ref_speed: float, lead_s: float
+    miss: np.ndarray,
+    closing: np.ndarray,
+    threats: ThreatArrays,
+    r_uav: float,
+    min_sep_factor: float,
+    ref_speed: float,
+    lead_s: float,
 ) -> np.ndarray:
     """(J,) look-ahead [s] per threat that shows a conflict with it while candidates can still be
     built, ``lead_s`` [s] (one candidate-generation cycle) before it becomes too close.
 
-    ``miss`` [m]: each threat's miss distance at its closest approach to the reference up to its
-    end. Made main threat, a threat gets the enclosing sphere R = r + miss (+ its growth over the
-    prediction) at its collision point, and candidates need the evading point at least
-    ``min_sep_factor``·R along the reference from it, which the vehicle covers at ``ref_speed``
-    [m/s] in f·R / v; the look-ahead adds ``lead_s``, which also absorbs a growth of up to
-    v·lead_s / f [m] over the look-ahead. The growth is otherwise left out: a fresh track's
-    velocity uncertainty would stretch the look-ahead without bound. The intruder's speed does not
-    enter: the too-close distance is measured along the vehicle's own reference."""
-    return min_sep_factor * (threats.radius + miss) / ref_speed + lead_s
+    ``miss`` [m]: each threat's miss distance at its closest approach (CPA) to the reference up
+    to its end; ``closing`` [m/s]: its speed relative to the vehicle on the reference. Made main
+    threat, a threat gets the enclosing sphere R = r + miss (+ its growth over the prediction) at
+    its collision point, and candidates need the evading point at least ``min_sep_factor``·R along
+    the reference from it, which the vehicle covers at ``ref_speed`` v [m/s] in f·R / v. A
+    look-ahead h clips the CPA time, and the miss at h is below the conflict distance
+    T = r + ``r_uav`` from sqrt(T² − miss²) / closing before the CPA reaches h, so the threat is
+    first seen that much earlier: h = f·R / v + lead − sqrt(T² − miss²) / closing. The lead also
+    absorbs a growth of up to v·lead / f [m] over the look-ahead; larger growth is left out (a
+    fresh track's velocity uncertainty would stretch the look-ahead without bound)."""
+    reach = np.sqrt(np.maximum((threats.radius + r_uav) ** 2 - miss**2, 0.0))
+    early = np.divide(reach, closing, out=np.zeros_like(reach), where=closing > 0)
+    return min_sep_factor * (threats.radius + miss) / ref_speed + lead_s - early
 
 
 def find_main_threat(

@@ -171,7 +171,16 @@ class GeometricAvoider:
         to the reference end."""
         cfg, ref = self.config, self._require_reference()
         _, miss = cpa(start, ref.velocity, threats, to_end)
-        need = detection_horizon(miss, threats, cfg.min_sep_factor, ref.speed, cfg.min_replan_interval_s)
+        closing = np.linalg.norm(threats.v - ref.velocity, axis=1)
+        need = detection_horizon(
+            miss,
+            closing,
+            threats,
+            cfg.r_uav + cfg.select_margin_m,
+            cfg.min_sep_factor,
+            ref.speed,
+            cfg.min_replan_interval_s,
+        )
         return np.minimum(np.maximum(cfg.conflict_horizon_s, need), to_end)
 
     # -- protocol -------------------------------------------------------------------------------
