@@ -124,13 +124,17 @@ def run_scenario(
         if tick_hook is not None:
             sched.add_task("tick_hook", scenario.logging.rate_hz, Stage.LOG, tick_hook)
         log.event(0.0, f"run start: {scenario.name} (seed {scenario.seed})")
-        complete = world.all_complete if scenario.stop_when_complete else (lambda: False)
-        sched.run(round(end * world.base_hz), stop=lambda: world.crashed() or complete())
+        swc = scenario.stop_when_complete
+        required = swc if isinstance(swc, list) else None
+        sched.run(
+            round(end * world.base_hz),
+            stop=lambda: world.crashed() or (swc is not False and world.all_complete(required)),
+        )
         if world.crashed():
             result.status = "crashed"
             result.error = "; ".join(f"{c.vehicle} {c.describe()}" for c in world.crashes)
         else:
-            result.status = "completed" if world.all_complete() else "duration_elapsed"
+            result.status = "completed" if world.all_complete(required) else "duration_elapsed"
     except KeyboardInterrupt:
         result.status = "interrupted"
         result.error = "interrupted by the user"

@@ -731,7 +731,10 @@ class Logging(_Strict):
 
 
 class Scenario(_Strict):
-    """A validated scenario. ``seed`` fixes every random draw of the run."""
+    """A validated scenario. ``seed`` fixes every random draw of the run. ``stop_when_complete``:
+    the run ends once every vehicle's mission is complete (true), runs its whole ``duration``
+    (false), or ends once the missions of the vehicles named in a list are complete (the others'
+    are not waited for)."""
 
     schema_version: Literal[1] = SCHEMA_VERSION
     name: Annotated[str, Field(pattern=NAME_PATTERN, max_length=128)]
@@ -739,7 +742,7 @@ class Scenario(_Strict):
     seed: Annotated[int, Field(ge=0, lt=2**63)]
     duration: Annotated[float, quantity("time", 0.0, 30 * 86400.0, lo_open=True)]
     start_time: datetime = datetime(2026, 6, 21, 6, 0, tzinfo=UTC)
-    stop_when_complete: bool = True
+    stop_when_complete: bool | Annotated[list[str], Field(min_length=1)] = True
     origin: Origin
     logging: Logging = Logging()
     mavlink: Mavlink = Mavlink()
@@ -777,6 +780,9 @@ class Scenario(_Strict):
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise ValueError(f"vehicle names must be unique, repeated: {', '.join(dup)}")
+        for k, name in enumerate(self.stop_when_complete if isinstance(self.stop_when_complete, list) else []):
+            if name not in names:
+                raise ValueError(f"stop_when_complete[{k}]: no vehicle {name!r} (vehicles: {', '.join(names)})")
         for k, f in enumerate(self.fault):
             if f.vehicle not in names:
                 raise ValueError(f"fault[{k}].vehicle: no vehicle {f.vehicle!r} (vehicles: {', '.join(names)})")

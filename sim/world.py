@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Collection
 from functools import partial
 
 import numpy as np
@@ -154,8 +155,9 @@ class World:
         if len(self.vehicles) > 1:
             sched.add_task("world.separation", log_hz, Stage.LOG, self._log_separation)
 
-    def all_complete(self) -> bool:
-        return all(v.mission.complete for v in self.vehicles)
+    def all_complete(self, names: Collection[str] | None = None) -> bool:
+        """Whether the missions of the vehicles ``names`` (default: every vehicle) are complete."""
+        return all(v.mission.complete for v in self.vehicles if names is None or v.name in names)
 
     def crashed(self) -> bool:
         return bool(self.crashes)

@@ -15,9 +15,18 @@ import pytest
 
 from sim.encounters.aggregate import Pair, ratio_interval, summarise, wilson
 from sim.encounters.campaign import load_campaign, outcome, run_campaign
-from sim.encounters.geometry import MODES, EncounterSetup, build_scenario, legs, second_intruder
+from sim.encounters.geometry import (
+    MODES,
+    RUN_ON_S,
+    EncounterSetup,
+    build_scenario,
+    legs,
+    second_intruder,
+    start_within,
+)
 from sim.encounters.model import PARAMETERS, CampaignError, Distribution, parse_distributions, sample
 from sim.replay.metrics import flatten
+from sim.replay.runlog import RunLog
 from sim.runner import run_scenario
 from sim.scenario import parse_scenario
 
@@ -179,6 +188,41 @@ def test_flown_unmitigated_cpa_is_the_sampled_one(kind, estimator, tol_h, tol_v,
     assert f[f"{key}.t"] == pytest.approx(8.0, abs=1.0)
 
 
+def test_a_non_cooperative_intruder_flies_on_along_its_leg_past_the_runs_end(tmp_path):
+    """Finding 13 of docs/encounters.md: an intruder whose mission ended past the CPA hovered at its
+    end point, on or beside the ownship's route. Its waypoint now lies RUN_ON_S past the run's
+    end: at the end (t = 6 + 2 + 6 = 14 s) the JSBSim quadrotor is on its leg at the leg's 14 s
+    point (within its ~0.35 s carrot lag, 1.4 m at 4 m/s) and it never slowed below 90 % of its
+    4 m/s after the first second. A cooperative intruder keeps its goal after_cpa past the CPA
+    (its mission completion counts). The run ends when the missions that count are complete: the
+    ownship's (t ~ 8 s), not the intruder's."""
+    own = SETUP.ownship | {"estimator": "perfect"}
+    setup = EncounterSetup(own, {"kind": "quadrotor", "estimator": "perfect"}, after_cpa=2.0, slack=6.0)
+    p = BASE | {"approach_angle": 90.0, "hmd": 20.0, "intruder_speed": 4.0, "time_to_cpa": 6.0}
+    scen = build_scenario(p, setup, 5, "unmitigated", "run_on")
+    _, leg = legs(p, setup)
+    assert scen["duration"] == 14.0
+    wp = scen["vehicle"][1]["mission"]["waypoints"][0]
+    assert [wp["north"], wp["east"]] == pytest.approx(leg.at(14.0 + RUN_ON_S)[:2])
+    coop = build_scenario(
+        p, EncounterSetup(own, {"kind": "cooperative"}, after_cpa=2.0, slack=6.0), 5, "mitigated", "c"
+    )
+    goal = coop["vehicle"][1]["mission"]["waypoints"][0]
+    assert [goal["north"], goal["east"]] == pytest.approx(leg.at(8.0)[:2])
+    assert scen["stop_when_complete"] == ["own"] and coop["stop_when_complete"] == ["own", "intruder"]
+    res = run_scenario(parse_scenario(scen), tmp_path / "ends.mcap")
+    assert res.status == "completed" and res.sim_time_s < 9.0
+    assert res.missions["own"].complete and not res.missions["intruder"].complete
+    run_scenario(parse_scenario(scen | {"stop_when_complete": False}), tmp_path / "run_on.mcap")
+    st = RunLog(tmp_path / "run_on.mcap").topic("/intruder/truth/state")
+    pos, vel = np.asarray(st["pos_ned"]), np.asarray(st["vel_ned"])
+    u = leg.velocity[:2] / np.linalg.norm(leg.velocity[:2])
+    off = pos[-1, :2] - leg.at(float(st.t[-1]))[:2]
+    assert st.t[-1] == pytest.approx(14.0, abs=0.1)
+    assert abs(off[0] * u[1] - off[1] * u[0]) < 0.5 and -1.6 < off @ u < 0.5  # on the leg, lagging
+    assert np.hypot(vel[st.t > 1.0, 0], vel[st.t > 1.0, 1]).min() > 0.9 * 4.0
+
+
 def test_wilson_and_ratio_interval_by_hand():
     lo, hi = wilson(0, 20)
     assert lo == 0.0 and hi == pytest.approx(1.959964**2 / (20 + 1.959964**2), rel=1e-6)  # 0.1611
@@ -305,6 +349,25 @@ def test_limit_takes_the_first_draws_and_slow_closing_draws_are_skipped(tmp_path
     assert all(e.params["approach_angle"] == 180.0 for e in c.encounters)
 
 
+def test_draws_starting_inside_the_nmac_cylinder_and_start_margin_are_skipped(tmp_path):
+    # head-on at 5 + 3 m/s with no miss: 0.8 s before the CPA the two start 6.4 m apart, inside the
+    # 5 m cylinder + the default 2.5 m margin (skipped), outside it with start_margin = 1 (flown);
+    # 6 s before, 48 m apart (flown). Draw 367 of geometric_quad_pairs (6.9 m) is one of these.
+    text = {
+        "approach_angle = { choice = [180, 180, 90] }": "approach_angle = 180",
+        "hmd = { choice = [0, 500] }": "hmd = 0",
+        "time_to_cpa = 6": "time_to_cpa = { choice = [0.8, 6] }",
+    }
+    c = load_campaign(_campaign_file(tmp_path, **text), tmp_path / "o")
+    assert {e.params["time_to_cpa"] for e in c.encounters} == {6.0} and c.skipped > 0
+    assert len(c.encounters) + c.skipped == 20
+    wide = load_campaign(_campaign_file(tmp_path, **text, **{"seed = 5": "seed = 5\nstart_margin = 1"}), tmp_path / "o")
+    assert wide.skipped == 0 and len(wide.encounters) == 20
+    assert start_within(BASE | {"time_to_cpa": 0.8, "intruder_speed": 3.0}, SETUP, 5.0 + 2.5, 2.5 + 2.5)
+    assert not start_within(BASE | {"time_to_cpa": 0.8, "intruder_speed": 3.0}, SETUP, 5.0 + 1.0, 2.5 + 1.0)
+    assert not start_within(BASE | {"time_to_cpa": 0.8, "intruder_speed": 3.0, "vmd": 6.0}, SETUP, 7.5, 5.0)
+
+
 @pytest.mark.parametrize(
     ("replace", "message"),
     [
@@ -315,6 +378,8 @@ def test_limit_takes_the_first_draws_and_slow_closing_draws_are_skipped(tmp_path
         ({'type = "geometric"': 'type = "warp"'}, "planner.type"),
         ({"radius = 0.5": "radius = 0.5\ncount = 2"}, "intruder.count: 1, or 2 for kind 'cooperative'"),
         ({'kind = "object"': 'kind = "cooperative"\ncount = 3'}, "intruder.count"),
+        ({"seed = 5": "seed = 5\nstart_margin = -1"}, "start_margin: a distance >= 0"),
+        ({"surveillance_dropout = 0.0": "surveillance_dropout = 0.0\n[metrics]\nnmac_horizontal = -5"}, "metrics: "),
     ],
 )
 def test_bad_campaign_files_are_one_line_errors(tmp_path, replace, message):

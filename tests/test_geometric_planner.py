@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from avoidance.geometric.config import GeometricConfig
-from avoidance.geometric.conflict import find_main_threat
+from avoidance.geometric.conflict import detection_horizon, find_main_threat
 from avoidance.geometric.planner import GeometricAvoider
 from avoidance.geometric.threats import Threat, ThreatArrays
 from sim.core.plan import Plan, Planner, PlanStatus, Threats
@@ -372,3 +372,37 @@ def test_own_position_uncertainty_grows_every_threat_by_k_sigma_own():
     uncertain = state(0.5, 12.5)
     uncertain.pos_sigma_m = sigma
     assert av.plan(uncertain, near, 0.5).diagnostics["status"] != "committed"
+
+
+def test_detection_horizon_by_hand():
+    # r = 1 m threats, r_uav + margin 5.232 m (conflict within T = 6.232 m), 2.5 R rule, 5 m/s,
+    # 0.5 s lead. Missing by 6 m closing at 10 m/s: R = 7 m, 2.5 · 7 / 5 + 0.5 = 4.0 s, less the
+    # sqrt(6.232² − 6²) / 10 = 0.1685 s by which the clipped miss sees it early: 3.831 s. On the
+    # line, static (closing at 5 m/s), growing at 0.5 m/s: 2.5 · 1 / 5 + 0.5 − 6.232 / 5 = −0.246 s
+    # (the plain conflict_horizon_s applies). Missing by 7 m, no conflict: 2.5 · 8 / 5 + 0.5 = 4.5 s.
+    ta = ThreatArrays.of([Threat(f"t{g}", np.zeros(3), np.zeros(3), 1.0, g) for g in (0.0, 0.5, 0.0)])
+    h = detection_horizon(np.array([6.0, 0.0, 7.0]), np.array([10.0, 5.0, 10.0]), ta, 5.232, 2.5, 5.0, 0.5)
+    assert h == pytest.approx([4.0 - 0.16846, 1.0 - 6.232 / 5.0, 4.5], abs=1e-4)
+
+
+def test_a_conflict_is_first_seen_while_candidates_can_still_be_built():
+    # finding 14 of docs/encounters.md: a head-on intruder (r = 1 m) at 5 m/s missing by 6 m, inside
+    # the protected 1 + 1.732 + 3.5 = 6.232 m. Its enclosing radius is 1 + 6 = 7 m, too close below
+    # 2.5 · 7 = 17.5 m = 3.5 s along the reference: with a 3 s horizon the first conflict is too
+    # close. The look-ahead stretches to 3.831 s for it (test above): the miss at that horizon is
+    # below 6.232 m from t_cpa = 4.0 s on, so at 10 Hz (t_cpa = 6.0, 5.9, ...) it is first seen at
+    # t_cpa = 4.0 s (or 3.9 s, rounding), where the evading point is 20 m >= 17.5 m + 0.5 s from the
+    # collision point, and candidates are built.
+    cfg = GeometricConfig(
+        start_shift_s=0.0, uav_shape="sphere_circumscribed", select_margin_m=3.5, conflict_horizon_s=3.0
+    )
+    av = GeometricAvoider(REF, 5.0, cfg)
+    for k in range(60):
+        t = 0.1 * k
+        north = 10.0 + 5.0 * t
+        track = IntruderTrack("x", t, np.array([north + 60.0 - 10.0 * t, 6.0, -20.0]), np.array([-5.0, 0, 0]), 1.0)
+        d = av.plan(state(t, north), Threats(intruders=[track]), t).diagnostics
+        if d["status"] != "no_conflict":
+            break
+    assert d["status"] == "avoid" and d["n_candidates"] > 0 and d["horizon_s"] == pytest.approx(3.831, abs=1e-3)
+    assert 3.85 < d["t_cpa_s"] < 4.05

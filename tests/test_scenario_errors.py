@@ -83,6 +83,12 @@ CASES = [
         "fault[0].vehicle: no vehicle 'hapz' (vehicles: haps)",
     ),
     (
+        "stop_vehicle",
+        {**GOOD, "stop_when_complete": ["haps", "hapz"]},
+        None,
+        "stop_when_complete[1]: no vehicle 'hapz' (vehicles: haps)",
+    ),
+    (
         "fault_kind",
         {**GOOD, "fault": [{"vehicle": "haps", "kind": "lightning", "at": 10}]},
         None,

@@ -30,8 +30,10 @@ class MainThreat:
     radius: float
 
 
-def cpa(start: np.ndarray, ref_vel: np.ndarray, threats: ThreatArrays, horizon: float) -> tuple[np.ndarray, np.ndarray]:
-    """(t_cpa (J,), miss distance (J,)) with t_cpa clipped to [0, horizon] [s]."""
+def cpa(
+    start: np.ndarray, ref_vel: np.ndarray, threats: ThreatArrays, horizon: float | np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(t_cpa (J,), miss distance (J,)) with t_cpa clipped to [0, horizon] [s] (scalar or (J,))."""
     r0 = threats.p - start
     w = threats.v - ref_vel
     ww = np.einsum("ji,ji->j", w, w)
@@ -51,16 +53,44 @@ def main_threat(
     return MainThreat(index, tc, start + ref_vel * tc, m, float(r))
 
 
+def detection_horizon(
+    miss: np.ndarray,
+    closing: np.ndarray,
+    threats: ThreatArrays,
+    r_uav: float,
+    min_sep_factor: float,
+    ref_speed: float,
+    lead_s: float,
+) -> np.ndarray:
+    """(J,) look-ahead [s] per threat that shows a conflict with it while candidates can still be
+    built, ``lead_s`` [s] (one candidate-generation cycle) before it becomes too close.
+
+    ``miss`` [m]: each threat's miss distance at its closest approach (CPA) to the reference up
+    to its end; ``closing`` [m/s]: its speed relative to the vehicle on the reference. Made main
+    threat, a threat gets the enclosing sphere R = r + miss (+ its growth over the prediction) at
+    its collision point, and candidates need the evading point at least ``min_sep_factor``·R along
+    the reference from it, which the vehicle covers at ``ref_speed`` v [m/s] in f·R / v. A
+    look-ahead h clips the CPA time, and the miss at h is below the conflict distance
+    T = r + ``r_uav`` from sqrt(T² − miss²) / closing before the CPA reaches h, so the threat is
+    first seen that much earlier: h = f·R / v + lead − sqrt(T² − miss²) / closing. The lead also
+    absorbs a growth of up to v·lead / f [m] over the look-ahead; larger growth is left out (a
+    fresh track's velocity uncertainty would stretch the look-ahead without bound)."""
+    reach = np.sqrt(np.maximum((threats.radius + r_uav) ** 2 - miss**2, 0.0))
+    early = np.divide(reach, closing, out=np.zeros_like(reach), where=closing > 0)
+    return min_sep_factor * (threats.radius + miss) / ref_speed + lead_s - early
+
+
 def find_main_threat(
     start: np.ndarray,
     ref_vel: np.ndarray,
     threats: ThreatArrays,
     r_uav: float,
-    horizon: float,
+    horizon: float | np.ndarray,
     geometry_horizon: float | None = None,
 ) -> MainThreat | None:
-    """The earliest threat whose CPA miss distance within ``horizon`` [s] is below its (grown)
-    radius + ``r_uav`` [m]; ties broken by the smaller miss. None when nothing conflicts.
+    """The earliest threat whose CPA miss distance within ``horizon`` [s] (one for all, or (J,)
+    per threat) is below its (grown) radius + ``r_uav`` [m]; ties broken by the smaller miss.
+    None when nothing conflicts.
 
     The main threat's collision point and enclosing sphere come from its CPA clipped to
     ``geometry_horizon`` [s] (default ``horizon``; the planner passes the time to the reference
@@ -79,5 +109,5 @@ def find_main_threat(
         start,
         ref_vel,
         threats,
-        horizon if geometry_horizon is None else max(geometry_horizon, horizon),
+        float(np.max(horizon)) if geometry_horizon is None else max(geometry_horizon, float(np.max(horizon))),
     )

@@ -31,7 +31,7 @@ import numpy as np
 
 from avoidance.geometric.avoider import AvoidanceResult, Status, path_clearance, plan_avoidance
 from avoidance.geometric.config import PATH_TYPES, GeometricConfig, VehicleParams
-from avoidance.geometric.conflict import MainThreat, find_main_threat
+from avoidance.geometric.conflict import MainThreat, cpa, detection_horizon, find_main_threat
 from avoidance.geometric.generation import CandidateSet
 from avoidance.geometric.kinematics import Kinematics
 from avoidance.geometric.reference import ReferenceLine
@@ -163,6 +163,26 @@ class GeometricAvoider:
             return 0.0
         return self.config.k_sigma_own * float(np.max(sigma))
 
+    def horizons(self, start: np.ndarray, threats: ThreatArrays, to_end: float) -> np.ndarray:
+        """(J,) conflict look-ahead [s] per threat from the evading point ``start`` (ENU [m]):
+        ``conflict_horizon_s``, or longer where a conflict first seen at that horizon would
+        already be too close for candidates (one ``min_replan_interval_s`` of lead; see
+        :func:`~avoidance.geometric.conflict.detection_horizon`); at most ``to_end`` [s], the time
+        to the reference end."""
+        cfg, ref = self.config, self._require_reference()
+        _, miss = cpa(start, ref.velocity, threats, to_end)
+        closing = np.linalg.norm(threats.v - ref.velocity, axis=1)
+        need = detection_horizon(
+            miss,
+            closing,
+            threats,
+            cfg.r_uav + cfg.select_margin_m,
+            cfg.min_sep_factor,
+            ref.speed,
+            cfg.min_replan_interval_s,
+        )
+        return np.minimum(np.maximum(cfg.conflict_horizon_s, need), to_end)
+
     # -- protocol -------------------------------------------------------------------------------
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan:
         t_start = time.perf_counter()
@@ -196,15 +216,16 @@ class GeometricAvoider:
         start = ref.point(s_e)
         ta = ThreatArrays.of(core)
         to_end = (ref.length - s_e) / ref.speed
-        horizon = min(cfg.conflict_horizon_s, to_end)
+        horizons = self.horizons(start, ta, to_end)
         main = (
-            find_main_threat(start, ref.velocity, ta, cfg.r_uav + cfg.select_margin_m, horizon, to_end)
-            if horizon > 0
+            find_main_threat(start, ref.velocity, ta, cfg.r_uav + cfg.select_margin_m, horizons, to_end)
+            if to_end > 0
             else None
         )
         if main is None:
             return self._with_diagnostics(self._reference_plan(t, s_now), {**base, "status": "no_conflict"}, t_start)
-        diag = {**base, "main_threat_id": core[main.index].id, "t_cpa_s": main.t_cpa}
+        horizon = float(horizons[main.index])
+        diag = {**base, "main_threat_id": core[main.index].id, "t_cpa_s": main.t_cpa, "horizon_s": horizon}
         if t - self._t_planned < cfg.min_replan_interval_s:
             fallback, extra = self._fallback_plan(t, estimate.pos_ned, s_now, start, ta, main, horizon)
             return self._with_diagnostics(fallback, {**diag, **extra, "status": "rate_limited"}, t_start)

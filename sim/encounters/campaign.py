@@ -13,6 +13,7 @@ A campaign file (TOML)::
     slack = 30                     # extra sim time for detours [s]
     keep_mcaps = "failures"        # or "all": MCAPs of every run
     min_relative_speed = 0.5       # [m/s] draws closing slower are skipped (counted in summary.json)
+    start_margin = 2.5             # [m] draws starting inside the NMAC cylinder grown by it are skipped
     [metrics]                      # the scenarios' [metrics]: NMAC cylinder, well clear [m]
     nmac_horizontal = 5
     [ownship]
@@ -50,6 +51,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from pydantic import ValidationError
 
 from sim.batch import RunSpec, run_batch
 from sim.encounters.aggregate import Pair, by_bin, geometry_bins, summarise
@@ -66,17 +68,22 @@ from sim.encounters.geometry import (
     legs,
     relative_speed,
     second_intruder,
+    start_within,
 )
 from sim.encounters.model import PARAMETERS, CampaignError, parse_distributions, sample
-from sim.scenario import ScenarioError, parse_scenario
+from sim.scenario import Metrics, ScenarioError, parse_scenario
 
 FT = 0.3048
 # NMAC cylinders [m]: RTCA DO-365 (manned-scale traffic, here the HAPS) and the project's small-UAS
 # body-scale volume (docs/encounters.md)
 NMAC_DO365 = {"nmac_horizontal": 500 * FT, "nmac_vertical": 100 * FT}
 NMAC_SMALL_UAS = {"nmac_horizontal": 5.0, "nmac_vertical": 2.5}
+# [m] draws whose vehicles start within the NMAC cylinder grown by this are skipped: NMACs by
+# construction. It exceeds the 2 m by which a flown horizontal geometry differs from the sampled
+# one on the default EKF (docs/encounters.md), so no flown start is inside the cylinder.
+START_MARGIN = 2.5
 TOP_KEYS = {"name", "seed", "encounters", "latin_hypercube", "altitude", "after_cpa", "slack", "keep_mcaps"}
-TOP_KEYS |= {"min_relative_speed"}
+TOP_KEYS |= {"min_relative_speed", "start_margin"}
 TOP_KEYS |= {"surveillance_rate_hz", "origin", "metrics", "ownship", "intruder", "parameters", "variant"}
 VARIANT_KEYS = ("name", "planner", "utm", "utm_link", "peer_link")
 
@@ -95,7 +102,7 @@ class Campaign:
     encounters: list[Encounter]  # flown: draws closing at min_relative_speed or faster
     runs: list[RunSpec]  # per encounter: one per variant, then unmitigated
     keep_mcaps: str
-    skipped: int = 0  # draws closing slower than min_relative_speed
+    skipped: int = 0  # draws closing slower than min_relative_speed or starting too close
     variants: tuple[Variant, ...] = (Variant(),)
     named: bool = False  # variants from the file ([[variant]]), not the one default
 
@@ -194,12 +201,22 @@ def load_campaign(
     named = "variant" in cfg
     variants = parse_variants(cfg["variant"], src) if named else (Variant(),)
     min_rel = float(cfg.get("min_relative_speed", 0.5))
+    margin = float(cfg.get("start_margin", START_MARGIN))
+    if not (math.isfinite(margin) and margin >= 0):
+        raise CampaignError(f"{src}: start_margin: a distance >= 0 [m], got {cfg['start_margin']!r}")
+    try:
+        nmac = Metrics.model_validate(setup.metrics)
+    except ValidationError as exc:
+        raise CampaignError(f"{src}: metrics: {exc.errors()[0]['msg']}") from None
+    too_close = (nmac.nmac_horizontal + margin, nmac.nmac_vertical + margin)
     out = Path(out_dir)
     encounters, runs = [], []
     triple = intruder_count(setup) == 2
     for i in picked:
         params = sampled[i]
         if relative_speed(params) < min_rel or (triple and relative_speed(second_intruder(params)) < min_rel):
+            continue
+        if start_within(params, setup, *too_close):
             continue
         enc = Encounter(i, run_seed(master, i), params)
         encounters.append(enc)
@@ -222,7 +239,10 @@ def load_campaign(
                 )
             )
     if not encounters:
-        raise CampaignError(f"{src}: no encounter closes at min_relative_speed ({min_rel:g} m/s) or faster")
+        raise CampaignError(
+            f"{src}: no encounter closes at min_relative_speed ({min_rel:g} m/s) or faster and starts outside "
+            f"the NMAC cylinder + start_margin ({margin:g} m)"
+        )
     return Campaign(name, setup, encounters, runs, keep, len(picked) - len(encounters), variants, named)
 
 

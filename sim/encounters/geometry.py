@@ -1,18 +1,22 @@
-"""Encounter construction: from sampled parameters to a scenario whose unmitigated closest
-approach is the sampled one.
+"""Encounter construction: from sampled parameters to a scenario whose unmitigated closest approach is
+the sampled one.
 
 Local NED [m] from the scenario origin, altitudes MSL [m], speeds [m/s], sim time [s]. Both
 vehicles fly straight, constant-velocity legs through their closest point of approach (CPA) at
 ``time_to_cpa``: the ownship passes over (north, east) = (0, 0) at ``altitude``; the intruder is
 then ``hmd`` to the right of the horizontal relative velocity (intruder minus ownship) and ``vmd``
-above. With the relative position at that time perpendicular to the relative velocity, that time
-is the horizontal CPA and ``hmd`` its miss distance. Each vehicle starts ``time_to_cpa`` back
-along its leg at its cruise speed (a multirotor already moving: its initial airspeed) and its one
-waypoint lies ``after_cpa`` beyond the CPA. A cooperative triple (``intruder.count = 2``) adds a
-second cooperative intruder built the same way from ``approach_angle_2``, ``intruder_speed_2`` and
-``hmd_2`` (level, at the ownship's altitude), meeting the ownship at the same time: all three pass
-their closest approaches together. A :class:`Variant` names one way of flying the mitigated run
-(its planner, UTM authority and links), so one encounter can be flown under several.
+above. With the relative position at that time perpendicular to the relative velocity, that time is
+the horizontal CPA and ``hmd`` its miss distance. Each vehicle starts ``time_to_cpa`` back along
+its leg at its cruise speed (a multirotor already moving: its initial airspeed). The ownship's one
+waypoint (its goal) lies ``after_cpa`` beyond the CPA, and so does a cooperative intruder's; a
+non-cooperative intruder's lies :data:`RUN_ON_S` past the run's end, so it flies its leg at constant
+speed to the end (it never brakes to hover on or beside the ownship's route); the run ends when the
+ownship's mission (and a cooperative intruder's) is complete. A cooperative triple
+(``intruder.count = 2``) adds a second cooperative intruder built the same way from
+``approach_angle_2``, ``intruder_speed_2`` and ``hmd_2`` (level, at the ownship's altitude),
+meeting the ownship at the same time: all three pass their closest approaches together. A
+:class:`Variant` names one way of flying the mitigated run (its planner, UTM authority and links),
+so one encounter can be flown under several.
 """
 
 from __future__ import annotations
@@ -29,6 +33,9 @@ MODES = ("mitigated", "unmitigated")
 OWN, INTRUDER, INTRUDER2 = "own", "intruder", "intruder2"
 FOLLOW = {"type": "follow_mission"}
 DEFAULT_ORIGIN = {"lat": 47.0, "lon": 8.0, "altitude": 400.0}  # [deg, deg, m MSL]
+# [s] a non-cooperative intruder's waypoint lies this far along its leg past the run's end: more
+# than a multirotor's carrot lead (5 m) at any speed above 0.5 m/s, so it never slows down
+RUN_ON_S = 10.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -126,6 +133,20 @@ def legs(p: dict[str, float], setup: EncounterSetup) -> tuple[Leg, Leg]:
     return Leg(cpa_o - v_o * t, v_o), Leg(cpa_i - v_i * t, v_i)
 
 
+def start_within(p: dict[str, float], setup: EncounterSetup, horizontal: float, vertical: float) -> bool:
+    """Whether two of the encounter's vehicles start less than ``horizontal`` [m] apart
+    horizontally and ``vertical`` [m] vertically (a triple: any pair)."""
+    own, intruder = legs(p, setup)
+    starts = [own.start, intruder.start]
+    if intruder_count(setup) == 2:
+        starts.append(legs(second_intruder(p), setup)[1].start)
+    return any(
+        math.hypot(*(a[:2] - b[:2])) < horizontal and abs(a[2] - b[2]) < vertical
+        for k, a in enumerate(starts)
+        for b in starts[k + 1 :]
+    )
+
+
 def _vehicle(
     name: str, aircraft: str, leg: Leg, setup: EncounterSetup, end_t: float, cfg: dict, planner: dict, links: dict
 ) -> dict:
@@ -167,16 +188,18 @@ def build_scenario(
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     own_leg, int_leg = legs(p, setup)
     end_t = p["time_to_cpa"] + setup.after_cpa
+    duration = end_t + setup.slack
     kind = setup.intruder["kind"]
     mitigated = mode == "mitigated"
     variant = variant or Variant()
     planner = (variant.planner or setup.ownship["planner"]) if mitigated else FOLLOW
     links = {k: getattr(variant, k) for k in ("utm_link", "peer_link") if mitigated and getattr(variant, k)}
+    int_end_t = end_t if kind == "cooperative" else duration + RUN_ON_S
     wind = math.radians(p["wind_direction"])
     scen: dict = {
         "name": name,
         "seed": seed,
-        "duration": end_t + setup.slack,
+        "duration": duration,
         "origin": dict(setup.origin),
         "surveillance": {
             "rate_hz": setup.surveillance_rate_hz,
@@ -212,6 +235,7 @@ def build_scenario(
         if intruder_count(setup) == 2:
             int_legs.append((INTRUDER2, legs(second_intruder(p), setup)[1]))
         scen["vehicle"] += [
-            _vehicle(n, aircraft, leg, setup, end_t, setup.intruder, int_planner, int_links) for n, leg in int_legs
+            _vehicle(n, aircraft, leg, setup, int_end_t, setup.intruder, int_planner, int_links) for n, leg in int_legs
         ]
+    scen["stop_when_complete"] = [v["name"] for v in scen["vehicle"] if v["name"] == OWN or kind == "cooperative"]
     return scen
