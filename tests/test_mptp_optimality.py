@@ -155,27 +155,42 @@ def test_the_wait_step_sets_the_wait_bound_and_changes_the_search():
     assert any(changed)
 
 
-@pytest.mark.parametrize("half_width_m", [1_000.0, 3_000.0])
-def test_a_wait_at_the_start_is_planned_when_only_it_reaches_the_optimum(half_width_m):
-    """A 1 km plug across the whole mission area, its south edge 2 km ahead of the start,
-    present until 300 s; 500 m margins close the band from 1.5 to 3.5 km north before 300 s.
-    By hand: flown straight, the aircraft reaches the band 1500 / 26 = 57.7 s after it leaves,
-    so it may leave at 242.3 s at the earliest: three 96.6 s laps of the hold at the start
-    (289.7 s), then 6 km straight at 26 m/s (230.8 s), arriving at 520.4 s. A detour to an
-    auxiliary state (1.1 km aside) and a hold there arrives later (543.2 s, +4.4 %, in the
-    6 km wide area); in the 2 km wide one every auxiliary state lies outside the area."""
+def _plug_ahead(half_width_m: float) -> tuple[ObstacleTimeline, GoalTrack, MptpConfig]:
+    """A 1 km plug across a mission area 2 half_width_m wide, its south edge 2 km ahead of the
+    start, present until 300 s (500 m margins: the band 1.5-3.5 km north is closed before
+    300 s); the goal 6 km ahead."""
     cfg = SMALL.with_(mission_area=box(-1_500.0, -half_width_m, 8_000.0, half_width_m))
     plug = box(2_000.0, -6_000.0, 3_000.0, 6_000.0)
     snaps = [
         StormSnapshot(t, (plug,) if t < 300.0 else (), np.zeros((1 if t < 300.0 else 0, 2)))
         for t in np.arange(0.0, 2 * cfg.horizon_s + 1.0, 60.0)
     ]
-    tl = ObstacleTimeline(snaps, cfg, 2 * cfg.horizon_s)
-    traj = plan_trajectory(tl, np.zeros(2), 0.0, 0.0, GoalTrack.fixed([6_000.0, 0.0]), cfg)
+    return ObstacleTimeline(snaps, cfg, 2 * cfg.horizon_s), GoalTrack.fixed([6_000.0, 0.0]), cfg
+
+
+def test_a_wait_at_the_start_is_planned_when_only_it_reaches_the_optimum():
+    """In a 2 km wide area every auxiliary state of the start (1.1 km aside) is outside it. By
+    hand: flown straight, the aircraft reaches the closed band 1500 / 26 = 57.7 s after it
+    leaves, so it may leave at 242.3 s at the earliest: three 96.6 s laps of the hold at the
+    start (289.7 s), then 6 km straight at 26 m/s (230.8 s), arriving at 520.4 s."""
+    tl, goal, cfg = _plug_ahead(1_000.0)
+    traj = plan_trajectory(tl, np.zeros(2), 0.0, 0.0, goal, cfg)
     lap = hold_lap_s(cfg)
     assert traj.status == "ok"
     assert traj.times[-1] == pytest.approx(3 * lap + 6_000.0 / cfg.tas_mps, abs=1e-6)
     assert np.all(traj.kinds[1:-1] == HOLD) and traj.hold_s == pytest.approx(3 * lap)
+
+
+def test_the_start_waits_only_when_none_of_its_auxiliary_states_is_flyable():
+    """In a 6 km wide area the start's auxiliary states are flyable: no hold is offered at the
+    start (the plan flies to one and waits there); in the 2 km wide one, holds are."""
+    for half_width, offered in ((3_000.0, False), (1_000.0, True)):
+        tl, goal, cfg = _plug_ahead(half_width)
+        w = default_workspace(np.vstack([np.zeros(2), goal.at(0.0)]), cfg, cfg.mission_area)
+        exp = _Expander(tl, goal, cfg, w, cfg.turning, SharedWork(tl, goal, cfg, w, 0.0))
+        exp.t_end = cfg.horizon_s
+        kinds = {child.kind for child, _, _ in exp(State((0.0, 0.0), 0.0, 0.0, START))}
+        assert (HOLD in kinds) == offered and (AUX in kinds) != offered, half_width
 
 
 def test_a_hold_at_the_start_keeps_its_start_turn_out_of_the_envelopes():

@@ -12,10 +12,13 @@ Waiting is an action of its own: from every state but the goal, holding for HOLD
 the holding orbit (turning.hold_orbit: back at the state on its course, so the legs around it
 are unchanged), each kept when the orbit's footprint stays out of the obstacle envelopes over
 the whole wait and the wait ends within the planning horizon; holds chain, so any number of laps
-up to the horizon is reachable. The cost of a hold is its duration. The start cannot anticipate
-the orbit's first turn: it turns at R into the first leg (turning.flyby_path; with the orbit's
-legs of HOLD_SLACK times the shortest that turn fits for every course_change_max in (0, 90]
-deg), so a hold there has that turn in its footprint.
+up to the horizon is reachable. The cost of a hold is its duration. From the start only when
+none of its auxiliary states is flyable (a pocket): elsewhere a wait at an auxiliary state one
+leg on stands for it, and waits at the start would spend the expansion cap on the plateau of
+equal G + w H that waiting makes (weighted A* takes the longest wait first). The start cannot
+anticipate the orbit's first turn: it turns at R into the first leg (turning.flyby_path; with
+the orbit's legs of HOLD_SLACK times the shortest that turn fits for every course_change_max in
+(0, 90] deg), so a hold there has that turn in its footprint.
 
 Closed list (which states are "the same"): position on a lattice of 1 % of the auxiliary leg,
 course to 1 deg, kind, and time: a hold or goal state to 1 % of dt, any other state by the
@@ -202,7 +205,8 @@ class _Expander:
         targets = np.vstack([g_pt[None] if goal_ok else np.empty((0, 2)), b.verts[vi]])
         kinds0 = np.array([GOAL] * int(goal_ok) + [VERTEX] * len(vi), dtype="<U6")
         pts, chi, leg, kinds = self._moves(s, b, targets, kinds0)
-        holds, sides = self._holds(s) if s.kind != GOAL else (np.empty(0), np.empty(0))
+        waits = s.kind not in (START, GOAL) or (s.kind == START and not np.any(kinds == AUX))
+        holds, sides = self._holds(s) if waits else (np.empty(0), np.empty(0))
         pts = np.vstack([pts, np.repeat(p[None], len(holds), 0)])
         chi = np.concatenate([chi, np.full(len(holds), s.course)])
         cost = np.concatenate([leg / v, holds])
