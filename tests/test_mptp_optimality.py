@@ -14,12 +14,25 @@ import sys
 
 import numpy as np
 import pytest
+import shapely
 from shapely.geometry import box
 
 from guidance.mptp.config import MptpConfig
 from guidance.mptp.goal import GoalTrack
-from guidance.mptp.search import GOAL, START, SharedWork, State, _Expander, default_workspace, plan_trajectory
+from guidance.mptp.search import (
+    AUX,
+    GOAL,
+    HOLD,
+    HOLD_LAPS,
+    START,
+    SharedWork,
+    State,
+    _Expander,
+    default_workspace,
+    plan_trajectory,
+)
 from guidance.mptp.timeline import ObstacleTimeline
+from guidance.mptp.turning import flyby_path, hold_lap_s, hold_orbit
 from sim.core.threats import StormSnapshot
 
 SMALL = MptpConfig(
@@ -140,3 +153,79 @@ def test_the_wait_step_sets_the_wait_bound_and_changes_the_search():
             runs.append(plan_trajectory(tl, p0, 0.0, 0.0, goal, c))
         changed.append(runs[0].expanded != runs[1].expanded or not np.array_equal(runs[0].times, runs[1].times))
     assert any(changed)
+
+
+def _plug_ahead(half_width_m: float) -> tuple[ObstacleTimeline, GoalTrack, MptpConfig]:
+    """A 1 km plug across a mission area 2 half_width_m wide, its south edge 2 km ahead of the
+    start, present until 300 s (500 m margins: the band 1.5-3.5 km north is closed before
+    300 s); the goal 6 km ahead."""
+    cfg = SMALL.with_(mission_area=box(-1_500.0, -half_width_m, 8_000.0, half_width_m))
+    plug = box(2_000.0, -6_000.0, 3_000.0, 6_000.0)
+    snaps = [
+        StormSnapshot(t, (plug,) if t < 300.0 else (), np.zeros((1 if t < 300.0 else 0, 2)))
+        for t in np.arange(0.0, 2 * cfg.horizon_s + 1.0, 60.0)
+    ]
+    return ObstacleTimeline(snaps, cfg, 2 * cfg.horizon_s), GoalTrack.fixed([6_000.0, 0.0]), cfg
+
+
+def test_a_wait_at_the_start_is_planned_when_only_it_reaches_the_optimum():
+    """In a 2 km wide area every auxiliary state of the start (1.1 km aside) is outside it. By
+    hand: flown straight, the aircraft reaches the closed band 1500 / 26 = 57.7 s after it
+    leaves, so it may leave at 242.3 s at the earliest: three 96.6 s laps of the hold at the
+    start (289.7 s), then 6 km straight at 26 m/s (230.8 s), arriving at 520.4 s."""
+    tl, goal, cfg = _plug_ahead(1_000.0)
+    traj = plan_trajectory(tl, np.zeros(2), 0.0, 0.0, goal, cfg)
+    lap = hold_lap_s(cfg)
+    assert traj.status == "ok"
+    assert traj.times[-1] == pytest.approx(3 * lap + 6_000.0 / cfg.tas_mps, abs=1e-6)
+    assert np.all(traj.kinds[1:-1] == HOLD) and traj.hold_s == pytest.approx(3 * lap)
+
+
+def test_the_start_waits_only_when_none_of_its_auxiliary_states_is_flyable():
+    """In a 6 km wide area the start's auxiliary states are flyable: no hold is offered at the
+    start (the plan flies to one and waits there); in the 2 km wide one, holds are."""
+    for half_width, offered in ((3_000.0, False), (1_000.0, True)):
+        tl, goal, cfg = _plug_ahead(half_width)
+        w = default_workspace(np.vstack([np.zeros(2), goal.at(0.0)]), cfg, cfg.mission_area)
+        exp = _Expander(tl, goal, cfg, w, cfg.turning, SharedWork(tl, goal, cfg, w, 0.0))
+        exp.t_end = cfg.horizon_s
+        kinds = {child.kind for child, _, _ in exp(State((0.0, 0.0), 0.0, 0.0, START))}
+        assert (HOLD in kinds) == offered and (AUX in kinds) != offered, half_width
+
+
+def test_a_hold_at_the_start_keeps_its_start_turn_out_of_the_envelopes():
+    """The start turns at R into the orbit's first leg (45 deg right, 313 m) and passes
+    (134, 55) m, 55 m outside the orbit's hull. A cell whose envelope (10 m margin plus the
+    inflation, about [113, 427] x [8, 77] m) lies on that turn but off both orbits' hulls: from
+    the start the right-hand orbit is refused and every hold within the horizon turns left; from
+    an auxiliary state at the same place and course (fly-by, no start turn) it turns right."""
+    cfg = SMALL.with_(simplify_tol_m=1.0, safety_single_m=(10.0,) * 3, safety_line_m=(10.0,) * 3)
+    cfg = cfg.with_(mission_area=box(-2e3, -2e3, 9e3, 2e3))
+    snaps = [
+        StormSnapshot(t, (box(140.0, 35.0, 400.0, 50.0),), np.zeros((1, 2)))
+        for t in np.arange(0.0, 2 * cfg.horizon_s + 1.0, 60.0)
+    ]
+    tl = ObstacleTimeline(snaps, cfg, 2 * cfg.horizon_s)
+    env = tl.envelopes(np.array([0]), np.array([1]))[0]
+    right = hold_orbit(np.zeros(2), 0.0, 1, cfg, 1.0)
+    turn = flyby_path(right[:3], 0.0, cfg.turn_radius_m)
+    assert env.intersects(shapely.linestrings(turn))
+    for side in (1.0, -1.0):
+        assert not env.intersects(shapely.convex_hull(shapely.multipoints(hold_orbit(np.zeros(2), 0.0, 1, cfg, side))))
+    goal = GoalTrack.fixed([8_000.0, 0.0])
+    w = default_workspace(np.vstack([np.zeros(2), goal.at(0.0)]), cfg, cfg.mission_area)
+    exp = _Expander(tl, goal, cfg, w, cfg.turning, SharedWork(tl, goal, cfg, w, 0.0))
+    exp.t_end = cfg.horizon_s
+    laps = sum(k * hold_lap_s(cfg) <= cfg.horizon_s for k in HOLD_LAPS)
+    for kind, side in ((START, -1.0), (AUX, 1.0)):
+        durations, sides = exp._holds(State((0.0, 0.0), 0.0, 0.0, kind))
+        assert len(durations) == laps and np.all(sides == side), kind
+
+
+@pytest.mark.parametrize("dchi_deg", [1.0, 5.0, 10.0, 20.0, 30.0, 45.0, 60.0, 75.0, 90.0])
+def test_the_start_turn_into_a_holding_orbit_fits_its_first_leg(dchi_deg):
+    """The start turns at R into the orbit's first leg and must leave room for the fly-by at
+    its end (flyby_path raises otherwise) for every course-change limit."""
+    cfg = MptpConfig(course_change_max=math.radians(dchi_deg))
+    lap = hold_orbit(np.zeros(2), 0.0, 1, cfg, 1.0)
+    assert len(flyby_path(lap[:3], 0.0, cfg.turn_radius_m)) > 3

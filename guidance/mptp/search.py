@@ -8,11 +8,17 @@ kept only when flyable from x_in (course change and leg length, see turning.py).
 straight leg at constant speed, so arrival times grow along every path (time monotone) and G is
 the flight time.
 
-Waiting is an action of its own: from every state but the start and the goal, holding for
-HOLD_LAPS laps of the holding orbit (turning.hold_orbit: back at the state on its course, so the
-legs around it are unchanged), each kept when the orbit's footprint stays out of the obstacle
-envelopes over the whole wait and the wait ends within the planning horizon; holds chain, so any
-number of laps up to the horizon is reachable. The cost of a hold is its duration.
+Waiting is an action of its own: from every state but the goal, holding for HOLD_LAPS laps of
+the holding orbit (turning.hold_orbit: back at the state on its course, so the legs around it
+are unchanged), each kept when the orbit's footprint stays out of the obstacle envelopes over
+the whole wait and the wait ends within the planning horizon; holds chain, so any number of laps
+up to the horizon is reachable. The cost of a hold is its duration. From the start only when
+none of its auxiliary states is flyable (a pocket): elsewhere a wait at an auxiliary state one
+leg on stands for it, and waits at the start would spend the expansion cap on the plateau of
+equal G + w H that waiting makes (weighted A* takes the longest wait first). The start cannot
+anticipate the orbit's first turn: it turns at R into the first leg (turning.flyby_path; with
+the orbit's legs of HOLD_SLACK times the shortest that turn fits for every course_change_max in
+(0, 90] deg), so a hold there has that turn in its footprint.
 
 Closed list (which states are "the same"): position on a lattice of 1 % of the auxiliary leg,
 course to 1 deg, kind, and time: a hold or goal state to 1 % of dt, any other state by the
@@ -39,7 +45,7 @@ from guidance.mptp.goal import GoalTrack
 from guidance.mptp.heuristics import GoalAvailability, StaticBound, edh
 from guidance.mptp.statespace import FreeSpace, free_space
 from guidance.mptp.timeline import ObstacleTimeline
-from guidance.mptp.turning import SENSES, admissible, aux_states, hold_lap_s, hold_orbit, min_leg_m
+from guidance.mptp.turning import SENSES, admissible, aux_states, flyby_path, hold_lap_s, hold_orbit, min_leg_m
 from guidance.mptp.turnmodel import aux_states as fly_over_aux
 from guidance.mptp.turnmodel import turn_to
 from guidance.mptp.visibility import Boundary, OverBudget, blocked, visible_vertices
@@ -203,7 +209,8 @@ class _Expander:
         targets = np.vstack([g_pt[None] if goal_ok else np.empty((0, 2)), b.verts[vi]])
         kinds0 = np.array([GOAL] * int(goal_ok) + [VERTEX] * len(vi), dtype="<U6")
         pts, chi, leg, kinds = self._moves(s, b, targets, kinds0)
-        holds, sides = self._holds(s) if s.kind not in (START, GOAL) else (np.empty(0), np.empty(0))
+        waits = s.kind not in (START, GOAL) or (s.kind == START and not np.any(kinds == AUX))
+        holds, sides = self._holds(s) if waits else (np.empty(0), np.empty(0))
         pts = np.vstack([pts, np.repeat(p[None], len(holds), 0)])
         chi = np.concatenate([chi, np.full(len(holds), s.course)])
         cost = np.concatenate([leg / v, holds])
@@ -250,8 +257,9 @@ class _Expander:
 
     def _holds(self, s: State) -> tuple[np.ndarray, np.ndarray]:
         """Admissible waits at s: durations [s] (whole laps of HOLD_LAPS ending by t_end) and the
-        sense of each one's orbit, the first sense whose footprint stays out of the envelopes of
-        every planning interval the wait touches."""
+        sense of each one's orbit, the first sense whose footprint (at the start with the turn
+        into its first leg) stays out of the envelopes of every planning interval the wait
+        touches."""
         durations = self.lap_s * np.array([k for k in HOLD_LAPS if s.t + k * self.lap_s <= self.t_end + 1e-9])
         if not len(durations):
             return np.empty(0), np.empty(0)
@@ -261,6 +269,8 @@ class _Expander:
         sides = np.zeros(len(durations))
         for side in self.hold_senses:
             lap = hold_orbit(np.array(s.p), s.course, 1, self.cfg, side)
+            if s.kind == START:
+                lap = np.vstack([lap, flyby_path(lap[:3], s.course, self.cfg.turn_radius_m)])
             footprint = shapely.convex_hull(shapely.multipoints(lap))
             hit = shapely.intersects(envs, footprint)  # only those touched can overlap by area (envs prepared)
             hit[hit] = shapely.area(shapely.intersection(footprint, envs[hit])) > TOUCH_M2
