@@ -307,6 +307,33 @@ def test_overtake_chain_closes_only_once_the_overtaking_uas_is_the_margin_ahead(
     assert len(closed) == 1 and not book.active()
 
 
+def test_a_pair_in_a_case_stays_assessed_while_the_slow_uas_reads_below_the_hover_speed():
+    """Overtake (a at 2 m/s 20 m behind b at 1 m/s on one line; hover gate 0.5 m/s, chains close
+    after 2 quiet frames). A pair not in a case whose slow UAS reads 0.4 m/s is not assessed; once
+    flagged, the dip does not stop the confirming frame from opening the case, and two frames of
+    0.4 m/s mid-manoeuvre (a 3 m right of b's line) keep the head's overtake, roles and head time
+    (dropped, the chain would close and re-open with the geometry of that moment); a UAS that
+    really hovers (0.1 m/s, below half the gate) still ends the case after the 2 quiet frames."""
+    book = CaseBook(UtmConfig(time_margin=25.0, min_speed=0.5, close_after=2))
+    book.update([note("a", (-40, 20, 0), (2, 0, 0)), note("b", (-20, 20, 0), (0.4, 0, 0))], 0.0)
+    assert not book.assessed and not book.pending  # hovering and in no case: no approach direction
+    book.update([note("a", (-40, 20, 0), (2, 0, 0), 1.0), note("b", (-20, 20, 0), (1, 0, 0), 1.0)], 1.0)
+    assert ("a", "b") in book.pending
+    opened, _ = book.update([note("a", (-38, 20, 0), (2, 0, 0), 2.0), note("b", (-19, 20, 0), (0.4, 0, 0), 2.0)], 2.0)
+    overtake = (Encounter.OVERTAKE, (Role.OVERTAKING, Role.OVERTAKEN))
+    assert [(c.encounter, c.roles, c.head) for c in opened] == [(*overtake, 2.0)]
+    for t in (3.0, 4.0):  # a diverged 3 m right, b's track reads 0.4 m/s
+        a = note("a", (-36 + 2 * (t - 3), 17, 0), (2, 0, 0), t)
+        _, closed = book.update([a, note("b", (-18, 20, 0), (0.4, 0, 0), t)], t)
+        assert not closed and ("a", "b") in book.assessed
+    ((c,),) = [book.active("a")]
+    assert (c.encounter, c.roles, c.head, c.t) == (*overtake, 2.0, 4.0)
+    for t in (5.0, 6.0):  # b really hovers (0.1 m/s, below half the gate): the chain closes
+        a = note("a", (-34 + 2 * (t - 5), 17, 0), (2, 0, 0), t)
+        _, closed = book.update([a, note("b", (-18, 20, 0), (0.1, 0, 0), t)], t)
+    assert [c.ids for c in closed] == [("a", "b")] and not book.active("a")
+
+
 def test_four_way_encounter_merges_into_one_roundabout():
     book = CaseBook(UtmConfig(time_margin=25.0))
     notes = [

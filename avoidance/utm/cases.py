@@ -11,6 +11,10 @@ which the pair is past its closest approach, at least the head's margin apart an
 away from the head's collision point (spec §7.2) and, for an overtake, the overtaking UAS is the
 margin ahead of the overtaken (:func:`overtaken`), or the peer is no longer reported. (Closing
 as soon as the pair diverged let a 4-UAS roundabout cut back across its centre and meet again.)
+A pair with an open chain or awaiting its confirming frame is computed whatever the UAS' speeds
+(``in_case`` of :func:`compute_collision_case`): the tracked speed of a slow UAS fluctuates across
+the hover gate, and a pair dropped for two frames ended its chain mid-overtake and re-opened it
+with the geometry of that moment.
 Merge: the active head-on and converging chains that share a UAS form a cluster (overtakes are
 not merged: several at once slow the overtaking UAS, 6.202); a cluster of two or more chains is a
 virtual roundabout with centre = mean of the head collision points (weights 1, 6.195) and margin
@@ -77,10 +81,10 @@ class CaseBook:
         notes = sorted(notifications, key=lambda n: n.id)
         for i, a in enumerate(notes):
             for b in notes[i + 1 :]:
-                case = compute_collision_case(a, b, t, self.cfg)
+                key = (a.id, b.id)
+                case = compute_collision_case(a, b, t, self.cfg, in_case=key in self.chains or key in last_pending)
                 if case is None:
                     continue
-                key = case.ids
                 seen.add(key)
                 chain = self.chains.get(key)
                 if chain is None:

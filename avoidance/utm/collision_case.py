@@ -251,14 +251,21 @@ class CollisionCase:
 
 
 def compute_collision_case(
-    n1: PositionNotification, n2: PositionNotification, t: float, cfg: UtmConfig = UtmConfig()
+    n1: PositionNotification,
+    n2: PositionNotification,
+    t: float,
+    cfg: UtmConfig = UtmConfig(),
+    in_case: bool = False,
 ) -> CollisionCase | None:
     """The case of the pair at frame time ``t`` [s], or None when they cannot meet (different
-    flight levels) or one of them hovers (below ``min_speed``). ``flagged`` is set when the
+    flight levels) or one of them hovers: below ``min_speed``, or below half of it for a pair that
+    is ``in_case`` (its case open or awaiting confirmation: a slow UAS' tracked speed fluctuates
+    across ``min_speed``, and dropping the pair for a frame would end its chain mid-manoeuvre and
+    re-open it with the geometry of that moment; a UAS that really hovers still ends it). ``flagged`` is set when the
     closest approach (trajectory intersection when a prediction is known, else linear) lies
     in [0, time_margin] (trajectories: (0, time_margin], their minimum at the frame time means
     the pair is past it) and within the collision margin (6.186)."""
-    if not n1.shares_level(n2) or min(n1.speed, n2.speed) < cfg.min_speed:
+    if not n1.shares_level(n2) or min(n1.speed, n2.speed) < (0.5 if in_case else 1.0) * cfg.min_speed:
         return None
     a1, a2 = n1.adjusted(t), n2.adjusted(t)
     t_cpa, dist, cp = closest_approach(a1.pos, a1.vel, a2.pos, a2.vel)
