@@ -552,6 +552,12 @@ SHOWN_ELSEWHERE = {
         "acts on the wait bound's time step and cells (at most 3 steps per dt no shorter than it): "
         "tests/test_mptp_optimality.py::test_the_wait_step_sets_the_wait_bound_and_changes_the_search"
     ),
+    "vehicle.planner<MptpPlanner>.options.nav_std_max_m": (
+        "acts on the first plan only, while the estimate's horizontal sigma is above it (a DEGRADED wait): "
+        "tests/test_mptp_nav_wait.py::test_nav_std_max_m_sets_the_threshold_and_an_estimate_without_sigma_never_waits; "
+        "in closed loop on the EKF: "
+        "tests/test_mptp_nav_wait.py::test_the_storm_crossing_on_its_ekf_plans_after_the_first_gnss_fix"
+    ),
     "vehicle.planner<MptpPlanner>.options.keep_within_m": (
         "acts at a replan while the plan being flown reaches the goal (kept or not by the aircraft's "
         "distance from it): tests/test_mptp_plan_keeping.py::test_an_aircraft_off_the_plan_gets_a_new_one"
