@@ -72,7 +72,7 @@ def ctrl_c_raises():
 @pytest.mark.usefixtures("ctrl_c_raises")
 def test_interrupted_run_is_flown_again_on_resume(tmp_path):
     out = tmp_path / "out"
-    _, runs = load_batch(_batch(tmp_path, "3, 4", duration="240 s", hover=True), out)
+    _, runs = load_batch(_batch(tmp_path, "3, 4", duration="120 s", hover=True), out)
     first_log = Path(runs[0].log_path)
 
     def interrupt_the_first_run():

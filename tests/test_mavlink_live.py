@@ -34,7 +34,7 @@ WAIT_S = 300.0
 # run is paced at 4x and shares the GIL with it), so a loaded machine delivers the upload late.
 # The run stops when the uploaded mission completes; the flight after the upload is bounded by
 # UPLOADED_MISSION_S on the event times instead.
-LATE_UPLOAD_ROOM_S = 600.0
+LATE_UPLOAD_ROOM_S = 1800.0
 HOVER_HOLD = "1000 s"  # longer than any run: the hover itself never completes the mission
 UPLOADED_MISSION_S = 30.0  # the 3 uploaded waypoints take about 17 s [s, sim time]
 
@@ -167,7 +167,7 @@ def test_gcs_uploads_a_mission_that_the_vehicle_flies(fly, scenario_data):
     assert [e for e in events if "waypoint" in e and e.endswith("/3 reached")] == [
         f"quad: waypoint {k}/3 reached" for k in (1, 2, 3)
     ]
-    assert result.status == "completed"
+    assert result.status == "completed", (result.sim_time_s, log.events())
     assert 5.0 < _upload_to_end_s(log.events(), result.sim_time_s) < UPLOADED_MISSION_S
     assert any("mavlink" in e and "garbage" in e for e in events)
     # telemetry matched the vehicle: the last position report is near the last waypoint
@@ -312,7 +312,7 @@ def test_with_signing_the_signed_gcs_is_obeyed_and_unsigned_commands_refused(tmp
     assert "quad: mission uploaded: 3 waypoints, mode AUTO" in events
     assert not any("mode GUIDED" in e for e in events)  # the unsigned SET_MODE was dropped
     assert any("bad_signature" in e for e in events)
-    assert result.status == "completed"
+    assert result.status == "completed", (result.sim_time_s, timed)
     assert 5.0 < _upload_to_end_s(timed, result.sim_time_s) < UPLOADED_MISSION_S
 
 

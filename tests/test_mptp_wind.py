@@ -171,6 +171,7 @@ def _closed_loop_arrival_error(tmp_path, forecast: str) -> float:
     return abs(predicted - haps["mission"]["time_s"]) / haps["mission"]["time_s"]
 
 
+@pytest.mark.slow  # in CI: the open-loop air-frame test above; tests/test_wind.py flies JSBSim in wind
 @pytest.mark.closed_loop
 def test_closed_loop_in_wind_predicted_arrival_matches_the_flight(tmp_path):
     """JSBSim HAPS on its EKF in the scenario's steady 15 m/s wind: with the forecast the first
