@@ -49,7 +49,9 @@ def test_variants_fly_the_same_draws_with_their_own_planner_authority_and_links(
         assert [v["planner"] for v in scen["blind"]["vehicle"]] == [rules] * 2
         assert _without(scen["utm"], "utm", "utm_link", "name") == _without(scen["blind"], "name")
         # emergency only: the reach-set avoider without rules on both, nothing else changed
-        assert [v["planner"]["options"] for v in scen["emergency"]["vehicle"]] == [{"period": 1.0}] * 2
+        assert [v["planner"]["options"] for v in scen["emergency"]["vehicle"]] == [
+            {"period": 1.0, "intruder_margin": 4.55, "intruder_margin_vertical": 2.0}
+        ] * 2
         assert "rules" in rules["options"]
         assert _without(scen["emergency"], "planner", "name") == _without(scen["blind"], "planner", "name")
         # unmitigated: both follow their missions, no authority, otherwise the same encounter
