@@ -165,12 +165,10 @@ def _check_thesis_flight(sc, data, result, log):
         assert arrival > 2.0 * beeline_s  # ... then proceeded
 
 
-# In CI the holding flight only (a hold, then on to the goal); scenarios 1, 2 (continuous
-# avoidances) and the moving goal fly with -m slow, and open loop in CI
-# (tests/test_mptp_scenarios.py).
-@pytest.mark.parametrize(
-    "make", [m if m is S.holding_scenario else pytest.param(m, marks=pytest.mark.slow) for m in THESIS], ids=THESIS_IDS
-)
+# Slow: in CI the thesis scenarios fly open loop (tests/test_mptp_scenarios.py) and a hold is
+# flown closed loop by tests/test_mptp_holding_speed.py.
+@pytest.mark.slow
+@pytest.mark.parametrize("make", THESIS, ids=THESIS_IDS)
 def test_thesis_scenarios_scaled(fly, make):
     _check_thesis_flight(*_fly_thesis(fly, make, full_size=False))
 

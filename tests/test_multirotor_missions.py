@@ -101,6 +101,7 @@ def _half_size_haps_box(data: dict) -> dict:
     return data
 
 
+@pytest.mark.slow  # in CI: tests/test_rules_closed_loop.py flies a HAPS and three quadrotors in one log
 def test_mixed_haps_and_multirotor_in_one_log(fly_edited):
     result, log = fly_edited("mixed_haps_quad", _half_size_haps_box)
     assert result.status == "completed"

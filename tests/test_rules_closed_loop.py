@@ -83,7 +83,15 @@ def test_s11_four_uas_circle_one_roundabout(tmp_path):
         assert np.hypot(centre[0] - 100.0, centre[1] - 100.0) < 2 * UNIT  # the crossing point
 
 
-@pytest.mark.parametrize("name", ["s12_overtake_2x", "s13_overtake_3x", "s13_overtake_4x"])
+# In CI the 4x overtake (the one the overtaken UAS's speed estimate made fail); 2x and 3x slow
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param("s12_overtake_2x", marks=pytest.mark.slow),
+        pytest.param("s13_overtake_3x", marks=pytest.mark.slow),
+        "s13_overtake_4x",
+    ],
+)
 def test_s12_s13_overtake_on_the_right(name, tmp_path):
     m, log = fly(name, tmp_path)
     assert_complete(m)

@@ -185,14 +185,20 @@ CASES = [
 
 
 @pytest.mark.parametrize("kind,data,text,expected", CASES, ids=[c[0] for c in CASES])
-def test_bad_scenario_is_one_line_error_exit_2(tmp_path, cosim, kind, data, text, expected):
+def test_bad_scenario_is_one_line_error_exit_2(tmp_path, capsys, monkeypatch, kind, data, text, expected):
+    """``cosim run`` in this process (its ``main``, exactly what the console script calls; the
+    other tests of this file run it as a separate process)."""
+    from sim.cli import main
+
     f = tmp_path / f"{kind}.toml"
     f.write_text(text if text is not None else tomli_w.dumps(data))
-    proc = cosim("run", f, "-q")
-    assert proc.returncode == 2, proc.stderr
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1, proc.stderr
-    assert "Traceback" not in proc.stderr
+    monkeypatch.chdir(tmp_path)
+    code = main(["run", str(f), "-q"])
+    stderr = capsys.readouterr().err
+    assert code == 2, stderr
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1, stderr
+    assert "Traceback" not in stderr
     assert lines[0].startswith(f"error: {f}: ")
     assert expected in lines[0]
     assert not (tmp_path / "logs").exists()
