@@ -30,9 +30,9 @@ def _fly(tmp_path_factory, scenario: str, duration: float) -> Path:
 
 @pytest.fixture(scope="module")
 def mptp_log(tmp_path_factory) -> Path:
-    """The storm crossing's first 10 min: plans at 0 s (waiting for the EKF's first GNSS fix,
-    nav_std_max_m), 10, 300 and 600 s; the other 57 calls keep the plan."""
-    return _fly(tmp_path_factory, "mptp/storm_crossing.toml", 600.0)
+    """The storm crossing's first 5 min: plans at 0 s (waiting for the EKF's first GNSS fix,
+    nav_std_max_m), 10 and 300 s; the other 28 calls keep the plan."""
+    return _fly(tmp_path_factory, "mptp/storm_crossing.toml", 300.0)
 
 
 def _assert_reproduced(path: Path, vehicle: str) -> RunLog:
@@ -68,18 +68,18 @@ def test_avoidance_planner_rerun_reproduces_every_plan(tmp_path_factory, scenari
 
 def test_mptp_rerun_reproduces_every_plan_and_needs_the_storm_velocities(mptp_log, monkeypatch):
     log = _assert_reproduced(mptp_log, "haps")
-    assert len(log.topic("/haps/plan")) == 4  # the navigation wait at 0 s, then 10, 300, 600 s
+    assert len(log.topic("/haps/plan")) == 3  # the navigation wait at 0 s, then 10 and 300 s
     inputs = log.topic("/haps/plan/input").messages
-    assert sum(not m["new_plan"] for m in inputs) == len(inputs) - 4
+    assert sum(not m["new_plan"] for m in inputs) == len(inputs) - 3
     m = RunLog(mptp_log)
-    assert m.topic("/haps/plan/latency").t.tolist() == [0.0, 10.0, 300.0, 600.0]  # latency of real replans only
+    assert m.topic("/haps/plan/latency").t.tolist() == [0.0, 10.0, 300.0]  # latency of real replans only
     latency = log_metrics(m)["vehicles"]["haps"]["planner_latency"]
-    assert latency["count"] == 4 and latency["cache_hits"] == len(inputs) - 4
+    assert latency["count"] == 3 and latency["cache_hits"] == len(inputs) - 3
     # the cell velocities act: without them the nowcast's storms do not move and the plans differ
     still = rerun.storms_from_dicts
     monkeypatch.setattr(rerun, "storms_from_dicts", lambda d: still([{**s, "velocities_ne": None} for s in d]))
     blind = rerun_planner(mptp_log, "haps")
-    assert blind.same < blind.plans == 4
+    assert blind.same < blind.plans == 3
 
 
 def test_follow_mission_counts_every_call_as_a_new_plan_and_no_cache_hit(tmp_path_factory):
