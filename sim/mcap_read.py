@@ -23,6 +23,7 @@ from mcap.summary import Summary
 from mcap_protobuf.decoder import DecoderFactory
 
 from sim.log_proto import PACKAGE, to_dict
+from sim.mcap_order import messages_in_log_time_order
 
 COSIM_PREFIX = f"{PACKAGE}."
 
@@ -250,9 +251,10 @@ def iter_messages(path: str | Path, topics: list[str] | None = None) -> Iterator
     f = _open(path)
     with f, _reading(path, "damaged MCAP"):
         reader = SeekingReader(f, record_size_limit=_RECORD_LIMIT)
-        if _summary(reader) is not None:
+        summary = _summary(reader)
+        if summary is not None:
             meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
-            found = reader.iter_messages(topics=topics, log_time_order=True)
+            found = messages_in_log_time_order(reader, f, summary, topics)
         else:
             meta = {r.name: dict(r.metadata) for r in _recovered_records(f) if isinstance(r, Metadata)}
             found = _recovered_messages(f, topics)
