@@ -36,6 +36,7 @@ from avoidance.reachset.gridrun import (
     emergency_runs,
     find_best_path,
     grid_run,
+    hover_clearance,
     least_threat_path,
 )
 from avoidance.reachset.movement import KinState, MovementType, SegmentedMovementAutomaton
@@ -119,6 +120,7 @@ class MissionControl:
         self.buffer: list[MovementType] = []
         self._segments: dict[int, SegmentPlanning] = {}
         self._cost_to_go: tuple[int, CostToGo] | None = None
+        self.stop_point: np.ndarray | None = None  # GCF [m] where the vehicle hovers (D-23), None: flying
 
     def segment(self, index: int) -> SegmentPlanning:
         """Grid and reach sets of MA segment ``index`` (grid scaled to its movement length)."""
@@ -194,11 +196,16 @@ class MissionControl:
             )
             d.runtime_s = time.perf_counter() - t0
             return d
-        # 3, 6: executing movement (never changed) and the predicted state at t_{i+1}
-        if not self.buffer:
-            events.append("empty_buffer")
-        executing = self.buffer.pop(0) if self.buffer else int(MovementType.STRAIGHT)
-        s_next = ma.apply(s_now, executing)
+        # 3, 6: executing movement (never changed) and the predicted state at t_{i+1}; a vehicle
+        # stopped by the last decision hovers: it plans from its stop point now, facing the goal
+        executing: int | None = None
+        if self.stop_point is not None:
+            s_next = self._facing_goal(self.stop_point, s_now.t, s_now.v, self.goal_point(override))
+        else:
+            if not self.buffer:
+                events.append("empty_buffer")
+            executing = self.buffer.pop(0) if self.buffer else int(MovementType.STRAIGHT)
+            s_next = ma.apply(s_now, executing)
         pose = GridPose(s_next.pos, float(s_next.att[2]))
         plan = self.segment(seg_index)
         goal_lcf = pose.to_lcf(self.goal_point(override))
@@ -236,19 +243,83 @@ class MissionControl:
             or not self.buffer
             or self.mode == Mode.EMERGENCY
         )
+        steering = Steering(ma.table.turn_radii, radius)
         if replan:
             self._run(
                 d,
                 plan,
                 parts,
                 goal_lcf,
-                Steering(ma.table.turn_radii, radius),
+                steering,
                 self._goal_cost(pose, s_now, threats, length, self.goal_point(override)),
             )
-        d.reference = reference_trajectory(ma, s_now, executing, self.buffer)
+        seen = threats if emergency_threats is None else emergency_threats
+        stop = (
+            self.cfg.mission.stop_and_wait
+            and self.mode == Mode.EMERGENCY
+            and d.status == "ok"
+            and self._stop_pays(d, plan, parts, s_next, s_now, seen, steering, self.goal_point(override))
+        )
+        self.stop_point = s_next.pos.copy() if stop else None
+        if stop:
+            self.buffer = []
+            d.events.append("stop")
+        d.reference = reference_trajectory(ma, s_now if executing is not None else s_next, executing, self.buffer)
         d.buffer = list(self.buffer)
         d.runtime_s = time.perf_counter() - t0
         return d
+
+    @staticmethod
+    def _facing_goal(pos: np.ndarray, t: float, v: float, goal: np.ndarray) -> KinState:
+        """Level state at ``pos`` (GCF [m]) heading for ``goal`` (a vehicle that turns in place)."""
+        return KinState(pos, np.array([0.0, 0.0, float(np.arctan2(goal[1] - pos[1], goal[0] - pos[0]))]), t, v)
+
+    def _stop_pays(
+        self,
+        d: Decision,
+        plan: SegmentPlanning,
+        parts: ThreatParts,
+        s_next: KinState,
+        s_now: KinState,
+        threats: Threats,
+        steering: Steering,
+        goal: np.ndarray,
+    ) -> bool:
+        """D-23, stop and wait: whether hovering at the grid origin for one movement period, then
+        flying from there facing the goal, ends nearer the goal than the path just chosen by more
+        than the distance that period's flight covers (speed x period). The path after the stop is
+        a soft-run path (every margin kept) of the grid placed at the origin facing the goal, one
+        period later; the hover must keep every intruder's body clear (straight and right-turn
+        predictions). The reach set flies at constant speed, so without this a vehicle that must
+        cross behind a parallel intruder it is ahead of stays beside it while it cannot draw ahead."""
+        if d.selected < 0 or d.run is None:
+            return False
+        period = self.sma.automata[self.sma.active_index(s_next)].table.config.period
+        if hover_clearance(parts.intruder_motion, period, parts.give_way_turn_rate, parts.vertical_margin) <= 0.0:
+            return False
+        tree, length = plan.trees[Mode.EMERGENCY], float(plan.grid.steps[0])
+        waited = self._facing_goal(s_next.pos, s_next.t + period, s_next.v, goal)
+        pose = GridPose(waited.pos, float(waited.att[2]))
+        cost = self._goal_cost(pose, s_now, threats, length, goal)
+        run = grid_run(
+            plan.grid,
+            tree,
+            plan.assessors[Mode.EMERGENCY].assess(pose, waited.t, threats),
+            pose.to_lcf(goal),
+            Categories(),
+            self.cfg.fusion.threshold,
+            steering,
+            cost,
+        )
+        if not run.path.ok or run.path.away:
+            return False
+
+        def to_go(p: GridPose, node: int, c: GoalCost | None) -> float:
+            tip = tree.tip[node][None]
+            return float(c(tip)[0]) if c is not None else float(np.linalg.norm(p.to_gcf(tip)[0] - goal))
+
+        flown = to_go(d.pose, d.run.path.node, self._goal_cost(d.pose, s_now, threats, length, goal))
+        return to_go(pose, run.path.node, cost) + s_next.v * period < flown
 
     def _goal_cost(
         self, pose: GridPose, s_now: KinState, threats: Threats, length: float, goal: np.ndarray
