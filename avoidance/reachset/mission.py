@@ -257,13 +257,13 @@ class MissionControl:
         stop = (
             self.cfg.mission.stop_and_wait
             and self.mode == Mode.EMERGENCY
-            and d.status == "ok"
             and self._stop_pays(d, plan, parts, s_next, s_now, seen, steering, self.goal_point(override))
         )
         self.stop_point = s_next.pos.copy() if stop else None
         if stop:
             self.buffer = []
             d.events.append("stop")
+            d.status = "ok"  # the hover and the path after it keep every margin
         d.reference = reference_trajectory(ma, s_now if executing is not None else s_next, executing, self.buffer)
         d.buffer = list(self.buffer)
         d.runtime_s = time.perf_counter() - t0
@@ -285,14 +285,15 @@ class MissionControl:
         steering: Steering,
         goal: np.ndarray,
     ) -> bool:
-        """D-23, stop and wait: whether hovering at the grid origin for one movement period, then
-        flying from there facing the goal, ends nearer the goal than the path just chosen by more
-        than the distance that period's flight covers (speed x period). The path after the stop is
-        a soft-run path (every margin kept) of the grid placed at the origin facing the goal, one
-        period later; the hover must keep every intruder's body clear (straight and right-turn
-        predictions). The reach set flies at constant speed, so without this a vehicle that must
-        cross behind a parallel intruder it is ahead of stays beside it while it cannot draw ahead."""
-        if d.selected < 0 or d.run is None:
+        """D-23, stop and wait: whether to hover at the grid origin for one movement period, then
+        fly from there facing the goal. The path after the stop must be a soft-run path (every
+        margin kept) of the grid placed at the origin facing the goal, one period later, and the
+        hover must keep every intruder's body clear (straight and right-turn predictions). Then
+        the stop is taken when the path just chosen is not a soft-run path, or when the stop's
+        path ends nearer the goal by more than the distance that period's flight covers (speed x
+        period). The reach set flies at constant speed, so without this a vehicle that must cross
+        behind a parallel intruder it is ahead of stays beside it while it cannot draw ahead."""
+        if d.run is None:
             return False
         period = self.sma.automata[self.sma.active_index(s_next)].table.config.period
         if hover_clearance(parts.intruder_motion, period, parts.give_way_turn_rate, parts.vertical_margin) <= 0.0:
@@ -313,6 +314,9 @@ class MissionControl:
         )
         if not run.path.ok or run.path.away:
             return False
+
+        if d.selected < 0 or d.status != "ok":
+            return True
 
         def to_go(p: GridPose, node: int, c: GoalCost | None) -> float:
             tip = tree.tip[node][None]
