@@ -7,22 +7,24 @@ import numpy as np
 import pytest
 
 from avoidance.reachset.gridrun import hover_clearance
-from avoidance.reachset.movement import multirotor_automaton
+from avoidance.reachset.mission import MissionControl
+from avoidance.reachset.movement import KinState, multirotor_automaton
 from avoidance.reachset.options import ReachSetOptions
 from avoidance.reachset.planner import ReachSetAvoider
 from sim.core.mission import Mission
+from sim.core.plan import Threats
 from sim.core.threats import IntruderTrack
 from tests.test_reachset_mission_end import fly
 
 CAMPAIGN = {"period": 1.0, "intruder_margin": 4.55, "intruder_margin_vertical": 2.0}  # reachset_quad_pairs
 
 
-def fly_draw_118(stop_and_wait: bool, t_end: float) -> tuple[bool, float, float]:
+def fly_draw_118(stop_and_wait: bool, t_end: float) -> tuple[float, np.ndarray]:
     """Encounter 118 of reachset_quad_pairs from its truth state at 5 s (NED [m], m/s): the ownship
     at (-89.5, -0.3) heading north at 5 m/s for its goal 75 m north of the origin, the intruder at
     (-41.2, -53.8) on course 50.5° at 4.46 m/s (on the left, converging, sensed exactly); the
-    campaign's options, point mass. Returns (complete, completion time [s], smallest horizontal
-    distance [m])."""
+    campaign's options, point mass. Returns the completion time [s] (inf: not complete) and the
+    (t, ownship NED, intruder NED) rows every 20 ms."""
     intruder = IntruderTrack("intruder", 0.0, np.array([-41.2, -53.8, -20.4]), np.array([2.837, 3.441, 0.0]), 0.45)
     cfg = ReachSetOptions(**CAMPAIGN, stop_and_wait=stop_and_wait).avoidance_config()
     trace: list = []
@@ -37,22 +39,43 @@ def fly_draw_118(stop_and_wait: bool, t_end: float) -> tuple[bool, float, float]
         intruder=intruder,
         trace=trace,
     )
-    rel = np.array([q - p for _, p, q in trace])
-    done = mission.completed_t if mission.complete else float("inf")
-    return mission.complete, done, float(np.hypot(rel[:, 0], rel[:, 1]).min())
+    rows = np.array([[t, *p, *q] for t, p, q in trace])
+    return (mission.completed_t if mission.complete else np.inf), rows
 
 
 def test_herded_multirotor_stops_and_crosses_behind_the_intruder():
-    """Flying on, every path towards the goal crosses ahead of the intruder (or its predicted
-    right turn): the ownship gives way to the right and then stays beside the intruder, which it
-    outruns by only 0.54 m/s (complete at 61.9 s; the campaign's run ended incomplete at 77 s).
-    Stopping lets the intruder pass ahead and the ownship crosses behind it: complete at 34.0 s,
-    13.6 m apart at the closest."""
-    complete, t_done, closest = fly_draw_118(True, 45.0)
-    assert complete and t_done < 40.0, t_done
-    assert closest > 12.0, closest
-    complete, _, _ = fly_draw_118(False, 45.0)
-    assert not complete
+    """Flying on, the ownship gives way to the right and then stays beside the intruder, which it
+    outruns by only 0.54 m/s: every path towards the goal crosses ahead of the intruder or of its
+    predicted right turn (complete at 61.9 s; the campaign's run ended incomplete at 77 s).
+    While its give-way path still gains on the goal it is flown as before (the same track to
+    30 s); once the path gains nothing (35 s), the ownship stops, lets the intruder pass ahead and
+    crosses behind it: complete at 54.1 s, > 5 m apart (6.97 m, the body and margin kept)."""
+    t_with, with_stop = fly_draw_118(True, 58.0)
+    t_without, without = fly_draw_118(False, 58.0)
+    assert t_with < 58.0 <= t_without, (t_with, t_without)
+    np.testing.assert_array_equal(with_stop[with_stop[:, 0] <= 30.0], without[without[:, 0] <= 30.0])
+    assert np.hypot(*(with_stop[:, 4:6] - with_stop[:, 1:3]).T).min() > 5.0
+
+
+def stop_point(goal_enu: list[float]) -> np.ndarray | None:
+    """One emergency decision (stop and wait on) at the GCF origin heading north at 5 m/s, 20 m
+    up, an intruder 30 m north, 10 m west, flying east at 4 m/s: where the vehicle stops."""
+    cfg = ReachSetOptions(**CAMPAIGN, stop_and_wait=True).avoidance_config()
+    mc = MissionControl(np.array([goal_enu]), multirotor_automaton(5.0, 1.0), cfg, advance_on_reach=False)
+    track = IntruderTrack("i", 0.0, np.array([30.0, -10.0, -20.0]), np.array([0.0, 4.0, 0.0]), 0.45)
+    d = mc.step(KinState(np.array([0.0, 0.0, 20.0]), np.array([0.0, 0.0, np.pi / 2]), 0.0, 5.0), Threats([track]))
+    assert d.mode.value == "emergency" and d.status == "ok"
+    assert ("stop" in d.events) == (mc.stop_point is not None) and (mc.stop_point is None) == bool(d.buffer)
+    return mc.stop_point
+
+
+def test_a_vehicle_whose_paths_gain_nothing_stops_by_hand():
+    """Goal 200 m behind: every path of the ±45° grid ends farther from it than the grid origin
+    (5 m ahead), while the grid there facing the goal holds paths towards it (tip ~50 m nearer,
+    more than the 5 m of one period's flight): the vehicle stops at the grid origin. Goal 200 m
+    ahead: its paths gain, it flies on."""
+    np.testing.assert_allclose(stop_point([0.0, -200.0, 20.0]), [0.0, 5.0, 20.0], atol=1e-9)
+    assert stop_point([0.0, 200.0, 20.0]) is None
 
 
 def test_hover_clearance_by_hand():

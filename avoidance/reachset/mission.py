@@ -286,19 +286,34 @@ class MissionControl:
         goal: np.ndarray,
     ) -> bool:
         """D-23, stop and wait: whether to hover at the grid origin for one movement period, then
-        fly from there facing the goal. The path after the stop must be a soft-run path (every
-        margin kept) of the grid placed at the origin facing the goal, one period later, and the
-        hover must keep every intruder's body clear (straight and right-turn predictions). Then
-        the stop is taken when the path just chosen is not a soft-run path, or when the stop's
-        path ends nearer the goal by more than the distance that period's flight covers (speed x
-        period). The reach set flies at constant speed, so without this a vehicle that must cross
-        behind a parallel intruder it is ahead of stays beside it while it cannot draw ahead."""
-        if d.run is None:
+        fly from there facing the goal. Considered while flying only when the path just chosen
+        keeps every margin (soft run) but ends no nearer the goal than the grid origin: the reach
+        set flies at constant speed, so a vehicle that must cross behind a parallel intruder it is
+        ahead of otherwise stays beside it while it cannot draw ahead (finding 16); a path that
+        makes progress, or a last resort (D-18, D-21: the others expect the right turn), is flown
+        on. Once stopped, it is considered every frame. The path after the stop must be a soft-run
+        path of the grid placed at the origin facing the goal, one period later, and the hover
+        must keep every intruder's body clear (straight and right-turn predictions); the stop is
+        then taken when the path just chosen is not a soft-run path (only when stopped) or when
+        the stop's path ends nearer the goal by more than that period's flight (speed x period)."""
+        stopped = self.stop_point is not None
+        flying_ok = d.run is not None and d.selected >= 0 and d.status == "ok"
+        if not (stopped or flying_ok):
             return False
+        tree, length = plan.trees[Mode.EMERGENCY], float(plan.grid.steps[0])
+
+        def to_go(p: GridPose, lcf: np.ndarray, c: GoalCost | None) -> float:
+            return float(c(lcf[None])[0]) if c is not None else float(np.linalg.norm(p.to_gcf(lcf[None])[0] - goal))
+
+        flown = np.inf
+        if flying_ok and d.run is not None:
+            cost_on = self._goal_cost(d.pose, s_now, threats, length, goal)
+            flown = to_go(d.pose, tree.tip[d.run.path.node], cost_on)
+            if not stopped and flown < to_go(d.pose, np.zeros(3), cost_on):
+                return False
         period = self.sma.automata[self.sma.active_index(s_next)].table.config.period
         if hover_clearance(parts.intruder_motion, period, parts.give_way_turn_rate, parts.vertical_margin) <= 0.0:
             return False
-        tree, length = plan.trees[Mode.EMERGENCY], float(plan.grid.steps[0])
         waited = self._facing_goal(s_next.pos, s_next.t + period, s_next.v, goal)
         pose = GridPose(waited.pos, float(waited.att[2]))
         cost = self._goal_cost(pose, s_now, threats, length, goal)
@@ -314,16 +329,7 @@ class MissionControl:
         )
         if not run.path.ok or run.path.away:
             return False
-
-        if d.selected < 0 or d.status != "ok":
-            return True
-
-        def to_go(p: GridPose, node: int, c: GoalCost | None) -> float:
-            tip = tree.tip[node][None]
-            return float(c(tip)[0]) if c is not None else float(np.linalg.norm(p.to_gcf(tip)[0] - goal))
-
-        flown = to_go(d.pose, d.run.path.node, self._goal_cost(d.pose, s_now, threats, length, goal))
-        return to_go(pose, run.path.node, cost) + s_next.v * period < flown
+        return to_go(pose, tree.tip[run.path.node], cost) + s_next.v * period < flown
 
     def _goal_cost(
         self, pose: GridPose, s_now: KinState, threats: Threats, length: float, goal: np.ndarray
