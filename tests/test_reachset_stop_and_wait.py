@@ -19,42 +19,64 @@ from tests.test_reachset_mission_end import fly
 CAMPAIGN = {"period": 1.0, "intruder_margin": 4.55, "intruder_margin_vertical": 2.0}  # reachset_quad_pairs
 
 
-def fly_draw_118(stop_and_wait: bool, t_end: float) -> tuple[float, np.ndarray]:
-    """Encounter 118 of reachset_quad_pairs from its truth state at 5 s (NED [m], m/s): the ownship
-    at (-89.5, -0.3) heading north at 5 m/s for its goal 75 m north of the origin, the intruder at
-    (-41.2, -53.8) on course 50.5° at 4.46 m/s (on the left, converging, sensed exactly); the
-    campaign's options, point mass. Returns the completion time [s] (inf: not complete) and the
-    (t, ownship NED, intruder NED) rows every 20 ms."""
-    intruder = IntruderTrack("intruder", 0.0, np.array([-41.2, -53.8, -20.4]), np.array([2.837, 3.441, 0.0]), 0.45)
+def fly_encounter(
+    own: tuple[float, float, float, float], intruder: tuple[float, ...], stop_and_wait: bool, t_end: float
+) -> tuple[float, np.ndarray]:
+    """An encounter of reachset_quad_pairs from its truth state at 5 s, as a point mass with the
+    campaign's options: ``own`` = (north, east, down [m], heading [deg]) at 5 m/s for the goal 75 m
+    north of the origin at its height, ``intruder`` = (north, east, down [m], v_north, v_east
+    [m/s]) flying straight, sensed exactly. Returns the completion time [s] (inf: not complete)
+    and the (t, ownship NED, intruder NED) rows every 20 ms."""
+    track = IntruderTrack("intruder", 0.0, np.array(intruder[:3]), np.array([*intruder[3:], 0.0]), 0.45)
     cfg = ReachSetOptions(**CAMPAIGN, stop_and_wait=stop_and_wait).avoidance_config()
     trace: list = []
     mission, _, _ = fly(
-        [[75.0, 0.0, -20.4]],
+        [[75.0, 0.0, own[2]]],
         1.0,
-        start=(-89.5, -0.3, -20.4),
+        start=own[:3],
+        heading_deg=own[3],
         speed=5.0,
         t_end=t_end,
         turns_in_place=True,
         cfg=cfg,
-        intruder=intruder,
+        intruder=track,
         trace=trace,
     )
     rows = np.array([[t, *p, *q] for t, p, q in trace])
     return (mission.completed_t if mission.complete else np.inf), rows
 
 
+# encounter 118: the intruder on the left, course 50.5°, 4.46 m/s; 178: on the right, 342°, 4.45 m/s
+DRAW_118 = ((-89.5, -0.3, -20.4, 0.0), (-41.2, -53.8, -20.4, 2.837, 3.441))
+DRAW_178 = ((-99.2, -0.8, -20.6, -13.3), (-85.3, 29.2, -19.5, 4.227, -1.378))
+
+
+def closest(rows: np.ndarray) -> float:
+    return float(np.hypot(*(rows[:, 4:6] - rows[:, 1:3]).T).min())
+
+
 def test_herded_multirotor_stops_and_crosses_behind_the_intruder():
-    """Flying on, the ownship gives way to the right and then stays beside the intruder, which it
-    outruns by only 0.54 m/s: every path towards the goal crosses ahead of the intruder or of its
-    predicted right turn (complete at 61.9 s; the campaign's run ended incomplete at 77 s).
-    While its give-way path still gains on the goal it is flown as before (the same track to
-    30 s); once the path gains nothing (35 s), the ownship stops, lets the intruder pass ahead and
-    crosses behind it: complete at 54.1 s, > 5 m apart (6.97 m, the body and margin kept)."""
-    t_with, with_stop = fly_draw_118(True, 58.0)
-    t_without, without = fly_draw_118(False, 58.0)
+    """Encounter 118: flying on, the ownship gives way to the right and then stays beside the
+    intruder, which it outruns by only 0.54 m/s: every path towards the goal crosses ahead of the
+    intruder or of its predicted right turn (complete at 61.9 s; the campaign's run ended
+    incomplete at 77 s). While its give-way path still gains on the goal it is flown as before
+    (the same track to 30 s); once the path gains nothing (35 s), the ownship stops, lets the
+    intruder pass ahead and crosses behind it: complete at 54.1 s, > 5 m apart (6.97 m: the body
+    and margin kept)."""
+    t_with, with_stop = fly_encounter(*DRAW_118, True, 58.0)
+    t_without, without = fly_encounter(*DRAW_118, False, 58.0)
     assert t_with < 58.0 <= t_without, (t_with, t_without)
     np.testing.assert_array_equal(with_stop[with_stop[:, 0] <= 30.0], without[without[:, 0] <= 30.0])
-    assert np.hypot(*(with_stop[:, 4:6] - with_stop[:, 1:3]).T).min() > 5.0
+    assert closest(with_stop) > 5.0
+
+
+def test_the_wait_lasts_until_the_intruder_has_passed():
+    """Encounter 178: the intruder 20 m behind on the right, nearly parallel; no path from a stop
+    one period later gets behind it, waiting several periods does: complete at 44.3 s, 15.5 m
+    apart (waiting one period at most, or not at all: 70.5 s)."""
+    t_with, with_stop = fly_encounter(*DRAW_178, True, 55.0)
+    assert t_with < 55.0, t_with
+    assert closest(with_stop) > 10.0
 
 
 def stop_point(goal_enu: list[float]) -> np.ndarray | None:
