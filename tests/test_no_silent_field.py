@@ -552,6 +552,11 @@ SHOWN_ELSEWHERE = {
         "acts on the wait bound's time step and cells (at most 3 steps per dt no shorter than it): "
         "tests/test_mptp_optimality.py::test_the_wait_step_sets_the_wait_bound_and_changes_the_search"
     ),
+    "vehicle.planner<ReachsetPlanner>.options.stop_and_wait": (
+        "multirotors only (refused otherwise), acts in emergency mode when stopping pays: "
+        "tests/test_reachset_stop_and_wait.py::test_herded_multirotor_stops_and_crosses_behind_the_intruder; "
+        "tests/test_reachset_stop_and_wait.py::test_stop_and_wait_is_an_option_of_vehicles_that_turn_in_place"
+    ),
     "vehicle.planner<MptpPlanner>.options.nav_std_max_m": (
         "acts on the first plan only, while the estimate's horizontal sigma is above it (a DEGRADED wait): "
         "tests/test_mptp_nav_wait.py::test_nav_std_max_m_sets_the_threshold_and_an_estimate_without_sigma_never_waits; "

@@ -190,10 +190,13 @@ class FusionConfig:
 @dataclass(frozen=True, slots=True)
 class MissionConfig:
     """Mission control (spec §6.2): waypoint-reached radius in movement lengths (def. 20),
-    replanning policy ``every_frame`` or ``event_driven`` (steps 5/13)."""
+    replanning policy ``every_frame`` or ``event_driven`` (steps 5/13); ``stop_and_wait``: a
+    vehicle that hovers and turns in place may, in emergency mode, stop at the grid origin for a
+    movement period and then fly from there facing the goal (D-23)."""
 
     reach_radius_lengths: float = 2.0
     replan_policy: str = "every_frame"
+    stop_and_wait: bool = False
 
 
 @dataclass(frozen=True, slots=True)

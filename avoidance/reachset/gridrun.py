@@ -207,6 +207,21 @@ def closest_approach(
     return tree.along_paths(closest, np.minimum)
 
 
+def hover_clearance(motion: np.ndarray, period: float, right_turn_rate: float, vertical_margin: float = 0.0) -> float:
+    """The smallest predicted clearance [m] between a vehicle hovering at the LCF origin over
+    ``[0, period]`` [s] and the intruders' bodies (rows, rate and margin as in
+    :func:`closest_approach`, sampled every tenth of the period); +inf without intruders."""
+    if not len(motion):
+        return float("inf")
+    t = np.linspace(0.0, period, 11)
+    gap = np.inf
+    for rate in prediction_rates(right_turn_rate):
+        p = predicted_positions(motion[:, None, :3], motion[:, None, 3:6], t[None], rate)  # (I, S, 3)
+        dz = np.clip(np.abs(p[..., 2]) - vertical_margin, 0.0, None)
+        gap = min(gap, float((np.sqrt(p[..., 0] ** 2 + p[..., 1] ** 2 + dz**2) - motion[:, 6, None]).min()))
+    return gap
+
+
 def straight_speed(tree: ReachSetTree) -> float:
     """The planning speed [m/s]: the reach of the farthest first movement (Straight) per period."""
     return float(tree.tip[tree.depth == 1, 0].max() / tree.period)

@@ -36,6 +36,7 @@ from avoidance.reachset.gridrun import (
     emergency_runs,
     find_best_path,
     grid_run,
+    hover_clearance,
     least_threat_path,
 )
 from avoidance.reachset.movement import KinState, MovementType, SegmentedMovementAutomaton
@@ -119,6 +120,8 @@ class MissionControl:
         self.buffer: list[MovementType] = []
         self._segments: dict[int, SegmentPlanning] = {}
         self._cost_to_go: tuple[int, CostToGo] | None = None
+        self.stop_point: np.ndarray | None = None  # GCF [m] where the vehicle hovers (D-23), None: flying
+        self.stop_heading = 0.0  # grid heading [rad, GCF] of the decision that stopped it
 
     def segment(self, index: int) -> SegmentPlanning:
         """Grid and reach sets of MA segment ``index`` (grid scaled to its movement length)."""
@@ -159,7 +162,30 @@ class MissionControl:
         ``threats`` decide the mode and feed navigation runs; in emergency mode the runs see
         ``emergency_threats`` when given (a superset: the rules of the air resolve cooperative
         peers by restricting navigation runs, which emergency runs do not have, so there the peers
-        must be intruders again)."""
+        must be intruders again).
+
+        A vehicle stopped by the last decision (D-23) plans from its stop point facing the goal;
+        when no path there keeps every margin (and it does not stop again), it plans with the
+        heading it stopped on instead, whose grid held a soft-run path when it stopped: facing the
+        goal, a relaxed run's path crossed ahead of the intruder it had stopped for (encounter 53)."""
+        if self.stop_point is None:
+            return self._step(s_now, threats, goal_override, emergency_threats, None)
+        saved = (self.goal, self.mode, list(self.buffer), self.stop_point, self.stop_heading)
+        d = self._step(s_now, threats, goal_override, emergency_threats, None)
+        if d.status == "ok":
+            return d
+        self.goal, self.mode, self.buffer, self.stop_point, self.stop_heading = saved
+        return self._step(s_now, threats, goal_override, emergency_threats, saved[4])
+
+    def _step(
+        self,
+        s_now: KinState,
+        threats: Threats,
+        goal_override: np.ndarray | None,
+        emergency_threats: Threats | None,
+        heading: float | None,
+    ) -> Decision:
+        """:meth:`step`; ``heading`` [rad, GCF]: of a stopped vehicle's grid (None: facing the goal)."""
         t0 = time.perf_counter()
         override = goal_override
         seg_index = self.sma.active_index(s_now)
@@ -194,11 +220,18 @@ class MissionControl:
             )
             d.runtime_s = time.perf_counter() - t0
             return d
-        # 3, 6: executing movement (never changed) and the predicted state at t_{i+1}
-        if not self.buffer:
-            events.append("empty_buffer")
-        executing = self.buffer.pop(0) if self.buffer else int(MovementType.STRAIGHT)
-        s_next = ma.apply(s_now, executing)
+        # 3, 6: executing movement (never changed) and the predicted state at t_{i+1}; a vehicle
+        # stopped by the last decision hovers: it plans from its stop point now, facing the goal
+        executing: int | None = None
+        if self.stop_point is not None:
+            s_next = self._facing_goal(self.stop_point, s_now.t, s_now.v, self.goal_point(override))
+            if heading is not None:
+                s_next = KinState(self.stop_point, np.array([0.0, 0.0, heading]), s_now.t, s_now.v)
+        else:
+            if not self.buffer:
+                events.append("empty_buffer")
+            executing = self.buffer.pop(0) if self.buffer else int(MovementType.STRAIGHT)
+            s_next = ma.apply(s_now, executing)
         pose = GridPose(s_next.pos, float(s_next.att[2]))
         plan = self.segment(seg_index)
         goal_lcf = pose.to_lcf(self.goal_point(override))
@@ -236,19 +269,112 @@ class MissionControl:
             or not self.buffer
             or self.mode == Mode.EMERGENCY
         )
+        steering = Steering(ma.table.turn_radii, radius)
         if replan:
             self._run(
                 d,
                 plan,
                 parts,
                 goal_lcf,
-                Steering(ma.table.turn_radii, radius),
+                steering,
                 self._goal_cost(pose, s_now, threats, length, self.goal_point(override)),
             )
-        d.reference = reference_trajectory(ma, s_now, executing, self.buffer)
+        seen = threats if emergency_threats is None else emergency_threats
+        stop = (
+            self.cfg.mission.stop_and_wait
+            and self.mode == Mode.EMERGENCY
+            and self._stop_pays(d, plan, parts, s_next, s_now, seen, steering, self.goal_point(override))
+        )
+        if stop and self.stop_point is None:
+            self.stop_heading = pose.psi
+        self.stop_point = s_next.pos.copy() if stop else None
+        if stop:
+            self.buffer = []
+            d.events.append("stop")
+            d.status = "ok"  # the hover keeps every margin
+        d.reference = reference_trajectory(ma, s_now if executing is not None else s_next, executing, self.buffer)
         d.buffer = list(self.buffer)
         d.runtime_s = time.perf_counter() - t0
         return d
+
+    @staticmethod
+    def _facing_goal(pos: np.ndarray, t: float, v: float, goal: np.ndarray) -> KinState:
+        """Level state at ``pos`` (GCF [m]) heading for ``goal`` (a vehicle that turns in place)."""
+        return KinState(pos, np.array([0.0, 0.0, float(np.arctan2(goal[1] - pos[1], goal[0] - pos[0]))]), t, v)
+
+    def _stop_pays(
+        self,
+        d: Decision,
+        plan: SegmentPlanning,
+        parts: ThreatParts,
+        s_next: KinState,
+        s_now: KinState,
+        threats: Threats,
+        steering: Steering,
+        goal: np.ndarray,
+    ) -> bool:
+        """D-23, stop and wait: whether to hover at the grid origin for the next movement period.
+        The hover must keep every intruder's body clear for two periods (the hover and the next
+        one, to get going again; straight and right-turn predictions). While flying, a stop is
+        considered only when the path just chosen keeps every margin (soft run) but ends no
+        nearer the goal than the grid origin: the reach set flies at constant speed, so a vehicle
+        that must cross behind a parallel intruder it is ahead of otherwise stays beside it while
+        it cannot draw ahead (finding 16); a path that gains, or a last resort (D-18, D-21: the
+        others expect the right turn), is flown on. The stop is taken when waiting k periods
+        (k = 1, 2, ... while the wait's flight distance, speed x k x period, is less than the
+        chosen tip's cost-to-go, at most the grid's layer count), hovering clear for k + 1
+        periods, then flying from the origin facing the goal, ends nearer the goal: the grid
+        there k periods later holds a soft-run path whose tip's cost-to-go plus the wait's flight
+        distance is below the chosen tip's. A stopped vehicle goes on hovering while no path from
+        its stop point keeps every margin, and otherwise by the same comparison."""
+        stopped = self.stop_point is not None
+        flying_ok = d.run is not None and d.selected >= 0 and d.status == "ok"
+        if not (stopped or flying_ok):
+            return False
+        tree, length = plan.trees[Mode.EMERGENCY], float(plan.grid.steps[0])
+
+        def to_go(p: GridPose, lcf: np.ndarray, c: GoalCost | None) -> float:
+            return float(c(lcf[None])[0]) if c is not None else float(np.linalg.norm(p.to_gcf(lcf[None])[0] - goal))
+
+        flown = np.inf
+        if flying_ok and d.run is not None:
+            cost_on = self._goal_cost(d.pose, s_now, threats, length, goal)
+            flown = to_go(d.pose, tree.tip[d.run.path.node], cost_on)
+            if not stopped and flown < to_go(d.pose, np.zeros(3), cost_on):
+                return False
+        period = self.sma.automata[self.sma.active_index(s_next)].table.config.period
+
+        def hover_clear(periods: int) -> bool:
+            motion, rate, margin = parts.intruder_motion, parts.give_way_turn_rate, parts.vertical_margin
+            return hover_clearance(motion, periods * period, rate, margin) > 0.0
+
+        if not hover_clear(2):
+            return False
+        if not flying_ok:
+            return True
+        for k in range(1, min(plan.grid.shape[0], int(flown / (s_next.v * period))) + 1):
+            if not hover_clear(k + 1):
+                return False
+            waited = self._facing_goal(s_next.pos, s_next.t + k * period, s_next.v, goal)
+            pose = GridPose(waited.pos, float(waited.att[2]))
+            cost = self._goal_cost(pose, s_now, threats, length, goal)
+            run = grid_run(
+                plan.grid,
+                tree,
+                plan.assessors[Mode.EMERGENCY].assess(pose, waited.t, threats),
+                pose.to_lcf(goal),
+                Categories(),
+                self.cfg.fusion.threshold,
+                steering,
+                cost,
+            )
+            if (
+                run.path.ok
+                and not run.path.away
+                and to_go(pose, tree.tip[run.path.node], cost) + s_next.v * k * period < flown
+            ):
+                return True
+        return False
 
     def _goal_cost(
         self, pose: GridPose, s_now: KinState, threats: Threats, length: float, goal: np.ndarray

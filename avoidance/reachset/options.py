@@ -4,7 +4,8 @@
 ring of constraints; ``constraint_mode``: ``polygon`` (exact) or ``circle`` (the thesis' Welzl
 barrel); ``intruder_margin`` [m]: added to every intruder's body radius; ``intruder_margin_vertical``
 [m]: every intruder body stretched by this up and down (a vertical capsule), the allowance for
-the ownship's vertical navigation error; ``separations``: planar
+the ownship's vertical navigation error; ``stop_and_wait``: a multirotor may stop for a movement
+period in emergency mode and then fly on facing the goal (D-23); ``separations``: planar
 separations of ACAS-like reach sets (spec §4.8, e.g. ["horizontal"], the thesis' S1-S4) used in
 both modes instead of the 3-D harmonic / combined sets.
 """
@@ -36,6 +37,7 @@ class ReachSetOptions(BaseModel):
     constraint_mode: Literal["polygon", "circle"] | None = None
     intruder_margin: Annotated[float, Field(ge=0.0)] | None = None
     intruder_margin_vertical: Annotated[float, Field(ge=0.0)] | None = None
+    stop_and_wait: bool = False
     separations: Annotated[list[Separation], Field(min_length=1)] | None = None
 
     def avoidance_config(self) -> AvoidanceConfig:
@@ -53,6 +55,8 @@ class ReachSetOptions(BaseModel):
             cfg = dataclasses.replace(
                 cfg, intruders=dataclasses.replace(cfg.intruders, vertical_margin=self.intruder_margin_vertical)
             )
+        if self.stop_and_wait:
+            cfg = dataclasses.replace(cfg, mission=dataclasses.replace(cfg.mission, stop_and_wait=True))
         if self.separations is not None:
             acas = ReachSetConfig.single(ExpansionConfig.acas(tuple(self.separations)))
             cfg = dataclasses.replace(cfg, navigation=acas, avoidance=acas)

@@ -50,7 +50,10 @@ class ReachSetAvoider:
         turns_in_place: bool = False,
     ):
         """``turns_in_place``: the vehicle can turn on the spot (a multirotor), so a goal inside
-        the movements' turn circle is flown to on a direct leg (see :meth:`_vertices`)."""
+        the movements' turn circle is flown to on a direct leg (see :meth:`_vertices`), and it may
+        stop and wait (``cfg.mission.stop_and_wait``, refused for a vehicle that cannot)."""
+        if cfg.mission.stop_and_wait and not turns_in_place:
+            raise ValueError("reachset: stop_and_wait needs a vehicle that hovers and turns in place (a multirotor)")
         self.mission = mission
         self.turns_in_place = turns_in_place
         self.control = MissionControl(
