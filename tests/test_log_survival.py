@@ -34,9 +34,17 @@ def _hover(folder: Path) -> Path:
     return path
 
 
-def _start(log: Path, **kw) -> subprocess.Popen:
+def _start(log: Path, fsize_limit: int | None = None) -> subprocess.Popen:
     """``cosim run`` of the hover as the leader of its own process group (so that the test can
-    signal the whole group without signalling itself)."""
+    signal the whole group without signalling itself), with SIGHUP at its default action (a test
+    run under ``nohup``, signal ignored and inherited through exec, must still see what a hang-up
+    does) and, when given, a file size limit [bytes]."""
+
+    def child_setup() -> None:
+        signal.signal(signal.SIGHUP, signal.SIG_DFL)
+        if fsize_limit is not None:
+            resource.setrlimit(resource.RLIMIT_FSIZE, (fsize_limit, fsize_limit))
+
     return subprocess.Popen(
         [sys.executable, "-m", "sim.cli", "run", str(_hover(log.parent)), "-o", str(log), "-q"],
         cwd=ROOT,
@@ -44,7 +52,7 @@ def _start(log: Path, **kw) -> subprocess.Popen:
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
-        **kw,
+        preexec_fn=child_setup,  # noqa: PLW1509 - only signal and rlimit calls between fork and exec
     )
 
 
@@ -99,7 +107,9 @@ def test_log_of_a_killed_writer_is_recovered_by_info_and_replay(tmp_path):
     log = tmp_path / "run.mcap"
     proc = _start(log)
     _wait_until_running(proc, log)
-    (writer,) = _children(proc.pid)
+    children = _children(proc.pid)
+    assert len(children) == 1, (children, proc.poll(), proc.stderr.read() if proc.poll() is not None else "")
+    (writer,) = children
     os.kill(writer, signal.SIGKILL)
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait(timeout=30)
@@ -132,11 +142,7 @@ def test_log_of_a_killed_writer_is_recovered_by_info_and_replay(tmp_path):
 def test_full_disk_is_a_one_line_error_and_the_log_stays_readable(tmp_path):
     log = tmp_path / "run.mcap"
     limit = 400_000  # bytes: a few chunks of the run's log
-
-    def small_disk():
-        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-
-    proc = _start(log, preexec_fn=small_disk)
+    proc = _start(log, fsize_limit=limit)
     _out, err = proc.communicate(timeout=300)
     assert proc.returncode == 2, err
     lines = err.strip().splitlines()
