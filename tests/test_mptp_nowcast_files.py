@@ -70,11 +70,12 @@ def test_each_file_is_issued_at_its_first_step_and_the_truth_is_its_analysis(tmp
     assert w.truth(400.0).cells[0].equals_exact(box(1000.0, 1000.0, 3000.0, 3000.0), 1e-6)
 
 
-def _fly_and_check_the_maps(tmp_path: Path, duration_s: float | None = None) -> tuple[dict, int]:
+def _fly_and_check_the_maps(tmp_path: Path, duration_s: float | None = None) -> tuple[str, dict, int]:
     """Fly the shipped scenario (to ``duration_s`` [s] of sim time when given): it never enters
     a (file-defined) true cell, and every nowcast issued before its end is on /haps/plan/map at
     its issue time with its cells exactly as in the file (the planner's view) and the margin
-    region around them. Returns the HAPS metrics and the number of nowcasts checked."""
+    region around them. Returns the run's status, the HAPS metrics and the number of nowcasts
+    checked."""
     from sim.replay.report import log_metrics
     from sim.replay.runlog import RunLog
     from sim.runner import run_scenario
@@ -104,19 +105,19 @@ def _fly_and_check_the_maps(tmp_path: Path, duration_s: float | None = None) -> 
             [shapely.geometry.shape(f["geometry"]) for f in doc["features"] if f["properties"]["kind"] == "margin"]
         )
         assert margins.contains(shapely.union_all([shapely.geometry.shape(f["geometry"]) for f in storms]))
-    return {"status": result.status, **haps}, len(issues)
+    return result.status, haps, len(issues)
 
 
 @pytest.mark.closed_loop
 def test_the_first_nowcast_files_reach_the_planner_in_flight(tmp_path):
     """The shipped scenario's first 11 min (nowcasts issued at 0, 5 and 10 min)."""
-    haps, checked = _fly_and_check_the_maps(tmp_path, 660.0)
-    assert haps["status"] == "duration_elapsed" and checked == 3
+    status, _, checked = _fly_and_check_the_maps(tmp_path, 660.0)
+    assert status == "duration_elapsed" and checked == 3
 
 
 @pytest.mark.slow
 @pytest.mark.closed_loop
 def test_a_scenario_flown_from_nowcast_files(tmp_path):
     """The shipped scenario whole: the mission completes, after at least 8 nowcasts."""
-    haps, checked = _fly_and_check_the_maps(tmp_path)
-    assert haps["status"] == "completed" and haps["mission"]["time_s"] is not None and checked >= 8
+    status, haps, checked = _fly_and_check_the_maps(tmp_path)
+    assert status == "completed" and haps["mission"]["time_s"] is not None and checked >= 8
