@@ -31,10 +31,6 @@ def _error(exc: Exception) -> None:
     err.print(f"[red]error:[/] {escape(text)}", highlight=False)
 
 
-def _raise_interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
 def _progress(counter: str, quiet: bool) -> Progress:
     """A transient progress bar on stderr: description, bar, ``counter`` (a rich column
     template), elapsed wall time."""
@@ -65,7 +61,7 @@ def cmd_run(args) -> int:
 
     path = Path(args.output) if args.output else path_under(Path("logs"), f"{scenario.name}.mcap")
     duration = args.duration if args.duration is not None else scenario.duration
-    signal.signal(signal.SIGTERM, _raise_interrupt)
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
     progress = _progress("{task.fields[sim]} / {task.fields[end]} sim", args.quiet)
     with progress:
         task = progress.add_task(scenario.name, total=duration, sim=_fmt_duration(0), end=_fmt_duration(duration))
@@ -234,7 +230,7 @@ def cmd_batch(args) -> int:
         client = Client(args.dask)
         executor = client.get_executor()
     failures = 0
-    signal.signal(signal.SIGTERM, _raise_interrupt)
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
     progress = Progress(
         TextColumn("[bold]{task.description}"),
         BarColumn(),

@@ -23,6 +23,7 @@ from sim.mcap_log import McapLog
 from sim.replay.metrics import MetricsWorld, RunMetrics
 from sim.scenario import Scenario
 from sim.scheduler import LockstepScheduler, Stage
+from sim.stop_requests import StopRequests
 from sim.vehicle_log import write_static_frames
 from sim.world import World
 
@@ -126,10 +127,13 @@ def run_scenario(
         log.event(0.0, f"run start: {scenario.name} (seed {scenario.seed})")
         swc = scenario.stop_when_complete
         required = swc if isinstance(swc, list) else None
-        sched.run(
-            round(end * world.base_hz),
-            stop=lambda: world.crashed() or (swc is not False and world.all_complete(required)),
-        )
+        with StopRequests() as user:
+            sched.run(
+                round(end * world.base_hz),
+                stop=lambda: user.requested or world.crashed() or (swc is not False and world.all_complete(required)),
+            )
+        if user.requested:
+            raise KeyboardInterrupt
         if world.crashed():
             result.status = "crashed"
             result.error = "; ".join(f"{c.vehicle} {c.describe()}" for c in world.crashes)
