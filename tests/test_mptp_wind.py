@@ -151,16 +151,24 @@ def test_in_a_true_wind_the_air_frame_plans_predict_the_flown_arrival():
     assert err_blind[0] > 0.03 and err_blind[0] > 10 * err_aware[0]
 
 
-def _closed_loop_arrival_error(tmp_path, forecast: str) -> float:
-    """The scenario flown by the JSBSim HAPS on its EKF with ``wind_forecast = forecast``: it
-    arrives, never inside a true cell; returns the relative error of the first complete plan's
-    predicted arrival against the flown one (from the MCAP)."""
+# the scenario's steady 15 m/s wind, and the standard profile alone (8 m/s towards east at the
+# 18 km flight level: a tailwind on the eastbound leg)
+CLOSED_LOOP_WINDS = {"steady_15": None, "standard_profile": {"standard": "midlatitude_jet"}}
+
+
+def _closed_loop_arrival_error(tmp_path, forecast: str, wind: dict | None) -> float:
+    """The scenario flown by the JSBSim HAPS on its EKF with ``wind_forecast = forecast`` (and
+    ``wind`` as its ``[wind]`` table, None: the file's): it arrives, never inside a true cell;
+    returns the relative error of the first complete plan's predicted arrival against the flown
+    one (from the MCAP)."""
     from sim.replay.report import log_metrics
     from sim.replay.runlog import RunLog
     from sim.runner import run_scenario
 
     data = tomllib.loads(SCENARIO.read_text())
     data["vehicle"][0]["planner"]["options"]["wind_forecast"] = forecast
+    if wind is not None:
+        data["wind"] = wind
     path = tmp_path / f"{forecast}.mcap"
     run_scenario(parse_scenario(data, str(SCENARIO)), path, scenario_text=tomli_w.dumps(data))
     log = RunLog(path)
@@ -173,15 +181,17 @@ def _closed_loop_arrival_error(tmp_path, forecast: str) -> float:
 
 @pytest.mark.slow  # in CI: the open-loop air-frame test above; tests/test_wind.py flies JSBSim in wind
 @pytest.mark.closed_loop
-def test_closed_loop_in_wind_predicted_arrival_matches_the_flight(tmp_path):
-    """JSBSim HAPS on its EKF in the scenario's steady 15 m/s wind: with the forecast the first
-    complete plan's predicted arrival is within 3 % of the flown one."""
-    assert _closed_loop_arrival_error(tmp_path, "scenario") < 0.03
+@pytest.mark.parametrize("wind", CLOSED_LOOP_WINDS.values(), ids=CLOSED_LOOP_WINDS.keys())
+def test_closed_loop_in_wind_predicted_arrival_matches_the_flight(tmp_path, wind):
+    """JSBSim HAPS on its EKF in the scenario's steady 15 m/s wind, and in the standard profile:
+    with the forecast the first complete plan's predicted arrival is within 3 % of the flown one."""
+    assert _closed_loop_arrival_error(tmp_path, "scenario", wind) < 0.03
 
 
 @pytest.mark.slow
 @pytest.mark.closed_loop
-def test_closed_loop_without_the_forecast_misses_the_arrival(tmp_path):
-    """The same flight wind-blind: the prediction is off by more than 3 % (in CI the open-loop
+@pytest.mark.parametrize("wind", CLOSED_LOOP_WINDS.values(), ids=CLOSED_LOOP_WINDS.keys())
+def test_closed_loop_without_the_forecast_misses_the_arrival(tmp_path, wind):
+    """The same flights wind-blind: the prediction is off by more than 3 % (in CI the open-loop
     test above checks the wind-blind miss)."""
-    assert _closed_loop_arrival_error(tmp_path, "none") > 0.03
+    assert _closed_loop_arrival_error(tmp_path, "none", wind) > 0.03
