@@ -30,6 +30,7 @@ a process pool by default (its workers die with the batch process, Linux), or a 
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import csv
 import hashlib
@@ -269,13 +270,18 @@ def run_batch(
             if progress:
                 progress(k, len(todo), row)
     except KeyboardInterrupt:
-        # workers interrupted with us (Ctrl-C reaches the process group) store what finished;
-        # the others are killed with this process and flown again on resume
+        # own workers get a SIGTERM too (``kill PID`` reaches this process alone; after a Ctrl-C
+        # it is their second signal): a run flying stops at its next tick and closes its log,
+        # finished runs are stored, and what is left after the grace is killed; every run cut
+        # short is flown again on resume
         interrupted = True
+        workers_now = list(getattr(ex, "_processes", {}).values()) if own else []
+        for worker in workers_now:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(worker.pid, signal.SIGTERM)
         wait(futures, timeout=_INTERRUPT_GRACE_S)
-        if own:  # runs still flying (a SIGTERM reaches this process alone) are flown again on resume
-            for worker in list(getattr(ex, "_processes", {}).values()):
-                worker.kill()
+        for worker in workers_now:
+            worker.kill()
         raise
     finally:
         if own:
