@@ -16,6 +16,7 @@ import pytest
 import tomli_w
 
 from sim.batch import load_batch, run_batch, scenario_hash
+from sim.replay.runlog import RunLog
 
 ROOT = Path(__file__).resolve().parents[1]
 QUAD = ROOT / "scenarios" / "quad_square_mission.toml"
@@ -171,6 +172,8 @@ def test_batch_started_with_sigint_ignored_keeps_ignoring_it_and_stops_on_sigter
         assert proc.returncode == 130, stderr
         assert stderr.strip().endswith("interrupted")
         assert not (out / "runs" / "resume_0000.json").exists()
+        # the worker got the SIGTERM too: its run stopped and closed its log, not killed
+        assert RunLog(log).metadata["result"]["status"] == "interrupted"
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
