@@ -120,3 +120,21 @@ def test_stop_and_wait_is_an_option_of_vehicles_that_turn_in_place():
     ReachSetAvoider(mission, multirotor_automaton(5.0, 1.0), cfg, turns_in_place=True)
     with pytest.raises(ValueError, match="stop_and_wait"):
         ReachSetAvoider(mission, multirotor_automaton(5.0, 1.0), cfg, turns_in_place=False)
+
+
+def test_a_stopped_vehicle_does_not_hover_on_where_an_intruder_will_reach_it():
+    """Stopped as in the by-hand test (goal 200 m behind), then, one period later, a second
+    intruder 12 m beyond the hover point flies at it at 6 m/s: the hover is not clear for two
+    periods, so the vehicle leaves it (no stop point) although no path keeps every margin
+    either: a stopped vehicle with no such path stays only where the hover is clear."""
+    cfg = ReachSetOptions(**CAMPAIGN, stop_and_wait=True).avoidance_config()
+    mc = MissionControl(np.array([[0.0, -200.0, 20.0]]), multirotor_automaton(5.0, 1.0), cfg, advance_on_reach=False)
+    first = IntruderTrack("i", 0.0, np.array([30.0, -10.0, -20.0]), np.array([0.0, 4.0, 0.0]), 0.45)
+    mc.step(KinState(np.array([0.0, 0.0, 20.0]), np.array([0.0, 0.0, np.pi / 2]), 0.0, 5.0), Threats([first]))
+    hover = mc.stop_point
+    assert hover is not None
+    moved = IntruderTrack("i", 1.0, np.array([30.0, -6.0, -20.0]), np.array([0.0, 4.0, 0.0]), 0.45)
+    at_it = IntruderTrack("j", 1.0, np.array([hover[1] + 12.0, hover[0], -hover[2]]), np.array([-6.0, 0.0, 0.0]), 0.45)
+    d = mc.step(KinState(hover, np.array([0.0, 0.0, np.pi / 2]), 1.0, 5.0), Threats([moved, at_it]))
+    assert d.mode.value == "emergency" and d.status != "ok"
+    assert mc.stop_point is None and "stop" not in d.events
