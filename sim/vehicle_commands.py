@@ -1,6 +1,10 @@
 """Ground-station commands (MAVLink) acting on one vehicle: mission upload, mode changes
 (AUTO: the mission; HOLD: hover in place; GUIDED: fly to position targets), arming requests.
-Every command is logged as an event. Positions: local-level NED from the scenario origin [m]."""
+Every command is logged as an event. Positions: local-level NED from the scenario origin [m].
+
+A mission uploaded to a landed multirotor starts above it, at its first waypoint's height: the
+multirotor takes off when its setpoint is above it, and a first leg from where it stands keeps
+the setpoint on the ground while the vehicle is not moving along it (a deadlock)."""
 
 from __future__ import annotations
 
@@ -24,7 +28,10 @@ def apply_command(v: Vehicle, cmd: object, t: float) -> bool:
         lat, lon, alt = np.asarray(cmd.waypoints, float).T
         wps = geodetic_to_ned(lat, lon, alt, v.origin)
         m = v.mission
-        v.mission = Mission(wps, m.cruise_speed, m.acceptance_radius, start=v.estimate.pos_ned.copy(), land=m.land)
+        start = v.estimate.pos_ned.copy()
+        if multirotor and v._multirotor().landed:  # take off straight up to the first waypoint's height
+            start[2] = min(start[2], wps[0, 2])
+        v.mission = Mission(wps, m.cruise_speed, m.acceptance_radius, start=start, land=m.land)
         v.planner = v.make_mission_planner()
         if multirotor:
             v.follower.set_waypoint_attributes({}, {})
