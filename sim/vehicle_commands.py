@@ -2,9 +2,10 @@
 (AUTO: the mission; HOLD: hover in place; GUIDED: fly to position targets), arming requests.
 Every command is logged as an event. Positions: local-level NED from the scenario origin [m].
 
-A mission uploaded to a landed multirotor starts above it, at its first waypoint's height: the
-multirotor takes off when its setpoint is above it, and a first leg from where it stands keeps
-the setpoint on the ground while the vehicle is not moving along it (a deadlock)."""
+A path commanded to a landed multirotor (an uploaded mission, a GUIDED position target) starts
+above it, at the height of the path's first point: the multirotor takes off when its setpoint is
+above it, and a first leg from where it stands keeps the setpoint on the ground while the
+vehicle is not moving along it (a deadlock)."""
 
 from __future__ import annotations
 
@@ -28,10 +29,7 @@ def apply_command(v: Vehicle, cmd: object, t: float) -> bool:
         lat, lon, alt = np.asarray(cmd.waypoints, float).T
         wps = geodetic_to_ned(lat, lon, alt, v.origin)
         m = v.mission
-        start = v.estimate.pos_ned.copy()
-        if multirotor and v._multirotor().landed:  # take off straight up to the first waypoint's height
-            start[2] = min(start[2], wps[0, 2])
-        v.mission = Mission(wps, m.cruise_speed, m.acceptance_radius, start=start, land=m.land)
+        v.mission = Mission(wps, m.cruise_speed, m.acceptance_radius, start=_departure(v, wps[0, 2]), land=m.land)
         v.planner = v.make_mission_planner()
         if multirotor:
             v.follower.set_waypoint_attributes({}, {})
@@ -56,7 +54,7 @@ def apply_command(v: Vehicle, cmd: object, t: float) -> bool:
         if v.mode != "GUIDED" or not multirotor or cmd.pos_ned is None or np.isnan(cmd.pos_ned).any():
             v.event(t, "position target ignored (needs GUIDED mode, a multirotor and a full position)")
             return False
-        v.planner = GotoPlanner(v.estimate.pos_ned, cmd.pos_ned, v.mission.cruise_speed)
+        v.planner = GotoPlanner(_departure(v, float(cmd.pos_ned[2])), cmd.pos_ned, v.mission.cruise_speed)
         v.event(t, "position target: " + ", ".join(f"{x:.1f}" for x in cmd.pos_ned) + " m NED")
         v.plan_now(t)
         return False
@@ -68,3 +66,12 @@ def apply_command(v: Vehicle, cmd: object, t: float) -> bool:
         )
         return False
     raise TypeError(f"unknown command {cmd!r}")
+
+
+def _departure(v: Vehicle, first_down: float) -> np.ndarray:
+    """Where a commanded path starts (NED [m]): the estimate, lifted to ``first_down`` (the path's
+    first point's down coordinate) for a landed multirotor, so that it takes off straight up."""
+    start = np.array(v.estimate.pos_ned, float)
+    if v.airframe.kind == "multirotor" and v._multirotor().landed:
+        start[2] = min(start[2], first_down)
+    return start
