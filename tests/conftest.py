@@ -15,6 +15,7 @@ Fixtures:
 
 from __future__ import annotations
 
+import signal
 import subprocess
 import sys
 import tomllib
@@ -108,3 +109,15 @@ def cosim() -> Callable[..., subprocess.CompletedProcess[str]]:
         )
 
     return run
+
+
+@pytest.fixture
+def ctrl_c_raises():
+    """Python's Ctrl-C handler (KeyboardInterrupt) for the test, the previous one back after it.
+    A process started with SIGINT ignored keeps it ignored (POSIX; Python installs its handler
+    only over the default): a test suite started as a background job of a non-interactive shell
+    (``pytest ... &`` in a script), and every xdist worker it starts, would not see the SIGINT
+    this test sends."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)

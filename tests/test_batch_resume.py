@@ -58,18 +58,6 @@ def _flown(runs, out) -> list[str]:
     return sorted(calls)
 
 
-@pytest.fixture
-def ctrl_c_raises():
-    """Python's Ctrl-C handler (KeyboardInterrupt) for the test, the previous one back after it.
-    A process started with SIGINT ignored keeps it ignored (POSIX; Python installs its handler
-    only over the default): a test suite started as a background job of a non-interactive shell
-    (``pytest ... &`` in a script), and every xdist worker it starts, would not see the SIGINT
-    this test sends."""
-    before = signal.signal(signal.SIGINT, signal.default_int_handler)
-    yield
-    signal.signal(signal.SIGINT, before)
-
-
 @pytest.mark.usefixtures("ctrl_c_raises")
 def test_interrupted_run_is_flown_again_on_resume(tmp_path):
     out = tmp_path / "out"

@@ -17,15 +17,6 @@ from sim.stop_requests import StopRequests
 ROOT = Path(__file__).resolve().parents[1]
 
 
-@pytest.fixture
-def ctrl_c_raises():
-    """Python's Ctrl-C handler for the test (an xdist worker or a background job may have SIGINT
-    ignored, which a run must keep), the previous one back after it."""
-    before = signal.signal(signal.SIGINT, signal.default_int_handler)
-    yield
-    signal.signal(signal.SIGINT, before)
-
-
 class _InterruptedFinalizer:
     """Sends Ctrl-C to its own process from ``__del__``: Python runs the handler there, where a
     KeyboardInterrupt is printed as "Exception ignored in ..." and dropped."""
