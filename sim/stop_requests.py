@@ -14,9 +14,12 @@ from __future__ import annotations
 
 import signal
 import threading
+from collections.abc import Callable
 from types import FrameType, TracebackType
+from typing import Any
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
+Handler = Callable[[int, FrameType | None], Any] | int | signal.Handlers | None
 
 
 class StopRequests:
@@ -25,7 +28,7 @@ class StopRequests:
 
     def __init__(self) -> None:
         self.requested = False
-        self._saved: dict[int, object] = {}
+        self._saved: dict[int, Handler] = {}
 
     def __enter__(self) -> StopRequests:
         if threading.current_thread() is threading.main_thread():
@@ -36,7 +39,7 @@ class StopRequests:
 
     def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None) -> None:
         for sig, handler in self._saved.items():
-            signal.signal(sig, handler)  # type: ignore[arg-type]
+            signal.signal(sig, handler)
         self._saved.clear()
 
     def _request(self, signum: int, frame: FrameType | None) -> None:
