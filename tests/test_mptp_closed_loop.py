@@ -51,6 +51,13 @@ def test_without_mptp_the_same_flight_enters_a_storm(fly, scenario_data):
     assert log_metrics(log)["vehicles"]["haps"]["storms"]["time_inside_s"] > 0.0
 
 
+def _gap_opens_s(scenario, margin_m: float) -> float:
+    """When the plug (storm 2, drifting south) and its margin ``margin_m`` [m] leave the band of
+    the walls (storm 0) and their margin: the corridor opens [s]."""
+    wall, plug = np.array(scenario.weather.storm[0].points), scenario.weather.storm[2]
+    return (np.max(np.array(plug.points)[:, 0]) + margin_m - (wall[:, 0].min() - margin_m)) / abs(plug.drift_north)
+
+
 @pytest.mark.slow  # in CI: tests/test_mptp_scenarios.py flies the same corridor open loop, replanning
 def test_an_opening_corridor_is_waited_for_in_closed_loop(fly):
     """Resolution completeness in closed loop: the gap between two storm walls is plugged by a
@@ -62,10 +69,8 @@ def test_an_opening_corridor_is_waited_for_in_closed_loop(fly):
     scenario, log = run.scenario, run.log
     assert log_metrics(log)["vehicles"]["haps"]["storms"]["time_inside_s"] == 0.0
     assert all(m["status"] != "no_solution" for m in log.topic("/haps/plan").messages)
-    wall, plug = np.array(scenario.weather.storm[0].points), scenario.weather.storm[2]
-    margin = scenario.vehicle[0].planner.options.safety_single_m[0]
-    # the plug's margin leaves the walls' margin band (the corridor opens) at
-    opens_s = (np.max(np.array(plug.points)[:, 0]) + margin - (wall[:, 0].min() - margin)) / abs(plug.drift_north)
+    wall = np.array(scenario.weather.storm[0].points)
+    opens_s = _gap_opens_s(scenario, scenario.vehicle[0].planner.options.safety_single_m[0])
     truth = log.topic("/haps/truth/state")
     k = int(np.argmax(truth["pos_ned"][:, 0] >= wall[:, 0].mean()))
     assert truth["pos_ned"][k, 0] >= wall[:, 0].mean(), "never crossed the walls"
@@ -97,11 +102,17 @@ def test_a_corridor_opening_after_20_min_is_held_for_and_taken(fly, scenario_dat
     assert haps["storms"]["time_inside_s"] == 0.0
     plans = log.topic("/haps/plan").messages
     assert all(m["status"] != "no_solution" for m in plans)
-    wall, plug = np.array(scenario.weather.storm[0].points), scenario.weather.storm[2]
+    wall = np.array(scenario.weather.storm[0].points)
+    mission = scenario.vehicle[0].mission
+
+    def earliest_arrival(margin_m: float, short_m: float) -> float:
+        """The gap's opening with margins ``margin_m``, then straight on at cruise speed from the
+        walls' margin to ``short_m`` before the goal [s]."""
+        south = wall[:, 0].min() - margin_m
+        return _gap_opens_s(scenario, margin_m) + (mission.waypoints[0].north - short_m - south) / mission.cruise_speed
+
     margin = scenario.vehicle[0].planner.options.safety_line_m[0]
-    opens_s = (np.max(np.array(plug.points)[:, 0]) + margin - (wall[:, 0].min() - margin)) / abs(plug.drift_north)
-    goal_n = scenario.vehicle[0].mission.waypoints[0].north
-    earliest = opens_s + (goal_n - (wall[:, 0].min() - margin)) / scenario.vehicle[0].mission.cruise_speed
+    opens_s, earliest = _gap_opens_s(scenario, margin), earliest_arrival(margin, 0.0)
     truth = log.topic("/haps/truth/state")
     k = int(np.argmax(truth["pos_ned"][:, 0] >= wall[:, 0].mean()))
     assert truth["pos_ned"][k, 0] >= wall[:, 0].mean(), "never crossed the walls"
@@ -110,10 +121,7 @@ def test_a_corridor_opening_after_20_min_is_held_for_and_taken(fly, scenario_dat
     arrived = haps["mission"]["time_s"]  # the goal reached (by the estimate, within the acceptance radius)
     assert arrived >= earliest
     cfg = scenario.vehicle[0].planner.options.config()
-    grown = margin + cfg.simplify_tol_m + turn_cut_m(cfg)
-    opens_model = (np.max(np.array(plug.points)[:, 0]) + grown - (wall[:, 0].min() - grown)) / abs(plug.drift_north)
-    to_go = goal_n - scenario.vehicle[0].mission.acceptance_radius - (wall[:, 0].min() - grown)
-    assert arrived <= 1.05 * (opens_model + to_go / scenario.vehicle[0].mission.cruise_speed)
+    assert arrived <= 1.05 * earliest_arrival(margin + cfg.simplify_tol_m + turn_cut_m(cfg), mission.acceptance_radius)
 
 
 @pytest.mark.parametrize(
