@@ -52,7 +52,9 @@ class MptpConfig:
     unless the scenario gives it (on a real aircraft add the planning latency).
 
     Search: ``heuristic``; ``turning`` sense(s) of the auxiliary states; ``max_expansions``
-    caps A* (the thesis's Monte-Carlo success criterion used 100); ``search_weight`` w >= 1
+    caps A* (the thesis's Monte-Carlo success criterion used 100, its chapter-6 runs here 120;
+    the HAPS default 400 lets a search find a wait for a passage that opens 20 min on, which
+    took up to 393 expansions in scenarios/mptp/corridor_opens.toml on seeds 1-20); ``search_weight`` w >= 1
     orders the open list by G + w H (weighted A*: at most w times the optimum with a consistent
     admissible H; w > 1 leaves the plateaus that waiting creates early); ``dominance_s`` [s]:
     a place and course is expanded once per window of this length, at its earliest arrival
@@ -120,7 +122,7 @@ class MptpConfig:
     roll_rate_max: float = math.radians(6.0)
     turn_bank_fraction: float = 0.75
     start_lead_s: float = 0.0
-    max_expansions: int = 120
+    max_expansions: int = 400
     search_weight: float = 1.1
     dominance_s: float = 240.0
     wait_step_min_s: float = 20.0
