@@ -293,3 +293,17 @@ def test_planning_heading_is_the_planned_one_within_a_yaw_increment():
     assert av.kin_state(course(10.0), 1.0).att[2] == pytest.approx(planned)
     assert av.kin_state(course(30.0), 1.0).att[2] == pytest.approx(np.pi / 2 - np.radians(30.0))
     assert av.kin_state(course(10.0), 1.5).att[2] == pytest.approx(np.pi / 2 - np.radians(10.0))  # not a frame time
+
+
+def test_a_vehicle_moving_backwards_plans_from_its_yaw():
+    """A multirotor pulled backwards (the first plan started at a misaligned first estimate, and
+    the position loop chases it) plans along its yaw, not its course: planned along the course, the
+    reach sets turned it the whole way round (S11 seed 17: 38 m off its line). A course within 90°
+    of the yaw (crab, drift) is still the heading."""
+    mission = Mission(np.array([[-40.0, 0.0, -5.0]]), cruise_speed=5.0, acceptance_radius=2.0)
+    av = ReachSetAvoider(mission, thesis_automaton(), turns_in_place=True)
+    south = np.pi  # NED yaw
+    backwards = dataclasses.replace(flying(1.0, [0.0, 0.0, -5.0], [2.8, 0.4, 0.0]), euler=np.array([0.0, 0.0, south]))
+    assert av.kin_state(backwards, 1.0).att[2] == pytest.approx(-np.pi / 2)  # GCF: south
+    crab = dataclasses.replace(backwards, vel_ned=np.array([-2.8, 1.6, 0.0]))  # 30° off the yaw
+    assert av.kin_state(crab, 1.0).att[2] == pytest.approx(np.arctan2(-2.8, 1.6))

@@ -83,6 +83,18 @@ def test_s11_four_uas_circle_one_roundabout(tmp_path):
         assert np.hypot(centre[0] - 100.0, centre[1] - 100.0) < 2 * UNIT  # the crossing point
 
 
+def test_s11_seed_17_starts_along_its_line(tmp_path):
+    """S11 seed 17, first 15 s: uas4's first estimate is 5.5 m north of it (the EKF's alignment),
+    its first plan pulls it north at 2.8 m/s for a second, and the next decision must plan along
+    its yaw (south), not that course: planned north, its reach sets turned it the whole way round,
+    38 m east of its line, into the roundabout's quadrant where uas2 came up (22.6 m apart)."""
+    scenario, text = load_scenario(SCENARIOS / "s11_roundabout.toml")
+    out = tmp_path / "s11_17.mcap"
+    run_scenario(scenario.model_copy(update={"seed": 17, "duration": 15.0}), out, scenario_text=text)
+    uas4 = RunLog(out).topic("/uas4/truth/state")
+    assert np.abs(uas4["pos_ned"][:, 1] - 100.0).max() < 8.0  # its line: east 100 m
+
+
 # In CI the 4x overtake (the one the overtaken UAS's speed estimate made fail); 2x and 3x slow
 @pytest.mark.parametrize(
     "name",

@@ -5,15 +5,17 @@ Boundary of frames (converted here, once): the estimate and the threats are NED 
 scenario origin; mission control works in the z-up GCF (ENU). The plan returned is NED: the end
 points of the executing movement and of every planned movement, due at their movement times.
 
-The kinematic state of a decision comes from the estimate (never truth): position; heading from
-the estimated ground velocity when it is at least ``heading_from_velocity`` of the planning speed
-(else the yaw) -- unless no path of the active segment's reach sets turns: then the bearing from
-the estimate to the goal (D-22: a set without turns can never correct a course error, e.g. the one
-flown from a misaligned first estimate); level (pitch 0: the measured flight-path angle, carried into the executing
-movement's prediction, made every sink or climb of the vehicle its own next plan, and with
-horizontal reach sets nothing pulled it back: the vehicle sank to the ground); speed = the
-planning speed (the MA keeps speed constant, so the segment is chosen by the commanded speed,
-decision D-7).
+The kinematic state of a decision comes from the estimate (never truth): position; heading from the
+estimated ground velocity when it is at least ``heading_from_velocity`` of the planning speed and
+within 90 deg of the yaw (else the yaw: a vehicle moving backwards is in a transient, e.g. a
+multirotor pulled back to a first plan that started at a misaligned first estimate, and a reach set
+started on that course turns the whole way round) -- unless no path of the active segment's reach
+sets turns: then the bearing from the estimate to the goal (D-22: a set without turns can never
+correct a course error, e.g. the one flown from a misaligned first estimate); level (pitch 0: the
+measured flight-path angle, carried into the executing movement's prediction, made every sink or
+climb of the vehicle its own next plan, and with horizontal reach sets nothing pulled it back: the
+vehicle sank to the ground); speed = the planning speed (the MA keeps speed constant, so the segment
+is chosen by the commanded speed, decision D-7).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from avoidance.reachset.fusion import SpaceClass, fuse_cells
 from avoidance.reachset.gridrun import Steering
 from avoidance.reachset.mission import Decision, MissionControl, Restriction
 from avoidance.reachset.movement import KinState, SegmentedMovementAutomaton
-from sim.core.frames import enu_to_ned, ned_to_enu
+from sim.core.frames import enu_to_ned, ned_to_enu, wrap_pi
 from sim.core.mission import Mission
 from sim.core.plan import Plan, PlanStatus, Threats
 from sim.core.state import VehicleState
@@ -71,10 +73,12 @@ class ReachSetAvoider:
         ctl = self.control
         vel = ned_to_enu(est.vel_ned)
         ground = float(np.hypot(vel[0], vel[1]))
+        yaw_psi = heading_from_yaw_ned(est.yaw)
+        course = float(np.arctan2(vel[1], vel[0]))
         psi = (
-            float(np.arctan2(vel[1], vel[0]))
-            if ground >= self.heading_from_velocity * self.speed
-            else heading_from_yaw_ned(est.yaw)
+            course
+            if ground >= self.heading_from_velocity * self.speed and abs(wrap_pi(course - yaw_psi)) <= np.pi / 2
+            else yaw_psi
         )
         pos = ned_to_enu(est.pos_ned)
         if not ctl.complete and not ctl.segment(ctl.sma.active_index(KinState(pos, np.zeros(3), t, self.speed))).turns:
