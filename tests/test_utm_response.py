@@ -101,6 +101,25 @@ def test_the_claimer_ends_its_agreement_when_its_case_closes():
     assert u1.claim(11.0, []) == [] and u1.agreements(11.0) == [] and u1.claims == {}
 
 
+def test_a_closed_encounter_is_not_agreed_again_by_the_later_book():
+    """The books close a pair's case a few frames apart (S9 in response mode: uas1 at 39 s,
+    uas2 at 43 s). The acknowledger's agreement ends with its own close; the claim its peer sends
+    for that encounter afterwards (head case opened before the close) is not acknowledged, so it
+    flies no manoeuvre for a finished encounter. A new encounter (head after the close) is."""
+    u1, u2 = PeerTalk("uas1", "self", LOST_AFTER), PeerTalk("uas2", "self", LOST_AFTER)
+    u2.claim(14.0, [case(HOLD, GIVE, "uas1", head=14.0)])
+    exchange(u1, u2, 14.2)
+    assert len(u1.agreements(14.2)) == 1 and len(u1.drain_acked()) == 1
+    u1.case_closed("uas2", 39.0)
+    assert u1.agreements(39.0) == []
+    u2.claim(42.0, [case(HOLD, GIVE, "uas1", head=14.0)])
+    exchange(u1, u2, 42.2)
+    assert u1.agreements(42.2) == [] and u2.agreements(42.2) == [] and u1.drain_acked() == []
+    u2.claim(60.0, [case(HOLD, GIVE, "uas1", head=60.0)])
+    exchange(u1, u2, 60.2)
+    assert roles(u1, 60.2) == roles(u2, 60.2) == {"uas1": GIVE, "uas2": HOLD}
+
+
 def test_an_acknowledgement_of_another_separation_mode_agrees_nothing():
     u1 = PeerTalk("uas1", "self", LOST_AFTER)
     u1.claim(10.0, [case(GIVE, HOLD, "uas2")])

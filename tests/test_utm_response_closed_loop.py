@@ -131,7 +131,8 @@ def test_utm_outage_with_peer_link_agrees_roles_by_acknowledgement_and_keeps_the
 
 def test_response_mode_rerun_needs_the_peer_messages(response, monkeypatch):
     """The acknowledger's planner re-run on the log reproduces every plan with the logged peer
-    messages and not without them: the acknowledged claims act on its plans."""
+    messages and not without them: the acknowledged claims act on its decisions (the agreed
+    roles are its own here, so its vertices alone need not change: the events do)."""
     acker = sent(response, "ack")[0]["from"]
     assert rerun_planner(response.path, acker).differences == []
     monkeypatch.setattr(rerun, "PEER_KINDS", ())

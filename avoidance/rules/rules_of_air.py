@@ -94,6 +94,8 @@ class DetectCollisionCases:
             if ctx.uas in c.ids:
                 ctx.record("case_close", c)
                 ctx.emergency.discard(c.other(ctx.uas))
+                if ctx.peers is not None:
+                    ctx.peers.case_closed(c.other(ctx.uas), ctx.t)
         rbs = {u: rb for rb in ctx.book.roundabouts() for u in rb.members}
         own = []
         for c in ctx.book.active(ctx.uas):

@@ -15,7 +15,10 @@ registration id sorts first stands (the other withdraws its own and acknowledges
 one claim per pair is acknowledged. The claimer re-sends its claim every frame while its case
 is active and the peer acknowledges each: an agreement lapses ``lost_after`` [s] after its last
 claim (acknowledger) or acknowledgement (claimer), and at once on the claimer's side when its
-case closes. A UAS that has heard no peer for ``lost_after`` flies *blind* (rules of the air on
+case closes. A claim for an encounter the UAS' own book has closed (its head case opened before
+the close) is not acknowledged, and closing its case ends the UAS' agreement with that peer: the
+books close a few frames apart, and a claim from the later one re-opened a finished encounter on
+the other. A UAS that has heard no peer for ``lost_after`` flies *blind* (rules of the air on
 its own cases).
 Messages carry registration ids; the UAS' own cases name it ``own``. Frames: GCF (ENU) [m],
 sim seconds [s].
@@ -77,6 +80,7 @@ class PeerTalk:
     agreed: dict[str, Agreement] = field(default_factory=dict)  # peer -> agreement
     outbox: list[PeerMessage] = field(default_factory=list)
     acked: list[CollisionCase] = field(default_factory=list)  # claims acknowledged since the last frame (own naming)
+    closed: dict[str, float] = field(default_factory=dict)  # peer -> when the own case with it closed [s]
 
     def heard(self, t: float) -> bool:
         """Whether a peer was heard within ``lost_after`` of ``t`` [s]."""
@@ -88,6 +92,8 @@ class PeerTalk:
         if m.case is None:
             return
         if m.kind == "claim":
+            if m.case.head is not None and m.case.head <= self.closed.get(m.sender, -np.inf):
+                return  # an encounter the own book has closed
             mine = self.claims.get(m.sender)
             if mine is not None and self.name < m.sender:
                 return  # both claimed: the own claim stands, the peer acknowledges it
@@ -100,6 +106,12 @@ class PeerTalk:
             mine = self.claims.get(m.sender)
             if mine is not None and same_claim(mine, m.case):
                 self.agreed[m.sender] = Agreement(renamed(mine, self.name, self.own), self.name, t)
+
+    def case_closed(self, peer: str, t: float) -> None:
+        """The own case with ``peer`` closed at frame time ``t`` [s]: the agreement with it
+        ends, and its claims for that encounter are no longer acknowledged."""
+        self.closed[peer] = t
+        self.agreed.pop(peer, None)
 
     def claim(self, t: float, own: list[CollisionCase]) -> list[CollisionCase]:
         """This frame's claims (sent at ``t`` [s]) for the own active cases ``own`` whose peer

@@ -228,7 +228,8 @@ def _compare(report: RerunReport, t: float, rec: dict | None, new: Plan | None) 
 
 
 def _differences(report: RerunReport, rec: dict | None, new: Plan | None) -> list[str]:
-    """How the re-run's plan differs from the recorded one; updates the report's largest
+    """How the re-run's plan differs from the recorded one (status, vertices, due times,
+    labels, commanded airspeeds, decision events where recorded); updates the report's largest
     vertex differences."""
     if rec is None:
         return ["the recorded run kept its plan, the re-run made a new one"]
@@ -248,6 +249,9 @@ def _differences(report: RerunReport, rec: dict | None, new: Plan | None) -> lis
         why.append(f"vertices differ by up to {dp:.3g} m / {dt:.3g} s")
     if not _same_airspeeds(rec.get("airspeeds"), new.airspeeds):
         why.append("commanded airspeeds differ")
+    events = rec.get("diagnostics", {}).get("events")
+    if events is not None and events != new.diagnostics.get("events"):
+        why.append("decision events differ")
     return why
 
 
