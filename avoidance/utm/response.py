@@ -17,8 +17,8 @@ is active and the peer acknowledges each: an agreement lapses ``lost_after`` [s]
 claim (acknowledger) or acknowledgement (claimer), and at once on the claimer's side when its
 case closes. A claim for an encounter the UAS' own book has closed (its head case opened before
 the close) is not acknowledged, and closing its case ends the UAS' agreement with that peer: the
-books close a few frames apart, and a claim from the later one re-opened a finished encounter on
-the other. A UAS that has heard no peer for ``lost_after`` flies *blind* (rules of the air on
+two books close a pair's case a few frames apart, and the later one's claim must not re-open the
+encounter on the other. A UAS that has heard no peer for ``lost_after`` flies *blind* (rules of the air on
 its own cases).
 Messages carry registration ids; the UAS' own cases name it ``own``. Frames: GCF (ENU) [m],
 sim seconds [s].
