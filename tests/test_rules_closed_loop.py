@@ -19,12 +19,15 @@ UNIT = 5.0  # rules_unit of the scenarios: the thesis' metre [m]
 HEAD_ON_MARGIN, CONVERGING_MARGIN, OVERTAKE_MARGIN = 10 * UNIT, 8 * UNIT, 5 * UNIT  # (6.192)-(6.194), [R] defaults
 
 
-def fly(name: str, tmp_path, seed: int | None = None) -> tuple[dict, RunLog]:
-    """Fly a rules scenario (with ``seed`` in place of its own) and read its metrics back."""
+def fly(name: str, tmp_path, seed: int | None = None, **update) -> tuple[dict, RunLog]:
+    """Fly a rules scenario (with ``seed`` in place of its own, and the scenario fields in
+    ``update``, e.g. ``duration``) and read its metrics back."""
     out = tmp_path / f"{name}.mcap"
     scenario, text = load_scenario(SCENARIOS / f"{name}.toml")
     if seed is not None:
-        scenario = scenario.model_copy(update={"seed": seed})
+        update["seed"] = seed
+    if update:
+        scenario = scenario.model_copy(update=update)
     run_scenario(scenario, out, scenario_text=text)
     log = RunLog(out)
     return log_metrics(log), log
@@ -88,10 +91,8 @@ def test_s11_seed_17_starts_along_its_line(tmp_path):
     its first plan pulls it north at 2.8 m/s for a second, and the next decision must plan along
     its yaw (south), not that course: planned north, its reach sets turned it the whole way round,
     38 m east of its line, into the roundabout's quadrant where uas2 came up (22.6 m apart)."""
-    scenario, text = load_scenario(SCENARIOS / "s11_roundabout.toml")
-    out = tmp_path / "s11_17.mcap"
-    run_scenario(scenario.model_copy(update={"seed": 17, "duration": 15.0}), out, scenario_text=text)
-    uas4 = RunLog(out).topic("/uas4/truth/state")
+    _, log = fly("s11_roundabout", tmp_path, 17, duration=15.0)
+    uas4 = log.topic("/uas4/truth/state")
     assert np.abs(uas4["pos_ned"][:, 1] - 100.0).max() < 8.0  # its line: east 100 m
 
 

@@ -92,7 +92,7 @@ class ReachSetAvoider:
             # chatter left/right around a straight course (S4 flew straight into the storm)
             dyaw = ctl.sma.active(KinState(pos, np.zeros(3), t, self.speed)).table.config.dyaw
             planned = d.pose.psi
-            if abs(np.angle(np.exp(1j * (psi - planned)))) < dyaw:
+            if abs(wrap_pi(psi - planned)) < dyaw:
                 psi = planned
         return KinState(pos, np.array([0.0, 0.0, psi]), t, self.speed)
 
