@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from sim.encounters.aggregate import Pair, ratio_interval, summarise, wilson
-from sim.encounters.campaign import load_campaign, outcome, run_campaign
+from sim.encounters.campaign import keep_logs, load_campaign, outcome, run_campaign
 from sim.encounters.geometry import (
     MODES,
     RUN_ON_S,
@@ -368,6 +368,26 @@ def test_draws_starting_inside_the_nmac_cylinder_and_start_margin_are_skipped(tm
     assert not start_within(BASE | {"time_to_cpa": 0.8, "intruder_speed": 3.0, "vmd": 6.0}, SETUP, 7.5, 5.0)
 
 
+@pytest.mark.parametrize(("keep_below", "kept_encounters"), [(None, set()), (40, {0, 2})])
+def test_keep_below_m_keeps_the_logs_of_a_breached_margin(tmp_path, keep_below, kept_encounters):
+    """A mitigated run passing closer than ``keep_below_m`` (horizontal) keeps both runs of its
+    encounter, without NMAC or failure (a rules campaign's breached case margin); a close
+    unmitigated run alone keeps nothing; a 0 m pass counts."""
+    extra = "" if keep_below is None else f"\nkeep_below_m = {keep_below}"
+    c = load_campaign(_campaign_file(tmp_path, **{"seed = 5": "seed = 5" + extra}), tmp_path / "o", limit=4)
+    assert len(c.encounters) == 4 and c.modes == ("mitigated", "unmitigated")
+    mitigated_min = [30.0, 45.0, 0.0, 60.0]
+    table = [
+        {"status": "completed", "nmac": False, "complete": True, "min_horizontal_m": h}
+        for m in mitigated_min
+        for h in (m, 10.0)  # mitigated, then a close unmitigated run
+    ]
+    runs = {spec.run_id: spec.params["encounter"] for spec in c.runs}
+    indices = [e.index for e in c.encounters]
+    assert {runs[r] for r in keep_logs(c, table)} == {indices[k] for k in kept_encounters}
+    assert len(keep_logs(c, table)) == 2 * len(kept_encounters)
+
+
 @pytest.mark.parametrize(
     ("replace", "message"),
     [
@@ -379,6 +399,8 @@ def test_draws_starting_inside_the_nmac_cylinder_and_start_margin_are_skipped(tm
         ({"radius = 0.5": "radius = 0.5\ncount = 2"}, "intruder.count: 1, or 2 for kind 'cooperative'"),
         ({'kind = "object"': 'kind = "cooperative"\ncount = 3'}, "intruder.count"),
         ({"seed = 5": "seed = 5\nstart_margin = -1"}, "start_margin: a distance >= 0"),
+        ({"seed = 5": "seed = 5\nkeep_below_m = -1"}, "keep_below_m: a distance >= 0"),
+        ({"seed = 5": 'seed = 5\nkeep_below_m = "40"'}, "keep_below_m: a distance >= 0"),
         ({"surveillance_dropout = 0.0": "surveillance_dropout = 0.0\n[metrics]\nnmac_horizontal = -5"}, "metrics: "),
     ],
 )

@@ -12,6 +12,7 @@ A campaign file (TOML)::
     after_cpa = 10                 # flown past the CPA to the mission's end [s]
     slack = 30                     # extra sim time for detours [s]
     keep_mcaps = "failures"        # or "all": MCAPs of every run
+    keep_below_m = 40              # optional: also keep encounters a mitigated run passes closer [m]
     min_relative_speed = 0.5       # [m/s] draws closing slower are skipped (counted in summary.json)
     start_margin = 2.5             # [m] draws starting inside the NMAC cylinder grown by it are skipped
     [metrics]                      # the scenarios' [metrics]: NMAC cylinder, well clear [m]
@@ -83,7 +84,7 @@ NMAC_SMALL_UAS = {"nmac_horizontal": 5.0, "nmac_vertical": 2.5}
 # one on the default EKF (docs/encounters.md), so no flown start is inside the cylinder.
 START_MARGIN = 2.5
 TOP_KEYS = {"name", "seed", "encounters", "latin_hypercube", "altitude", "after_cpa", "slack", "keep_mcaps"}
-TOP_KEYS |= {"min_relative_speed", "start_margin"}
+TOP_KEYS |= {"min_relative_speed", "start_margin", "keep_below_m"}
 TOP_KEYS |= {"surveillance_rate_hz", "origin", "metrics", "ownship", "intruder", "parameters", "variant"}
 VARIANT_KEYS = ("name", "planner", "utm", "utm_link", "peer_link")
 
@@ -105,6 +106,7 @@ class Campaign:
     skipped: int = 0  # draws closing slower than min_relative_speed or starting too close
     variants: tuple[Variant, ...] = (Variant(),)
     named: bool = False  # variants from the file ([[variant]]), not the one default
+    keep_below_m: float = 0.0  # a mitigated run passing closer (horizontal) [m] keeps its encounter's logs
 
     @property
     def planner(self) -> str:
@@ -178,6 +180,9 @@ def load_campaign(
     keep = cfg.get("keep_mcaps", "failures")
     if keep not in ("failures", "all"):
         raise CampaignError(f"{src}: keep_mcaps: 'failures' or 'all', got {keep!r}")
+    keep_below = cfg.get("keep_below_m", 0.0)
+    if isinstance(keep_below, bool) or not isinstance(keep_below, int | float) or not 0 <= keep_below < math.inf:
+        raise CampaignError(f"{src}: keep_below_m: a distance >= 0 [m], got {keep_below!r}")
     n = cfg.get("encounters", 0)
     if not isinstance(n, int) or n < 1:
         raise CampaignError(f"{src}: encounters: a positive integer, got {n!r}")
@@ -243,7 +248,9 @@ def load_campaign(
             f"{src}: no encounter closes at min_relative_speed ({min_rel:g} m/s) or faster and starts outside "
             f"the NMAC cylinder + start_margin ({margin:g} m)"
         )
-    return Campaign(name, setup, encounters, runs, keep, len(picked) - len(encounters), variants, named)
+    return Campaign(
+        name, setup, encounters, runs, keep, len(picked) - len(encounters), variants, named, float(keep_below)
+    )
 
 
 def outcome(row: dict, kind: str, count: int = 1) -> dict:
@@ -310,13 +317,15 @@ def tabulate(c: Campaign, rows: list[dict]) -> tuple[list[dict], dict[str, list[
 
 def keep_logs(c: Campaign, table: list[dict]) -> set[str]:
     """Run ids whose MCAP is kept: every run of an encounter with a failed run, a mitigated NMAC
-    (induced or not) or an incomplete mitigated mission in any variant (every run with
+    (induced or not), an incomplete mitigated mission or a mitigated minimum horizontal separation
+    below ``keep_below_m`` (a breached margin) in any variant (every run with
     ``keep_mcaps = "all"``)."""
     keep, m = set(), len(c.modes)
     for k in range(len(c.encounters)):
         rows = table[m * k : m * (k + 1)]
         bad = any(r["status"] == "failed" for r in rows)
         bad |= any(r["nmac"] or not r["complete"] for r in rows[:-1])
+        bad |= any(r["min_horizontal_m"] is not None and r["min_horizontal_m"] < c.keep_below_m for r in rows[:-1])
         if bad or c.keep_mcaps == "all":
             keep |= {spec.run_id for spec in c.runs[m * k : m * (k + 1)]}
     return keep
