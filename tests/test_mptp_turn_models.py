@@ -24,7 +24,13 @@ from sim.core.mission import Mission
 from sim.core.plan import Threats
 from sim.core.state import VehicleState
 from sim.core.threats import StormSnapshot
-from sim.testbeds.mptp_turn_vertices import SETTLE_S, corner_cross_track, fly, vertex_cross_track
+from sim.testbeds.mptp_turn_vertices import (
+    SETTLE_S,
+    corner_cross_track,
+    fly,
+    midleg_cross_track,
+    vertex_cross_track,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 APPROX = MptpConfig(turn_model="approximate", turn_bank_fraction=1.0)
@@ -303,6 +309,20 @@ def test_corner_cross_track_signs_a_cut_corner():
     assert corner_cross_track([(0.0, pts, due)], tt, xy, [1]) == pytest.approx([-14.14], abs=0.01)
     assert not len(corner_cross_track([(0.0, pts, due)], tt, xy, [2]))  # up to the corner: left out
     assert not len(corner_cross_track([(0.0, pts, due)], tt[:2], xy[:2]))  # the flight ends before it
+
+
+def test_midleg_cross_track_measures_the_straight_legs_only():
+    """A plan north 1 km, east 30 m (a written-out turn's short leg), east 1 km (NED): a track
+    3 m east of the first leg's midpoint (500, 0) and 4 m south of the last one's (1000, 530)
+    gives [3, 4]; the 30 m leg is no straight leg; a midpoint due within SETTLE_S of the next
+    plan or after the track ends is left out."""
+    pts = np.array([[0.0, 0.0], [1000.0, 0.0], [1000.0, 30.0], [1000.0, 1030.0]])
+    due = np.array([0.0, 40.0, 41.0, 80.0])  # midpoints due at 20 s and 60.5 s
+    tt = np.array([0.0, 20.0, 40.0, 60.0, 80.0])
+    xy = np.array([[0.0, 0.0], [500.0, 3.0], [1000.0, 15.0], [996.0, 530.0], [1000.0, 1030.0]])
+    assert midleg_cross_track([(0.0, pts, due)], tt, xy) == pytest.approx([3.0, 4.0])
+    assert midleg_cross_track([(0.0, pts, due), (60.0 + SETTLE_S - 1.0, pts, due)], tt, xy) == pytest.approx([3.0])
+    assert midleg_cross_track([(0.0, pts, due)], tt[:3], xy[:3]) == pytest.approx([3.0])
 
 
 @pytest.mark.slow

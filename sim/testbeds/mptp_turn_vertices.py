@@ -15,7 +15,8 @@ time [s]), keeps the logs in DIR and prints a Markdown table per
 scenario and model (``--per-seed``: also a row per seed): corners, median |xte|, 95th
 percentile of the cut, largest cut, largest outside pass [m], the same two without each plan's
 start turn (vertex_cross_track) and along the estimated track the follower flew on (the true
-track's cross-track less the navigation error), and the missions completed.
+track's cross-track less the navigation error), the missions completed, and the yardstick: the
+largest distance of the true track from the midpoint of a straight leg (midleg_cross_track).
 
 Controlled factors (the experiment that isolates why turns are flown wide, docs/mptp.md):
 ``--estimator perfect`` (ideal sensors instead of the EKF), ``--wind N,E`` (the steady wind [m/s]
@@ -44,6 +45,7 @@ from sim.runner import run_scenario
 
 MIN_TURN_DEG = 1.0  # a vertex turning less is not a corner
 SETTLE_S = 60.0  # corners due later than this before the next plan are left out [s]
+MIN_LEG_M = 500.0  # a leg this long or longer is a straight leg (written-out turns have short ones) [m]
 
 
 def vertex_cross_track(
@@ -94,6 +96,39 @@ def corner_cross_track(
             j = int(np.argmin(np.einsum("ij,ij->i", r, r)))
             out.append(float(np.linalg.norm(r[j]) * np.sign(r[j] @ inward)))
     return np.array(out)
+
+
+def midleg_cross_track(plans: list[tuple[float, np.ndarray, np.ndarray]], tt: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """Distance [m] of the track ``xy`` (K, 2) at times ``tt`` (K,) [s] from the midpoint of each
+    straight leg (at least MIN_LEG_M long) of ``plans`` (as :func:`corner_cross_track`), for the
+    midpoints due while the plan was the newest, SETTLE_S before the next one and before the
+    track ends: how closely a straight leg is flown, the yardstick of the corners' cross-track."""
+    out: list[float] = []
+    ends = [t for t, _, _ in plans[1:]] + [math.inf]
+    last = float(tt[-1]) if len(tt) else -math.inf
+    for (t0, pts, due), t1 in zip(plans, ends, strict=True):
+        window = (tt >= t0) & (tt < t1)
+        if len(pts) < 2 or not window.any():
+            continue
+        seg = xy[window]
+        due_by = min(t1 - SETTLE_S, last)
+        for k in range(len(pts) - 1):
+            if np.linalg.norm(pts[k + 1] - pts[k]) < MIN_LEG_M or 0.5 * (due[k] + due[k + 1]) > due_by:
+                continue
+            r = seg - 0.5 * (pts[k] + pts[k + 1])
+            out.append(float(np.sqrt(np.einsum("ij,ij->i", r, r).min())))
+    return np.array(out)
+
+
+def leg_cross_track(log: str | Path, vehicle: str) -> np.ndarray:
+    """:func:`midleg_cross_track` of the true track against every plan ``vehicle`` logged."""
+    plans = [
+        (t, np.asarray(m["positions"], float)[:, :2], np.asarray(m["times"], float))
+        for t, m in read_topic(log, f"/{vehicle}/plan")
+    ]
+    track = read_topic(log, f"/{vehicle}/truth/state")
+    tt, xy = np.array([t for t, _ in track]), np.array([m["pos_ned"][:2] for _, m in track])
+    return midleg_cross_track(plans, tt, xy)
 
 
 @dataclass(frozen=True, slots=True)
@@ -204,16 +239,17 @@ def main(argv: list[str] | None = None) -> None:
     cols = ["scenario", "seeds", "acceptance [m]", "turn model", "runs completed", "corners", "median abs [m]"]
     cols += ["cut p95 [m]", "largest cut [m]", "largest outside [m]", "later turns: largest cut [m]"]
     cols += ["largest outside [m]", "estimated track: largest cut [m]", "largest outside [m]"]
+    cols += ["straight legs: midpoints", "mid-leg largest abs [m]"]
     print("| " + " | ".join(cols) + " |\n|" + "---|" * len(cols))
     for scenario in args.scenarios:
         for model in args.models:
-            runs: list[tuple[int, bool, np.ndarray, np.ndarray, np.ndarray]] = []
+            runs: list[tuple[int, bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
             for seed in _seeds(args.seeds):
                 path, ok = fly(scenario, seed, model, args.out, args.acceptance, args.duration, factors)
                 every = vertex_cross_track(path, "haps", since_s=args.since)
                 later = vertex_cross_track(path, "haps", start_turns=False, since_s=args.since)
                 est = vertex_cross_track(path, "haps", track_of="est", since_s=args.since)
-                runs.append((seed, ok, every, later, est))
+                runs.append((seed, ok, every, later, est, leg_cross_track(path, "haps")))
                 if args.per_seed:
                     print(_row(scenario.stem, str(seed), args.acceptance, model, runs[-1:]), flush=True)
             print(_row(scenario.stem, args.seeds, args.acceptance, model, runs), flush=True)
@@ -224,15 +260,17 @@ def _row(
     seeds: str,
     accept: float | None,
     model: str,
-    runs: list[tuple[int, bool, np.ndarray, np.ndarray, np.ndarray]],
+    runs: list[tuple[int, bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
 ) -> str:
     """One Markdown table row over ``runs`` (seed, mission completed, cross-tracks [m] of every
-    corner, of the later turns, of the estimated track)."""
-    x, y, e = (np.concatenate([r[k] for r in runs]) for k in (2, 3, 4))
+    corner, of the later turns, of the estimated track, distances from the straight legs'
+    midpoints)."""
+    x, y, e, m = (np.concatenate([r[k] for r in runs]) for k in (2, 3, 4, 5))
     cut = np.maximum(x, 0.0)
     row = [stem, seeds, accept or "shipped", model, f"{sum(r[1] for r in runs)}/{len(runs)}", len(x)]
     row += [f"{v:.1f}" for v in (np.median(np.abs(x)), np.percentile(cut, 95), *_cut_and_outside(x))]
     row += [f"{v:.1f}" for z in (y, e) for v in _cut_and_outside(z)]
+    row += [len(m), f"{m.max(initial=0.0):.1f}"]
     return "| " + " | ".join(map(str, row)) + " |"
 
 
