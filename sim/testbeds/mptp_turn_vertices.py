@@ -205,7 +205,7 @@ def fly(
 
 def _cut_and_outside(x: np.ndarray) -> tuple[float, float]:
     """Largest cut and largest outside pass [m] (>= 0) of signed cross-tracks ``x`` (+ inside)."""
-    return max(float(x.max(initial=0.0)), 0.0), max(-float(x.min(initial=0.0)), 0.0)
+    return max(0.0, float(x.max(initial=0.0))), max(0.0, -float(x.min(initial=0.0)))
 
 
 def _seeds(text: str) -> list[int]:
