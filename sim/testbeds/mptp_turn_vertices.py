@@ -48,6 +48,19 @@ SETTLE_S = 60.0  # corners due later than this before the next plan are left out
 MIN_LEG_M = 500.0  # a leg this long or longer is a straight leg (written-out turns have short ones) [m]
 
 
+Plans = list[tuple[float, np.ndarray, np.ndarray]]  # (issue time [s], vertices (N, 2) [m], due times (N,) [s])
+
+
+def _logged(log: str | Path, vehicle: str, track_of: str = "truth") -> tuple[Plans, list[dict], np.ndarray, np.ndarray]:
+    """``vehicle``'s logged plans (and their messages) and its ``track_of`` track: times (K,) [s]
+    and horizontal positions (K, 2) NED [m]."""
+    msgs = read_topic(log, f"/{vehicle}/plan")
+    plans = [(t, np.asarray(m["positions"], float)[:, :2], np.asarray(m["times"], float)) for t, m in msgs]
+    track = read_topic(log, f"/{vehicle}/{track_of}/state")
+    tt, xy = np.array([t for t, _ in track]), np.array([m["pos_ned"][:2] for _, m in track])
+    return plans, [m for _, m in msgs], tt, xy
+
+
 def vertex_cross_track(
     log: str | Path, vehicle: str, start_turns: bool = True, track_of: str = "truth", since_s: float = 0.0
 ) -> np.ndarray:
@@ -56,38 +69,42 @@ def vertex_cross_track(
     [s] on; without ``start_turns`` the written-out turn each plan begins with (its leading legs
     with a nonzero turn rate, after the lead-in leg of a plan that has one, diagnostics
     ``start_lead_s`` > 0) is left out."""
-    plans, skip = [], []
-    for t, m in read_topic(log, f"/{vehicle}/plan"):
-        plans.append((t, np.asarray(m["positions"], float)[:, :2], np.asarray(m["times"], float)))
+    plans, msgs, tt, xy = _logged(log, vehicle, track_of)
+    skip = []
+    for (t, pts, _), m in zip(plans, msgs, strict=True):
         first = int(m.get("diagnostics", {}).get("start_lead_s", 0.0) > 0.0)
         rates = np.asarray(m.get("turn_rates") or [0.0])[first:] != 0.0
         start = 0 if start_turns else first + int(np.argmin(np.r_[rates, False]))
-        skip.append(start if t >= since_s else len(plans[-1][1]))
-    track = read_topic(log, f"/{vehicle}/{track_of}/state")
-    tt, xy = np.array([t for t, _ in track]), np.array([m["pos_ned"][:2] for _, m in track])
+        skip.append(start if t >= since_s else len(pts))
     return corner_cross_track(plans, tt, xy, skip)
 
 
-def corner_cross_track(
-    plans: list[tuple[float, np.ndarray, np.ndarray]], tt: np.ndarray, xy: np.ndarray, skip: list[int] | None = None
-) -> np.ndarray:
+def _while_newest(
+    plans: Plans, tt: np.ndarray, xy: np.ndarray
+) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, float]]:
+    """Per plan, in order: its vertices, due times, the track ``xy`` flown while it was the newest
+    plan (possibly empty), and the latest due time [s] that counts: SETTLE_S before the next plan
+    and not after the track's last time."""
+    ends = [t for t, _, _ in plans[1:]] + [math.inf]
+    last = float(tt[-1]) if len(tt) else -math.inf
+    for (t0, pts, due), t1 in zip(plans, ends, strict=True):
+        yield pts, due, xy[(tt >= t0) & (tt < t1)], min(t1 - SETTLE_S, last)
+
+
+def corner_cross_track(plans: Plans, tt: np.ndarray, xy: np.ndarray, skip: list[int] | None = None) -> np.ndarray:
     """Signed closest approach [m] of the track ``xy`` (K, 2) [m] at times ``tt`` (K,) [s] to the
     corners of ``plans`` (issue time [s], vertices (N, 2) [m], due times (N,) [s]), in time
     order; + inside the corner, - outside (see module doc); corners due after the track's last
     time are left out. ``skip``: per plan, the corners up to this vertex index are left out
     (default none)."""
     out: list[float] = []
-    ends = [t for t, _, _ in plans[1:]] + [math.inf]
-    last = float(tt[-1]) if len(tt) else -math.inf
-    for (t0, pts, due), t1, first in zip(plans, ends, skip or [0] * len(plans), strict=True):
-        window = (tt >= t0) & (tt < t1)
-        if len(pts) < 3 or not window.any():
+    for (pts, due, seg, due_by), first in zip(_while_newest(plans, tt, xy), skip or [0] * len(plans), strict=True):
+        if len(pts) < 3 or not len(seg):
             continue
-        seg = xy[window]
         for k in range(max(1, first + 1), len(pts) - 1):
             a, b = pts[k] - pts[k - 1], pts[k + 1] - pts[k]
             na, nb = np.linalg.norm(a), np.linalg.norm(b)
-            if na < 1e-6 or nb < 1e-6 or due[k] > min(t1 - SETTLE_S, last):
+            if na < 1e-6 or nb < 1e-6 or due[k] > due_by:
                 continue
             inward = b / nb - a / na
             if np.linalg.norm(inward) < 2.0 * math.sin(0.5 * math.radians(MIN_TURN_DEG)):
@@ -98,20 +115,15 @@ def corner_cross_track(
     return np.array(out)
 
 
-def midleg_cross_track(plans: list[tuple[float, np.ndarray, np.ndarray]], tt: np.ndarray, xy: np.ndarray) -> np.ndarray:
+def midleg_cross_track(plans: Plans, tt: np.ndarray, xy: np.ndarray) -> np.ndarray:
     """Distance [m] of the track ``xy`` (K, 2) at times ``tt`` (K,) [s] from the midpoint of each
     straight leg (at least MIN_LEG_M long) of ``plans`` (as :func:`corner_cross_track`), for the
     midpoints due while the plan was the newest, SETTLE_S before the next one and before the
     track ends: how closely a straight leg is flown, the yardstick of the corners' cross-track."""
     out: list[float] = []
-    ends = [t for t, _, _ in plans[1:]] + [math.inf]
-    last = float(tt[-1]) if len(tt) else -math.inf
-    for (t0, pts, due), t1 in zip(plans, ends, strict=True):
-        window = (tt >= t0) & (tt < t1)
-        if len(pts) < 2 or not window.any():
+    for pts, due, seg, due_by in _while_newest(plans, tt, xy):
+        if not len(seg):
             continue
-        seg = xy[window]
-        due_by = min(t1 - SETTLE_S, last)
         for k in range(len(pts) - 1):
             if np.linalg.norm(pts[k + 1] - pts[k]) < MIN_LEG_M or 0.5 * (due[k] + due[k + 1]) > due_by:
                 continue
@@ -122,12 +134,7 @@ def midleg_cross_track(plans: list[tuple[float, np.ndarray, np.ndarray]], tt: np
 
 def leg_cross_track(log: str | Path, vehicle: str) -> np.ndarray:
     """:func:`midleg_cross_track` of the true track against every plan ``vehicle`` logged."""
-    plans = [
-        (t, np.asarray(m["positions"], float)[:, :2], np.asarray(m["times"], float))
-        for t, m in read_topic(log, f"/{vehicle}/plan")
-    ]
-    track = read_topic(log, f"/{vehicle}/truth/state")
-    tt, xy = np.array([t for t, _ in track]), np.array([m["pos_ned"][:2] for _, m in track])
+    plans, _, tt, xy = _logged(log, vehicle)
     return midleg_cross_track(plans, tt, xy)
 
 
