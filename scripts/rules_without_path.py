@@ -16,16 +16,15 @@ from aircraft.registry import get_airframe
 from sim.core.mission import Mission
 from sim.core.plan import Plan, Planner, Threats
 from sim.core.state import VehicleState
-from sim.mcap_read import LogReadError, read_attached_scenario
+from sim.mcap_read import read_attached_scenario
 from sim.replay.rerun import rerun_planner
+from sim.scenario import Scenario
 from sim.vehicle_setup import scenario_planner
 
 
-def no_path_times(log: str, vehicle: str, rules: list[str], t0: float, t1: float) -> list[float]:
-    """Times in [t0, t1] of the re-run's new decisions that found no path, with ``rules`` enabled."""
-    scenario = read_attached_scenario(log)
-    if scenario is None:
-        raise LogReadError(f"{log}: the scenario is not attached")
+def no_path_times(log: str, scenario: Scenario, vehicle: str, rules: list[str], t0: float, t1: float) -> list[float]:
+    """Times in [t0, t1] of the re-run's new decisions that found no path, with ``rules`` enabled
+    (``scenario``: the one attached to the log)."""
     cfg = next(v for v in scenario.vehicle if v.name == vehicle)
     options = cfg.planner.options.model_copy(update={"rules": rules})
     cfg = cfg.model_copy(update={"planner": cfg.planner.model_copy(update={"options": options})})
@@ -59,11 +58,11 @@ def main() -> None:
     args = ap.parse_args()
     scenario = read_attached_scenario(args.log)
     if scenario is None:
-        raise SystemExit(f"{args.log}: the scenario is not attached")
+        raise SystemExit(f"{args.log}: the scenario is not attached; cannot rebuild the planner")
     enabled = list(next(v for v in scenario.vehicle if v.name == args.vehicle).planner.options.rules)
     for dropped in [None, *enabled]:
         rules = [r for r in enabled if r != dropped]
-        times = no_path_times(args.log, args.vehicle, rules, args.t0, args.t1)
+        times = no_path_times(args.log, scenario, args.vehicle, rules, args.t0, args.t1)
         label = "all rules" if dropped is None else f"without {dropped}"
         print(f"{label:32s} no_path at {', '.join(f'{t:g}' for t in times) or '-'}")
 
