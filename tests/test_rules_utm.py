@@ -254,6 +254,21 @@ def test_overtake_roles_and_waypoints_on_the_right():
     )  # |p - cp| = 40 (meet at x = 0) and conv[1] == pytest.approx(div[1])
 
 
+@pytest.mark.parametrize("fast_y", [25.0, 15.0])
+def test_overtake_waypoints_are_offset_from_the_overtaken_track_not_from_the_midpoint(fast_y):
+    """The collision point is the midpoint at the closest approach: with the overtaking UAS 5 m
+    left (y = 25) or right (y = 15) of the overtaken track (y = 20, heading +x), it lies 2.5 m
+    off that track. The waypoints stay Δv·frame + margin = 1 + 5 = 6 m right of the track
+    (y = 14) either way (6.206), where an offset from the midpoint gives 16.5 / 11.5."""
+    fast, slow = note("a", (-40, fast_y, 0), (2, 0, 0)), note("b", (-20, 20, 0), (1, 0, 0))
+    case = compute_collision_case(fast, slow, 0.0, UtmConfig(time_margin=25.0))
+    assert case.collision_point[1] == pytest.approx((fast_y + 20) / 2)
+    div, conv = overtake_waypoints(fast.pos, fast.vel, slow.pos, slow.vel, case.collision_point, 5.0, 1.0, 2.0)
+    assert div[:2] == pytest.approx([case.collision_point[0], 14.0])
+    assert conv[1] == pytest.approx(14.0)
+    assert conv[0] - div[0] == pytest.approx(np.sqrt(np.sum((fast.pos - case.collision_point) ** 2) + 25.0) + 1 + 2)
+
+
 def test_pass_behind_point_trails_the_right_of_way_uas_until_the_give_way_uas_is_behind():
     """The converging give-way UAS aims ``offset`` behind the right-of-way UAS on its track
     (peer at the origin flying north, +y ENU), until it is itself that far behind it."""

@@ -38,9 +38,13 @@ def overtake_waypoints(
     p_uas, v_uas, p_overtaken, v_overtaken, cp, margin: float, frame: float, reach_margin: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """Divergence and convergence waypoints (6.207-6.214, 6.209 with its square), GCF [m]:
-    in the overtaken UAS' frame (X+ along its velocity, Y+ left, origin at the collision point)
-    divergence = (0, -(Δv·frame + margin)), convergence = (safeOffset, same), with
-    safeOffset = sqrt(|p_uas - cp|² + margin²) + Δv·frame + reach_margin."""
+    in the overtaken UAS' frame (X+ along its velocity, Y+ left, origin at the collision point
+    moved horizontally onto the overtaken UAS' track) divergence = (0, -(Δv·frame + margin)),
+    convergence = (safeOffset, same), with safeOffset = sqrt(|p_uas - cp|² + margin²) + Δv·frame
+    + reach_margin. The collision point is the midpoint of both UAS at the closest approach
+    (6.189), off the overtaken track by half the miss distance; the lateral offset is measured
+    from the track, so that the waypoints keep ``margin`` + Δv·frame from the overtaken UAS
+    (6.206) whichever side the overtaking UAS came from."""
     p_uas, cp = np.asarray(p_uas, float), np.asarray(cp, float)
     dv = float(np.linalg.norm(np.asarray(v_uas, float) - np.asarray(v_overtaken, float)))
     decision = dv * frame
@@ -49,8 +53,9 @@ def overtake_waypoints(
     h = np.asarray(v_overtaken, float)[:2]
     h = h / max(float(np.linalg.norm(h)), 1e-9)
     x, y = np.array([h[0], h[1], 0.0]), np.array([-h[1], h[0], 0.0])
+    origin = cp - float((cp - np.asarray(p_overtaken, float)) @ y) * y
     lateral = -(decision + margin)
-    return cp + lateral * y, cp + safe * x + lateral * y
+    return origin + lateral * y, origin + safe * x + lateral * y
 
 
 def _severity(case: CollisionCase):
