@@ -146,6 +146,19 @@ def test_s10_with_the_authority_both_turn_right_on_the_directed_case(fly, scenar
     assert n1.min() < 100.0 - UNIT and n2.max() > 100.0 + UNIT
 
 
+def test_s12_with_the_authority_passes_the_margin_right_of_the_overtaken_track(fly, scenario_data):
+    """CI: S12 2x on its own seed with the authority. uas1 starts left of uas2's line, so the
+    directed case's collision point (the midpoint at the closest approach) lies left of that
+    line; the overtake waypoints must still be Δv·frame + margin right of the *track* (R-17):
+    offset from the point, uas1 came abeam at the margin, had no path, and the breached case
+    ended 18.6 m from uas2."""
+    log = fly(with_authority(scenario_data("rules/s12_overtake_2x")), "s12_utm").log
+    check_authority_run("s12_overtake_2x", log)
+    assert complete(log)
+    assert not unresolved(log)
+    assert closest(log, ["uas1-uas2"]) >= OVERTAKE
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", range(20))
 @pytest.mark.parametrize("name", sorted(EXPECTED))
