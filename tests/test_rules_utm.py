@@ -519,9 +519,12 @@ def test_bad_rules_options_are_one_line_scenario_errors(old, new, message, tmp_p
     assert "\n" not in str(err.value)
 
 
-def _avoider_with_traffic(cooperative: bool, ahead: float):
-    """A thesis-scale RulesAvoider flying north at 1 m/s with one head-on peer ``ahead`` [m];
-    its decisions at t = 0, 1, 2 s."""
+def _avoider_with_traffic(
+    cooperative: bool, ahead: float, frames: int = 3, turns_in_place: bool = False, from_right: bool = False
+):
+    """A thesis-scale RulesAvoider flying north at 1 m/s with one peer: head-on ``ahead`` [m],
+    or (``from_right``) ``ahead`` north and east of it flying west, converging at 90° with the
+    UAS giving way; its decisions at t = 0, 1, ... ``frames`` - 1 s."""
     from avoidance.reachset.movement import thesis_automaton
     from avoidance.rules.planner import RulesAvoider
     from sim.core.mission import Mission
@@ -530,19 +533,17 @@ def _avoider_with_traffic(cooperative: bool, ahead: float):
     from sim.core.threats import IntruderTrack
 
     mission = Mission(np.array([[60.0, 0.0, -5.0]]), cruise_speed=1.0, acceptance_radius=2.0)
-    av = RulesAvoider(mission, thesis_automaton(), RulesConfig())
+    av = RulesAvoider(mission, thesis_automaton(), RulesConfig(), turns_in_place=turns_in_place)
 
     def peer(t):
-        return IntruderTrack(
-            "peer",
-            t,
-            np.array([ahead - t, 0.0, -5.0]),
-            np.array([-1.0, 0, 0]),
-            cooperative=cooperative,
-        )
+        if from_right:
+            pos, vel = np.array([ahead, ahead - t, -5.0]), np.array([0, -1.0, 0])
+        else:
+            pos, vel = np.array([ahead - t, 0.0, -5.0]), np.array([-1.0, 0, 0])
+        return IntruderTrack("peer", t, pos, vel, cooperative=cooperative)
 
     decisions = []
-    for t in (0.0, 1.0, 2.0):
+    for t in np.arange(float(frames)):
         est = VehicleState(
             t=t,
             pos_ned=np.array([t, 0.0, -5.0]),
@@ -622,3 +623,53 @@ def test_managed_peer_is_an_intruder_while_another_threat_holds_the_emergency_mo
     assert "rule:case_open:self-peer:head_on:roundabout" in coop.events  # the rules manage the peer
     assert coop.mode.value == "emergency"
     np.testing.assert_array_equal(coop.run.fused.node_ok, non_coop.run.fused.node_ok)
+
+
+def _every_path_closed(monkeypatch):
+    """The safety-margin rule disables every navigation node: a soft deadlock every frame."""
+    from avoidance.rules import rules_of_air
+
+    def close_all(self, ctx, engine):
+        tree, _pose = ctx.navigation_tree()
+        ctx.disable(self.code, np.ones(tree.n_nodes, bool), ctx.current_case())
+
+    monkeypatch.setattr(rules_of_air.EnforceSafetyMargin, "apply", close_all)
+
+
+def test_a_hovering_uas_waits_out_a_soft_deadlock_while_the_peer_keeps_the_margin(monkeypatch):
+    """With every restricted path closed, a UAS that hovers (``turns_in_place``) and gives way to
+    a peer converging from its right (28 m away, closing at 1.4 m/s) stops at the grid origin
+    (``stop``, ``rule:hold``) while the peer stays beyond the case margin + bloat (9 m) over the
+    next two periods; the frames held are no deadlock. After ``HOLD_FRAMES`` holds in a row it
+    flies the old plan on and three blocked frames later hands the peer to the emergency
+    avoidance. A UAS that cannot hover, or a head-on peer (which resolves too, and might wait as
+    well), never holds."""
+    from avoidance.rules.planner import HOLD_FRAMES
+
+    def holds(decisions):
+        return [("stop" in d.events and any(e.startswith("rule:hold") for e in d.events)) for d in decisions]
+
+    def blocked(decisions):
+        return [i for i, d in enumerate(decisions) if "rule:deadlock" in d.events]
+
+    _every_path_closed(monkeypatch)
+    frames = HOLD_FRAMES + 5
+    av, decisions = _avoider_with_traffic(True, 20.0, frames, turns_in_place=True, from_right=True)
+    assert "rule:case_open:self-peer:converging:converging" in decisions[1].events
+    assert holds(decisions) == [False] + [True] * HOLD_FRAMES + [False] * 4
+    assert all(d.status == "ok" for d in decisions[1 : 1 + HOLD_FRAMES])
+    assert blocked(decisions) == [HOLD_FRAMES + 1, HOLD_FRAMES + 2, HOLD_FRAMES + 3] and "peer" in av.emergency
+    av, flying = _avoider_with_traffic(True, 20.0, 5, from_right=True)
+    assert not any(holds(flying)) and blocked(flying) == [1, 2, 3] and "peer" in av.emergency
+    _av, head_on = _avoider_with_traffic(True, 40.0, 5, turns_in_place=True)
+    assert "rule:case_open:self-peer:head_on:roundabout" in head_on[1].events
+    assert not any(holds(head_on)) and blocked(head_on) == [1, 2, 3]
+
+
+def test_no_hold_when_the_peer_comes_inside_the_margin_meanwhile(monkeypatch):
+    """7 m north and east of the UAS, converging from its right at 1.4 m/s, the peer comes within
+    the 9 m margin + bloat within two periods: hovering would not keep the margin, no hold."""
+    _every_path_closed(monkeypatch)
+    _av, decisions = _avoider_with_traffic(True, 7.0, 3, turns_in_place=True, from_right=True)
+    assert any(e.startswith("rule:case_open") for e in decisions[1].events)
+    assert not any(any(e.startswith("rule:hold") for e in d.events) for d in decisions)

@@ -7,9 +7,11 @@ time t_i and the sensed threats; the movement executing in [t_i, t_{i+1}) is nev
 grid is placed at the predicted state(t_{i+1}) (level, heading only) and the future movements
 are replaced by the selected path (step 12).
 
-Extension points for the UTM rule engine (spec §7, a later issue): ``restrict`` is called with the
-navigation run's context before path selection and may disable nodes (decision point
-"trajectory restrictions"); modes and events are plain values a rule can read and set.
+Extension points for the UTM rule engine (spec §7): ``restrict`` is called with the navigation
+run's context before path selection and may disable nodes (decision point "trajectory
+restrictions"); ``hold`` is asked, when that restricted run found no path, whether the vehicle
+may hover at the grid origin for the period instead (a soft deadlock the rules wait out); modes
+and events are plain values a rule can read and set.
 """
 
 from __future__ import annotations
@@ -95,6 +97,7 @@ class Decision:
 
 
 Restriction = Callable[[Decision, GridRun], np.ndarray | None]
+Hold = Callable[[Decision, "KinState"], bool]
 
 
 class MissionControl:
@@ -108,12 +111,15 @@ class MissionControl:
         cache_dir: Path | None = None,
         restrict: Restriction | None = None,
         advance_on_reach: bool = True,
+        hold: Hold | None = None,
     ):
         """``advance_on_reach``: step 1-2 (goal reached at the reach radius) done here; False when
         the caller owns waypoint progress (the planner adapter, whose plan follower marks waypoints
-        reached within the mission's acceptance radius) and sets :attr:`goal` itself."""
+        reached within the mission's acceptance radius) and sets :attr:`goal` itself. ``hold``
+        (decision, predicted state at the grid origin) -> hover there this period, asked when the
+        restricted navigation run found no path (a vehicle that hovers only)."""
         self.waypoints = np.asarray(waypoints, float).reshape(-1, 3)
-        self.sma, self.cfg, self.cache_dir, self.restrict = sma, cfg, cache_dir, restrict
+        self.sma, self.cfg, self.cache_dir, self.restrict, self.hold = sma, cfg, cache_dir, restrict, hold
         self.advance_on_reach = advance_on_reach
         self.goal = 0
         self.mode = Mode.NAVIGATION
@@ -284,6 +290,16 @@ class MissionControl:
             self.cfg.mission.stop_and_wait
             and self.mode == Mode.EMERGENCY
             and self._stop_pays(d, plan, parts, s_next, s_now, seen, steering, self.goal_point(override))
+        ) or (
+            self.hold is not None
+            and self.mode == Mode.NAVIGATION
+            and replan
+            and d.selected < 0
+            and hover_clearance(
+                parts.intruder_motion, 2 * ma.table.config.period, parts.give_way_turn_rate, parts.vertical_margin
+            )
+            > 0.0
+            and self.hold(d, s_next)
         )
         if stop and self.stop_point is None:
             self.stop_heading = pose.psi

@@ -28,7 +28,7 @@ from avoidance.reachset.config import DEFAULT_AVOIDANCE, AvoidanceConfig
 from avoidance.reachset.frames import GridPose, heading_from_yaw_ned
 from avoidance.reachset.fusion import SpaceClass, fuse_cells
 from avoidance.reachset.gridrun import Steering
-from avoidance.reachset.mission import Decision, MissionControl, Restriction
+from avoidance.reachset.mission import Decision, Hold, MissionControl, Restriction
 from avoidance.reachset.movement import KinState, SegmentedMovementAutomaton
 from sim.core.frames import enu_to_ned, ned_to_enu, wrap_pi
 from sim.core.mission import Mission
@@ -50,16 +50,20 @@ class ReachSetAvoider:
         restrict: Restriction | None = None,
         heading_from_velocity: float = 0.5,
         turns_in_place: bool = False,
+        hold: Hold | None = None,
     ):
         """``turns_in_place``: the vehicle can turn on the spot (a multirotor), so a goal inside
         the movements' turn circle is flown to on a direct leg (see :meth:`_vertices`), and it may
-        stop and wait (``cfg.mission.stop_and_wait``, refused for a vehicle that cannot)."""
+        stop and wait (``cfg.mission.stop_and_wait``, refused for a vehicle that cannot);
+        ``hold`` as in :class:`MissionControl` (given only to a vehicle that turns in place)."""
+        if hold is not None and not turns_in_place:
+            raise ValueError("reachset: hold needs a vehicle that hovers and turns in place (a multirotor)")
         if cfg.mission.stop_and_wait and not turns_in_place:
             raise ValueError("reachset: stop_and_wait needs a vehicle that hovers and turns in place (a multirotor)")
         self.mission = mission
         self.turns_in_place = turns_in_place
         self.control = MissionControl(
-            ned_to_enu(mission.waypoints), sma, cfg, cache_dir, restrict, advance_on_reach=False
+            ned_to_enu(mission.waypoints), sma, cfg, cache_dir, restrict, advance_on_reach=False, hold=hold
         )
         self.speed = float(mission.cruise_speed)
         self.heading_from_velocity = heading_from_velocity

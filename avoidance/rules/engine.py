@@ -61,6 +61,7 @@ class RuleContext:
     goal_override: np.ndarray | None = None  # GCF waypoint flown instead of the mission goal
     path_found: bool | None = None  # the restricted navigation run found a path
     deadlock_frames: int = 0  # consecutive frames without a restricted path (carried over)
+    held: bool = False  # this frame's soft deadlock is waited out hovering (the planner's hold)
     case: CollisionCase | None = None  # the case a manoeuvre / restriction rule works on
     margin: float = 0.0  # the margin [m] the safety-margin rule enforces for ``case``
     speed: float | None = None  # the speed [m/s] the rules command this frame (6.202), None: cruise

@@ -41,6 +41,7 @@ from avoidance.rules.config import RulesConfig
 from avoidance.rules.engine import DecisionPoint, RuleContext, RuleEngine
 from avoidance.rules.rules_of_air import make_rules
 from avoidance.utm.cases import CaseBook
+from avoidance.utm.collision_case import Role
 from avoidance.utm.directives import Directive, UtmInbox
 from avoidance.utm.notification import PositionNotification, Registration, from_track
 from avoidance.utm.response import PeerMessage, PeerTalk
@@ -51,6 +52,7 @@ from sim.core.plan import Plan, Threats
 from sim.core.state import VehicleState
 
 OWN = "self"  # the own UAS' id in its case book (peers are named by their track ids)
+HOLD_FRAMES = 10  # at most this many soft-deadlock hovers in a row (all members of a roundabout may wait)
 
 
 class RulesAvoider(ReachSetAvoider):
@@ -66,7 +68,15 @@ class RulesAvoider(ReachSetAvoider):
         """``cfg``'s navigation reach set is replaced by the rules' ACAS-like one;
         ``turns_in_place`` as in :class:`ReachSetAvoider`."""
         cfg = rules.avoidance(cfg)
-        super().__init__(mission, sma, cfg, cache_dir, restrict=self._restrict, turns_in_place=turns_in_place)
+        super().__init__(
+            mission,
+            sma,
+            cfg,
+            cache_dir,
+            restrict=self._restrict,
+            turns_in_place=turns_in_place,
+            hold=self._hold if turns_in_place else None,
+        )
         self.rules = rules
         self.engine = RuleEngine(make_rules(rules.enabled))
         cruise = sma.automata[sma.active_index(KinState(np.zeros(3), np.zeros(3), 0.0, self.speed))].table.config
@@ -78,6 +88,7 @@ class RulesAvoider(ReachSetAvoider):
         self.rules_record: dict | None = None
         self._ctx: RuleContext | None = None
         self._deadlock_frames = 0
+        self._held_frames = 0  # consecutive frames hovering in a soft deadlock (:meth:`_hold`)
         self._unresolved: set = set()
         self._start: float | None = None
         self._progress: dict[str, int] = {}  # peers' filed plans: index of the next waypoint
@@ -183,6 +194,8 @@ class RulesAvoider(ReachSetAvoider):
         d = ctx.current_decision()
         self.engine.invoke(DecisionPoint.AFTER_AVOIDANCE_RUN, ctx)
         self.emergency, self._deadlock_frames = ctx.emergency, ctx.deadlock_frames
+        if ctx.held or d.selected >= 0:  # the hold count ends with a path, not with a frame flown on blocked
+            self._held_frames = self._held_frames + 1 if ctx.held else 0
         d.events.extend(ctx.events)
         plan.diagnostics["events"] = ";".join(d.events)
         self.rules_record = {
@@ -213,6 +226,34 @@ class RulesAvoider(ReachSetAvoider):
             ctx.events.append(f"rule:utm_mandate:{m.id}")
             ctx.decisions.append({"rule": "utm_mandate", "mandate": m.record()})
         return dataclasses.replace(threats, geofences=[*threats.geofences, *(m.geofence() for m in mandates)])
+
+    def _hold(self, d: Decision, s_next: KinState) -> bool:
+        """A soft deadlock of a vehicle that hovers: hover at the grid origin (``s_next``, GCF)
+        for this period when every peer of the cases it resolves holds its course (right of way,
+        overtaken: it flies on, so waiting resolves the case) and, over two periods (the hover
+        and the next), predicted linearly from its notification, keeps the case margin + bloat
+        from there (or, already closer, comes no closer); at most ``HOLD_FRAMES`` frames in a row.
+        The give-way UAS of a shallow converging case at equal speeds finds no restricted path
+        while the peer is ahead of it (docs/encounters.md finding 18); waiting lets the peer pass,
+        where flying the old plan on took it into the margin. Not with a peer that resolves too
+        (head-on, roundabout): both would wait. Event ``rule:hold``."""
+        ctx = self._ctx
+        if ctx is None or not ctx.resolve or self._held_frames >= HOLD_FRAMES:
+            return False
+        if any(c.role_of(c.other(ctx.uas)) not in (Role.RIGHT_OF_WAY, Role.OVERTAKEN) for c in ctx.resolve):
+            return False  # a peer that resolves too may wait as well (head-on, roundabout)
+        t = np.linspace(0.0, 2.0 * self.frame, 21)[:, None]
+        for c in ctx.resolve:
+            peer = next((n for n in ctx.notifications if n.id == c.other(ctx.uas)), None)
+            if peer is None:
+                return False
+            p = peer.adjusted(d.t_grid)
+            gap = np.linalg.norm(p.pos + t * p.vel - s_next.pos, axis=1)
+            if gap.min() < min(c.margin + ctx.cfg.bloat * ctx.unit, gap[0]) - 1e-9:
+                return False
+        ctx.held = True
+        ctx.record("hold", peers=sorted(c.other(ctx.uas) for c in ctx.resolve), frames=self._held_frames + 1)
+        return True
 
     def _restrict(self, d: Decision, run: GridRun) -> np.ndarray | None:
         """Decision point *trajectory restrictions* on the navigation run."""

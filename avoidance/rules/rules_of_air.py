@@ -306,7 +306,8 @@ class EnforceSafetyMargin:
 @dataclass(frozen=True)
 class CloseCollisionCases:
     """(tab. 6.12) After the run: if the restricted navigation reach set kept no path (soft
-    deadlock) the previous plan is flown on (mission control keeps its buffer); after
+    deadlock) and the UAS does not hover it out (:meth:`RulesAvoider._hold`), the previous plan is
+    flown on (mission control keeps its buffer); after
     ``deadlock_frames`` such frames in a row the peers of the cases go to the emergency
     avoidance (intruders again). Reports the resolution (mode, planned buffer)."""
 
@@ -319,8 +320,9 @@ class CloseCollisionCases:
 
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
         d = ctx.current_decision()
-        ctx.deadlock_frames = ctx.deadlock_frames + 1 if ctx.path_found is False else 0
-        if ctx.path_found is False:
+        blocked = ctx.path_found is False and not ctx.held
+        ctx.deadlock_frames = ctx.deadlock_frames + 1 if blocked else 0
+        if blocked:
             handover = ctx.deadlock_frames >= ctx.cfg.deadlock_frames
             if handover:
                 for c in ctx.resolve:
