@@ -52,7 +52,7 @@ from sim.core.plan import Plan, Threats
 from sim.core.state import VehicleState
 
 OWN = "self"  # the own UAS' id in its case book (peers are named by their track ids)
-HOLD_FRAMES = 10  # at most this many soft-deadlock hovers in a row (all members of a roundabout may wait)
+HOLD_FRAMES = 10  # at most this many soft-deadlock hovers in a row (a peer that holds course may never pass)
 
 
 class RulesAvoider(ReachSetAvoider):
