@@ -953,16 +953,18 @@ def _decision_table() -> dict[str, Decision]:
     out[prefix + "converging_extra"] = ("rules_pair", None, _options(rules_converging_extra=4.0))
     out[prefix + "category"] = ("rules_pair", filed, _options(rules_category="manned"))
     out[prefix + "maneuverability"] = ("rules_pair", filed, _options(rules_maneuverability="linear_propulsion"))
+    # without the hold: where uas1 hovers out its soft deadlock the margin's shape does not act
     out[prefix + "barrel_half_height"] = (
         "rules_pair",
-        _options(rules_airspace="controlled"),
+        _options(rules_airspace="controlled", rules_hold=False),
         _options(rules_barrel_half_height=0.5),
     )
     out[prefix + "airspace"] = (
         "rules_pair",
-        _options(rules_barrel_half_height=0.5),
+        _options(rules_barrel_half_height=0.5, rules_hold=False),
         _options(rules_airspace="controlled"),
     )
+    out[prefix + "hold"] = ("rules_pair", None, _options(rules_hold=False))
     out[prefix + "close_after"] = ("rules_pair", None, _options(rules_close_after=5))
     out[prefix + "plane_horizon"] = ("rules_pair", None, _options(rules_plane_horizon=10.0))
     out[prefix + "plans"] = ("rules_pair", None, _options(rules_plans={"uas3": [[-20.0, 30.0], [-20.0, -100.0]]}))

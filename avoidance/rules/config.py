@@ -45,6 +45,8 @@ class RulesConfig:
     heading is a little left of the line to the collision point disables all turns,
     docs/rules.md); ``plane_horizon`` [s] the turning time horizon of the right plane's linear
     projection from every movement end (6.217; 0 = only the trajectory's own points, 6.216);
+    ``hold``: a multirotor giving way to peers that hold course may hover out a soft deadlock
+    (R-18, :meth:`avoidance.rules.planner.RulesAvoider._hold`);
     ``time_margin`` [grid ranges at cruise] how far ahead a closest approach
     opens a case; ``weather_margin`` [unit] the soft band around a weather case's body (§7.5);
     ``airspace`` ``uncontrolled`` (ball, 6.218)
@@ -73,6 +75,7 @@ class RulesConfig:
     plane_tolerance: float = 1.0
     plane_horizon: float = 0.0
     widest: bool = True
+    hold: bool = True
     bloat: float = 1.0
     time_margin: float = 2.0
     weather_margin: float = 5.0

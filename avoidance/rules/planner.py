@@ -75,7 +75,7 @@ class RulesAvoider(ReachSetAvoider):
             cache_dir,
             restrict=self._restrict,
             turns_in_place=turns_in_place,
-            hold=self._hold if turns_in_place else None,
+            hold=self._hold if turns_in_place and rules.hold else None,
         )
         self.rules = rules
         self.engine = RuleEngine(make_rules(rules.enabled))
