@@ -295,10 +295,7 @@ class MissionControl:
             and self.mode == Mode.NAVIGATION
             and replan
             and d.selected < 0
-            and hover_clearance(
-                parts.intruder_motion, 2 * ma.table.config.period, parts.give_way_turn_rate, parts.vertical_margin
-            )
-            > 0.0
+            and self._hover_clear(parts, 2 * ma.table.config.period)
             and self.hold(d, s_next)
         )
         if stop and self.stop_point is None:
@@ -317,6 +314,12 @@ class MissionControl:
     def _facing_goal(pos: np.ndarray, t: float, v: float, goal: np.ndarray) -> KinState:
         """Level state at ``pos`` (GCF [m]) heading for ``goal`` (a vehicle that turns in place)."""
         return KinState(pos, np.array([0.0, 0.0, float(np.arctan2(goal[1] - pos[1], goal[0] - pos[0]))]), t, v)
+
+    @staticmethod
+    def _hover_clear(parts: ThreatParts, duration: float) -> bool:
+        """Whether hovering at the grid origin for ``duration`` [s] keeps every intruder's body
+        clear (straight and right-turn predictions, :func:`hover_clearance`)."""
+        return hover_clearance(parts.intruder_motion, duration, parts.give_way_turn_rate, parts.vertical_margin) > 0.0
 
     def _stop_pays(
         self,
@@ -361,8 +364,7 @@ class MissionControl:
         period = self.sma.automata[self.sma.active_index(s_next)].table.config.period
 
         def hover_clear(periods: int) -> bool:
-            motion, rate, margin = parts.intruder_motion, parts.give_way_turn_rate, parts.vertical_margin
-            return hover_clearance(motion, periods * period, rate, margin) > 0.0
+            return self._hover_clear(parts, periods * period)
 
         if not hover_clear(2):
             return False
