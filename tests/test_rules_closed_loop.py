@@ -180,3 +180,29 @@ def test_rules_scenarios_keep_their_margins_on_20_seeds(name, seed, tmp_path, re
     assert min(x["distance_m"] for x in seps.values()) >= margin, seps
     must = ["uas2"] if name == "s14_pursuer" else list(m["vehicles"])
     assert all(m["vehicles"][v]["mission"]["complete"] for v in must)
+
+
+def test_a_give_way_uas_hovering_out_its_deadlock_keeps_its_case_until_the_peer_has_passed(tmp_path):
+    """Draw 335 of the shipped cooperative-pairs envelope: a shallow converging pair at equal speeds
+    where the give-way UAS (the intruder) finds no restricted path and hovers it out (R-18,
+    ``rule:hold``). Its converging case stays open while it hovers, so no fresh head-on case
+    re-opens the pair inside its margin when it flies on: one case, closed only once the pair is
+    past its closest approach and keeps the 40 m converging margin. Ended by the hover itself,
+    the case closed with ``own`` still approaching and the pair met head-on at 23.8 m."""
+    from sim.batch import run_one
+    from sim.encounters.campaign import load_campaign
+
+    campaign = SCENARIOS.parent / "encounters" / "rules_cooperative_pairs_envelope.toml"
+    c = load_campaign(campaign, tmp_path, draws=[335])
+    (spec,) = [r for r in c.runs if r.run_id.endswith("_mitigated")]
+    row = run_one(spec)
+    log = RunLog(spec.log_path)
+    e_own, e_int = events(log, "own"), events(log, "intruder")
+    assert "rule:hold" in e_int
+    opened = [e for e in e_own + e_int if e.startswith("rule:case_open:")]
+    assert opened == [
+        "rule:case_open:self-intruder:converging:right_of_way",
+        "rule:case_open:self-own:converging:converging",
+    ]
+    assert row["metric.separation.own-intruder.min_horizontal_m"] >= CONVERGING_MARGIN
+    assert row["metric.vehicles.own.mission.complete"] and row["metric.vehicles.intruder.mission.complete"]

@@ -327,8 +327,11 @@ def test_a_pair_in_a_case_stays_assessed_while_the_slow_uas_reads_below_the_hove
     after 2 quiet frames). A pair not in a case whose slow UAS reads 0.4 m/s is not assessed; once
     flagged, the dip does not stop the confirming frame from opening the case, and two frames of
     0.4 m/s mid-manoeuvre (a 3 m right of b's line) keep the head's overtake, roles and head time
-    (dropped, the chain would close and re-open with the geometry of that moment); a UAS that
-    really hovers (0.1 m/s, below half the gate) still ends the case after the 2 quiet frames."""
+    (dropped, the chain would close and re-open with the geometry of that moment). Once b really
+    hovers (0.1 m/s, below half the gate) the chain stays open while a comes up to and passes
+    abeam of b, and closes after 2 frames in which a is past b and the case margin away from it
+    (ended by the hover itself, a give-way UAS hovering out its soft deadlock met its peer again as
+    a fresh head-on case inside the margin: finding 19)."""
     book = CaseBook(UtmConfig(time_margin=25.0, min_speed=0.5, close_after=2))
     book.update([note("a", (-40, 20, 0), (2, 0, 0)), note("b", (-20, 20, 0), (0.4, 0, 0))], 0.0)
     assert not book.assessed and not book.pending  # hovering and in no case: no approach direction
@@ -343,10 +346,33 @@ def test_a_pair_in_a_case_stays_assessed_while_the_slow_uas_reads_below_the_hove
         assert not closed and ("a", "b") in book.assessed
     ((c,),) = [book.active("a")]
     assert (c.encounter, c.roles, c.head, c.t) == (*overtake, 2.0, 4.0)
-    for t in (5.0, 6.0):  # b really hovers (0.1 m/s, below half the gate): the chain closes
-        a = note("a", (-34 + 2 * (t - 5), 17, 0), (2, 0, 0), t)
-        _, closed = book.update([a, note("b", (-18, 20, 0), (0.1, 0, 0), t)], t)
+    margin = c.margin
+    # b really hovers (0.1 m/s): behind, abeam, past but inside the margin, then twice the margin away
+    for x, t in ((-34, 5.0), (-32, 6.0), (-18, 7.0), (-18 + 0.5 * margin, 8.0), (-18 + margin, 9.0)):
+        _, closed = book.update([note("a", (x, 17, 0), (2, 0, 0), t), note("b", (-18, 20, 0), (0.1, 0, 0), t)], t)
+        assert not closed and book.active("a")
+    far = [note("a", (-16 + margin, 17, 0), (2, 0, 0), 10.0), note("b", (-18, 20, 0), (0.1, 0, 0), 10.0)]
+    _, closed = book.update(far, 10.0)
     assert [c.ids for c in closed] == [("a", "b")] and not book.active("a")
+
+
+def test_a_case_of_two_hovering_uas_closes_once_they_are_the_margin_apart():
+    """Head-on pair (a east, b west on one line, 1 m/s, hover gate 0.5 m/s) whose case is open:
+    both hovering (0.1 m/s) 6 m apart, inside the case margin, keep it open for any number of
+    frames; hovering the margin apart, it closes after the 2 quiet frames (a hovering UAS counts as
+    heading away and has no closest approach to pass)."""
+    book = CaseBook(UtmConfig(time_margin=25.0, min_speed=0.5, close_after=2))
+    for t in (0.0, 1.0):
+        book.update([note("a", (t, 20, 0), (1, 0, 0), t), note("b", (40 - t, 20, 0), (-1, 0, 0), t)], t)
+    ((c,),) = [book.active("a")]
+    assert c.encounter == Encounter.HEAD_ON and c.margin > 6.0
+    for t in (2.0, 3.0, 4.0, 5.0):
+        _, closed = book.update([note("a", (17, 20, 0), (0.1, 0, 0), t), note("b", (23, 20, 0), (-0.1, 0, 0), t)], t)
+        assert not closed and ("a", "b") in book.assessed
+    for t in (6.0, 7.0):
+        apart = [note("a", (17, 20, 0), (0.1, 0, 0), t), note("b", (17 + c.margin, 20, 0), (0.1, 0, 0), t)]
+        _, closed = book.update(apart, t)
+    assert [k.ids for k in closed] == [("a", "b")] and not book.active()
 
 
 def test_four_way_encounter_merges_into_one_roundabout():

@@ -11,10 +11,15 @@ which the pair is past its closest approach, at least the head's margin apart an
 away from the head's collision point (spec §7.2) and, for an overtake, the overtaking UAS is the
 margin ahead of the overtaken (:func:`overtaken`), or the peer is no longer reported. (Closing
 as soon as the pair diverged let a 4-UAS roundabout cut back across its centre and meet again.)
-A pair with an open chain or awaiting its confirming frame is computed whatever the UAS' speeds
-(``in_case`` of :func:`compute_collision_case`): the tracked speed of a slow UAS fluctuates across
-the hover gate, and a pair dropped for two frames ended its chain mid-overtake and re-opened it
-with the geometry of that moment.
+A UAS that hovers (below half the hover gate ``min_speed``) has no heading: it counts as heading
+away and an overtake with it is over, so with one UAS hovering the chain closes once the other
+is past its closest approach to it, the margin apart and heading away; with both hovering, once
+they are the margin apart. A pair with an open chain stays assessed at any speed, one awaiting
+its confirming frame down to half the hover gate (``gate`` of :func:`compute_collision_case`):
+the tracked speed of a slow UAS fluctuates across the gate, a pair dropped for two frames ended
+its chain mid-overtake and re-opened it with the geometry of that moment, and a give-way UAS
+that hovered out its soft deadlock ended its case and met the peer again as a fresh head-on
+case already inside the margin.
 Merge: the active head-on and converging chains that share a UAS form a cluster (overtakes are
 not merged: several at once slow the overtaking UAS, 6.202); a cluster of two or more chains is a
 virtual roundabout with centre = mean of the head collision points (weights 1, 6.195) and margin
@@ -82,7 +87,8 @@ class CaseBook:
         for i, a in enumerate(notes):
             for b in notes[i + 1 :]:
                 key = (a.id, b.id)
-                case = compute_collision_case(a, b, t, self.cfg, in_case=key in self.chains or key in last_pending)
+                gate = 0.0 if key in self.chains else 0.5 if key in last_pending else 1.0
+                case = compute_collision_case(a, b, t, self.cfg, gate)
                 if case is None:
                     continue
                 seen.add(key)
@@ -99,12 +105,12 @@ class CaseBook:
                 chain.head.links.append(t)
                 chain.last = case
                 cp = chain.head.collision_point
-                away = all(float((n.pos + n.vel * (t - n.t) - cp) @ n.vel) > 0.0 for n in (a, b))
+                moving = [n for n in (a, b) if n.speed >= 0.5 * self.cfg.min_speed]
                 clear = (
-                    case.t_cpa <= 0.0
-                    and case.separation >= chain.head.margin
-                    and away
-                    and overtaken(chain.head, a, b, t)
+                    case.separation >= chain.head.margin
+                    and (case.t_cpa <= 0.0 or not moving)
+                    and all(float((n.pos + n.vel * (t - n.t) - cp) @ n.vel) > 0.0 for n in moving)
+                    and (len(moving) < 2 or overtaken(chain.head, a, b, t))
                 )
                 chain.quiet = chain.quiet + 1 if clear else 0
         for key in [k for k in self.chains if k not in seen]:

@@ -255,17 +255,17 @@ def compute_collision_case(
     n2: PositionNotification,
     t: float,
     cfg: UtmConfig = UtmConfig(),
-    in_case: bool = False,
+    gate: float = 1.0,
 ) -> CollisionCase | None:
     """The case of the pair at frame time ``t`` [s], or None when they cannot meet (different
-    flight levels) or one of them hovers: below ``min_speed``, or below half of it for a pair that
-    is ``in_case`` (its case open or awaiting confirmation: a slow UAS' tracked speed fluctuates
-    across ``min_speed``, and dropping the pair for a frame would end its chain mid-manoeuvre and
-    re-open it with the geometry of that moment; a UAS that really hovers still ends it). ``flagged`` is set when the
+    flight levels) or one of them is slower than ``gate`` × ``min_speed`` (hovering: no approach
+    direction). :class:`~avoidance.utm.cases.CaseBook` passes 1 for a pair in no case, 0.5 for one
+    awaiting its confirming frame (a slow UAS' tracked speed fluctuates across ``min_speed``) and
+    0 for one whose chain is open (the chain ends by its close rule, not by a hover). ``flagged`` is set when the
     closest approach (trajectory intersection when a prediction is known, else linear) lies
     in [0, time_margin] (trajectories: (0, time_margin], their minimum at the frame time means
     the pair is past it) and within the collision margin (6.186)."""
-    if not n1.shares_level(n2) or min(n1.speed, n2.speed) < (0.5 if in_case else 1.0) * cfg.min_speed:
+    if not n1.shares_level(n2) or min(n1.speed, n2.speed) < gate * cfg.min_speed:
         return None
     a1, a2 = n1.adjusted(t), n2.adjusted(t)
     t_cpa, dist, cp = closest_approach(a1.pos, a1.vel, a2.pos, a2.vel)
