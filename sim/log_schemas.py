@@ -312,6 +312,7 @@ CRASH = _obj(
 
 # -- the central UTM authority (sim/utm_authority.py); GCF = ENU [m] from the scenario origin ----
 _CASES = {"type": "array", "items": {"type": "object"}}
+_CLUSTER = ({"type": "string"}, "the authority's airspace cluster (utm.cluster id; all: one authority)")
 _CASE_FIELDS = (
     "collision case records: t, ids, encounter, alpha_deg, roles, collision_point_enu [m], distance_m, "
     "t_cpa_s, margin_m, flagged, trajectory, head_t, separation_m"
@@ -320,6 +321,7 @@ _CASE_FIELDS = (
 UTM_NOTIFICATION = _obj(
     "cosim.UtmNotification",
     {
+        "cluster": _CLUSTER,
         "t": (_NUM, "sim time the authority received it [s]"),
         "sent_t": (_NUM, "sim time the vehicle sent it (its UTM frame) [s]"),
         "from": ({"type": "string"}, "the notifying vehicle"),
@@ -332,6 +334,7 @@ UTM_NOTIFICATION = _obj(
 UTM_FRAME = _obj(
     "cosim.UtmFrame",
     {
+        "cluster": _CLUSTER,
         "t": (_NUM, "frame start, sim time [s]"),
         "frame": ({"type": "integer"}, "UTM frame index"),
         "notified": ({"type": "array", "items": {"type": "string"}}, "vehicles with a fresh notification"),
@@ -349,6 +352,7 @@ UTM_FRAME = _obj(
 UTM_DIRECTIVE = _obj(
     "cosim.UtmDirective",
     {
+        "cluster": _CLUSTER,
         "t": (_NUM, "sim time sent (frame start) [s]"),
         "frame": ({"type": "integer"}, "UTM frame index"),
         "to": ({"type": "string"}, "the recipient"),
@@ -373,6 +377,7 @@ UTM_DIRECTIVE = _obj(
 UTM_ACK = _obj(
     "cosim.UtmAck",
     {
+        "cluster": _CLUSTER,
         "t": (_NUM, "sim time the authority received it [s]"),
         "from": ({"type": "string"}, "the acknowledging vehicle"),
         "frame": ({"type": "integer"}, "the acknowledged directive's frame"),
@@ -384,15 +389,21 @@ UTM_ACK = _obj(
 UTM_LINK = _obj(
     "cosim.UtmLink",
     {
+        "cluster": _CLUSTER,
         "t": (_NUM, "sim time [s]"),
         "vehicle": ({"type": "string"}, "the vehicle"),
-        "state": ({"enum": ["lost", "up"]}, "the authority's view: lost = no notification within lost_after"),
+        "state": (
+            {"enum": ["lost", "up", "left"]},
+            "the authority's view: lost = no notification within lost_after, left = notified outside the cluster's "
+            "handover band",
+        ),
     },
 )
 
 UTM_BREACH = _obj(
     "cosim.UtmBreach",
     {
+        "cluster": _CLUSTER,
         "t": (_NUM, "sim time [s]"),
         "case": ({"type": "object"}, "the breached case (separation_m < margin_m)"),
         "vehicle": ({"type": "string"}, "the vehicle notified inside a mandate's cylinder"),
@@ -437,6 +448,7 @@ UTM_PEER_ACK = _peer(
 UTM_SPOOF = _obj(
     "cosim.UtmSpoof",
     {
+        "cluster": _CLUSTER,
         "t": (_NUM, "sim time injected [s]"),
         "to": ({"type": "string"}, "the vehicle whose downlink carries the forged case"),
         "case": ({"type": "object"}, "the forged case"),

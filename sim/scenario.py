@@ -688,6 +688,34 @@ class UtmMandate(_Strict):
         return self
 
 
+class UtmCluster(_Strict):
+    """A static airspace cluster with its own authority (spec §7.1): the horizontal box
+    ``east_min`` <= east < ``east_max``, ``north_min`` <= north < ``north_max`` (offsets from the
+    origin [m], every altitude). ``id`` names it on the ``/utm`` topics."""
+
+    id: Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$")]
+    east_min: _Offset
+    east_max: _Offset
+    north_min: _Offset
+    north_max: _Offset
+
+    @model_validator(mode="after")
+    def _box(self) -> UtmCluster:
+        for axis in ("east", "north"):
+            lo, hi = getattr(self, f"{axis}_min"), getattr(self, f"{axis}_max")
+            if not hi > lo:
+                raise ValueError(f"{axis}_max ({hi:g} m) must be above {axis}_min ({lo:g} m)")
+        return self
+
+    def overlaps(self, o: UtmCluster) -> bool:
+        return (
+            self.east_min < o.east_max
+            and o.east_min < self.east_max
+            and self.north_min < o.north_max
+            and o.north_min < self.north_max
+        )
+
+
 class Utm(_Strict):
     """The central UTM authority (``sim/utm_authority.py``): decision ``frame`` period; a link is
     lost after ``lost_after`` without a message (the authority drops a silent vehicle from its
@@ -695,13 +723,32 @@ class Utm(_Strict):
     ``spoof``: forged cases (:class:`UtmSpoof`); ``weather``: the weather service's nowcasts go
     to the authority instead of the vehicles, and it sends each vehicle the weather cases of the
     cells its filed route crosses in its directives (§7.5; needs ``[weather]``); ``mandate``:
-    mandates sent in the directives (:class:`UtmMandate`)."""
+    mandates sent in the directives (:class:`UtmMandate`); ``cluster``: static airspace clusters,
+    one authority each (:class:`UtmCluster`; none: one authority over the whole airspace), a
+    vehicle directed by the one whose box holds its notified position, notifying every one whose
+    box grown by ``handover`` [m] holds it (so the cases of a pair across a boundary are known on
+    both sides before either vehicle crosses); outside every box the airspace is uncontrolled
+    (no directives: blind mode)."""
 
     frame: Annotated[float, quantity("time", 0.0, 60.0, lo_open=True)] = 1.0
     lost_after: Annotated[float, quantity("time", 0.0, 600.0, lo_open=True)] = 3.0
     spoof: list[UtmSpoof] = []
     weather: bool = False
     mandate: list[UtmMandate] = []
+    cluster: list[UtmCluster] = []
+    handover: Annotated[float, quantity("length", 0.0, 1e5)] = 300.0
+
+    @model_validator(mode="after")
+    def _clusters(self) -> Utm:
+        ids = [c.id for c in self.cluster]
+        dup = sorted({i for i in ids if ids.count(i) > 1})
+        if dup:
+            raise ValueError(f"utm.cluster ids must be unique, repeated: {', '.join(dup)}")
+        for i, a in enumerate(self.cluster):
+            for b in self.cluster[i + 1 :]:
+                if a.overlaps(b):
+                    raise ValueError(f"utm.cluster {a.id!r} and {b.id!r} overlap (a position has one authority)")
+        return self
 
     @model_validator(mode="after")
     def _lost_after_frames(self) -> Utm:

@@ -1,4 +1,4 @@
-"""The central UTM authority of one airspace cluster (spec §7.1, §7.3, §7.4): decision frames,
+"""The central UTM authority of one static airspace cluster (spec §7.1, §7.3, §7.4): decision frames,
 position notifications with filed mission plans, collision cases computed centrally, directives,
 acknowledgements and breach reports, every message over each vehicle's modelled link
 (:mod:`sim.utm_link`) and on its own MCAP topic.
@@ -27,8 +27,19 @@ Mandates (``utm.mandate``, :mod:`avoidance.utm.mandate`): every directive to a v
 the mandates in force for it (keep clear of a cylinder); the vehicle obeys and acknowledges them
 (the acknowledgement lists the ids it obeys); a notified position inside one is a breach.
 
-Topics: ``/utm/notification``, ``/utm/frame``, ``/utm/directive``, ``/utm/ack``, ``/utm/link``
-(the authority's view of a vehicle's link: lost / up), ``/utm/breach`` (an active case whose
+Clusters (``utm.cluster``): one authority per box. A vehicle sends its notification to every
+authority whose box grown by ``utm.handover`` holds its estimate (and once more to one it has just
+left, which then counts it as left rather than lost); each authority computes the cases of the
+vehicles notified within its band, and directs those whose newest notification lies in its box
+(before the first: the vehicle's departure point). A pair across a boundary is thus known to both
+authorities before either vehicle crosses, and a vehicle crossing is directed by the next
+authority from the next frame on. Without clusters one authority holds every vehicle. The frame
+numbers are the same for every authority (frame i starts at ``i * frame``), so a vehicle's inbox
+orders directives across a hand-over.
+
+Topics (every message names its ``cluster``, ``all`` without clusters): ``/utm/notification``,
+``/utm/frame``, ``/utm/directive``, ``/utm/ack``, ``/utm/link`` (the authority's view of a
+vehicle's link: lost / up / left its band), ``/utm/breach`` (an active case whose
 notified separation is below its margin, once per case chain; a notified position inside a
 mandate's cylinder, once per mandate), ``/utm/spoof`` (forged cases injected on a vehicle's
 downlink, scenario ``utm.spoof``). Frames: GCF (ENU) [m] from the scenario origin, sim seconds.
@@ -52,7 +63,7 @@ from sim import log_schemas as S
 from sim.core.frames import ned_to_enu
 from sim.core.threats import StormSnapshot
 from sim.mcap_log import McapLog
-from sim.scenario import Utm, UtmMandate, UtmSpoof
+from sim.scenario import Utm, UtmCluster, UtmMandate, UtmSpoof
 from sim.utm_link import Link, Queue
 from sim.vehicle import Vehicle
 
@@ -80,9 +91,11 @@ class Member:
     last_note: PositionNotification | None = None
     last_ack: int = -1
     lost: bool = True  # no fresh notification (before the first one, too)
-    first_t: float | None = None  # send time of its first notification [s]
     established: bool = False  # past its start transient (:meth:`UtmAuthority._established`)
     peer_link: bool = False  # it has a vehicle-to-vehicle link (response mode)
+    departure: np.ndarray | None = None  # GCF [m] where it stood at the start (home before a notification)
+    sent: bool = False  # its last notification went to this authority (inside the band)
+    home_since: int | None = None  # frame it has been directed from since (None: not directed here)
 
     def obeying(self, lost_after: float) -> RulesAvoider | None:
         """The planner that obeys and acknowledges directives now: the vehicle's rules planner,
@@ -98,7 +111,7 @@ class Member:
 
 
 class UtmAuthority:
-    """One authority over every vehicle of the run. Rules vehicles join with their filed
+    """The authority of one airspace ``cluster`` (None: the whole airspace). Rules vehicles join with their filed
     registration (:meth:`RulesAvoider.join_utm`); the case parameters (time margin, closing
     hysteresis, doubts) are those the first of them files, so the authority and the vehicles'
     virtual UTMs compute cases alike. Other vehicles notify with the default registration
@@ -113,10 +126,17 @@ class UtmAuthority:
         origin_alt: float,
         tick_hz: float,
         peer_linked: frozenset[str] = frozenset(),
+        cluster: UtmCluster | None = None,
+        first_heard: dict[str, float] | None = None,
     ):
         """``tick_hz``: the rate :meth:`tick` is called at (the log rate); ``peer_linked``: the
-        vehicles with a vehicle-to-vehicle link."""
+        vehicles with a vehicle-to-vehicle link; ``cluster``: the airspace box it holds;
+        ``first_heard``: per vehicle, the send time of its first notification any authority took
+        [s] (shared by the authorities of one airspace)."""
         self.cfg, self.log, self.origin_alt, self.tick_hz = cfg, log, origin_alt, tick_hz
+        self.cluster = cluster
+        self.id = cluster.id if cluster is not None else "all"
+        self.first_heard = first_heard if first_heard is not None else {}
         self.members: dict[str, Member] = {}
         book_cfg: UtmConfig | None = None
         for v in vehicles:
@@ -125,7 +145,8 @@ class UtmAuthority:
             reg = p.join_utm(v.name, cfg.lost_after, peer) if p is not None else Registration(v.name)
             if p is not None and book_cfg is None:
                 book_cfg = p.book.cfg
-            self.members[v.name] = Member(v, links[v.name], reg, p, Queue(), peer_link=peer)
+            depart = ned_to_enu(v.estimate.pos_ned)
+            self.members[v.name] = Member(v, links[v.name], reg, p, Queue(), peer_link=peer, departure=depart)
         self.mandates = [(m.vehicle, self._mandate(m)) for m in cfg.mandate]
         self.book = CaseBook(book_cfg or UtmConfig())
         self.up = Queue()
@@ -140,7 +161,7 @@ class UtmAuthority:
             m = self.members[name]
             if kind == "ack":
                 m.last_ack = max(m.last_ack, msg["frame"])
-                self.log.write_json("/utm/ack", t, {"t": t, "from": name, **msg}, S.UTM_ACK)
+                self.log.write_json("/utm/ack", t, {"t": t, "cluster": self.id, "from": name, **msg}, S.UTM_ACK)
             elif m.last_note is None or msg.t > m.last_note.t:
                 m.last_note = msg
                 self._log_notification(t, msg)
@@ -158,14 +179,17 @@ class UtmAuthority:
         directives, then this frame's notifications."""
         notes = []
         for name, m in self.members.items():
-            fresh = m.last_note is not None and t - m.last_note.t <= self.cfg.lost_after
+            note = m.last_note
+            stale = note is None or t - note.t > self.cfg.lost_after
+            # left the band: notified outside it, or silent and predicted outside by now
+            inside = note is not None and self._in_band(note.pos)
+            left = note is not None and not (inside and (not stale or self._in_band(note.adjusted(t).pos)))
+            fresh = not stale and not left
             if fresh == m.lost:
                 m.lost = not fresh
-                state = "lost" if m.lost else "up"
-                self.log.write_json("/utm/link", t, {"t": t, "vehicle": name, "state": state}, S.UTM_LINK)
-                self.log.event(t, f"utm: link to {name} {state}", "warning" if m.lost else "info", "utm")
-            if fresh and m.last_note is not None and self._established(m, m.last_note):
-                notes.append(m.last_note)
+                self._log_link(t, name, "left" if left else "lost" if m.lost else "up")
+            if fresh and note is not None and self._established(m, note):
+                notes.append(note)
         opened, closed = self.book.update(notes, t)
         rbs = {u: rb for rb in self.book.roundabouts() for u in rb.members}
         active = self.book.active()
@@ -176,6 +200,7 @@ class UtmAuthority:
             t,
             {
                 "t": t,
+                "cluster": self.id,
                 "frame": self.frame_no,
                 "notified": sorted(n.id for n in notes),
                 "opened": [c.record() for c in opened],
@@ -191,24 +216,58 @@ class UtmAuthority:
             _META,
         )
         for name, m in self.members.items():
+            if not self._home(m):
+                m.home_since = None
+                continue
+            if m.home_since is None:
+                m.home_since = self.frame_no
             cases = [as_roundabout(c, rbs[name]) if name in rbs else c for c in active if name in c.ids]
             mandates = tuple(md for to, md in self.mandates if to == name and md.active(t))
             d = Directive(self.frame_no, t, name, tuple(cases) + self._spoofed(t, name), self._weather(m, t), mandates)
             self._send_down(t, m, d)
         for name, m in self.members.items():
-            self._send_up(t, name, ("note", name, self._notification(m, t)))
+            note = self._notification(m, t)
+            inside = self._in_band(note.pos)
+            if inside or m.sent:  # the vehicle tells an authority it has just left, once
+                self._send_up(t, name, ("note", name, note))
+            m.sent = inside
+
+    def _in_band(self, pos: np.ndarray) -> bool:
+        """Whether a GCF position [m] lies in the cluster's box grown by ``handover``."""
+        c = self.cluster
+        if c is None:
+            return True
+        h = self.cfg.handover
+        return c.east_min - h <= pos[0] < c.east_max + h and c.north_min - h <= pos[1] < c.north_max + h
+
+    def _home(self, m: Member) -> bool:
+        """Whether this authority directs ``m``: its newest notification (before the first, its
+        departure point) lies in the cluster's box."""
+        c = self.cluster
+        if c is None:
+            return True
+        pos = m.last_note.pos if m.last_note is not None else m.departure
+        assert pos is not None
+        return c.east_min <= pos[0] < c.east_max and c.north_min <= pos[1] < c.north_max
+
+    def _log_link(self, t: float, name: str, state: str) -> None:
+        self.log.write_json("/utm/link", t, {"t": t, "cluster": self.id, "vehicle": name, "state": state}, S.UTM_LINK)
+        self.log.event(t, f"{self._who}: link to {name} {state}", "info" if state == "up" else "warning", "utm")
+
+    @property
+    def _who(self) -> str:
+        return "utm" if self.cluster is None else f"utm {self.id}"
 
     def _established(self, m: Member, note: PositionNotification) -> bool:
         """Whether the vehicle takes part in cases: as in its own *detect* rule, once it has
-        flown its rules' ``settle`` [s] since its first notification and reached their
+        flown its rules' ``settle`` [s] since its first notification (to any authority) and reached their
         ``established_speed`` share of its cruise speed (start transients make early headings
         meaningless, and the head case fixes the roles); then for good."""
-        if m.first_t is None:
-            m.first_t = note.t
+        first = self.first_heard.setdefault(m.vehicle.name, note.t)
         if not m.established and m.planner is not None:
             rules = m.planner.rules
             m.established = (
-                note.t >= m.first_t + rules.settle and note.speed >= rules.established_speed * m.registration.max_cruise
+                note.t >= first + rules.settle and note.speed >= rules.established_speed * m.registration.max_cruise
             )
         return m.established or m.planner is None
 
@@ -226,10 +285,13 @@ class UtmAuthority:
         return tuple(crossing(cases, route, length / mission.cruise_speed))
 
     def _unacknowledged(self) -> list[str]:
-        """Directed vehicles whose newest acknowledgement is more than ``lost_after`` old."""
-        frames = max(1, round(self.cfg.lost_after / self.cfg.frame))
+        """Vehicles directed here for more than ``lost_after`` whose newest acknowledgement is
+        older than that."""
+        old = self.frame_no - max(1, round(self.cfg.lost_after / self.cfg.frame))
         return sorted(
-            n for n, m in self.members.items() if m.planner is not None and m.last_ack < self.frame_no - frames
+            n
+            for n, m in self.members.items()
+            if m.planner is not None and m.home_since is not None and m.home_since <= old and m.last_ack < old
         )
 
     def _notification(self, m: Member, t: float) -> PositionNotification:
@@ -253,6 +315,7 @@ class UtmAuthority:
             t,
             {
                 "t": t,
+                "cluster": self.id,
                 "frame": d.frame,
                 "to": d.to,
                 "received_t": self._handed(due),
@@ -278,7 +341,8 @@ class UtmAuthority:
                 continue
             c = self._forged(s, t)
             out.append(c)
-            self.log.write_json("/utm/spoof", t, {"t": t, "to": name, "case": c.record()}, S.UTM_SPOOF, _META)
+            record = {"t": t, "cluster": self.id, "to": name, "case": c.record()}
+            self.log.write_json("/utm/spoof", t, record, S.UTM_SPOOF, _META)
         return tuple(out)
 
     def _forged(self, s: UtmSpoof, t: float) -> CollisionCase:
@@ -306,10 +370,10 @@ class UtmAuthority:
             key = (c.ids, c.head)
             if c.separation < c.margin and key not in self._breached:
                 self._breached.add(key)
-                self.log.write_json("/utm/breach", t, {"t": t, "case": c.record()}, S.UTM_BREACH, _META)
-                self.log.event(
-                    t, f"utm: breach {c.ids[0]}-{c.ids[1]}: {c.separation:.1f} m < {c.margin:.1f} m", "warning", "utm"
-                )
+                record = {"t": t, "cluster": self.id, "case": c.record()}
+                self.log.write_json("/utm/breach", t, record, S.UTM_BREACH, _META)
+                what = f"breach {c.ids[0]}-{c.ids[1]}: {c.separation:.1f} m < {c.margin:.1f} m"
+                self.log.event(t, f"{self._who}: {what}", "warning", "utm")
 
     def _mandate(self, m: UtmMandate) -> Mandate:
         """The mandate of a scenario entry (GCF centre, heights above the origin)."""
@@ -320,13 +384,14 @@ class UtmAuthority:
 
     def _report_mandate_breaches(self, t: float, notes: list[PositionNotification]) -> None:
         """Monitor the mandates: a notified position inside a mandate in force is a breach."""
-        where = {n.id: n.pos for n in notes}
+        where = {n.id: n.pos for n in notes if self._home(self.members[n.id])}
         for to, md in self.mandates:
             if md.id in self._mandate_breached or to not in where or not md.active(t) or not md.inside(where[to]):
                 continue
             self._mandate_breached.add(md.id)
-            self.log.write_json("/utm/breach", t, {"t": t, "vehicle": to, "mandate": md.record()}, S.UTM_BREACH, _META)
-            self.log.event(t, f"utm: breach of mandate {md.id} by {to}", "warning", "utm")
+            record = {"t": t, "cluster": self.id, "vehicle": to, "mandate": md.record()}
+            self.log.write_json("/utm/breach", t, record, S.UTM_BREACH, _META)
+            self.log.event(t, f"{self._who}: breach of mandate {md.id} by {to}", "warning", "utm")
 
     def _log_notification(self, t: float, n: PositionNotification) -> None:
         self.log.write_json(
@@ -334,6 +399,7 @@ class UtmAuthority:
             t,
             {
                 "t": t,
+                "cluster": self.id,
                 "sent_t": n.t,
                 "from": n.id,
                 "pos_enu": n.pos,

@@ -118,7 +118,7 @@ class World:
             self.obstacles,
         )
         self.crashes: list[Crash] = []
-        self.utm = self._authority(scenario, log) if scenario.utm is not None else None
+        self.utm = self._authorities(scenario, log)
         self.peers = self._peer_network(scenario, log)
         write_map(log, self.obstacles, self.fences, self.origin)
         log.metadata("vehicles", {v.name: v.airframe.kind for v in self.vehicles})
@@ -146,8 +146,8 @@ class World:
                 sched.add_task(
                     f"{v.name}.lidar", self.lidars[v.name][0].cfg.rate_hz, Stage.SENSE, partial(self._scan, v)
                 )
-        if self.utm is not None:
-            sched.add_task("utm", log_hz, Stage.SENSE, self.utm.tick)
+        if self.utm:
+            sched.add_task("utm", log_hz, Stage.SENSE, self._utm_tick)
         if self.peers is not None:
             sched.add_task("utm.peers", log_hz, Stage.SENSE, self.peers.tick)
         if self.objects:
@@ -181,16 +181,22 @@ class World:
             )
         self.crashes += found
 
-    def _authority(self, scenario: Scenario, log: McapLog) -> UtmAuthority:
-        """The UTM authority over every vehicle, each on its modelled link (scenario ``utm``,
-        ``vehicle.utm_link``)."""
-        assert scenario.utm is not None
+    def _authorities(self, scenario: Scenario, log: McapLog) -> list[UtmAuthority]:
+        """The UTM authorities (scenario ``utm``): one per airspace cluster, or one over the
+        whole airspace; each vehicle on its modelled link (``vehicle.utm_link``), the same to every
+        authority. None without ``[utm]``."""
+        if scenario.utm is None:
+            return []
         streams = link_streams(scenario.seed, len(scenario.vehicle))
         links = {v.name: _link(v.utm_link or UtmLink(), ss) for v, ss in zip(scenario.vehicle, streams, strict=True)}
         peered = frozenset(v.name for v in scenario.vehicle if v.peer_link is not None)
-        return UtmAuthority(
-            scenario.utm, self.vehicles, links, log, self.origin.alt_m, scenario.logging.rate_hz, peered
-        )
+        args = (scenario.utm, self.vehicles, links, log, self.origin.alt_m, scenario.logging.rate_hz, peered)
+        heard: dict[str, float] = {}
+        return [UtmAuthority(*args, c, heard) for c in scenario.utm.cluster] or [UtmAuthority(*args)]
+
+    def _utm_tick(self, t: float) -> None:
+        for a in self.utm:
+            a.tick(t)
 
     def _peer_network(self, scenario: Scenario, log: McapLog) -> PeerNetwork | None:
         """The vehicle-to-vehicle links (``vehicle.peer_link``; they need ``[utm]``), None without."""
@@ -208,8 +214,9 @@ class World:
     def sense(self, t: float) -> None:
         """Weather nowcasts and traffic tracks into every vehicle's threats."""
         if self.weather is not None and self.weather.update(t):
-            if self.utm is not None and self.scenario.utm is not None and self.scenario.utm.weather:
-                self.utm.storms = self.weather.nowcast  # the authority's feed: weather cases in its directives
+            if self.utm and self.scenario.utm is not None and self.scenario.utm.weather:
+                for a in self.utm:  # the authorities' feed: weather cases in their directives
+                    a.storms = self.weather.nowcast
             else:
                 for v in self.vehicles:
                     v.threats.storms = self.weather.nowcast

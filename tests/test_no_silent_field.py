@@ -427,7 +427,26 @@ def _utm_weather(d: dict) -> None:
     _set("weather", dict(_WEATHER))(d)
 
 
+def _utm_cluster(d: dict) -> None:
+    """:func:`_utm` with the authority of one airspace cluster whose box holds the quadrotor."""
+    _utm(d)
+    d["utm"]["cluster"] = [{"id": "a", "east_min": -10.0, "east_max": 10.0, "north_min": -10.0, "north_max": 10.0}]
+
+
+def _utm_cluster_beside(d: dict) -> None:
+    """:func:`_utm_cluster` with the box 20-40 m east: the quadrotor notifies it from the hand-over
+    band (directed by nobody)."""
+    _utm_cluster(d)
+    d["utm"]["cluster"][0] |= {"east_min": 20.0, "east_max": 40.0}
+
+
 EFFECTS |= {
+    "utm.cluster.id": (_QUAD, _utm_cluster, _set("utm.cluster.0.id", "b")),
+    "utm.cluster.east_min": (_QUAD, _utm_cluster, _set("utm.cluster.0.east_min", 1.0)),
+    "utm.cluster.east_max": (_QUAD, _utm_cluster, _set("utm.cluster.0.east_max", -1.0)),
+    "utm.cluster.north_min": (_QUAD, _utm_cluster, _set("utm.cluster.0.north_min", 1.0)),
+    "utm.cluster.north_max": (_QUAD, _utm_cluster, _set("utm.cluster.0.north_max", -1.0)),
+    "utm.handover": (_QUAD, _utm_cluster_beside, _set("utm.handover", 0.0)),
     "utm.frame": (_QUAD, _utm, _set("utm.frame", 0.5)),
     "utm.weather": (_QUAD, _utm_weather, _set("utm.weather", True)),
     "utm.lost_after": (_QUAD, _utm, _set("utm.lost_after", 1.0)),  # the outage then loses the link

@@ -99,9 +99,11 @@ class RulesAvoider(ReachSetAvoider):
         """Register with a central UTM as ``name``: directives are merged with the own cases from
         now on; the link counts as lost after ``lost_after`` [s] without a directive; with a
         ``peer_link`` (vehicle-to-vehicle) a lost UTM link means response mode while peers are
-        heard. Returns the registration filed."""
-        self.utm = UtmInbox(OWN, lost_after)
-        self.peers = PeerTalk(name, OWN, lost_after) if peer_link else None
+        heard. Returns the registration filed. Joining again (the authority of another airspace
+        cluster) keeps the inbox: directives of every authority arrive in it."""
+        if self.utm is None:
+            self.utm = UtmInbox(OWN, lost_after)
+            self.peers = PeerTalk(name, OWN, lost_after) if peer_link else None
         return dataclasses.replace(self.registration, id=name)
 
     def receive_peer(self, m: PeerMessage, t: float) -> list[PeerMessage]:

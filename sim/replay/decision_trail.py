@@ -43,26 +43,35 @@ def _case(c: dict) -> str:
     return f"case {a}-{b} {c['encounter']}: {a} {ra}, {b} {rb}, margin {c['margin_m']:.0f} m"
 
 
+def _who(m: dict) -> str:
+    """The authority that wrote a ``/utm`` message: ``utm``, or ``utm <cluster>`` with clusters."""
+    c = m.get("cluster", "all")
+    return "utm" if c == "all" else f"utm {c}"
+
+
 def authority_rows(log: RunLog) -> list[Row]:
-    """The authority's decisions (empty without an authority)."""
+    """The authorities' decisions, per airspace cluster (empty without an authority)."""
     if not log.has("/utm/frame"):
         return []
-    items: dict[float, set[str]] = {}
+    items: dict[str, dict[float, set[str]]] = {}
     for f in log.topic("/utm/frame").messages:
-        now = items[float(f["t"])] = {_case(c) for c in f["active"]}
+        now = items.setdefault(_who(f), {})[float(f["t"])] = {_case(c) for c in f["active"]}
         now |= {f"roundabout {'-'.join(r['members'])}, margin {r['margin_m']:.0f} m" for r in f["roundabouts"]}
         now |= {f"no acknowledgement from {v}" for v in f["unacknowledged"]}
     for d in log.topic("/utm/directive").messages:  # sent at the frame time
-        items[float(d["t"])] |= {f"weather case {w['id']} to {d['to']}" for w in d.get("weather", [])}
-        items[float(d["t"])] |= {f"mandate {m['id']} to {d['to']}" for m in d.get("mandates", [])}
+        now = items[_who(d)][float(d["t"])]
+        now |= {f"weather case {w['id']} to {d['to']}" for w in d.get("weather", [])}
+        now |= {f"mandate {m['id']} to {d['to']}" for m in d.get("mandates", [])}
+        if _who(d) != "utm":  # with clusters: which authority directs whom (the hand-overs)
+            now.add(f"directs {d['to']}")
     for m in log.topic("/utm/spoof").messages if log.has("/utm/spoof") else []:
-        items[float(m["t"])].add(f"forged case {m['case']['ids'][1]} to {m['to']}")
-    rows = streaks(sorted(items.items()), "utm")
+        items[_who(m)][float(m["t"])].add(f"forged case {m['case']['ids'][1]} to {m['to']}")
+    rows = [r for who, frames in items.items() for r in streaks(sorted(frames.items()), who)]
     for m in log.topic("/utm/link").messages if log.has("/utm/link") else []:
-        rows.append((float(m["t"]), None, "utm", f"link to {m['vehicle']} {m['state']}"))
+        rows.append((float(m["t"]), None, _who(m), f"link to {m['vehicle']} {m['state']}"))
     for m in log.topic("/utm/breach").messages if log.has("/utm/breach") else []:
         what = f"mandate {m['mandate']['id']} by {m['vehicle']}" if "mandate" in m else _case(m["case"])
-        rows.append((float(m["t"]), None, "utm", f"breach of {what}"))
+        rows.append((float(m["t"]), None, _who(m), f"breach of {what}"))
     return rows
 
 
