@@ -75,6 +75,24 @@ class RuleContext:
         """The scale of the thesis' metre [m] (config)."""
         return self.cfg.unit
 
+    def note(self, uas: str) -> PositionNotification | None:
+        """This frame's notification of ``uas`` (the own one under :attr:`uas`), None if none."""
+        return next((n for n in self.notifications if n.id == uas), None)
+
+    def own_note(self) -> PositionNotification:
+        """This frame's own notification (always present)."""
+        own = self.note(self.uas)
+        if own is None:
+            raise RuntimeError("the frame has no own notification")
+        return own
+
+    def peer_note(self, case: CollisionCase) -> PositionNotification:
+        """This frame's notification of the case's other UAS (a case's peer is always notified)."""
+        peer = self.note(case.other(self.uas))
+        if peer is None:
+            raise RuntimeError(f"no notification of {case.other(self.uas)}")
+        return peer
+
     def current_case(self) -> CollisionCase:
         """The case the running manoeuvre / restriction rule works on."""
         if self.case is None:

@@ -246,7 +246,7 @@ class RulesAvoider(ReachSetAvoider):
             return False  # a peer that resolves too may wait as well (head-on, roundabout)
         t = np.linspace(0.0, 2.0 * self.frame, 21)[:, None]
         for c in ctx.resolve:
-            peer = next((n for n in ctx.notifications if n.id == c.other(ctx.uas)), None)
+            peer = ctx.note(c.other(ctx.uas))
             if peer is None:
                 return False
             p = peer.adjusted(d.t_grid)

@@ -83,7 +83,7 @@ class DetectCollisionCases:
         return True
 
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
-        own_note = next(n for n in ctx.notifications if n.id == ctx.uas)
+        own_note = ctx.own_note()
         starting = (
             ctx.t < ctx.start + ctx.cfg.settle
             or own_note.speed < ctx.cfg.established_speed * own_note.registration.max_cruise
@@ -197,7 +197,7 @@ class Overtake:
 
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
         case = ctx.current_case()
-        peer = next(n for n in ctx.notifications if n.id == case.other(ctx.uas)).adjusted(ctx.current_decision().t_grid)
+        peer = ctx.peer_note(case).adjusted(ctx.current_decision().t_grid)
         ctx.margin = case.margin + ctx.cfg.bloat * ctx.unit
         ctx.record(self.code, case, margin_m=ctx.margin)
         ctx.case = replace(case, collision_point=peer.pos)
@@ -207,8 +207,8 @@ class Overtake:
 
 def _overtake_goal(ctx: RuleContext, case: CollisionCase) -> None:
     """The overtake's waypoint for this frame: divergence until abeam of it, then convergence."""
-    own = next(n for n in ctx.notifications if n.id == ctx.uas)
-    peer = next(n for n in ctx.notifications if n.id == case.other(ctx.uas)).adjusted(ctx.t)
+    own = ctx.own_note()
+    peer = ctx.peer_note(case).adjusted(ctx.t)
     margin = case.margin + ctx.cfg.bloat * ctx.unit
     div, conv = overtake_waypoints(
         own.pos, own.vel, peer.pos, peer.vel, case.collision_point, margin, ctx.frame, 2.0 * ctx.length
@@ -246,8 +246,8 @@ def _pass_behind_goal(ctx: RuleContext, case: CollisionCase) -> None:
     the manoeuvre's margin (:func:`pass_behind_point`). Aiming at the mission goal the path
     selection skirts the margin ball tangentially and turns last; the peer's moving margin then
     closes every path (soft deadlock, emergency)."""
-    own = next(n for n in ctx.notifications if n.id == ctx.uas)
-    peer = next(n for n in ctx.notifications if n.id == case.other(ctx.uas)).adjusted(ctx.t)
+    own = ctx.own_note()
+    peer = ctx.peer_note(case).adjusted(ctx.t)
     offset = case.margin + (ctx.cfg.bloat + ctx.cfg.converging_extra) * ctx.unit
     aim = pass_behind_point(peer.pos, peer.vel, own.pos, offset)
     if aim is not None:
@@ -296,7 +296,7 @@ class EnforceSafetyMargin:
         half = ctx.cfg.barrel_half_height if ctx.cfg.airspace == "controlled" else None
         tol = ctx.cfg.plane_tolerance * ctx.unit
         mask = safety_margin_mask(tree, pose, case.collision_point, ctx.margin, half, tol)
-        peer = next((n for n in ctx.notifications if n.id == case.other(ctx.uas)), None)
+        peer = ctx.note(case.other(ctx.uas))
         if peer is not None:  # and around the peer flying on (its separation, not only the point's)
             p = peer.adjusted(ctx.current_decision().t_grid)
             mask |= moving_margin_mask(tree, pose, p.pos, p.vel, case.margin + ctx.cfg.bloat * ctx.unit, tol)
@@ -367,7 +367,7 @@ class WeatherCases:
         return bool(ctx.weather) and ctx.goal is not None and ctx.goal_override is None
 
     def apply(self, ctx: RuleContext, engine: RuleEngine) -> None:
-        own = next(n for n in ctx.notifications if n.id == ctx.uas)
+        own = ctx.own_note()
         goal = np.asarray(ctx.goal, float)
         route = shapely.LineString([own.pos[:2], goal[:2]])
         ahead = goal - own.pos
