@@ -15,7 +15,8 @@ from sim.replay.runlog import RunLog
 from sim.runner import run_scenario
 from sim.scenario import ScenarioError, load_scenario, parse_scenario
 
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "rules" / "s10_head_on_clusters.toml"
+RULES = Path(__file__).resolve().parents[1] / "scenarios" / "rules"
+SCENARIO = RULES / "s10_head_on_clusters.toml"
 BOUNDARY, EAST_EDGE = 100.0, 200.0  # east [m]: west | east box boundary, east box's far edge
 HEAD_ON_MARGIN = 50.0  # [m] (rules_unit 5)
 
@@ -64,8 +65,8 @@ def test_touching_clusters_are_valid():
     assert s.utm is not None and [c.id for c in s.utm.cluster] == ["a", "b"]
 
 
-def fly(tmp_path, handover: float | None = None) -> RunLog:
-    scenario, text = load_scenario(SCENARIO)
+def fly(tmp_path, handover: float | None = None, path: Path = SCENARIO) -> RunLog:
+    scenario, text = load_scenario(path)
     assert scenario.utm is not None
     if handover is not None:
         scenario = scenario.model_copy(update={"utm": scenario.utm.model_copy(update={"handover": handover})})
@@ -147,3 +148,29 @@ def test_without_a_handover_band_neither_authority_sees_the_pair_across_the_boun
         if n["cluster"] == "west" and n["pos_enu"][0] >= BOUNDARY
     ]
     assert beyond == ["uas1"]  # only its notification on leaving the box
+
+
+@pytest.mark.closed_loop
+def test_four_quadrant_authorities_form_one_roundabout_and_hand_over_its_members(tmp_path):
+    """S11 under four authorities, one per quadrant around the crossing
+    (``s11_roundabout_clusters.toml``): every authority hears the four UAS through the 300 m band
+    and merges the same roundabout (members and centre equal in every frame, at the crossing);
+    each UAS is directed by the authority of its quadrant, more than one over the run, never two
+    in one frame; every pair keeps the 50 m roundabout margin, all complete."""
+    log = fly(tmp_path, path=RULES / "s11_roundabout_clusters.toml")
+    frames: dict[float, dict[str, tuple]] = {}
+    for f in log.topic("/utm/frame").messages:
+        for r in f["roundabouts"]:
+            frames.setdefault(f["t"], {})[f["cluster"]] = (tuple(r["members"]), tuple(r["centre_enu"]))
+    full = {t: c for t, c in frames.items() if any(len(m) == 4 for m, _ in c.values())}
+    assert full, "no four-member roundabout"
+    for t, by_cluster in full.items():
+        assert set(by_cluster) == {"sw", "se", "nw", "ne"} and len(set(by_cluster.values())) == 1, t
+        centre = next(iter(by_cluster.values()))[1]
+        assert abs(centre[0] - 100.0) < 10.0 and abs(centre[1] - 100.0) < 10.0
+    for v in ("uas1", "uas2", "uas3", "uas4"):
+        seq = directors(log, v)
+        assert len({k for k, _ in seq}) == len(seq) and len({c for _, c in seq}) >= 2, v
+    m = log_metrics(log)
+    assert min(x["distance_m"] for x in m["separation"].values()) >= HEAD_ON_MARGIN
+    assert all(v["mission"]["complete"] for v in m["vehicles"].values())
