@@ -707,6 +707,11 @@ class UtmCluster(_Strict):
                 raise ValueError(f"{axis}_max ({hi:g} m) must be above {axis}_min ({lo:g} m)")
         return self
 
+    def contains(self, east: float, north: float, grow: float = 0.0) -> bool:
+        """Whether the point (offsets [m]) lies in the box grown by ``grow`` [m] on every side."""
+        in_east = self.east_min - grow <= east < self.east_max + grow
+        return in_east and self.north_min - grow <= north < self.north_max + grow
+
     def overlaps(self, o: UtmCluster) -> bool:
         return (
             self.east_min < o.east_max

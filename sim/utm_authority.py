@@ -234,21 +234,14 @@ class UtmAuthority:
 
     def _in_band(self, pos: np.ndarray) -> bool:
         """Whether a GCF position [m] lies in the cluster's box grown by ``handover``."""
-        c = self.cluster
-        if c is None:
-            return True
-        h = self.cfg.handover
-        return c.east_min - h <= pos[0] < c.east_max + h and c.north_min - h <= pos[1] < c.north_max + h
+        return self.cluster is None or self.cluster.contains(float(pos[0]), float(pos[1]), self.cfg.handover)
 
     def _home(self, m: Member) -> bool:
         """Whether this authority directs ``m``: its newest notification (before the first, its
         departure point) lies in the cluster's box."""
-        c = self.cluster
-        if c is None:
-            return True
         pos = m.last_note.pos if m.last_note is not None else m.departure
         assert pos is not None
-        return c.east_min <= pos[0] < c.east_max and c.north_min <= pos[1] < c.north_max
+        return self.cluster is None or self.cluster.contains(float(pos[0]), float(pos[1]))
 
     def _log_link(self, t: float, name: str, state: str) -> None:
         self.log.write_json("/utm/link", t, {"t": t, "cluster": self.id, "vehicle": name, "state": state}, S.UTM_LINK)
