@@ -688,6 +688,13 @@ class UtmMandate(_Strict):
         return self
 
 
+def _require_unique(ids: list[str], rule: str) -> None:
+    """Raise the one-line error ``<rule>, repeated: <ids>`` when ``ids`` repeat an entry."""
+    dup = sorted({i for i in ids if ids.count(i) > 1})
+    if dup:
+        raise ValueError(f"{rule}, repeated: {', '.join(dup)}")
+
+
 class UtmCluster(_Strict):
     """A static airspace cluster with its own authority (spec §7.1): the horizontal box
     ``east_min`` <= east < ``east_max``, ``north_min`` <= north < ``north_max`` (offsets from the
@@ -746,9 +753,7 @@ class Utm(_Strict):
     @model_validator(mode="after")
     def _clusters(self) -> Utm:
         ids = [c.id for c in self.cluster]
-        dup = sorted({i for i in ids if ids.count(i) > 1})
-        if dup:
-            raise ValueError(f"utm.cluster ids must be unique, repeated: {', '.join(dup)}")
+        _require_unique(ids, "utm.cluster ids must be unique")
         for i, a in enumerate(self.cluster):
             for b in self.cluster[i + 1 :]:
                 if a.overlaps(b):
@@ -829,9 +834,7 @@ class Scenario(_Strict):
     @model_validator(mode="after")
     def _references(self) -> Scenario:
         names = [v.name for v in self.vehicle]
-        dup = sorted({n for n in names if names.count(n) > 1})
-        if dup:
-            raise ValueError(f"vehicle names must be unique, repeated: {', '.join(dup)}")
+        _require_unique(names, "vehicle names must be unique")
         for k, name in enumerate(self.stop_when_complete if isinstance(self.stop_when_complete, list) else []):
             if name not in names:
                 raise ValueError(f"stop_when_complete[{k}]: no vehicle {name!r} (vehicles: {', '.join(names)})")
@@ -853,9 +856,7 @@ class Scenario(_Strict):
                 if name not in names:
                     raise ValueError(f"utm.{what}[{k}].vehicle: no vehicle {name!r} (vehicles: {', '.join(names)})")
         ids = [m.id for m in self.utm.mandate] if self.utm is not None else []
-        dup = sorted({i for i in ids if ids.count(i) > 1})
-        if dup:
-            raise ValueError(f"utm.mandate ids must be unique, repeated: {', '.join(dup)}")
+        _require_unique(ids, "utm.mandate ids must be unique")
         if self.utm is not None and self.utm.weather and self.weather is None:
             raise ValueError("utm.weather needs the [weather] section (the weather service)")
         if self.utm is not None and self.utm.frame < 1.0 / self.logging.rate_hz - 1e-9:
@@ -864,15 +865,9 @@ class Scenario(_Strict):
                 "the authority's tick"
             )
         traffic = names + [o.id for o in self.object]
-        dup = sorted({i for i in traffic if traffic.count(i) > 1})
-        if dup:
-            raise ValueError(
-                f"object ids must differ from each other and from vehicle names, repeated: {', '.join(dup)}"
-            )
+        _require_unique(traffic, "object ids must differ from each other and from vehicle names")
         ids = [o.id for o in self.obstacle] + [g.id for g in self.geofence]
-        dup = sorted({i for i in ids if ids.count(i) > 1})
-        if dup:
-            raise ValueError(f"obstacle/geofence ids must be unique, repeated: {', '.join(dup)}")
+        _require_unique(ids, "obstacle/geofence ids must be unique")
         if self.weather is not None and self.weather.nowcast_files:
             from sim.nowcast_files import NowcastError, load_series
 
