@@ -48,12 +48,12 @@ downlink, scenario ``utm.spoof``). Frames: GCF (ENU) [m] from the scenario origi
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from avoidance.rules.planner import RulesAvoider
-from avoidance.utm.cases import CaseBook, as_roundabout
+from avoidance.utm.cases import CaseBook, SharedHeads, as_roundabout
 from avoidance.utm.collision_case import CollisionCase, Encounter, Role, UtmConfig
 from avoidance.utm.directives import Directive
 from avoidance.utm.mandate import Mandate
@@ -76,6 +76,19 @@ def filed_plan(pos_ned: np.ndarray, waypoints_ned: np.ndarray, speed: float, t: 
     waypoint. Returns GCF positions (T, 3) and their times (T,)."""
     pts, times = along_path(np.vstack([pos_ned, waypoints_ned]), speed, t, step, horizon)
     return ned_to_enu(pts), times
+
+
+@dataclass(slots=True)
+class AirspaceState:
+    """What the authorities of one airspace share over their ground network
+    (:class:`sim.utm_airspace.UtmAirspace`): per vehicle the send time of its first
+    notification any of them took [s] (the start transient counts from there) and the authority
+    directing it this frame (None: uncontrolled airspace), and the open cases' heads (None with
+    one authority)."""
+
+    first_heard: dict[str, float] = field(default_factory=dict)
+    director: dict[str, str | None] = field(default_factory=dict)
+    heads: SharedHeads | None = None
 
 
 @dataclass(slots=True)
@@ -127,16 +140,16 @@ class UtmAuthority:
         tick_hz: float,
         peer_linked: frozenset[str] = frozenset(),
         cluster: UtmCluster | None = None,
-        first_heard: dict[str, float] | None = None,
+        airspace: AirspaceState | None = None,
     ):
         """``tick_hz``: the rate :meth:`tick` is called at (the log rate); ``peer_linked``: the
         vehicles with a vehicle-to-vehicle link; ``cluster``: the airspace box it holds;
-        ``first_heard``: per vehicle, the send time of its first notification any authority took
-        [s] (shared by the authorities of one airspace)."""
+        ``airspace``: the state shared with the other authorities of the airspace (its director
+        assignment comes from :class:`sim.utm_airspace.UtmAirspace`)."""
         self.cfg, self.log, self.origin_alt, self.tick_hz = cfg, log, origin_alt, tick_hz
         self.cluster = cluster
         self.id = cluster.id if cluster is not None else "all"
-        self.first_heard = first_heard if first_heard is not None else {}
+        self.airspace = airspace if airspace is not None else AirspaceState()
         self.members: dict[str, Member] = {}
         book_cfg: UtmConfig | None = None
         for v in vehicles:
@@ -148,15 +161,16 @@ class UtmAuthority:
             depart = ned_to_enu(v.estimate.pos_ned)
             self.members[v.name] = Member(v, links[v.name], reg, p, Queue(), peer_link=peer, departure=depart)
         self.mandates = [(m.vehicle, self._mandate(m)) for m in cfg.mandate]
-        self.book = CaseBook(book_cfg or UtmConfig())
+        self.book = CaseBook(book_cfg or UtmConfig(), shared=self.airspace.heads)
         self.up = Queue()
         self.frame_no = 0
         self.storms: list[StormSnapshot] = []  # the newest nowcast, with ``utm.weather``
         self._breached: set[tuple[tuple[str, str], float | None]] = set()
         self._mandate_breached: set[str] = set()
 
-    def tick(self, t: float) -> None:
-        """Deliver what arrived by ``t`` [s]; run a decision frame when one starts."""
+    def deliver(self, t: float) -> None:
+        """Deliver what arrived by ``t`` [s] (notifications and acknowledgements to the authority,
+        directives to the vehicles)."""
         for kind, name, msg in self.up.due(t):
             m = self.members[name]
             if kind == "ack":
@@ -170,9 +184,10 @@ class UtmAuthority:
                 p = m.obeying(self.cfg.lost_after)
                 if p is not None:
                     self._send_up(t, name, ("ack", name, p.receive_directive(d, t)))
-        if t + 1e-9 >= self.frame_no * self.cfg.frame:
-            self.decide(t)
-            self.frame_no += 1
+
+    def frame_due(self, t: float) -> bool:
+        """Whether decision frame ``frame_no`` starts at or before ``t`` [s]."""
+        return t + 1e-9 >= self.frame_no * self.cfg.frame
 
     def decide(self, t: float) -> None:
         """Decision frame ``frame_no`` at ``t`` [s]: cases from frame i-1's notifications,
@@ -231,16 +246,18 @@ class UtmAuthority:
             if inside or m.sent:  # the vehicle tells an authority it has just left, once
                 self._send_up(t, name, ("note", name, note))
             m.sent = inside
+        self.frame_no += 1
 
     def _in_band(self, pos: np.ndarray) -> bool:
         """Whether a GCF position [m] lies in the cluster's box grown by ``handover``."""
         return self.cluster is None or self.cluster.contains(float(pos[0]), float(pos[1]), self.cfg.handover)
 
     def _home(self, m: Member) -> bool:
-        """Whether this authority directs ``m``: its newest notification (before the first, its
-        departure point) lies in the cluster's box."""
-        pos = m.last_note.pos if m.last_note is not None else m.departure
-        assert pos is not None
+        """Whether this authority directs ``m`` this frame (:attr:`AirspaceState.director`)."""
+        return self.airspace.director.get(m.vehicle.name) == self.id
+
+    def holds(self, pos: np.ndarray) -> bool:
+        """Whether the GCF position [m] lies in this authority's box (anywhere without one)."""
         return self.cluster is None or self.cluster.contains(float(pos[0]), float(pos[1]))
 
     def _log_link(self, t: float, name: str, state: str) -> None:
@@ -256,7 +273,7 @@ class UtmAuthority:
         flown its rules' ``settle`` [s] since its first notification (to any authority) and reached their
         ``established_speed`` share of its cruise speed (start transients make early headings
         meaningless, and the head case fixes the roles); then for good."""
-        first = self.first_heard.setdefault(m.vehicle.name, note.t)
+        first = self.airspace.first_heard.setdefault(m.vehicle.name, note.t)
         if not m.established and m.planner is not None:
             rules = m.planner.rules
             m.established = (

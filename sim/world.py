@@ -32,7 +32,7 @@ from sim.scheduler import LockstepScheduler, Stage
 from sim.sensors.lidar import Lidar
 from sim.sensors.truth import TruthSampler
 from sim.traffic import TrafficObject
-from sim.utm_authority import UtmAuthority
+from sim.utm_airspace import UtmAirspace
 from sim.utm_link import Link
 from sim.vehicle import Vehicle
 from sim.vehicle_log import NED_FRAME, write_map
@@ -118,7 +118,7 @@ class World:
             self.obstacles,
         )
         self.crashes: list[Crash] = []
-        self.utm = self._authorities(scenario, log)
+        self.utm = self._airspace(scenario, log)
         self.peers = self._peer_network(scenario, log)
         write_map(log, self.obstacles, self.fences, self.origin)
         log.metadata("vehicles", {v.name: v.airframe.kind for v in self.vehicles})
@@ -146,8 +146,8 @@ class World:
                 sched.add_task(
                     f"{v.name}.lidar", self.lidars[v.name][0].cfg.rate_hz, Stage.SENSE, partial(self._scan, v)
                 )
-        if self.utm:
-            sched.add_task("utm", log_hz, Stage.SENSE, self._utm_tick)
+        if self.utm is not None:
+            sched.add_task("utm", log_hz, Stage.SENSE, self.utm.tick)
         if self.peers is not None:
             sched.add_task("utm.peers", log_hz, Stage.SENSE, self.peers.tick)
         if self.objects:
@@ -181,22 +181,16 @@ class World:
             )
         self.crashes += found
 
-    def _authorities(self, scenario: Scenario, log: McapLog) -> list[UtmAuthority]:
+    def _airspace(self, scenario: Scenario, log: McapLog) -> UtmAirspace | None:
         """The UTM authorities (scenario ``utm``): one per airspace cluster, or one over the
         whole airspace; each vehicle on its modelled link (``vehicle.utm_link``), the same to every
         authority. None without ``[utm]``."""
         if scenario.utm is None:
-            return []
+            return None
         streams = link_streams(scenario.seed, len(scenario.vehicle))
         links = {v.name: _link(v.utm_link or UtmLink(), ss) for v, ss in zip(scenario.vehicle, streams, strict=True)}
         peered = frozenset(v.name for v in scenario.vehicle if v.peer_link is not None)
-        args = (scenario.utm, self.vehicles, links, log, self.origin.alt_m, scenario.logging.rate_hz, peered)
-        heard: dict[str, float] = {}
-        return [UtmAuthority(*args, c, heard) for c in scenario.utm.cluster] or [UtmAuthority(*args)]
-
-    def _utm_tick(self, t: float) -> None:
-        for a in self.utm:
-            a.tick(t)
+        return UtmAirspace(scenario.utm, self.vehicles, links, log, self.origin.alt_m, scenario.logging.rate_hz, peered)
 
     def _peer_network(self, scenario: Scenario, log: McapLog) -> PeerNetwork | None:
         """The vehicle-to-vehicle links (``vehicle.peer_link``; they need ``[utm]``), None without."""
@@ -214,9 +208,8 @@ class World:
     def sense(self, t: float) -> None:
         """Weather nowcasts and traffic tracks into every vehicle's threats."""
         if self.weather is not None and self.weather.update(t):
-            if self.utm and self.scenario.utm is not None and self.scenario.utm.weather:
-                for a in self.utm:  # the authorities' feed: weather cases in their directives
-                    a.storms = self.weather.nowcast
+            if self.utm is not None and self.scenario.utm is not None and self.scenario.utm.weather:
+                self.utm.set_storms(self.weather.nowcast)  # the authorities' feed: weather cases in directives
             else:
                 for v in self.vehicles:
                     v.threats.storms = self.weather.nowcast

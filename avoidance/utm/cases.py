@@ -66,11 +66,36 @@ class Roundabout:
 
 
 @dataclass(slots=True)
+class SharedHeads:
+    """The open chains' head cases of several books that must agree (the authorities of one
+    airspace, one per cluster): per pair, the head and the books holding it."""
+
+    heads: dict[tuple[str, str], tuple[CollisionCase, set[int]]] = field(default_factory=dict)
+
+    def hold(self, key: tuple[str, str], head: CollisionCase, book: int) -> CollisionCase:
+        """The pair's head: the one already held (``book`` joins it), else ``head``."""
+        held, books = self.heads.setdefault(key, (head, set()))
+        books.add(book)
+        return held
+
+    def release(self, key: tuple[str, str], book: int) -> None:
+        entry = self.heads.get(key)
+        if entry is not None:
+            entry[1].discard(book)
+            if not entry[1]:
+                del self.heads[key]
+
+
+@dataclass(slots=True)
 class CaseBook:
-    """Active collision-case chains keyed by the sorted pair of ids."""
+    """Active collision-case chains keyed by the sorted pair of ids. With ``shared``, a pair whose
+    chain another book holds open is opened here at once with that book's head (collision point,
+    encounter, roles, margin, head time) as soon as the pair is assessed, so books over the same
+    traffic agree whatever notifications each of them lost."""
 
     cfg: UtmConfig = field(default_factory=UtmConfig)
     chains: dict[tuple[str, str], Chain] = field(default_factory=dict)
+    shared: SharedHeads | None = None
 
     assessed: set[tuple[str, str]] = field(default_factory=set)  # pairs with a case computed this frame
     pending: dict[tuple[str, str], CollisionCase] = field(default_factory=dict)  # flagged once, not yet opened
@@ -95,10 +120,12 @@ class CaseBook:
                 chain = self.chains.get(key)
                 if chain is None:
                     seen_before = last_pending.get(key)
-                    if case.flagged and seen_before is not None and seen_before.encounter == case.encounter:
+                    held = self.shared is not None and key in self.shared.heads
+                    if held or (case.flagged and seen_before is not None and seen_before.encounter == case.encounter):
                         case.head = t
-                        self.chains[key] = Chain(case, case)
-                        opened.append(case)
+                        head = case if self.shared is None else self.shared.hold(key, case, id(self))
+                        self.chains[key] = Chain(replace(head, links=[]), case)
+                        opened.append(self.chains[key].case)
                     if case.flagged and key not in self.chains:
                         self.pending[key] = case
                     continue
@@ -117,6 +144,8 @@ class CaseBook:
             self.chains[key].quiet += 1
         for key in [k for k, c in self.chains.items() if c.quiet >= self.cfg.close_after]:
             closed.append(self.chains.pop(key).case)
+            if self.shared is not None:
+                self.shared.release(key, id(self))
         return opened, closed
 
     def active(self, uas: str | None = None) -> list[CollisionCase]:
