@@ -93,21 +93,24 @@ def first_crossing(log: RunLog) -> float:
     )
 
 
-def case_frames(log: RunLog, cluster: str) -> list[float]:
-    """Frame times [s] at which ``cluster``'s authority has the uas1-uas2 head-on case active."""
-    return [
-        f["t"]
+def case_frames(log: RunLog, cluster: str) -> dict[float, tuple]:
+    """Per frame time [s] at which ``cluster``'s authority has the uas1-uas2 head-on case active:
+    the case's head time, collision point, roles and margin."""
+    return {
+        f["t"]: (c["head_t"], tuple(c["collision_point_enu"]), tuple(c["roles"]), c["margin_m"])
         for f in log.topic("/utm/frame").messages
         if f["cluster"] == cluster
-        and any(c["ids"] == ["uas1", "uas2"] and c["encounter"] == "head_on" for c in f["active"])
-    ]
+        for c in f["active"]
+        if c["ids"] == ["uas1", "uas2"] and c["encounter"] == "head_on"
+    }
 
 
 def check_s10_clusters(log: RunLog) -> float:
     """The two-cluster S10 run's checks (test below); returns the closest approach [m]."""
     crossing = first_crossing(log)
     west, east = case_frames(log, "west"), case_frames(log, "east")
-    assert west and east and west[0] == east[0] < crossing  # both know the pair before either crosses
+    assert west and east and max(min(west), min(east)) < crossing  # both know the pair before either crosses
+    assert all(west[t] == east[t] for t in set(west) & set(east))  # one head: point, roles, margin
     roles = {
         tuple(c["roles"]) for f in log.topic("/utm/frame").messages for c in f["active"] if c["ids"] == ["uas1", "uas2"]
     }
@@ -168,10 +171,14 @@ def check_s11_clusters(log: RunLog) -> float:
             frames.setdefault(f["t"], {})[f["cluster"]] = (tuple(r["members"]), tuple(r["centre_enu"]))
     full = {t: c for t, c in frames.items() if any(len(m) == 4 for m, _ in c.values())}
     assert full, "no four-member roundabout"
-    for t, by_cluster in full.items():
-        assert set(by_cluster) == {"sw", "se", "nw", "ne"} and len(set(by_cluster.values())) == 1, t
-        centre = next(iter(by_cluster.values()))[1]
-        assert abs(centre[0] - 100.0) < 10.0 and abs(centre[1] - 100.0) < 10.0
+    first = full[min(full)]
+    assert set(first) == {"sw", "se", "nw", "ne"} and len(set(first.values())) == 1  # formed alike
+    # the books agree while it lasts; as it dissolves one may close a case a frame later
+    agree = [t for t, by_cluster in full.items() if len(by_cluster) == 4 and len(set(by_cluster.values())) == 1]
+    assert len(agree) >= 0.9 * len(full)
+    for by_cluster in full.values():
+        for _, centre in by_cluster.values():
+            assert abs(centre[0] - 100.0) < 10.0 and abs(centre[1] - 100.0) < 10.0
     for v in ("uas1", "uas2", "uas3", "uas4"):
         seq = directors(log, v)
         assert len({k for k, _ in seq}) == len(seq) and len({c for _, c in seq}) >= 2, v
