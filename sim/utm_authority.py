@@ -30,12 +30,12 @@ the mandates in force for it (keep clear of a cylinder); the vehicle obeys and a
 Clusters (``utm.cluster``): one authority per box. A vehicle sends its notification to every
 authority whose box grown by ``utm.handover`` holds its estimate (and once more to one it has just
 left, which then counts it as left rather than lost); each authority computes the cases of the
-vehicles notified within its band, and directs those whose newest notification lies in its box
-(before the first: the vehicle's departure point). A pair across a boundary is thus known to both
-authorities before either vehicle crosses, and a vehicle crossing is directed by the next
-authority from the next frame on. Without clusters one authority holds every vehicle. The frame
-numbers are the same for every authority (frame i starts at ``i * frame``), so a vehicle's inbox
-orders directives across a hand-over.
+vehicles notified within its band, and directs the vehicles :class:`sim.utm_airspace.UtmAirspace`
+assigns it (the box holding a vehicle's newest notification). A pair across a boundary is thus
+known to both authorities before either vehicle crosses, and a vehicle crossing is directed by
+the next authority from the next frame on. Without clusters one authority holds every vehicle.
+The frame numbers are the same for every authority (frame i starts at ``i * frame``), so a
+vehicle's inbox orders directives across a hand-over.
 
 Topics (every message names its ``cluster``, ``all`` without clusters): ``/utm/notification``,
 ``/utm/frame``, ``/utm/directive``, ``/utm/ack``, ``/utm/link`` (the authority's view of a
