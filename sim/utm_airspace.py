@@ -18,6 +18,7 @@ centres whatever notifications each lost. Sim seconds; GCF (ENU) [m].
 from __future__ import annotations
 
 from avoidance.utm.cases import SharedHeads
+from sim.core.frames import ned_to_enu
 from sim.mcap_log import McapLog
 from sim.scenario import Utm
 from sim.utm_authority import AirspaceState, UtmAuthority
@@ -38,6 +39,8 @@ class UtmAirspace:
     ):
         """Arguments as :class:`UtmAuthority`; one authority per ``cfg.cluster`` (none: one)."""
         self.state = AirspaceState(heads=SharedHeads() if cfg.cluster else None)
+        # GCF [m]: where each vehicle stood at the start (its director before a notification)
+        self.departure = {v.name: ned_to_enu(v.estimate.pos_ned) for v in vehicles}
         args = (cfg, vehicles, links, log, origin_alt, tick_hz, peer_linked)
         self.authorities = [UtmAuthority(*args, c, self.state) for c in cfg.cluster] or [
             UtmAuthority(*args, None, self.state)
@@ -59,9 +62,8 @@ class UtmAirspace:
 
     def _assign(self) -> None:
         """Each vehicle's director this frame (:attr:`AirspaceState.director`)."""
-        for name, m in self.authorities[0].members.items():
+        for name, departure in self.departure.items():
             notes = [a.members[name].last_note for a in self.authorities]
             newest = max((n for n in notes if n is not None), key=lambda n: n.t, default=None)
-            pos = newest.pos if newest is not None else m.departure
-            assert pos is not None
+            pos = newest.pos if newest is not None else departure
             self.state.director[name] = next((a.id for a in self.authorities if a.holds(pos)), None)

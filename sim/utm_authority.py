@@ -106,7 +106,6 @@ class Member:
     lost: bool = True  # no fresh notification (before the first one, too)
     established: bool = False  # past its start transient (:meth:`UtmAuthority._established`)
     peer_link: bool = False  # it has a vehicle-to-vehicle link (response mode)
-    departure: np.ndarray | None = None  # GCF [m] where it stood at the start (home before a notification)
     sent: bool = False  # its last notification went to this authority (inside the band)
     home_since: int | None = None  # frame it has been directed from since (None: not directed here)
 
@@ -158,8 +157,7 @@ class UtmAuthority:
             reg = p.join_utm(v.name, cfg.lost_after, peer) if p is not None else Registration(v.name)
             if p is not None and book_cfg is None:
                 book_cfg = p.book.cfg
-            depart = ned_to_enu(v.estimate.pos_ned)
-            self.members[v.name] = Member(v, links[v.name], reg, p, Queue(), peer_link=peer, departure=depart)
+            self.members[v.name] = Member(v, links[v.name], reg, p, Queue(), peer_link=peer)
         self.mandates = [(m.vehicle, self._mandate(m)) for m in cfg.mandate]
         self.book = CaseBook(book_cfg or UtmConfig(), shared=self.airspace.heads)
         self.up = Queue()
