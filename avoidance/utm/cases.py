@@ -36,6 +36,8 @@ import numpy as np
 from avoidance.utm.collision_case import CollisionCase, Encounter, Role, UtmConfig, compute_collision_case
 from avoidance.utm.notification import PositionNotification
 
+HOVERS = 0.5  # a UAS slower than this share of the hover gate ``min_speed`` hovers for good
+
 
 @dataclass(slots=True)
 class Chain:
@@ -112,7 +114,7 @@ class CaseBook:
         for i, a in enumerate(notes):
             for b in notes[i + 1 :]:
                 key = (a.id, b.id)
-                gate = 0.0 if key in self.chains else 0.5 if key in last_pending else 1.0
+                gate = 0.0 if key in self.chains else HOVERS if key in last_pending else 1.0
                 case = compute_collision_case(a, b, t, self.cfg, gate)
                 if case is None:
                     continue
@@ -132,7 +134,7 @@ class CaseBook:
                 chain.head.links.append(t)
                 chain.last = case
                 cp = chain.head.collision_point
-                moving = [n for n in (a, b) if n.speed >= 0.5 * self.cfg.min_speed]
+                moving = [n for n in (a, b) if n.speed >= HOVERS * self.cfg.min_speed]
                 clear = (
                     case.separation >= chain.head.margin
                     and (case.t_cpa <= 0.0 or not moving)
