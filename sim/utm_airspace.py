@@ -2,8 +2,10 @@
 cluster (``utm.cluster``), and the ground network between them (:class:`AirspaceState`).
 
 Per log tick every authority first delivers what has arrived; when a decision frame starts (the
-same frame clock for all), the network assigns each vehicle its director, then every authority
-runs its frame (:meth:`UtmAuthority.decide`). The director is the authority whose box holds the
+same frame clock for all), the network assigns each vehicle its director, every authority
+assesses its cases (:meth:`UtmAuthority.assess`), the network decides which chains close (a pair
+closes in every book holding it once it has been quiet in all of them), and every authority
+closes those and directs (:meth:`UtmAuthority.direct`). The director is the authority whose box holds the
 vehicle's newest notification any of them took (before the first, its departure point; none
 holds it: uncontrolled airspace). Assigning it on the shared picture, not on each authority's
 own newest notification, keeps one director per vehicle and frame when a notification reached
@@ -11,13 +13,15 @@ one authority and was lost to another (each authority deciding alone, both the o
 one directed a vehicle crossing a boundary in that frame: S11 under four authorities, seeds 14
 and 15). With clusters the authorities also share the open cases' heads
 (:class:`avoidance.utm.cases.SharedHeads`): a pair opened by one is opened by the others with its
-head as soon as they assess it, so the books agree on collision points, roles and roundabout
-centres whatever notifications each lost. Sim seconds; GCF (ENU) [m].
+head as soon as they assess it, and closed by all of them in one frame, so the books agree on
+collision points, roles and roundabout centres whatever notifications each lost (closing by
+each book alone, one of them dropped a case a frame before another as a roundabout dissolved and
+their centres differed by 0.2-0.5 m: S11 under four authorities, seeds 13 and 19). Sim seconds; GCF (ENU) [m].
 """
 
 from __future__ import annotations
 
-from avoidance.utm.cases import SharedHeads
+from avoidance.utm.cases import SharedHeads, closing_together
 from sim.core.frames import ned_to_enu
 from sim.mcap_log import McapLog
 from sim.scenario import Utm
@@ -53,7 +57,10 @@ class UtmAirspace:
         if self.authorities[0].frame_due(t):
             self._assign()
             for a in self.authorities:
-                a.decide(t)
+                a.assess(t)
+            closing = closing_together([a.book for a in self.authorities])
+            for a in self.authorities:
+                a.direct(t, closing)
 
     def set_storms(self, storms: list) -> None:
         """The weather service's newest nowcast, to every authority (``utm.weather``)."""

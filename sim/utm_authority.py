@@ -165,6 +165,8 @@ class UtmAuthority:
         self.storms: list[StormSnapshot] = []  # the newest nowcast, with ``utm.weather``
         self._breached: set[tuple[tuple[str, str], float | None]] = set()
         self._mandate_breached: set[str] = set()
+        # the frame between its two phases: the notifications used and the cases opened
+        self._frame: tuple[list[PositionNotification], list[CollisionCase]] = ([], [])
 
     def deliver(self, t: float) -> None:
         """Deliver what arrived by ``t`` [s] (notifications and acknowledgements to the authority,
@@ -187,9 +189,9 @@ class UtmAuthority:
         """Whether decision frame ``frame_no`` starts at or before ``t`` [s]."""
         return t + 1e-9 >= self.frame_no * self.cfg.frame
 
-    def decide(self, t: float) -> None:
-        """Decision frame ``frame_no`` at ``t`` [s]: cases from frame i-1's notifications,
-        directives, then this frame's notifications."""
+    def assess(self, t: float) -> None:
+        """The first phase of decision frame ``frame_no`` at ``t`` [s]: the cases from frame
+        i-1's notifications, chained, nothing closed yet (:meth:`direct` closes)."""
         notes = []
         for name, m in self.members.items():
             note = m.last_note
@@ -203,7 +205,14 @@ class UtmAuthority:
                 self._log_link(t, name, "left" if left else "lost" if m.lost else "up")
             if fresh and note is not None and self._established(m, note):
                 notes.append(note)
-        opened, closed = self.book.update(notes, t)
+        self._frame = (notes, self.book.assess(notes, t))
+
+    def direct(self, t: float, closing: set[tuple[str, str]]) -> None:
+        """The second phase of the frame at ``t`` [s]: close the chains of ``closing`` (the pairs
+        the airspace's books close together, :class:`sim.utm_airspace.UtmAirspace`), log the
+        frame, send the directives, then this frame's notifications."""
+        notes, opened = self._frame
+        closed = self.book.close(closing)
         rbs = {u: rb for rb in self.book.roundabouts() for u in rb.members}
         active = self.book.active()
         self._report_breaches(t, active)

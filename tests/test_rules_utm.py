@@ -26,7 +26,7 @@ from avoidance.rules.restrictions import (
     widest_per_cell,
 )
 from avoidance.rules.rules_of_air import overtake_speed, overtake_waypoints, pass_behind_point
-from avoidance.utm.cases import CaseBook
+from avoidance.utm.cases import CaseBook, SharedHeads, closing_together
 from avoidance.utm.collision_case import (
     GIVES_WAY,
     Encounter,
@@ -305,6 +305,34 @@ def test_head_case_fixes_the_point_and_the_chain_closes_after_passing():
     assert not closed and book.active("a")
     _, closed = book.update([note("a", (26, 15, 0), (1, 0, 0), 26.0), note("b", (14, 25, 0), (-1, 0, 0), 26.0)], 26.0)
     assert len(closed) == 1 and not book.active()
+
+
+def test_books_that_share_heads_close_a_pair_together_once_it_is_quiet_in_all_of_them():
+    """Two authorities' books over one pair (shared heads): one of them has b's notification
+    still short of the pass at 25 s (a different link), so it counts the pair quiet a frame
+    later. Neither closes the chain until both have counted it quiet for ``close_after`` frames,
+    then both close it in the same frame (each closing alone: one book a frame without it)."""
+    heads = SharedHeads()
+    cfg = UtmConfig(time_margin=25.0, close_after=2)
+    books = [CaseBook(cfg, shared=heads), CaseBook(cfg, shared=heads)]
+
+    def frame(t: float, b_pos: list[tuple[float, float, float]]) -> set[tuple[str, str]]:
+        for book, pos in zip(books, b_pos, strict=True):
+            book.assess([note("a", (t, 20, 0), (1, 0, 0), t), note("b", pos, (-1, 0, 0), t)], t)
+        closing = closing_together(books)
+        for book in books:
+            book.close(closing)
+        return closing
+
+    for t in (-1.0, 0.0):
+        frame(t, [(40 - t, 20, 0)] * 2)
+    assert [len(b.active()) for b in books] == [1, 1]
+    assert books[0].active()[0].head == books[1].active()[0].head == 0.0
+    assert not frame(25.0, [(15, 25, 0), (21, 22, 0)])  # the second book: b still 4.5 m off a
+    assert not frame(26.0, [(14, 25, 0), (14, 25, 0)])  # the first book's chain is due, not the second's
+    assert [len(b.active()) for b in books] == [1, 1]
+    assert frame(27.0, [(13, 25, 0), (13, 25, 0)]) == {("a", "b")}
+    assert not books[0].active() and not books[1].active() and not heads.heads
 
 
 def test_overtake_chain_closes_only_once_the_overtaking_uas_is_the_margin_ahead():

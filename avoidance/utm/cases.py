@@ -107,7 +107,13 @@ class CaseBook:
     ) -> tuple[list[CollisionCase], list[CollisionCase]]:
         """Compute every pair's case at frame time ``t`` [s], chain them; returns the cases
         opened and closed in this frame (:attr:`assessed` holds the pairs computed)."""
-        opened, closed = [], []
+        opened = self.assess(notifications, t)
+        return opened, self.close(self.due())
+
+    def assess(self, notifications: list[PositionNotification], t: float) -> list[CollisionCase]:
+        """The first half of :meth:`update`: every pair's case at ``t`` [s] chained and each
+        chain's count of quiet frames updated, nothing closed; returns the cases opened."""
+        opened = []
         seen = self.assessed = set()
         last_pending, self.pending = self.pending, {}
         notes = sorted(notifications, key=lambda n: n.id)
@@ -144,11 +150,20 @@ class CaseBook:
                 chain.quiet = chain.quiet + 1 if clear else 0
         for key in [k for k in self.chains if k not in seen]:
             self.chains[key].quiet += 1
-        for key in [k for k, c in self.chains.items() if c.quiet >= self.cfg.close_after]:
+        return opened
+
+    def due(self) -> set[tuple[str, str]]:
+        """The pairs whose chains have been quiet for ``close_after`` frames."""
+        return {k for k, c in self.chains.items() if c.quiet >= self.cfg.close_after}
+
+    def close(self, keys: set[tuple[str, str]]) -> list[CollisionCase]:
+        """Close the chains of ``keys`` this book holds (their tails); returns their cases."""
+        closed = []
+        for key in [k for k in self.chains if k in keys]:
             closed.append(self.chains.pop(key).case)
             if self.shared is not None:
                 self.shared.release(key, id(self))
-        return opened, closed
+        return closed
 
     def active(self, uas: str | None = None) -> list[CollisionCase]:
         """Active cases (of ``uas`` if given), head-chained."""
@@ -180,6 +195,16 @@ class CaseBook:
             for _, g in sorted(groups.items())
             if len(g) >= 2
         ]
+
+
+def closing_together(books: list[CaseBook]) -> set[tuple[str, str]]:
+    """The pairs that close this frame in ``books`` that must agree (the authorities of one
+    airspace, after each has run :meth:`CaseBook.assess`): those quiet for ``close_after`` frames
+    in every book holding them. Each of those books then closes them in the same frame; one book
+    closing alone would leave its roundabouts without the case while the others still hold it."""
+    due = [(b.chains, b.due()) for b in books]
+    held = set().union(*(chains for chains, _ in due))
+    return {k for k in held if all(k in d for chains, d in due if k in chains)}
 
 
 def overtaken(head: CollisionCase, a: PositionNotification, b: PositionNotification, t: float) -> bool:
