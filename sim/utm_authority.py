@@ -83,12 +83,13 @@ class AirspaceState:
     """What the authorities of one airspace share over their ground network
     (:class:`sim.utm_airspace.UtmAirspace`): per vehicle the send time of its first
     notification any of them took [s] (the start transient counts from there) and the authority
-    directing it this frame (None: uncontrolled airspace), and the open cases' heads (None with
-    one authority)."""
+    directing it this frame (None: uncontrolled airspace), the open cases' heads (None with
+    one authority) and the chains whose breach has been reported."""
 
     first_heard: dict[str, float] = field(default_factory=dict)
     director: dict[str, str | None] = field(default_factory=dict)
     heads: SharedHeads | None = None
+    breached: set[tuple[tuple[str, str], float | None]] = field(default_factory=set)  # (pair, head time)
 
 
 @dataclass(slots=True)
@@ -163,7 +164,6 @@ class UtmAuthority:
         self.up = Queue()
         self.frame_no = 0
         self.storms: list[StormSnapshot] = []  # the newest nowcast, with ``utm.weather``
-        self._breached: set[tuple[tuple[str, str], float | None]] = set()
         self._mandate_breached: set[str] = set()
         # the frame between its two phases: the notifications used and the cases opened
         self._frame: tuple[list[PositionNotification], list[CollisionCase]] = ([], [])
@@ -382,11 +382,12 @@ class UtmAuthority:
         )
 
     def _report_breaches(self, t: float, active: list[CollisionCase]) -> None:
-        """Monitor adherence: a case whose separation is below its margin is a breach."""
+        """Monitor adherence: a case whose separation is below its margin is a breach, reported
+        once per chain in the airspace (by the first authority holding it that sees it)."""
         for c in active:
             key = (c.ids, c.head)
-            if c.separation < c.margin and key not in self._breached:
-                self._breached.add(key)
+            if c.separation < c.margin and key not in self.airspace.breached:
+                self.airspace.breached.add(key)
                 record = {"t": t, "cluster": self.id, "case": c.record()}
                 self.log.write_json("/utm/breach", t, record, S.UTM_BREACH, _META)
                 what = f"breach {c.ids[0]}-{c.ids[1]}: {c.separation:.1f} m < {c.margin:.1f} m"

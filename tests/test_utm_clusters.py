@@ -178,6 +178,9 @@ def check_s11_clusters(log: RunLog) -> float:
     for by_cluster in full.values():
         for _, centre in by_cluster.values():
             assert abs(centre[0] - 100.0) < 10.0 and abs(centre[1] - 100.0) < 10.0
+    reports = log.topic("/utm/breach").messages if log.has("/utm/breach") else []
+    breaches = [(tuple(b["case"]["ids"]), b["case"]["head_t"]) for b in reports]
+    assert len(set(breaches)) == len(breaches)  # once per chain in the airspace, not per authority
     for v in ("uas1", "uas2", "uas3", "uas4"):
         seq = directors(log, v)
         assert len({k for k, _ in seq}) == len(seq) and len({c for _, c in seq}) >= 2, v
