@@ -57,7 +57,7 @@ from avoidance.utm.cases import CaseBook, SharedHeads, as_roundabout
 from avoidance.utm.collision_case import CollisionCase, Encounter, Role, UtmConfig
 from avoidance.utm.directives import Directive
 from avoidance.utm.mandate import Mandate
-from avoidance.utm.notification import PositionNotification, Registration, along_path
+from avoidance.utm.notification import PositionNotification, Registration
 from avoidance.utm.weather_case import WeatherCase, crossing, weather_cases
 from sim import log_schemas as S
 from sim.core.frames import ned_to_enu
@@ -68,14 +68,6 @@ from sim.utm_link import Link, Queue
 from sim.vehicle import Vehicle
 
 _META = {"frame": "GCF = ENU [m] from the scenario origin"}
-
-
-def filed_plan(pos_ned: np.ndarray, waypoints_ned: np.ndarray, speed: float, t: float, step: float, horizon: float):
-    """The filed mission plan (6.187): from ``pos_ned`` through ``waypoints_ned`` (K, 3) at
-    ``speed`` [m/s], sampled every ``step`` [s] from ``t`` for ``horizon`` [s], held at the last
-    waypoint. Returns GCF positions (T, 3) and their times (T,)."""
-    pts, times = along_path(np.vstack([pos_ned, waypoints_ned]), speed, t, step, horizon)
-    return ned_to_enu(pts), times
 
 
 @dataclass(slots=True)
@@ -315,10 +307,8 @@ class UtmAuthority:
         v, est = m.vehicle, m.vehicle.estimate
         horizon = self.book.cfg.time_margin + self.cfg.lost_after
         wps = v.mission.waypoints[v.mission.next_index :]
-        traj, times = filed_plan(est.pos_ned, wps, v.mission.cruise_speed, t, self.cfg.frame, horizon)
-        return PositionNotification(
-            t, m.registration, ned_to_enu(est.pos_ned), ned_to_enu(est.vel_ned), True, traj, times
-        )
+        note = PositionNotification(t, m.registration, ned_to_enu(est.pos_ned), ned_to_enu(est.vel_ned), True)
+        return note.with_intent(ned_to_enu(wps), horizon, self.cfg.frame, v.mission.cruise_speed)
 
     def _send_up(self, t: float, name: str, msg: tuple) -> None:
         due = self.members[name].link.arrival(t)

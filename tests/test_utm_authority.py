@@ -11,17 +11,24 @@ import pytest
 from avoidance.utm.collision_case import UtmConfig, compute_collision_case
 from avoidance.utm.notification import PositionNotification, Registration
 from sim import log_schemas as S
+from sim.core.frames import ned_to_enu
 from sim.replay.decision_trail import authority_rows
 from sim.replay.runlog import RunLog
 from sim.scenario import ScenarioError, parse_scenario
-from sim.utm_authority import filed_plan
 
 
 def test_filed_plan_flies_the_waypoints_at_cruise_and_holds_at_the_last():
-    pts, times = filed_plan(np.zeros(3), np.array([[10.0, 0.0, 0.0], [10.0, 10.0, -5.0]]), 2.0, 3.0, 1.0, 12.0)
+    """The authority's filing (cruise 2 m/s, whatever the vehicle's current speed), ENU."""
+    still = PositionNotification(3.0, Registration("q"), np.zeros(3), np.zeros(3), True)
+    plan = ned_to_enu(np.array([[10.0, 0.0, 0.0], [10.0, 10.0, -5.0]]))  # north 10 m, then east 10 m and up 5 m
+    filed = still.with_intent(plan, 12.0, 1.0, speed=2.0)
+    pts, times = filed.trajectory, filed.trajectory_t
+    assert pts is not None and times is not None
     assert times[0] == 3.0 and times[-1] == 15.0 and len(times) == 13
     assert np.allclose(pts[5], [0.0, 10.0, 0.0])  # 10 m north at 5 s: ENU (east, north, up)
     assert np.allclose(pts[-1], [10.0, 10.0, 5.0])  # held at the last waypoint (path 21.2 m < 24 m flown)
+    done = still.with_intent(np.empty((0, 3)), 12.0, 1.0, speed=2.0)  # no waypoint left: holds where it is
+    assert done.trajectory is not None and np.allclose(done.trajectory, 0.0)
 
 
 def plan_note(name: str, p0, v) -> PositionNotification:

@@ -140,15 +140,18 @@ class PositionNotification:
             pos = self.pos + self.vel * (t - self.t)
         return replace(self, t=t, pos=pos)
 
-    def with_intent(self, plan: np.ndarray, horizon: float, step: float = 1.0) -> PositionNotification:
+    def with_intent(
+        self, plan: np.ndarray, horizon: float, step: float = 1.0, speed: float | None = None
+    ) -> PositionNotification:
         """This notification predicted along its filed mission plan (intent sharing, §7.4 step
         1): ``plan`` (K, 3) GCF [m] = the plan's waypoints not yet reached, the next first; the UAS
-        flies from its position to the next waypoint, then leg by leg, at its current speed,
-        holding at the last one; sampled every ``step`` [s] over [t, t + horizon]."""
+        flies from its position to the next waypoint, then leg by leg, at ``speed`` [m/s] (None:
+        its current speed), holding at the last one (at its position when none is left); sampled
+        every ``step`` [s] over [t, t + horizon]. The authority files a vehicle's plan at its
+        cruise speed; a vehicle predicts a peer's filed plan at the peer's tracked speed."""
         plan = np.asarray(plan, float).reshape(-1, 3)
-        if len(plan) == 0:
-            return self
-        traj, times = along_path(np.vstack([self.pos, plan]), self.speed, self.t, step, horizon)
+        path = np.vstack([self.pos, plan])
+        traj, times = along_path(path, self.speed if speed is None else speed, self.t, step, horizon)
         return replace(self, trajectory=traj, trajectory_t=times)
 
 
