@@ -11,6 +11,7 @@ from __future__ import annotations
 import copy
 from typing import Any
 
+import numpy as np
 import pytest
 
 from sim.replay.report import log_metrics
@@ -157,6 +158,36 @@ def test_s12_with_the_authority_passes_the_margin_right_of_the_overtaken_track(f
     assert complete(log)
     assert not unresolved(log)
     assert closest(log, ["uas1-uas2"]) >= OVERTAKE
+
+
+def filed_plan_error(log: RunLog, vehicle: str, lead: float, t0: float, t1: float) -> float:
+    """Median horizontal distance [m] between where ``vehicle``'s filed plans (notifications sent
+    in [t0, t1] s, one point per 1 s frame) put it ``lead`` s after sending and where it was."""
+    truth = log.topic(f"/{vehicle}/truth/state")
+    errors = []
+    for n in log.topic("/utm/notification").messages:
+        k = round(lead)
+        if n["from"] != vehicle or not t0 <= n["sent_t"] <= t1 or len(n["plan_enu"]) <= k:
+            continue
+        i = min(int(np.searchsorted(truth["t"], n["sent_t"] + lead)), len(truth["t"]) - 1)
+        north, east = truth["pos_ned"][i, :2]
+        errors.append(float(np.hypot(n["plan_enu"][k][0] - east, n["plan_enu"][k][1] - north)))
+    return float(np.median(errors))
+
+
+def test_s11_seed_17_with_the_authority_files_the_plan_it_flies(fly, scenario_data):
+    """CI: S11 at seed 17 with the authority. A vehicle files the plan it flies, then its
+    remaining waypoints: 5 s after sending, the members circling the roundabout (15-45 s) are
+    within a median 1.5-2.5 m of where their filed plans put them. Filing the waypoints alone
+    (12-26 m off), the pair uas1-uas4's closest approach stayed 5-7 s ahead on the unflown
+    straight lines in every frame, its roundabout case never closed and overrode the pair's
+    fresh converging case after the roundabout: 23.0 m at 62.6 s."""
+    log = fly(with_authority(scenario_data("rules/s11_roundabout"), 17), "s11_utm_17").log
+    check_authority_run("s11_roundabout", log)
+    assert complete(log)
+    assert closest(log, None) >= HEAD_ON
+    for v in ("uas1", "uas2", "uas3", "uas4"):
+        assert filed_plan_error(log, v, 5.0, 15.0, 45.0) < 5.0, v
 
 
 @pytest.mark.slow
