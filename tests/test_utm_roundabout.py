@@ -90,7 +90,10 @@ def check_roundabout(log: RunLog) -> dict[str, float]:
     the case arrives); it keeps the margin from the first centre and circles it
     counter-clockwise. Every pair keeps the margin, all complete, nothing unresolved. Returns
     the closest pair separation and centre distance [m]."""
-    opened = {tuple(c["ids"]): c["encounter"] for f in log.topic("/utm/frame").messages for c in f["opened"]}
+    opened: dict[tuple, str] = {}  # each pair's first case (a pair may meet again after the roundabout)
+    for f in log.topic("/utm/frame").messages:
+        for c in f["opened"]:
+            opened.setdefault(tuple(c["ids"]), c["encounter"])
     assert opened == CASES
     rbs = directed_roundabouts(log)
     for d in log.topic("/utm/directive").messages:
