@@ -14,9 +14,8 @@ one directed a vehicle crossing a boundary in that frame: S11 under four authori
 and 15). With clusters the authorities also share the open cases' heads
 (:class:`avoidance.utm.cases.SharedHeads`): a pair opened by one is opened by the others with its
 head as soon as they assess it, and closed by all of them in one frame, so the books agree on
-collision points, roles and roundabout centres whatever notifications each lost (closing by
-each book alone, one of them dropped a case a frame before another as a roundabout dissolved and
-their centres differed by 0.2-0.5 m: S11 under four authorities, seeds 13 and 19). Sim seconds; GCF (ENU) [m].
+collision points, roles and roundabout centres in every frame whatever notifications each lost.
+Sim seconds; GCF (ENU) [m].
 """
 
 from __future__ import annotations

@@ -306,10 +306,9 @@ class UtmAuthority:
     def _notification(self, m: Member, t: float) -> PositionNotification:
         """The vehicle's notification at ``t`` [s] with its filed plan (intent, 6.187): the
         vertices of the plan it flies that are still ahead (a roundabout member's circle, a
-        give-way turn), then its mission waypoints not yet reached, at its cruise speed. (Filing
-        the mission waypoints alone, a UAS circling a roundabout was predicted straight to its
-        waypoint, which it did not fly: its closest approach stayed 5-7 s ahead in every frame and
-        the case never closed, S11 seed 17.)"""
+        give-way turn), then its mission waypoints not yet reached, at its cruise speed: the
+        authority predicts each UAS along the path it is flying, not along a mission leg it has
+        left."""
         v, est = m.vehicle, m.vehicle.estimate
         horizon = self.book.cfg.time_margin + self.cfg.lost_after
         plan = v.follower.plan
