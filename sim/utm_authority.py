@@ -283,7 +283,9 @@ class UtmAuthority:
     def _weather(self, m: Member, t: float) -> tuple[WeatherCase, ...]:
         """The weather cases of the cells ``m``'s filed route crosses at frame time ``t`` [s]
         (none while its link is lost); a moving cell swept over the time the route takes at
-        cruise speed."""
+        cruise speed. The route is the mission's (notified position, then the waypoints not yet
+        reached), not the plan flown that :meth:`_notification` files for traffic: a plan that
+        detours around a cell does not cross it, and the case would end while the detour is flown."""
         note = m.last_note
         if not self.storms or note is None or m.lost:
             return ()
