@@ -34,7 +34,8 @@ from sim.planner_records import RecordSink, geometric_records, mptp_records, rea
 @dataclass(frozen=True, slots=True)
 class BuildContext:
     """What a planner is built for: the mission (NED [m]), the airframe kind
-    (``fixed_wing``/``multirotor``), its bank limit [rad], how far ahead [s] its plan follower
+    (``fixed_wing``/``multirotor``), its bank limit [rad] and its controller's bank-command slew
+    rate (``roll_rate_rad_s`` [rad/s]; None: none known), how far ahead [s] its plan follower
     feeds a planned turn forward (``turn_lead_s``, the fixed-wing ``l1_turn_lead_s``) and the
     scenario's steady wind (north, east) [m/s] (the MPTP's forecast); ``wind_profile``: when the
     scenario's wind varies with altitude, its profile as rows (up [m] above the origin, north,
@@ -46,6 +47,7 @@ class BuildContext:
     wind_ne_mps: tuple[float, float] = (0.0, 0.0)
     wind_profile: tuple[tuple[float, float, float], ...] = ()
     turn_lead_s: float = 0.0
+    roll_rate_rad_s: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -161,12 +163,16 @@ def _mptp(options: DataclassOptions, ctx: BuildContext) -> Planner:
     option ``wind_error_ne_mps`` at every height, or none (still air) with
     ``wind_forecast = "none"``. Its fly-over turn models start each search the follower's turn
     lead ahead (``start_lead_s``, lead_in.py); the simple model's fly-by corners carry no turn
-    rate to lead."""
+    rate to lead. Its simulated turns roll at the controller's bank slew rate when one is known
+    (``roll_rate_max``; the option overrides it)."""
     from guidance.mptp.planner import MptpPlanner
     from guidance.mptp.wind import WindForecast
 
     lead = ctx.turn_lead_s if getattr(options, "turn_model", "simple") != "simple" else 0.0
-    cfg = options.config(tas_mps=ctx.mission.cruise_speed, bank_max=ctx.bank_limit_rad, start_lead_s=lead)
+    fixed = {"tas_mps": ctx.mission.cruise_speed, "bank_max": ctx.bank_limit_rad, "start_lead_s": lead}
+    if ctx.roll_rate_rad_s is not None:
+        fixed["roll_rate_max"] = ctx.roll_rate_rad_s
+    cfg = options.config(**fixed)
     if cfg.wind_forecast == "none":
         return MptpPlanner(ctx.mission, cfg, wind=None)
     rows = np.array(ctx.wind_profile or [(0.0, *ctx.wind_ne_mps)], float)
@@ -221,11 +227,13 @@ def make_planner(
     wind_ne_mps: tuple[float, float] = (0.0, 0.0),
     wind_profile: tuple[tuple[float, float, float], ...] = (),
     turn_lead_s: float = 0.0,
+    roll_rate_rad_s: float | None = None,
 ) -> Planner:
     """The planner ``kind`` for ``mission`` flown by an ``airframe_kind`` vehicle; ``options`` is
     the type's options model (a mapping is validated into it); ``wind_ne_mps`` the scenario's
     steady wind (north, east) [m/s], ``wind_profile`` its altitude profile, ``turn_lead_s`` [s]
-    the follower's turn lead (see BuildContext)."""
+    the follower's turn lead, ``roll_rate_rad_s`` [rad/s] the controller's bank slew rate (see
+    BuildContext)."""
     entry = planner_type(kind)
     if airframe_kind not in entry.airframes:
         raise PlannerConfigError(
@@ -234,5 +242,6 @@ def make_planner(
     if not isinstance(options, entry.options):
         options = entry.options.model_validate(options or {})
     return entry.build(
-        options, BuildContext(mission, airframe_kind, bank_limit_rad, wind_ne_mps, wind_profile, turn_lead_s)
+        options,
+        BuildContext(mission, airframe_kind, bank_limit_rad, wind_ne_mps, wind_profile, turn_lead_s, roll_rate_rad_s),
     )

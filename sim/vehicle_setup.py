@@ -47,15 +47,25 @@ def scenario_planner(
     cfg: sc.VehicleSpec, mission: Mission, af: Airframe, gains: object, wind: sc.Wind, origin_alt_m: float
 ) -> Planner:
     """The scenario's planner for ``mission``; a fixed-wing planner turns within the controller's
-    roll limit (``gains.roll_limit_rad`` [rad], 20 deg for gains without one) and knows its
+    roll limit (``gains.roll_limit_rad`` [rad], 20 deg for gains without one) at its bank-command
+    slew rate (``gains.roll_rate_limit_rad_s`` [rad/s], when it has one) and knows its
     follower's turn lead (``gains.l1_turn_lead_s`` [s], 0 without one); the planners'
     wind forecast is the scenario's ``wind``: its steady (north, east) [m/s] and, when it varies
     with altitude, its profile at t = 0 above the origin (``origin_alt_m`` [m MSL])."""
     roll_limit = float(getattr(gains, "roll_limit_rad", math.radians(20.0)))
     lead = float(getattr(gains, "l1_turn_lead_s", 0.0))
+    roll_rate = getattr(gains, "roll_rate_limit_rad_s", None)
     profile = WindField(wind).forecast_rows(origin_alt_m)
     return make_planner(
-        cfg.planner.type, mission, af.kind, cfg.planner.options, roll_limit, (wind.north, wind.east), profile, lead
+        cfg.planner.type,
+        mission,
+        af.kind,
+        cfg.planner.options,
+        roll_limit,
+        (wind.north, wind.east),
+        profile,
+        lead,
+        None if roll_rate is None else float(roll_rate),
     )
 
 

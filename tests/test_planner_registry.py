@@ -105,3 +105,32 @@ def test_registry_refuses_unknown_types_and_wrong_airframes():
         make_planner("warp", MISSION)
     with pytest.raises(PlannerConfigError, match="does not fly a multirotor"):
         make_planner("mptp", copy.deepcopy(MISSION), "multirotor")
+
+
+def test_the_mptp_rolls_at_the_haps_controllers_bank_slew_rate():
+    """A HAPS's MPTP simulates its turns at the bank-command slew rate of the HAPS's own gains
+    (the rate the autopilot rolls at), the shipped 6 deg/s or a tuned one; the option wins."""
+    import dataclasses
+    import math
+    from pathlib import Path
+
+    from aircraft.haps.gains import HapsGains
+    from aircraft.registry import get_airframe
+    from sim.scenario import load_scenario
+    from sim.vehicle_setup import mission_from_config, scenario_planner
+
+    scenario, _ = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "mptp" / "storm_crossing.toml")
+    cfg = scenario.vehicle[0]
+    mission = mission_from_config(cfg, scenario.origin_point)
+    af = get_airframe(cfg.aircraft)
+
+    def roll_rate(gains: HapsGains, spec=cfg) -> float:
+        return scenario_planner(spec, mission, af, gains, scenario.wind, scenario.origin.altitude).cfg.roll_rate_max
+
+    shipped = HapsGains.load()
+    assert roll_rate(shipped) == shipped.roll_rate_limit_rad_s == math.radians(6.0)
+    slow = dataclasses.replace(shipped, roll_rate_limit_rad_s=math.radians(2.5))
+    assert roll_rate(slow) == math.radians(2.5)
+    options = {**cfg.planner.options.model_dump(exclude_unset=True), "roll_rate_max": math.radians(4.0)}
+    own = cfg.model_copy(update={"planner": cfg.planner.model_copy(update={"options": options})})
+    assert roll_rate(slow, own) == math.radians(4.0)
