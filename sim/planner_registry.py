@@ -38,14 +38,15 @@ class BuildContext:
     rate (``roll_rate_rad_s`` [rad/s]; None: none known), how far ahead [s] its plan follower
     feeds a planned turn forward (``turn_lead_s``, the fixed-wing ``l1_turn_lead_s``) and the
     scenario's steady wind (north, east) [m/s] (the MPTP's forecast); ``wind_profile``: when the
-    scenario's wind varies with altitude, its profile as rows (up [m] above the origin, north,
-    east [m/s]), the MPTP's forecast instead of the steady wind."""
+    scenario's wind varies with altitude or time, its profile as rows (t [s], up [m] above the
+    origin, north, east [m/s]; ``sim.wind_field.WindField.forecast_rows``), the MPTP's forecast
+    instead of the steady wind."""
 
     mission: Mission
     airframe_kind: str
     bank_limit_rad: float = float(np.radians(20.0))
     wind_ne_mps: tuple[float, float] = (0.0, 0.0)
-    wind_profile: tuple[tuple[float, float, float], ...] = ()
+    wind_profile: tuple[tuple[float, float, float, float], ...] = ()
     turn_lead_s: float = 0.0
     roll_rate_rad_s: float | None = None
 
@@ -159,8 +160,8 @@ def _reachset(options: RulesOptions, ctx: BuildContext) -> Planner:
 
 
 def _mptp(options: DataclassOptions, ctx: BuildContext) -> Planner:
-    """The MPTP; its wind forecast is the scenario's wind profile (or its steady wind) plus the
-    option ``wind_error_ne_mps`` at every height, or none (still air) with
+    """The MPTP; its wind forecast is the scenario's wind profile in height and time (or its
+    steady wind) plus the option ``wind_error_ne_mps`` everywhere, or none (still air) with
     ``wind_forecast = "none"``. Its fly-over turn models start each search the follower's turn
     lead ahead (``start_lead_s``, lead_in.py); the simple model's fly-by corners carry no turn
     rate to lead. Its simulated turns roll at the controller's bank slew rate when one is known
@@ -175,8 +176,10 @@ def _mptp(options: DataclassOptions, ctx: BuildContext) -> Planner:
     cfg = options.config(**fixed)
     if cfg.wind_forecast == "none":
         return MptpPlanner(ctx.mission, cfg, wind=None)
-    rows = np.array(ctx.wind_profile or [(0.0, *ctx.wind_ne_mps)], float)
-    return MptpPlanner(ctx.mission, cfg, wind=WindForecast(rows[:, 0], rows[:, 1:] + cfg.wind_error_ne_mps))
+    rows = np.array(ctx.wind_profile or [(0.0, 0.0, *ctx.wind_ne_mps)], float)
+    times, ups = np.unique(rows[:, 0]), np.unique(rows[:, 1])
+    ne = rows[:, 2:].reshape(len(times), len(ups), 2) + cfg.wind_error_ne_mps
+    return MptpPlanner(ctx.mission, cfg, wind=WindForecast(ups, ne, times))
 
 
 def _reachset_awareness(planner: Any) -> tuple[float, float] | None:
@@ -225,13 +228,13 @@ def make_planner(
     options: BaseModel | dict | None = None,
     bank_limit_rad: float = float(np.radians(20.0)),
     wind_ne_mps: tuple[float, float] = (0.0, 0.0),
-    wind_profile: tuple[tuple[float, float, float], ...] = (),
+    wind_profile: tuple[tuple[float, float, float, float], ...] = (),
     turn_lead_s: float = 0.0,
     roll_rate_rad_s: float | None = None,
 ) -> Planner:
     """The planner ``kind`` for ``mission`` flown by an ``airframe_kind`` vehicle; ``options`` is
     the type's options model (a mapping is validated into it); ``wind_ne_mps`` the scenario's
-    steady wind (north, east) [m/s], ``wind_profile`` its altitude profile, ``turn_lead_s`` [s]
+    steady wind (north, east) [m/s], ``wind_profile`` its profile, ``turn_lead_s`` [s]
     the follower's turn lead, ``roll_rate_rad_s`` [rad/s] the controller's bank slew rate (see
     BuildContext)."""
     entry = planner_type(kind)

@@ -51,7 +51,8 @@ def scenario_planner(
     slew rate (``gains.roll_rate_limit_rad_s`` [rad/s], when it has one) and knows its
     follower's turn lead (``gains.l1_turn_lead_s`` [s], 0 without one); the planners'
     wind forecast is the scenario's ``wind``: its steady (north, east) [m/s] and, when it varies
-    with altitude, its profile at t = 0 above the origin (``origin_alt_m`` [m MSL])."""
+    with altitude or time, its profile in height above the origin (``origin_alt_m`` [m MSL]) and
+    time."""
     roll_limit = float(getattr(gains, "roll_limit_rad", math.radians(20.0)))
     lead = float(getattr(gains, "l1_turn_lead_s", 0.0))
     roll_rate = getattr(gains, "roll_rate_limit_rad_s", None)

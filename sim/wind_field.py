@@ -85,16 +85,22 @@ class WindField:
         ``v`` [m/s] whose wind is refreshed every ``dt`` [s] is at most ``max_shear * v * dt``."""
         return max((tb.max_shear() for tb in self.tables), default=0.0)
 
-    def forecast_rows(self, origin_alt_m: float) -> tuple[tuple[float, float, float], ...]:
-        """The profile as a planner's forecast: rows (up [m] above ``origin_alt_m``, north, east
-        [m/s]) at the first table's altitudes, at t = 0 (steady wind included; a copy, not this
-        object); empty when the wind does not vary."""
+    def forecast_rows(self, origin_alt_m: float) -> tuple[tuple[float, float, float, float], ...]:
+        """The profile as a planner's forecast: rows (t [s], up [m above ``origin_alt_m``], north,
+        east [m/s]), for each table's time (0 for a single table) at the union of the tables'
+        altitudes, ordered by time then height (steady wind included; a copy, not this object):
+        linear between the rows in height and time, it gives :meth:`at` everywhere. Empty when
+        the wind does not vary."""
         if not self.tables:
             return ()
-        ne = [self.at(float(a), 0.0) for a in self.tables[0].alt]
-        return tuple(
-            (float(a - origin_alt_m), float(w[0]), float(w[1])) for a, w in zip(self.tables[0].alt, ne, strict=True)
-        )
+        alts = np.unique(np.concatenate([tb.alt for tb in self.tables]))
+        times = self.times if len(self.times) else np.zeros(1)
+        rows = []
+        for t in times:
+            for a in alts:
+                north, east, _ = self.at(float(a), float(t))
+                rows.append((float(t), float(a - origin_alt_m), float(north), float(east)))
+        return tuple(rows)
 
     def at(self, alt_m: float, t: float) -> np.ndarray:
         if not self.tables:

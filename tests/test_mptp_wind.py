@@ -119,6 +119,58 @@ def test_the_standard_profile_is_the_forecast_at_the_planned_altitude():
     assert np.allclose(p.wind_ne, truth.at(level + 500.0, 0.0)[:2] + [1.0, -2.0])
 
 
+HOURS = [  # two hourly tables on different altitude rows: calm-ish at t = 0, a jet an hour later
+    {"time": 0.0, "levels": [{"altitude": 0.0, "east": 2.0}, {"altitude": 20_000.0, "east": 4.0}]},
+    {
+        "time": 3600.0,
+        "levels": [
+            {"altitude": 5_000.0, "north": -3.0, "east": 10.0},
+            {"altitude": 12_000.0, "north": 1.0, "east": 30.0},
+            {"altitude": 18_000.0, "north": 2.0, "east": 15.0},
+        ],
+    },
+]
+
+
+def _hourly_planner(origin_alt: float = 500.0):
+    data = tomllib.loads(SCENARIO.read_text())
+    data["wind"] = {"north": 1.0, "hours": HOURS}
+    data["origin"]["altitude"] = origin_alt
+    scenario = parse_scenario(data)
+    v = scenario.vehicle[0]
+    af = get_airframe(v.aircraft)
+    m = Mission(np.array([[0.0, 50_000.0, -17_500.0]]), 26.0, 500.0)
+    return scenario_planner(v, m, af, af.make_controller(v.gains).gains, scenario.wind, origin_alt), scenario
+
+
+def test_hourly_wind_tables_are_the_forecast_in_height_and_time():
+    """[[wind.hours]] reach the MPTP as a forecast that equals the scenario's wind at every
+    height and time (tables on different altitude rows, interpolated in time, held beyond the
+    first and last hour; the steady part included), not the first hour's table alone."""
+    p, scenario = _hourly_planner()
+    truth = WindField(scenario.wind)
+    for t in (0.0, 900.0, 1800.0, 3600.0, 7200.0):
+        for up in (-1_000.0, 2_000.0, 8_000.0, 11_500.0, 15_000.0, 17_500.0, 25_000.0):
+            assert np.allclose(p.wind.at(up, t), truth.at(up + 500.0, t)[:2], atol=1e-12), (t, up)
+    assert not np.allclose(p.wind.at(11_500.0, 3600.0), p.wind.at(11_500.0, 0.0))
+
+
+def test_a_replan_takes_the_forecast_at_its_own_time():
+    """Each replan takes the wind steady over its plan from the forecast at the replan's time:
+    an hour in, the jet of the second table, not the wind of the start."""
+    p, scenario = _hourly_planner()
+    truth = WindField(scenario.wind)
+    est = dataclasses.replace(
+        vehicle_state(0.0, np.zeros(2), math.pi / 2, 26.0), pos_ned=np.array([0.0, 0.0, -15_500.0])
+    )
+    level = 0.5 * (-float(est.pos_ned[2]) + 17_500.0) + 500.0  # MSL
+    for t in (0.0, 1800.0, 3600.0):
+        p.plan_ = None
+        p.plan(dataclasses.replace(est, t=t), Threats(storms=[]), t)
+        assert np.allclose(p.wind_ne, truth.at(level, t)[:2]), t
+    assert p.wind_ne[1] > 15.0  # the jet, an hour in (2.0-4.0 m/s east at the start)
+
+
 def _open_loop_world() -> tuple[Scenario, np.ndarray]:
     scenario, _ = load_scenario(SCENARIO)
     field = WeatherService(scenario.weather, scenario.seed).field

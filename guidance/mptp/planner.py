@@ -236,16 +236,18 @@ class MptpPlanner:
         near, dropped = cells_in_band(storms, band, cfg.vertical_margin_m)
         return near, (*((id(s), s.t) for s in storms), dropped), len(dropped[0]) if dropped else 0
 
-    def _wind_at(self, est: VehicleState, k: int) -> np.ndarray:
+    def _wind_at(self, est: VehicleState, k: int, t: float) -> np.ndarray:
+        """The forecast wind (north, east) [m/s] a plan from ``est`` to waypoint ``k`` at time
+        ``t`` [s] takes as steady: at the mean of the two heights, at ``t``."""
         if self.wind is None:
             return np.zeros(2)
-        return self.wind.at(-0.5 * (float(est.pos_ned[2]) + float(self.mission.waypoints[k, 2])))
+        return self.wind.at(-0.5 * (float(est.pos_ned[2]) + float(self.mission.waypoints[k, 2])), t)
 
     def _replan(self, est: VehicleState, storms: list[StormSnapshot], t: float, k: int) -> Plan:
         """Plans for every probability level, largest P first, and keeps the first feasible
         plan (one that reaches the goal); when none is, the largest P's fall-back (3.1.1). Every
         level plans at the current airspeed with the cells the vehicle can come near in height."""
-        self.wind_ne = self._wind_at(est, k)
+        self.wind_ne = self._wind_at(est, k, t)
         now = self.config_now(est)
         near, key, ignored = self._storms_near(est, storms, k, now)
         levels = self.cfg.probability_levels

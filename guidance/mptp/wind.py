@@ -15,7 +15,7 @@ one by one: p_ground = p_air + w (t - t_ref).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -24,26 +24,41 @@ from guidance.mptp.goal import GoalTrack
 
 @dataclass(frozen=True, slots=True)
 class WindForecast:
-    """Horizontal wind by height: ``up_m`` (K,) increasing [m] and ``ne_mps`` (K, 2) (north, east)
-    [m/s], linear in between and held beyond the ends; one row = a steady wind."""
+    """Horizontal wind by height and time: ``up_m`` (K,) increasing [m], ``ne_mps`` (K, 2) or
+    (H, K, 2) (north, east) [m/s] at the times ``t_s`` (H,) increasing [s] (one table: the
+    profile at every time); linear in height and time between the rows and tables, held beyond
+    the ends. One row and one table = a steady wind."""
 
     up_m: np.ndarray
     ne_mps: np.ndarray
+    t_s: np.ndarray = field(default_factory=lambda: np.zeros(1))
 
     def __post_init__(self) -> None:
-        up, ne = np.atleast_1d(np.asarray(self.up_m, float)), np.asarray(self.ne_mps, float).reshape(-1, 2)
-        if len(up) != len(ne) or not len(up) or not np.isfinite(ne).all() or np.any(np.diff(up) <= 0):
-            raise ValueError("wind forecast: expected K increasing heights [m] and K (north, east) winds [m/s]")
+        up, t = np.atleast_1d(np.asarray(self.up_m, float)), np.atleast_1d(np.asarray(self.t_s, float))
+        ne = np.asarray(self.ne_mps, float)
+        if (
+            ne.size != 2 * len(up) * len(t)
+            or not len(up)
+            or not np.isfinite(ne).all()
+            or np.any(np.diff(up) <= 0)
+            or np.any(np.diff(t) <= 0)
+        ):
+            raise ValueError(
+                "wind forecast: expected K increasing heights [m], H increasing times [s] and "
+                "H x K (north, east) winds [m/s]"
+            )
         object.__setattr__(self, "up_m", up)
-        object.__setattr__(self, "ne_mps", ne)
+        object.__setattr__(self, "ne_mps", ne.reshape(len(t), len(up), 2))
+        object.__setattr__(self, "t_s", t)
 
     @classmethod
     def steady(cls, north: float, east: float) -> WindForecast:
         return cls(np.zeros(1), np.array([[north, east]], float))
 
-    def at(self, up_m: float) -> np.ndarray:
-        """Wind (north, east) [m/s] at height ``up_m`` [m]."""
-        return np.array([np.interp(up_m, self.up_m, self.ne_mps[:, k]) for k in range(2)])
+    def at(self, up_m: float, t: float = 0.0) -> np.ndarray:
+        """Wind (north, east) [m/s] at height ``up_m`` [m] and time ``t`` [s]."""
+        by_table = [[np.interp(up_m, self.up_m, table[:, k]) for k in range(2)] for table in self.ne_mps]
+        return np.array([np.interp(t, self.t_s, [w[k] for w in by_table]) for k in range(2)])
 
 
 def to_air(p: np.ndarray, t: np.ndarray | float, wind: np.ndarray, t_ref: float) -> np.ndarray:
