@@ -55,6 +55,18 @@ def test_distance_is_exact_against_a_dense_lattice_of_every_cell():
     np.testing.assert_allclose(GRID.envelope_distance(pts), d.min(axis=1), atol=1e-9)  # the union's distance
 
 
+def test_near_pairs_are_exactly_the_cells_within_each_points_bound():
+    """``near`` finds the same (point, cell) pairs as the full distance matrix, also where the
+    bound equals the exact distance (its lower-bound pre-tests must not drop a pair at the edge)."""
+    rng = np.random.default_rng(5)
+    pts = np.vstack([rng.uniform(-70, 70, (400, 3)), from_polar(GRID.centers_polar[::7])])
+    d = GRID.distance(pts)
+    for bound in (rng.uniform(0.0, 8.0, len(pts)), d[np.arange(len(pts)), rng.integers(0, GRID.n_cells, len(pts))]):
+        rows, cells = GRID.near(pts, bound)
+        np.testing.assert_array_equal(np.stack([rows, cells], axis=1), np.argwhere(d <= bound[:, None]))
+    assert len(GRID.near(pts, np.full(len(pts), 1.0))[0]) > len(pts) // 4  # the cases hold pairs
+
+
 def test_body_rating_covers_the_swept_body_and_stays_within_one_sample_of_it():
     """An intruder crossing the grid (5 m body, 5 m/s): every cell that holds a point of the swept
     body (brute force: lattice points within the radius of the path) is hit, no cell farther from

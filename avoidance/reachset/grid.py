@@ -71,12 +71,35 @@ class AvoidanceGrid:
         elevation ψ, cos α = cos φ cos ψ cos Δθ + sin φ sin ψ grows with cos Δθ), and on that
         meridian cos α = R cos(ψ − ψ*) is largest at ψ* clipped to [φ0, φ1] when ψ* lies inside,
         else at an end. Then s = clip(ρ cos α, d0, d1) and |p − s·a|² = (ρ cos α − s)² + ρ² sin² α."""
+        return _polar_box_distance(p_lcf, *self._bounds()).reshape(-1, self.n_cells)
+
+    def _bounds(self) -> tuple[np.ndarray, ...]:
+        """Lower and upper θ of the columns (J,), φ of the rows (K,), d of the layers (I,)."""
         cfg = self.cfg
-        th_lo = self.starts[1] + self.steps[1] * np.arange(cfg.n_h)  # (J,)
-        ph_lo = self.starts[2] + self.steps[2] * np.arange(cfg.n_v)  # (K,)
-        d_lo = self.starts[0] + self.steps[0] * np.arange(cfg.n_layers)  # (I,)
-        bounds = (th_lo, th_lo + self.steps[1], ph_lo, ph_lo + self.steps[2], d_lo, d_lo + self.steps[0])
-        return _polar_box_distance(p_lcf, *bounds).reshape(-1, self.n_cells)
+        th_lo = self.starts[1] + self.steps[1] * np.arange(cfg.n_h)
+        ph_lo = self.starts[2] + self.steps[2] * np.arange(cfg.n_v)
+        d_lo = self.starts[0] + self.steps[0] * np.arange(cfg.n_layers)
+        return th_lo, th_lo + self.steps[1], ph_lo, ph_lo + self.steps[2], d_lo, d_lo + self.steps[0]
+
+    def near(self, p_lcf: np.ndarray, bound: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The (point, cell) pairs of LCF points (M, 3) and cells whose exact distance
+        (:meth:`distance`) is at most the point's ``bound`` (M,) [m]: (rows, flat cells), the
+        same pairs as ``distance(p) <= bound[:, None]``. The exact distance is evaluated only
+        where two lower bounds of it allow: the radial |ρ − clip(ρ, d0, d1)| per layer and the
+        angular ρ sin α (ρ beyond 90°) per column and row."""
+        th_lo, th_hi, ph_lo, ph_hi, d_lo, d_hi = self._bounds()
+        rho, th, ph = to_polar(np.asarray(p_lcf, float).reshape(-1, 3)).T
+        bound = np.asarray(bound, float)
+        slack = bound * (1.0 + 1e-12) + 1e-12  # the lower bounds never reject a pair the exact test keeps
+        cos_a = _nearest_cos(th, ph, th_lo, th_hi, ph_lo, ph_hi)  # (M, J, K)
+        r = rho[:, None]
+        radial = np.maximum(np.maximum(d_lo - r, r - d_hi), 0.0) <= slack[:, None]  # (M, I)
+        across = np.where(cos_a >= 0.0, r[:, :, None] ** 2 * (1.0 - cos_a * cos_a), r[:, :, None] ** 2)
+        angular = across <= (slack**2)[:, None, None]  # (M, J, K)
+        m, i, j, k = np.nonzero(radial[:, :, None, None] & angular[:, None, :, :])
+        d = _band_distance(rho[m], cos_a[m, j, k], d_lo[i], d_hi[i])
+        keep = d <= bound[m]
+        return m[keep], ((i[keep] * self.shape[1] + j[keep]) * self.shape[2] + k[keep])
 
     def envelope_distance(self, p_lcf: np.ndarray) -> np.ndarray:
         """Exact distance [m] of LCF points (M, 3) to the whole grid (the union of its cells) (M,);
@@ -154,6 +177,33 @@ class AvoidanceGrid:
         return values.reshape(self.shape)
 
 
+def _nearest_cos(
+    th: np.ndarray, ph: np.ndarray, th_lo: np.ndarray, th_hi: np.ndarray, ph_lo: np.ndarray, ph_hi: np.ndarray
+) -> np.ndarray:
+    """cos α of the least angle α between the directions (θ, φ) of points (M,) and the angular
+    rectangles [θ_lo, θ_hi] × [φ_lo, φ_hi] of the columns (J,) and rows (K,): (M, J, K)
+    (derivation: :meth:`AvoidanceGrid.distance`)."""
+    inside = (th[:, None] >= th_lo) & (th[:, None] <= th_hi)
+    cos_dth = np.where(inside, 1.0, np.maximum(np.cos(th[:, None] - th_lo), np.cos(th[:, None] - th_hi)))  # (M, J)
+    a = (np.cos(ph)[:, None] * cos_dth)[:, :, None]  # (M, J, 1)
+    b = np.sin(ph)[:, None, None]
+    psi = np.arctan2(b, a)
+    best = np.where(
+        (psi >= ph_lo) & (psi <= ph_hi),
+        np.hypot(a, b),
+        np.maximum(a * np.cos(ph_lo) + b * np.sin(ph_lo), a * np.cos(ph_hi) + b * np.sin(ph_hi)),
+    )
+    return np.clip(best, -1.0, 1.0)
+
+
+def _band_distance(r: np.ndarray, cos_a: np.ndarray, d_lo: np.ndarray, d_hi: np.ndarray) -> np.ndarray:
+    """Distance [m] of a point at range ``r`` to the segment [d_lo, d_hi] of a direction at
+    angle α to it (broadcast): |p − s·a|² = (r cos α − s)² + r² sin² α, s = clip(r cos α, d_lo, d_hi)."""
+    s = np.clip(r * cos_a, d_lo, d_hi)
+    d2 = (r * cos_a - s) ** 2 + r * r * (1.0 - cos_a * cos_a)  # along + across the direction
+    return np.sqrt(np.maximum(d2, 0.0))
+
+
 def _polar_box_distance(
     p_lcf: np.ndarray,
     th_lo: np.ndarray,
@@ -167,18 +217,5 @@ def _polar_box_distance(
     [φ_lo, φ_hi] of every combination of the bands (I,), columns (J,) and rows (K,): (M, I, J, K)
     (derivation: :meth:`AvoidanceGrid.distance`)."""
     rho, th, ph = to_polar(np.asarray(p_lcf, float).reshape(-1, 3)).T
-    inside = (th[:, None] >= th_lo) & (th[:, None] <= th_hi)
-    cos_dth = np.where(inside, 1.0, np.maximum(np.cos(th[:, None] - th_lo), np.cos(th[:, None] - th_hi)))  # (M, J)
-    a = (np.cos(ph)[:, None] * cos_dth)[:, :, None]  # (M, J, 1)
-    b = np.sin(ph)[:, None, None]
-    psi = np.arctan2(b, a)
-    best = np.where(
-        (psi >= ph_lo) & (psi <= ph_hi),
-        np.hypot(a, b),
-        np.maximum(a * np.cos(ph_lo) + b * np.sin(ph_lo), a * np.cos(ph_hi) + b * np.sin(ph_hi)),
-    )  # (M, J, K): cos α of the nearest direction
-    cos_a = np.clip(best, -1.0, 1.0)[:, None, :, :]  # (M, 1, J, K)
-    r = rho[:, None, None, None]
-    s = np.clip(r * cos_a, d_lo[:, None, None], d_hi[:, None, None])  # (M, I, J, K)
-    d2 = (r * cos_a - s) ** 2 + r * r * (1.0 - cos_a * cos_a)  # along + across the direction
-    return np.sqrt(np.maximum(d2, 0.0))
+    cos_a = _nearest_cos(th, ph, th_lo, th_hi, ph_lo, ph_hi)[:, None, :, :]  # (M, 1, J, K)
+    return _band_distance(rho[:, None, None, None], cos_a, d_lo[:, None, None], d_hi[:, None, None])

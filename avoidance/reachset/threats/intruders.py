@@ -181,8 +181,9 @@ class IntruderModel:
     def _body(self, motion: np.ndarray, speed: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Hit indicator and hit-time hull [i_e, i_l] per (intruder, cell) of the swept bodies:
         the centre samples of all intruders are stacked, those farther from the whole grid than
-        their bound dropped, and the distances of the rest to every cell evaluated in blocks of at
-        most :attr:`max_block` entries, reduced per intruder."""
+        their bound dropped, and the rest's (sample, cell) pairs within the bound found
+        (:meth:`AvoidanceGrid.near`) in blocks of at most :attr:`max_block` sample-cell entries,
+        reduced per intruder and cell."""
         n, n_cells = len(motion), self.grid.n_cells
         n_t = np.array([self._samples(s) for s in speed])
         owner = np.repeat(np.arange(n), n_t)
@@ -194,8 +195,6 @@ class IntruderModel:
         offsets, half_gap = self._vertical_offsets()  # the capsule: copies of every centre up and down
         centres = (centres[:, None, :] + offsets[None, :, None] * np.array([0.0, 0.0, 1.0])).reshape(-1, 3)
         owner, tau = np.repeat(owner, len(offsets)), np.repeat(tau, len(offsets))
-        order = np.argsort(owner, kind="stable")  # samples grouped per intruder (reduceat below)
-        owner, tau, centres = owner[order], tau[order], centres[order]
         bound = (
             (motion[owner, 6] if self.cfg.body else 0.0)
             + 0.5 * speed[owner] * self.horizon / (n_t[owner] - 1)
@@ -209,13 +208,11 @@ class IntruderModel:
         per_block = max(1, self.max_block // n_cells)
         for lo in range(0, len(owner), per_block):
             sl = slice(lo, lo + per_block)
-            near = self.grid.distance(centres[sl]) <= bound[sl, None]  # (k, n_cells)
-            own, t = owner[sl], tau[sl, None]
-            starts = np.flatnonzero(np.r_[True, own[1:] != own[:-1]])
-            rows = own[starts]
-            hit[rows] = np.maximum(hit[rows], np.logical_or.reduceat(near, starts, axis=0))
-            i_e[rows] = np.minimum(i_e[rows], np.minimum.reduceat(np.where(near, t, np.inf), starts, axis=0))
-            i_l[rows] = np.maximum(i_l[rows], np.maximum.reduceat(np.where(near, t, -np.inf), starts, axis=0))
+            rows, cells = self.grid.near(centres[sl], bound[sl])
+            key, t = owner[sl][rows] * n_cells + cells, tau[sl][rows]
+            hit.flat[key] = 1.0
+            np.minimum.at(i_e.reshape(-1), key, t)
+            np.maximum.at(i_l.reshape(-1), key, t)
         return hit, i_e, i_l
 
     def _cone(self, x_s: np.ndarray, v: np.ndarray, speed: float) -> np.ndarray:
