@@ -53,9 +53,13 @@ def _check_descent(s: dict, start_m: float) -> None:
     limit = np.minimum(g.sink_rate_max, _glide_sink(g, s["tas_mps"][10:] / s["eas_mps"][10:]))
     assert (sink[in_desc] <= 1.35 * limit[in_desc]).all()
     assert sink[in_desc].mean() > 0.8 * limit[in_desc].mean()
-    # never near the stall, bank within the limit (a lateral divergence banks beyond 40 deg)
+    # never near the stall: 1.2 x stall once on the schedule's EAS; before that, never slower
+    # than the start (the station's EAS 7.5 m/s is 1.11 x stall by design: the whole flight
+    # starts there and speeds up); bank within the limit (a lateral divergence banks beyond 40 deg)
     flying = t > 5.0
-    assert eas[flying].min() > 1.2 * STALL_EAS
+    on_schedule = int(np.argmax(eas >= g.descent_eas - 0.3))
+    assert eas[flying].min() > min(eas[0], 1.2 * STALL_EAS) - 0.05
+    assert eas[on_schedule:].min() > 1.2 * STALL_EAS
     assert np.degrees(s["alpha_rad"]).max() < ALPHA_CLMAX_DEG - 3.0
     assert np.degrees(np.abs(s["euler"][:, 0])).max() < g.roll_limit_rad * 180.0 / math.pi + 5.0
     # ends holding the commanded altitude at the cruise speed
