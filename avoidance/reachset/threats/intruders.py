@@ -5,7 +5,8 @@ its time-intersection rate against the UAS entry/leave window of the cell.
 
 Times are relative to the grid's origin time (the next decision time t_{i+1}) [s]; positions LCF
 [m]. Line and body are rated by exact point-to-cell distances of centre samples spaced in
-proportion to the cell size (vectorised over samples × cells × intruders, in bounded blocks); the
+proportion to the cell size (the pairs of samples and cells that lower bounds of the distance
+allow, vectorised over intruders, in bounded blocks); the
 cone is a weighted point cloud binned per cell. Intruders that cannot reach the grid within the
 horizon are skipped exactly.
 """
