@@ -161,11 +161,12 @@ def _reachset(options: RulesOptions, ctx: BuildContext) -> Planner:
 
 def _mptp(options: DataclassOptions, ctx: BuildContext) -> Planner:
     """The MPTP; its wind forecast is the scenario's wind profile in height and time (or its
-    steady wind) plus the option ``wind_error_ne_mps`` everywhere, or none (still air) with
-    ``wind_forecast = "none"``. Its fly-over turn models start each search the follower's turn
-    lead ahead (``start_lead_s``, lead_in.py); the simple model's fly-by corners carry no turn
-    rate to lead. Its simulated turns roll at the controller's bank slew rate when one is known
-    (``roll_rate_max``; the option overrides it)."""
+    steady wind) plus the option ``wind_error_ne_mps`` everywhere, or none with
+    ``wind_forecast = "none"`` (still air) or ``"estimate"`` (the planner's own measure). Its
+    fly-over turn models start each search the follower's turn lead ahead (``start_lead_s``,
+    lead_in.py); the simple model's fly-by corners carry no turn rate to lead. Its simulated
+    turns roll at the controller's bank slew rate when one is known (``roll_rate_max``; the
+    option overrides it)."""
     from guidance.mptp.planner import MptpPlanner
     from guidance.mptp.wind import WindForecast
 
@@ -174,7 +175,7 @@ def _mptp(options: DataclassOptions, ctx: BuildContext) -> Planner:
     if ctx.roll_rate_rad_s is not None:
         fixed["roll_rate_max"] = ctx.roll_rate_rad_s
     cfg = options.config(**fixed)
-    if cfg.wind_forecast == "none":
+    if cfg.wind_forecast != "scenario":  # still air, or the planner's own estimate
         return MptpPlanner(ctx.mission, cfg, wind=None)
     rows = np.array(ctx.wind_profile or [(0.0, 0.0, *ctx.wind_ne_mps)], float)
     times, ups = np.unique(rows[:, 0]), np.unique(rows[:, 1])

@@ -171,6 +171,35 @@ def test_a_replan_takes_the_forecast_at_its_own_time():
     assert p.wind_ne[1] > 15.0  # the jet, an hour in (2.0-4.0 m/s east at the start)
 
 
+def test_the_estimated_wind_is_the_ground_minus_the_air_velocity_over_a_period():
+    """``wind_forecast = "estimate"``: no forecast is built; each replan takes the mean, over the
+    last replan period, of what the estimate implies (ground velocity minus the TAS along the
+    heading, the climb taken out), so a wind that changes is followed within a period; the
+    forecast's error option does not touch it."""
+    m = Mission(np.array([[0.0, 50_000.0, -18_000.0]]), 26.0, 500.0)
+    options = {"wind_forecast": "estimate", "wind_error_ne_mps": [5.0, 5.0], "nav_std_max_m": math.inf}
+    p = make_planner("mptp", m, "fixed_wing", options, wind_ne_mps=(-7.0, 3.0))
+    assert p.wind is None
+    period = p.cfg.replan_period_s
+
+    def fly(t: float, wind: np.ndarray, heading: float) -> None:
+        air = 26.0 * np.array([math.cos(heading), math.sin(heading)])
+        est = dataclasses.replace(
+            vehicle_state(t, np.zeros(2), heading, 26.0),
+            pos_ned=np.array([0.0, 0.0, -18_000.0]),
+            vel_ned=np.array([*(air * math.sqrt(1 - 0.5**2 / 26.0**2) + wind), -0.5]),  # climbing 0.5 m/s
+            euler=np.array([0.0, 0.0, heading]),
+        )
+        p.plan(est, Threats(storms=[]), t)
+
+    for k, t in enumerate(np.arange(0.0, period, 10.0)):
+        fly(float(t), np.array([9.0, 12.0]), 0.3 * k)  # headings spread over the circle
+    assert np.allclose(p.wind_ne, [9.0, 12.0], atol=1e-9)
+    for k, t in enumerate(np.arange(period, 2 * period + 1.0, 10.0)):
+        fly(float(t), np.array([-4.0, 2.0]), 0.3 * k)
+    assert np.allclose(p.wind_ne, [-4.0, 2.0], atol=1e-9)  # a period later, only the new wind
+
+
 def _open_loop_world() -> tuple[Scenario, np.ndarray]:
     scenario, _ = load_scenario(SCENARIO)
     field = WeatherService(scenario.weather, scenario.seed).field
@@ -238,6 +267,15 @@ def test_closed_loop_in_wind_predicted_arrival_matches_the_flight(tmp_path, wind
     """JSBSim HAPS on its EKF in the scenario's steady 15 m/s wind, and in the standard profile:
     with the forecast the first complete plan's predicted arrival is within 3 % of the flown one."""
     assert _closed_loop_arrival_error(tmp_path, "scenario", wind) < 0.03
+
+
+@pytest.mark.slow
+@pytest.mark.closed_loop
+@pytest.mark.parametrize("wind", CLOSED_LOOP_WINDS.values(), ids=CLOSED_LOOP_WINDS.keys())
+def test_closed_loop_with_the_estimated_wind_predicts_the_arrival(tmp_path, wind):
+    """The same flights with no forecast, the planner measuring the wind from its EKF estimate:
+    the first complete plan's predicted arrival within 3 % of the flown one."""
+    assert _closed_loop_arrival_error(tmp_path, "estimate", wind) < 0.03
 
 
 @pytest.mark.slow

@@ -20,7 +20,7 @@ from sim.core.constants import STANDARD_GRAVITY
 NM = 1852.0  # m per nautical mile
 
 Heuristic = Literal["dijkstra", "edh", "ssph"]
-WindSource = Literal["scenario", "none"]
+WindSource = Literal["scenario", "none", "estimate"]
 SpeedSource = Literal["estimate", "config"]
 Turning = Literal["both", "right", "left"]
 TurnModelName = Literal["simple", "approximate", "simulated"]
@@ -92,7 +92,11 @@ class MptpConfig:
 
     Wind (read by the engine when it builds the planner, see wind.py): ``wind_forecast``
     "scenario" = the planner is given the scenario's steady wind plus ``wind_error_ne_mps``
-    (north, east) [m/s] as its forecast; "none" = still air (wind-blind planning).
+    (north, east) [m/s] as its forecast; "none" = still air (wind-blind planning); "estimate" =
+    the wind the navigation estimate implies, measured by the planner itself: the mean over the
+    last ``replan_period_s`` of the ground velocity minus the air velocity (the TAS along the
+    estimated heading, sideslip neglected), taken steady at every height (no forecast, no
+    ``wind_error_ne_mps``).
 
     Navigation (planner.py): the first plan waits, flying straight on, while the estimate's
     horizontal position sigma (the larger of its N and E 1-sigma) is above ``nav_std_max_m`` [m]
@@ -192,8 +196,8 @@ class MptpConfig:
             raise ValueError(f"turn_bank_fraction must be in (0, 1], got {self.turn_bank_fraction}")
         if not self.start_lead_s >= 0:
             raise ValueError(f"start_lead_s must be >= 0 [s], got {self.start_lead_s}")
-        if self.wind_forecast not in ("scenario", "none"):
-            raise ValueError(f"wind_forecast: expected 'scenario' or 'none', got {self.wind_forecast!r}")
+        if self.wind_forecast not in ("scenario", "none", "estimate"):
+            raise ValueError(f"wind_forecast: expected 'scenario', 'none' or 'estimate', got {self.wind_forecast!r}")
         err = np.asarray(self.wind_error_ne_mps, float) if _is_numeric(self.wind_error_ne_mps) else np.empty(0)
         if err.shape != (2,) or not np.isfinite(err).all():
             raise ValueError("wind_error_ne_mps: expected [north, east] [m/s]")

@@ -136,6 +136,7 @@ class MptpPlanner:
         self._timelines: dict[float, ObstacleTimeline] = {}  # of the last nowcast, per P
         self._issue: tuple = ()  # identity of the last nowcast seen
         self._tas: deque[tuple[float, float]] = deque()  # (t [s], TAS [m/s]) of the calls of the last period
+        self._air_wind: deque[tuple[float, float, float]] = deque()  # (t [s], north, east [m/s]), idem
         self._t_first: float | None = None  # time of the first replan [s]
         self._planned = False  # a plan other than a navigation wait was made
         self._nav_wait = False  # the plan in force waits for the navigation
@@ -159,6 +160,7 @@ class MptpPlanner:
         due = due or self._nav_wait
         self._issue = issue
         self._sample_tas(estimate, t)
+        self._sample_wind(estimate, t)
         if self.plan_ is None or due:
             self.plan_ = self._replan(estimate, threats.storms or [StormSnapshot(t, ())], t, k)
             self._t_plan, self._goal_index = t, k
@@ -217,6 +219,20 @@ class MptpPlanner:
         while self._tas[0][0] <= t - self.cfg.replan_period_s:
             self._tas.popleft()
 
+    def _sample_wind(self, est: VehicleState, t: float) -> None:
+        """With ``wind_forecast = "estimate"``: adds the wind the estimate implies at call time
+        ``t`` [s] (ground velocity minus the horizontal air velocity, the TAS along the estimated
+        heading with the vertical speed taken out) and drops the samples older than one
+        ``replan_period_s``; none below ``MIN_AIRSPEED``."""
+        if self.cfg.wind_forecast != "estimate" or est.tas_mps < MIN_AIRSPEED:
+            return
+        v = est.vel_ned
+        air = math.sqrt(max(float(est.tas_mps) ** 2 - float(v[2]) ** 2, 0.0))
+        yaw = float(est.euler[2])
+        self._air_wind.append((t, float(v[0]) - air * math.cos(yaw), float(v[1]) - air * math.sin(yaw)))
+        while self._air_wind[0][0] <= t - self.cfg.replan_period_s:
+            self._air_wind.popleft()
+
     def config_now(self, est: VehicleState) -> MptpConfig:
         """The configuration at the vehicle's current true airspeed [m/s] (``speed_source``
         "estimate": the mean of the estimate's over the calls of the last ``replan_period_s``,
@@ -237,8 +253,11 @@ class MptpPlanner:
         return near, (*((id(s), s.t) for s in storms), dropped), len(dropped[0]) if dropped else 0
 
     def _wind_at(self, est: VehicleState, k: int, t: float) -> np.ndarray:
-        """The forecast wind (north, east) [m/s] a plan from ``est`` to waypoint ``k`` at time
-        ``t`` [s] takes as steady: at the mean of the two heights, at ``t``."""
+        """The wind (north, east) [m/s] a plan from ``est`` to waypoint ``k`` at time ``t`` [s]
+        takes as steady: the forecast at the mean of the two heights, at ``t``; with
+        ``wind_forecast = "estimate"`` the mean of the sampled estimate winds."""
+        if self.cfg.wind_forecast == "estimate":
+            return np.mean([w[1:] for w in self._air_wind], axis=0) if self._air_wind else np.zeros(2)
         if self.wind is None:
             return np.zeros(2)
         return self.wind.at(-0.5 * (float(est.pos_ned[2]) + float(self.mission.waypoints[k, 2])), t)
