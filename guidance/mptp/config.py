@@ -91,12 +91,12 @@ class MptpConfig:
     mission waypoint.
 
     Wind (read by the engine when it builds the planner, see wind.py): ``wind_forecast``
-    "scenario" = the planner is given the scenario's steady wind plus ``wind_error_ne_mps``
-    (north, east) [m/s] as its forecast; "none" = still air (wind-blind planning); "estimate" =
-    the wind the navigation estimate implies, measured by the planner itself: the mean over the
-    last ``replan_period_s`` of the ground velocity minus the air velocity (the TAS along the
-    estimated heading, sideslip neglected), taken steady at every height (no forecast, no
-    ``wind_error_ne_mps``).
+    "scenario" = the planner is given the scenario's wind (steady, profile or hourly tables)
+    plus ``wind_error_ne_mps`` (north, east) [m/s] as its forecast; "none" = still air
+    (wind-blind planning); "estimate" = the wind the navigation estimate implies, measured by
+    the planner itself: the mean over the last ``replan_period_s`` of the ground velocity minus
+    the air velocity (the TAS along the estimated heading, sideslip neglected), taken steady at
+    every height (no forecast, no ``wind_error_ne_mps``).
 
     Navigation (planner.py): the first plan waits, flying straight on, while the estimate's
     horizontal position sigma (the larger of its N and E 1-sigma) is above ``nav_std_max_m`` [m]
