@@ -237,9 +237,10 @@ def test_in_a_true_wind_the_air_frame_plans_predict_the_flown_arrival():
 CLOSED_LOOP_WINDS = {"steady_15": None, "standard_profile": {"standard": "midlatitude_jet"}}
 
 
-def _closed_loop_arrival_error(tmp_path, forecast: str, wind: dict | None) -> float:
+def _closed_loop_arrival_error(tmp_path, forecast: str, wind: dict | None, seed: int | None = None) -> float:
     """The scenario flown by the JSBSim HAPS on its EKF with ``wind_forecast = forecast`` (and
-    ``wind`` as its ``[wind]`` table, None: the file's): it arrives, never inside a true cell;
+    ``wind`` as its ``[wind]`` table, None: the file's; ``seed``, None: the file's): it arrives,
+    never inside a true cell;
     returns the relative error of the first complete plan's predicted arrival against the flown
     one (from the MCAP)."""
     from sim.replay.report import log_metrics
@@ -250,6 +251,8 @@ def _closed_loop_arrival_error(tmp_path, forecast: str, wind: dict | None) -> fl
     data["vehicle"][0]["planner"]["options"]["wind_forecast"] = forecast
     if wind is not None:
         data["wind"] = wind
+    if seed is not None:
+        data["seed"] = seed
     path = tmp_path / f"{forecast}.mcap"
     run_scenario(parse_scenario(data, str(SCENARIO)), path, scenario_text=tomli_w.dumps(data))
     log = RunLog(path)
@@ -276,6 +279,15 @@ def test_closed_loop_with_the_estimated_wind_predicts_the_arrival(tmp_path, wind
     """The same flights with no forecast, the planner measuring the wind from its EKF estimate:
     the first complete plan's predicted arrival within 3 % of the flown one."""
     assert _closed_loop_arrival_error(tmp_path, "estimate", wind) < 0.03
+
+
+@pytest.mark.slow
+@pytest.mark.closed_loop
+@pytest.mark.parametrize("seed", range(1, 21), ids=lambda s: f"seed{s:02d}")
+def test_closed_loop_with_the_estimated_wind_on_20_seeds(tmp_path, seed):
+    """The steady 15 m/s flight with the estimated wind on 20 seeds (sensor noise and the EKF
+    it feeds): the prediction within 3 % on every seed."""
+    assert _closed_loop_arrival_error(tmp_path, "estimate", None, seed) < 0.03
 
 
 @pytest.mark.slow
