@@ -1,0 +1,58 @@
+"""The MPTP's arrival prediction in closed loop in wind, over seeds, for each wind source.
+
+Flies ``scenarios/mptp/wind_crossing.toml`` (JSBSim HAPS on its EKF, steady 15 m/s wind) once
+per seed and ``wind_forecast`` source with the helper of the slow closed-loop wind tests
+(``tests/test_mptp_wind.py::_closed_loop_arrival_error``: it asserts that the flight arrives and
+never enters a true cell) and prints the relative error of the first complete plan's predicted
+arrival against the flown one.
+
+    python scripts/mptp_wind_seeds.py --sources scenario,estimate,none --seeds 1-20 --workers 2
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+from multiprocessing import Pool
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def one(job: tuple[str, int]) -> tuple[str, int, float | str]:
+    sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+    import test_mptp_wind
+
+    source, seed = job
+    with tempfile.TemporaryDirectory() as d:
+        try:
+            return source, seed, test_mptp_wind._closed_loop_arrival_error(Path(d), source, None, seed)
+        except AssertionError as exc:
+            return source, seed, f"failed: {exc}"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sources", default="scenario,estimate,none", help="wind_forecast values, comma-separated")
+    ap.add_argument("--seeds", default="1-20", help="first-last")
+    ap.add_argument("--workers", type=int, default=2)
+    a = ap.parse_args()
+    lo, hi = (int(x) for x in a.seeds.split("-"))
+    jobs = [(s, seed) for seed in range(lo, hi + 1) for s in a.sources.split(",")]
+    errors: dict[str, list[float]] = {}
+    with Pool(a.workers) as pool:
+        for source, seed, err in pool.imap(one, jobs):
+            print(f"{source} seed {seed}: " + (err if isinstance(err, str) else f"{100 * err:.2f} %"), flush=True)
+            if not isinstance(err, str):
+                errors.setdefault(source, []).append(err)
+    for source, v in errors.items():
+        print(
+            f"{source}: {len(v)} flights, median {100 * statistics.median(v):.2f} %, "
+            f"max {100 * max(v):.2f} %, within 3 % on {sum(e < 0.03 for e in v)}"
+        )
+
+
+if __name__ == "__main__":
+    main()
