@@ -4,9 +4,9 @@ The worst replans of the thesis-sized scenarios are the searches that stop at th
 (120, docs/mptp.md "Replan speed"); a lower cap shortens them and changes the plans. For each
 cap, each thesis scenario is replanned open loop (``sim/testbeds/mptp_openloop.py``) in a steady
 true wind that the planner is also given as its forecast, with ``MptpConfig.max_expansions`` set
-to the cap; per run it reports the worst and mean process CPU time of ``MptpPlanner._replan``
-[s], the expansions of the worst replan, the arrival time [min] and the ground length flown
-[km] (NaN arrival: not arrived within the scenario's replans).
+to the cap; per run it reports the number of replans, the worst and mean process CPU time of
+``MptpPlanner._replan`` [s], the arrival time [min] and the ground length flown [km] (NaN
+arrival: not arrived within the scenario's replans).
 
     python scripts/mptp_expansion_cap.py --caps 120,90,60,45,30 [--wind 9,12]
 """

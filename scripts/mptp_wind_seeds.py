@@ -19,12 +19,12 @@ from multiprocessing import Pool
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+
+import test_mptp_wind  # noqa: E402
 
 
 def one(job: tuple[str, int]) -> tuple[str, int, float | str]:
-    sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
-    import test_mptp_wind
-
     source, seed = job
     with tempfile.TemporaryDirectory() as d:
         try:

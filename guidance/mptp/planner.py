@@ -216,8 +216,7 @@ class MptpPlanner:
             self._tas.clear()
             return
         self._tas.append((t, float(est.tas_mps)))
-        while self._tas[0][0] <= t - self.cfg.replan_period_s:
-            self._tas.popleft()
+        self._drop_old(self._tas, t)
 
     def _sample_wind(self, est: VehicleState, t: float) -> None:
         """With ``wind_forecast = "estimate"``: adds the wind the estimate implies at call time
@@ -230,8 +229,12 @@ class MptpPlanner:
         air = math.sqrt(max(float(est.tas_mps) ** 2 - float(v[2]) ** 2, 0.0))
         yaw = float(est.euler[2])
         self._air_wind.append((t, float(v[0]) - air * math.cos(yaw), float(v[1]) - air * math.sin(yaw)))
-        while self._air_wind[0][0] <= t - self.cfg.replan_period_s:
-            self._air_wind.popleft()
+        self._drop_old(self._air_wind, t)
+
+    def _drop_old(self, samples: deque, t: float) -> None:
+        """Drops the (t [s], ...) samples older than one ``replan_period_s`` before ``t``."""
+        while samples[0][0] <= t - self.cfg.replan_period_s:
+            samples.popleft()
 
     def config_now(self, est: VehicleState) -> MptpConfig:
         """The configuration at the vehicle's current true airspeed [m/s] (``speed_source``
