@@ -185,6 +185,17 @@ PLAN_INPUT = _obj(
     },
 )
 
+PLAN_OBSERVATION = _obj(
+    "cosim.PlanObservation",
+    {
+        "t": (_NUM, "sim time of the observation [s]"),
+        "estimate": (
+            {"type": "object"},
+            "the estimate an observing planner sampled between its calls (cosim.VehicleState, as in cosim.PlanInput)",
+        ),
+    },
+)
+
 _RECORDS = {"type": "array", "items": {"type": "object"}}
 SENSORS = _obj(
     "cosim.Sensors",

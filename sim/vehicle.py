@@ -20,7 +20,7 @@ from aircraft.registry import get_airframe
 from sim import log_schemas as S
 from sim import scenario as sc
 from sim.core.mission import Mission
-from sim.core.plan import Plan, Planner, Threats
+from sim.core.plan import ObservingPlanner, Plan, Planner, Threats
 from sim.core.setpoints import MultirotorSetpoint
 from sim.energy.altitude_schedule import AltitudeManager, AltitudeSchedule
 from sim.energy.params import EnergyParams
@@ -146,6 +146,8 @@ class Vehicle:
         if isinstance(self.estimator, SensorEstimator):
             sched.add_task(f"{n}.sense", self.estimator.sense_hz, Stage.SENSE, self._sense, plant=f"{n}.plant")
         sched.add_task(f"{n}.estimator", af.control_hz, Stage.ESTIMATE, self._estimate)
+        if isinstance(self.planner, ObservingPlanner):  # before the calls: a call's own time is not observed twice
+            sched.add_task(f"{n}.observe", self.planner.observe_hz, Stage.PLAN, self.observe_now)
         sched.add_task(f"{n}.planner", self.cfg.planner.rate_hz, Stage.PLAN, self.plan_now)
         sched.add_task(f"{n}.control", af.control_hz, Stage.CONTROL, self._control)
         if self.power is not None:
@@ -168,6 +170,16 @@ class Vehicle:
 
     def _estimate(self, t: float) -> None:
         self.estimate = self.estimator.update(t)
+
+    def observe_now(self, t: float) -> None:
+        """Hand an observing planner the estimate at ``t`` [s] and log it, once the planner has
+        been called (a planner built anew, after a mode change or a mission upload, starts
+        observing with its first call, so a re-run can feed the logged estimates to the planner
+        that was flying)."""
+        p = self.planner
+        if isinstance(p, ObservingPlanner) and p is self._planner_logged:
+            p.observe(self.estimate, t)
+            self.logw.plan_observation(t, self.estimate)
 
     def plan_now(self, t: float) -> None:
         """Call the planner now and hand its plan to the follower. Logged per call: the planner's

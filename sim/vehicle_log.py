@@ -52,6 +52,14 @@ WORLD_FRAME = "world"
 _HALF_SQRT2 = math.sqrt(0.5)
 
 
+def _seen(estimate: VehicleState) -> dict:
+    """The estimate a planner saw, with its position sigma when the estimator has one."""
+    seen = state_dict(estimate)
+    if estimate.pos_sigma_m is not None:
+        seen["pos_sigma_m"] = estimate.pos_sigma_m.tolist()
+    return seen
+
+
 def state_dict(s: VehicleState) -> dict:
     """A state as the ``cosim.VehicleState`` log message (plain floats and lists)."""
     return {
@@ -348,6 +356,7 @@ class VehicleLogWriter:
         self.t_state, self.t_loc = f"{p}/truth/state", f"{p}/truth/location"
         self.t_sp, self.t_cmd, self.t_mission = f"{p}/ctrl/setpoint", f"{p}/ctrl/commands", f"{p}/mission/status"
         self.t_plan, self.t_latency, self.t_input = f"{p}/plan", f"{p}/plan/latency", f"{p}/plan/input"
+        self.t_observation = f"{p}/plan/observation"
         self.t_est, self.t_threats = f"{p}/est/state", f"{p}/threats"
         self.t_sensors, self.t_sigma = f"{p}/sensors", f"{p}/est/sigma3"
         self.t_tracking = f"{p}/truth/tracking"
@@ -513,13 +522,10 @@ class VehicleLogWriter:
         mode change or mission upload, a repeated mission): the record then holds the mission it
         was built for (``mission_setup``) and, for a ground-station mode planner, what it was
         built from (``mode_setup``)."""
-        seen = state_dict(estimate)
-        if estimate.pos_sigma_m is not None:
-            seen["pos_sigma_m"] = estimate.pos_sigma_m.tolist()
         rec = {
             "t": t,
             "planner": planner,
-            "estimate": seen,
+            "estimate": _seen(estimate),
             "mission": mission_progress(mission),
             "new_plan": new_plan,
         }
@@ -532,6 +538,16 @@ class VehicleLogWriter:
             t,
             rec,
             S.PLAN_INPUT,
+            {"frame": "local-level NED from the scenario origin"},
+        )
+
+    def plan_observation(self, t: float, estimate: VehicleState) -> None:
+        """An estimate an observing planner sampled between its calls (sim.core.plan)."""
+        self.log.write_json(
+            self.t_observation,
+            t,
+            {"t": t, "estimate": _seen(estimate)},
+            S.PLAN_OBSERVATION,
             {"frame": "local-level NED from the scenario origin"},
         )
 

@@ -5,6 +5,7 @@ the gap; a replan two minutes later, with the aircraft where that plan has it, m
 of the many near-equal ways to wait. Without keeping each replan flies the new one."""
 
 import copy
+import dataclasses
 import math
 
 import numpy as np
@@ -175,3 +176,27 @@ def test_each_replan_plans_at_the_mean_airspeed_of_the_last_period():
     assert plans[0.0].diagnostics["tas_mps"] == 20.0
     assert plans[120.0].diagnostics["tas_mps"] == pytest.approx((11 * 20.0 + 28.0) / 12)
     assert plans[240.0].diagnostics["tas_mps"] == pytest.approx(26.0)
+
+
+def test_the_estimates_observed_between_calls_set_the_planning_speed():
+    """Calls every 10 s, the estimate observed at 1 Hz between them (the engine's
+    ObservingPlanner feed): the replan at 10 s plans at the mean of all 11 samples since 0 s, not of
+    the two calls' (a 23 m/s pitot sample at 0 s set the first plan of the closed-loop wind
+    flights ~2 m/s slow); a call at an observation's time counts it once."""
+    cfg = MptpConfig(replan_period_s=120.0, keep_within_m=0.0)
+    planner = MptpPlanner(Mission(np.array([[20_000.0, 0.0, 0.0]]), cfg.tas_mps, 100.0), cfg)
+    assert planner.observe_hz == 1.0
+
+    def est(t: float, tas: float):  # the EKF's first GNSS fix after 0 s: the first plan waits for it
+        return dataclasses.replace(
+            vehicle_state(t, np.array([26.0 * t, 0.0]), 0.0, tas), pos_sigma_m=np.full(3, 5.0 if t == 0 else 1.0)
+        )
+
+    assert planner.plan(est(0.0, 23.0), Threats(), 0.0).diagnostics["tas_mps"] == 23.0
+    for t in range(1, 11):
+        planner.observe(est(float(t), 26.0), float(t))
+    second = planner.plan(est(10.0, 26.0), Threats(), 10.0)
+    assert second.t == 10.0 and second.diagnostics["tas_mps"] == pytest.approx((23.0 + 10 * 26.0) / 11)
+    calls_only = MptpPlanner(Mission(np.array([[20_000.0, 0.0, 0.0]]), cfg.tas_mps, 100.0), cfg)
+    calls_only.plan(est(0.0, 23.0), Threats(), 0.0)
+    assert calls_only.plan(est(10.0, 26.0), Threats(), 10.0).diagnostics["tas_mps"] == pytest.approx(24.5)

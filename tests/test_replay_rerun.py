@@ -66,7 +66,7 @@ def test_avoidance_planner_rerun_reproduces_every_plan(tmp_path_factory, scenari
     assert log.has(f"/{vehicle}/plan/{records}")  # the planner's own logic ran (rules: rule decisions)
 
 
-def test_mptp_rerun_reproduces_every_plan_and_needs_the_storm_velocities(mptp_log, monkeypatch):
+def test_mptp_rerun_reproduces_every_plan_and_needs_the_storm_velocities_and_observations(mptp_log, monkeypatch):
     log = _assert_reproduced(mptp_log, "haps")
     assert len(log.topic("/haps/plan")) == 3  # the navigation wait at 0 s, then 10 and 300 s
     inputs = log.topic("/haps/plan/input").messages
@@ -80,6 +80,14 @@ def test_mptp_rerun_reproduces_every_plan_and_needs_the_storm_velocities(mptp_lo
     monkeypatch.setattr(rerun, "storms_from_dicts", lambda d: still([{**s, "velocities_ne": None} for s in d]))
     blind = rerun_planner(mptp_log, "haps")
     assert blind.same < blind.plans == 3
+
+    # the estimates the MPTP observed between its calls (1 Hz, from its first call on) act too:
+    # without them the 10 s plan flies the mean airspeed of two calls, not of 11 samples
+    assert m.topic("/haps/plan/observation").t.tolist() == [float(t) for t in range(1, 301)]
+    monkeypatch.undo()
+    monkeypatch.setattr(rerun._Observations, "deliver", lambda self, planner, t: None)
+    unobserved = rerun_planner(mptp_log, "haps")
+    assert unobserved.same < unobserved.plans == 3
 
 
 def test_follow_mission_counts_every_call_as_a_new_plan_and_no_cache_hit(tmp_path_factory):

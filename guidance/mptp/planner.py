@@ -40,8 +40,10 @@ the wind, the goal drifts at minus the wind, the course is that of the air veloc
 planned states map back to the ground at their times.
 
 Each replan plans at the vehicle's current true airspeed (the mean of the estimate's over the
-planner calls of the last ``replan_period_s``, so that one noisy pitot sample does not set a
-plan's schedule, samples taken while a plan commands airspeeds left out; the configured
+last ``replan_period_s``, sampled at every call and, between calls, at ``observe_hz`` (1 Hz,
+sim.core.plan.ObservingPlanner), so that a few noisy pitot samples do not set a plan's schedule
+(the first plan, one call after the first, would otherwise rest on two), samples taken while a
+plan commands airspeeds left out; the configured
 ``tas_mps`` while the estimate has none, while the plan in force commands airspeeds (a hold at
 V_cor: the estimate is then V_cor, not the cruise speed V the hold was planned from), or always
 with ``speed_source = "config"``), so the turn radius and leg lengths follow the speed as it
@@ -105,6 +107,7 @@ class MptpPlanner:
     margin parameters; ``wind``: the wind forecast the planner may know (None = still air)."""
 
     name = "mptp"
+    observe_hz = 1.0  # the estimate's airspeed (and, with wind_forecast "estimate", wind) sampled between calls [Hz]
 
     def __init__(
         self,
@@ -135,8 +138,9 @@ class MptpPlanner:
         self._nowcast_key: tuple | None = None
         self._timelines: dict[float, ObstacleTimeline] = {}  # of the last nowcast, per P
         self._issue: tuple = ()  # identity of the last nowcast seen
-        self._tas: deque[tuple[float, float]] = deque()  # (t [s], TAS [m/s]) of the calls of the last period
+        self._tas: deque[tuple[float, float]] = deque()  # (t [s], TAS [m/s]) sampled over the last period
         self._air_wind: deque[tuple[float, float, float]] = deque()  # (t [s], north, east [m/s]), idem
+        self._t_sampled: float | None = None  # time of the last samples [s]
         self._t_first: float | None = None  # time of the first replan [s]
         self._planned = False  # a plan other than a navigation wait was made
         self._nav_wait = False  # the plan in force waits for the navigation
@@ -159,8 +163,7 @@ class MptpPlanner:
         due = k != self._goal_index or issue != self._issue or t - self._t_plan >= self.cfg.replan_period_s - 1e-9
         due = due or self._nav_wait
         self._issue = issue
-        self._sample_tas(estimate, t)
-        self._sample_wind(estimate, t)
+        self.observe(estimate, t)
         if self.plan_ is None or due:
             self.plan_ = self._replan(estimate, threats.storms or [StormSnapshot(t, ())], t, k)
             self._t_plan, self._goal_index = t, k
@@ -208,8 +211,17 @@ class MptpPlanner:
             return self._timelines[cfg.probability], time.perf_counter() - wall
         return self._timelines[cfg.probability], 0.0
 
+    def observe(self, estimate: VehicleState, t: float) -> None:
+        """Samples the estimate's airspeed and wind at ``t`` [s] (each time once: a call at an
+        observation's time adds nothing)."""
+        if self._t_sampled == t:
+            return
+        self._t_sampled = t
+        self._sample_tas(estimate, t)
+        self._sample_wind(estimate, t)
+
     def _sample_tas(self, est: VehicleState, t: float) -> None:
-        """Adds the estimate's TAS at call time ``t`` [s] and drops the samples older than one
+        """Adds the estimate's TAS at ``t`` [s] and drops the samples older than one
         ``replan_period_s``; an estimate below ``MIN_AIRSPEED`` (none), or one taken while the
         plan in force commands airspeeds (a hold at V_cor), clears them."""
         if est.tas_mps < MIN_AIRSPEED or (self.plan_ is not None and self.plan_.airspeeds is not None):
@@ -219,7 +231,7 @@ class MptpPlanner:
         self._drop_old(self._tas, t)
 
     def _sample_wind(self, est: VehicleState, t: float) -> None:
-        """With ``wind_forecast = "estimate"``: adds the wind the estimate implies at call time
+        """With ``wind_forecast = "estimate"``: adds the wind the estimate implies at
         ``t`` [s] (ground velocity minus the horizontal air velocity, the TAS along the estimated
         heading with the vertical speed taken out) and drops the samples older than one
         ``replan_period_s``; none below ``MIN_AIRSPEED``."""
@@ -238,8 +250,8 @@ class MptpPlanner:
 
     def config_now(self, est: VehicleState) -> MptpConfig:
         """The configuration at the vehicle's current true airspeed [m/s] (``speed_source``
-        "estimate": the mean of the estimate's over the calls of the last ``replan_period_s``,
-        this one's alone when none was sampled; the configured one while the estimate's is below
+        "estimate": the mean of the estimate's sampled over the last ``replan_period_s``,
+        this one's alone when none was; the configured one while the estimate's is below
         ``MIN_AIRSPEED`` or the plan in force commands airspeeds)."""
         holds = self.plan_ is not None and self.plan_.airspeeds is not None
         if self.cfg.speed_source == "config" or est.tas_mps < MIN_AIRSPEED or holds:

@@ -3,14 +3,17 @@
 A planner is called at its own rate with the vehicle's *estimate* (never truth) and the threats
 as sensed, and returns a :class:`Plan`: a time-stamped reference trajectory in the scenario's
 local-level NED frame [m], times in sim seconds, plus a status and diagnostics. Planners may keep
-state between calls. Guidance follows the newest plan; the runner logs every plan.
+state between calls. Guidance follows the newest plan; the runner logs every plan. A planner
+that also needs the estimate between its calls (an :class:`ObservingPlanner`) gets it at its own
+``observe_hz``, once it has been called; the runner logs those estimates too, so a re-run feeds
+them again.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -79,3 +82,13 @@ class Planner(Protocol):
     name: str
 
     def plan(self, estimate: VehicleState, threats: Threats, t: float) -> Plan: ...
+
+
+@runtime_checkable
+class ObservingPlanner(Planner, Protocol):
+    """A planner that also samples the estimate between its calls, at ``observe_hz`` [Hz] (for
+    instance to average a noisy airspeed over more samples than its calls give)."""
+
+    observe_hz: float
+
+    def observe(self, estimate: VehicleState, t: float) -> None: ...

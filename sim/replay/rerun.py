@@ -9,7 +9,9 @@ state (replan timers, committed plans, nowcast caches) evolves as in the run; wh
 built its planner anew for a new mission (ground-station mode change, mission upload, repeated
 mission), so does the re-run, from the mission logged with that call; the calls of a
 ground-station mode planner (HOLD, GUIDED) are re-run by that planner, built again from what it
-was built from. Plans compare vertex by vertex (positions [m], due times [s], labels and
+was built from. An observing planner (sim.core.plan.ObservingPlanner) gets the estimates it
+observed between its calls (``/<v>/plan/observation``) at their times, before the calls at or
+after them. Plans compare vertex by vertex (positions [m], due times [s], labels and
 status), and a call that made a new plan in one run but kept the previous plan in the other is
 a difference. Under a UTM authority a rules planner joins it again and gets every directive
 (``/utm/directive``) and every message of its vehicle-to-vehicle link (``/utm/peer/*``) at the
@@ -18,6 +20,7 @@ time it received it in the run.
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -31,7 +34,7 @@ from avoidance.utm.mandate import Mandate
 from avoidance.utm.response import PeerMessage
 from avoidance.utm.weather_case import WeatherCase
 from sim.core.mission import Mission
-from sim.core.plan import Plan, Planner, Threats
+from sim.core.plan import ObservingPlanner, Plan, Planner, Threats
 from sim.core.threats import StormSnapshot
 from sim.environment import geofence, obstacle_prism
 from sim.mcap_read import LogReadError, read_attached_scenario, read_info
@@ -110,10 +113,12 @@ def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> 
     flying: Planner | None = planner  # the planner directives reach (None: a mode planner flies)
     mode: Planner | None = None  # the ground-station mode planner, rebuilt from its logged setup
     called = False  # the scenario's planner has been called: a logged mission_setup rebuilds it
+    observed = _Observations(log, vehicle)
     for rec_in, rec_th in zip(inputs.messages, threats.messages, strict=True):
         recorded = next(plans) if rec_in["new_plan"] else None
         t = float(rec_in["t"])
         inbox.deliver(flying, t)
+        observed.deliver(planner, t)
         if rec_in["planner"] != scenario_planner_name:  # a ground-station mode planner flew this call
             flying = None
             if "mission_setup" in rec_in:
@@ -140,7 +145,8 @@ def rerun_planner(path, vehicle: str, factory: PlannerFactory | None = None) -> 
 def _rerun_topics(path, vehicle: str) -> list[str]:
     """The topics a re-run reads (the planner's inputs, plans and directives), of those logged."""
     have = {ti.topic for ti in read_info(path).topics}
-    want = [f"/{vehicle}/{s}" for s in ("plan/input", "threats", "threats/lidar", "plan")] + ["/utm/directive"]
+    want = [f"/{vehicle}/{s}" for s in ("plan/input", "plan/observation", "threats", "threats/lidar", "plan")]
+    want += ["/utm/directive"]
     want += [f"/utm/peer/{k}" for k in PEER_KINDS]
     return [t for t in want if t in have]
 
@@ -165,6 +171,24 @@ def _peer_message(kind: str, m: dict) -> PeerMessage:
     case = CollisionCase.from_record(m["case"]) if "case" in m else None
     pos, vel = (np.asarray(m[k], float) if k in m else None for k in ("pos_enu", "vel_enu"))
     return PeerMessage(kind, m["from"], m["to"], m["t"], case, pos, vel)
+
+
+class _Observations:
+    """The estimates ``vehicle``'s planner observed between its calls, in time order. The run
+    logs only those its planner took, and a planner built anew observes from its first call on,
+    so every one up to a call went to the planner flying before that call."""
+
+    def __init__(self, log: RunLog, vehicle: str):
+        topic = f"/{vehicle}/plan/observation"
+        self.queue = deque(log.topic(topic).messages if log.has(topic) else [])
+
+    def deliver(self, planner: Planner, t: float) -> None:
+        """Hand ``planner`` the estimates observed by ``t`` [s] (dropped when it does not observe,
+        a re-run by another kind of planner)."""
+        while self.queue and float(self.queue[0]["t"]) <= t + 1e-9:
+            m = self.queue.popleft()
+            if isinstance(planner, ObservingPlanner):
+                planner.observe(state_from_dict(m["estimate"]), float(m["t"]))
 
 
 class _Directives:
