@@ -146,7 +146,7 @@ class Vehicle:
         if isinstance(self.estimator, SensorEstimator):
             sched.add_task(f"{n}.sense", self.estimator.sense_hz, Stage.SENSE, self._sense, plant=f"{n}.plant")
         sched.add_task(f"{n}.estimator", af.control_hz, Stage.ESTIMATE, self._estimate)
-        if isinstance(self.planner, ObservingPlanner):  # before the calls: a call's own time is not observed twice
+        if isinstance(self.planner, ObservingPlanner):  # at a call's time the observation comes first, as re-run
             sched.add_task(f"{n}.observe", self.planner.observe_hz, Stage.PLAN, self.observe_now)
         sched.add_task(f"{n}.planner", self.cfg.planner.rate_hz, Stage.PLAN, self.plan_now)
         sched.add_task(f"{n}.control", af.control_hz, Stage.CONTROL, self._control)
