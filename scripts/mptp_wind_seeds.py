@@ -7,6 +7,9 @@ never enters a true cell) and prints the relative errors of two complete plans' 
 arrivals against the flown one: the first plan's and the plan flown to the goal's.
 
     python scripts/mptp_wind_seeds.py --sources scenario,estimate,none --seeds 1-20 --workers 2
+
+``--wind standard_profile`` flies the standard altitude profile alone instead of the file's steady
+wind (the tests' ``CLOSED_LOOP_WINDS``).
 """
 
 from __future__ import annotations
@@ -24,11 +27,12 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 import test_mptp_wind  # noqa: E402
 
 
-def one(job: tuple[str, int]) -> tuple[str, int, tuple[float, float] | str]:
-    source, seed = job
+def one(job: tuple[str, int, str]) -> tuple[str, int, tuple[float, float] | str]:
+    source, seed, wind = job
     with tempfile.TemporaryDirectory() as d:
         try:
-            return source, seed, test_mptp_wind._closed_loop_arrival_errors(Path(d), source, None, seed)
+            table = test_mptp_wind.CLOSED_LOOP_WINDS[wind]
+            return source, seed, test_mptp_wind._closed_loop_arrival_errors(Path(d), source, table, seed)
         except AssertionError as exc:
             return source, seed, f"failed: {exc}"
 
@@ -38,9 +42,10 @@ def main() -> None:
     ap.add_argument("--sources", default="scenario,estimate,none", help="wind_forecast values, comma-separated")
     ap.add_argument("--seeds", default="1-20", help="first-last")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--wind", default="steady_15", choices=sorted(test_mptp_wind.CLOSED_LOOP_WINDS))
     a = ap.parse_args()
     lo, hi = (int(x) for x in a.seeds.split("-"))
-    jobs = [(s, seed) for seed in range(lo, hi + 1) for s in a.sources.split(",")]
+    jobs = [(s, seed, a.wind) for seed in range(lo, hi + 1) for s in a.sources.split(",")]
     errors: dict[str, list[tuple[float, float]]] = {}
     with Pool(a.workers) as pool:
         for source, seed, err in pool.imap(one, jobs):

@@ -312,13 +312,15 @@ def test_closed_loop_without_the_forecast_misses_the_arrival(tmp_path, wind):
 @pytest.mark.closed_loop
 @pytest.mark.parametrize("seed", range(1, 21))
 @pytest.mark.parametrize("forecast", ["scenario", "estimate", "none"])
-def test_the_flown_plans_arrival_holds_across_seeds_and_only_with_the_wind(tmp_path, forecast, seed):
-    """The steady 15 m/s flight on 20 seeds (sensor noise, so the estimates and the closed loop's
-    start differ): with the forecast and with the estimated wind the plan flown to the goal
-    predicts the arrival within 3 %; wind-blind both plans miss by more. (The first plan, made
-    10 s after the in-flight start, during the controller's start transient, is within 3 % on
-    19 of 20 seeds with the forecast: docs/mptp.md, scripts/mptp_wind_seeds.py.)"""
-    first, flown = _closed_loop_arrival_errors(tmp_path, forecast, None, seed)
+@pytest.mark.parametrize("wind", CLOSED_LOOP_WINDS.values(), ids=CLOSED_LOOP_WINDS.keys())
+def test_the_flown_plans_arrival_holds_across_seeds_and_only_with_the_wind(tmp_path, wind, forecast, seed):
+    """The steady 15 m/s flight and the standard profile's on 20 seeds (sensor noise, so the
+    estimates and the closed loop's start differ): with the forecast and with the estimated wind
+    the plan flown to the goal predicts the arrival within 3 %; wind-blind both plans miss by
+    more. (The first plan, made 10 s after the in-flight start, during the controller's start
+    transient, is within 3 % on 19 of 20 steady-wind seeds with the forecast: docs/mptp.md,
+    scripts/mptp_wind_seeds.py.)"""
+    first, flown = _closed_loop_arrival_errors(tmp_path, forecast, wind, seed)
     if forecast == "none":
         assert min(first, flown) > 0.03
     else:
