@@ -260,15 +260,15 @@ def _closed_loop_arrival_errors(
     if seed is not None:
         data["seed"] = seed
     path = tmp_path / f"{forecast}.mcap"
-    run_scenario(parse_scenario(data, str(SCENARIO)), path, scenario_text=tomli_w.dumps(data))
+    scenario = parse_scenario(data, str(SCENARIO))
+    run_scenario(scenario, path, scenario_text=tomli_w.dumps(data))
     log = RunLog(path)
     haps = log_metrics(log)["vehicles"]["haps"]
     arrived = haps["mission"]["time_s"]
     assert arrived is not None and haps["storms"]["time_inside_s"] == 0.0
     plans = [m for m in log.topic("/haps/plan").messages if m["status"] == "ok" and "eta_s" in m["diagnostics"]]
     assert plans[-1]["t"] < arrived
-
-    radius = float(data["vehicle"][0]["mission"]["acceptance_radius"].split()[0])
+    radius = scenario.vehicle[0].mission.acceptance_radius  # [m]
 
     def error(m: dict) -> float:
         a, b = np.asarray(m["positions"], float)[-2:, :2]
